@@ -1,0 +1,250 @@
+"""The paper's wheel-odometry model (eqs. 1–5): pure numpy, no I/O.
+
+Conventions (SI throughout):
+
+* state ``x = [px, py, psi]``: position of the centre of gravity [m] in a local metric
+  frame and heading [rad], unwrapped;
+* inputs ``u = [n_rl, n_rr, beta, ay]``: rear-left / rear-right wheel rotation during the
+  sample interval [rev], sideslip angle [rad], lateral acceleration [m/s²];
+* parameters ``theta = [c_e, c_d, t_r, d]``: effective wheel circumference [m],
+  left/right circumference difference [m], rear track [m], dynamic wheel term
+  [m per m/s², i.e. s²].
+
+Every function is vectorized over leading axes. Trajectory functions take inputs of shape
+``(..., K, 4)`` — ``...`` typically indexes segments, padded with zero rotations to a common
+``K`` (a zero rotation leaves the pose unchanged) — and ``theta`` of shape ``(4,)`` or
+``(..., 4)``. The integration of eq. (1) is written as prefix sums (the heading is a sum of
+yaw increments, the position a sum of rotated distance increments), so it has no Python loop.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+STATE_NAMES = ("px", "py", "psi")
+INPUT_NAMES = ("n_rl", "n_rr", "beta", "ay")
+PARAMETER_NAMES = ("c_e", "c_d", "t_r", "d")
+
+N_RL, N_RR, BETA, AY = range(4)
+C_E, C_D, T_R, D = range(4)
+
+#: Datasheet values the paper starts from (§3.3, §4.4): c_e = 2 m, c_d = 0, t_r = 1.55 m, d = 0.
+THETA_NOMINAL = np.array([2.0, 0.0, 1.55, 0.0])
+
+
+def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
+    """Wrap angles [rad] to [-pi, pi)."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _theta_parts(theta: np.ndarray, per_step: bool) -> tuple[np.ndarray, ...]:
+    """Split theta into its four components, shaped to broadcast against inputs.
+
+    With ``per_step`` the components get a trailing axis so that a ``(..., 4)`` theta
+    broadcasts against ``(..., K)`` step arrays.
+    """
+    theta = np.asarray(theta, dtype=float)
+    if theta.shape[-1] != 4:
+        raise ValueError(
+            f"theta must have 4 components [c_e, c_d, t_r, d], got shape {theta.shape}"
+        )
+    parts = tuple(theta[..., i] for i in range(4))
+    if per_step:
+        parts = tuple(np.asarray(p)[..., None] for p in parts)
+    return parts
+
+
+def wheel_circumferences(
+    theta: np.ndarray, lateral_acceleration: np.ndarray, per_step: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Actual rear-left and rear-right circumferences [m] (eqs. 3a, 3b)."""
+    c_e, c_d, _, d = _theta_parts(theta, per_step)
+    load = d * lateral_acceleration
+    return c_e + 0.5 * c_d + load, c_e - 0.5 * c_d - load
+
+
+def step_increments(
+    inputs: np.ndarray, theta: np.ndarray, per_step: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Travelled distance ``v`` [m] and yaw increment ``omega`` [rad] of each step (eqs. 2a, 2b).
+
+    ``v`` and ``omega`` are per sample interval (the paper's ``v_t``, ``omega_t`` already include
+    the sampling time, because the rotations are per interval).
+    """
+    inputs = np.asarray(inputs, dtype=float)
+    n_rl, n_rr, ay = inputs[..., N_RL], inputs[..., N_RR], inputs[..., AY]
+    c_rl, c_rr = wheel_circumferences(theta, ay, per_step)
+    t_r = _theta_parts(theta, per_step)[T_R]
+    left, right = n_rl * c_rl, n_rr * c_rr
+    return 0.5 * (left + right), (right - left) / t_r
+
+
+def step(state: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """One step of eq. (1): the state after applying ``inputs`` to ``state``.
+
+    ``state`` is ``(..., 3)``, ``inputs`` ``(..., 4)``, ``theta`` ``(4,)`` or ``(..., 4)``.
+    """
+    state = np.asarray(state, dtype=float)
+    v, omega = step_increments(inputs, theta)
+    course = state[..., 2] + 0.5 * omega + np.asarray(inputs)[..., BETA]
+    return np.stack(
+        [
+            state[..., 0] + v * np.cos(course),
+            state[..., 1] + v * np.sin(course),
+            state[..., 2] + omega,
+        ],
+        axis=-1,
+    )
+
+
+def _increment_jacobians(
+    inputs: np.ndarray, theta: np.ndarray, per_step: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Derivatives of (v, omega) of eq. (2) with respect to the wheel rotations and theta.
+
+    Returns ``v, omega, dv_dn (..., 2), domega_dn (..., 2), dv_dtheta (..., 4),
+    domega_dtheta (..., 4)``.
+    """
+    inputs = np.asarray(inputs, dtype=float)
+    n_rl, n_rr, ay = inputs[..., N_RL], inputs[..., N_RR], inputs[..., AY]
+    c_rl, c_rr = wheel_circumferences(theta, ay, per_step)
+    t_r = _theta_parts(theta, per_step)[T_R]
+    v = 0.5 * (n_rl * c_rl + n_rr * c_rr)
+    omega = (n_rr * c_rr - n_rl * c_rl) / t_r
+    n_sum, n_diff = n_rl + n_rr, n_rl - n_rr
+    dv_dn = np.stack(np.broadcast_arrays(0.5 * c_rl, 0.5 * c_rr), axis=-1)
+    domega_dn = np.stack(np.broadcast_arrays(-c_rl / t_r, c_rr / t_r), axis=-1)
+    zero = np.zeros_like(v)
+    dv_dtheta = np.stack(
+        np.broadcast_arrays(0.5 * n_sum, 0.25 * n_diff, zero, 0.5 * ay * n_diff), axis=-1
+    )
+    domega_dtheta = np.stack(
+        np.broadcast_arrays(-n_diff / t_r, -0.5 * n_sum / t_r, -omega / t_r, -ay * n_sum / t_r),
+        axis=-1,
+    )
+    return v, omega, dv_dn, domega_dn, dv_dtheta, domega_dtheta
+
+
+@dataclass(frozen=True)
+class StepJacobians:
+    """Analytic Jacobians of one step of eq. (1).
+
+    Attributes:
+        state: d x_next / d x, shape ``(..., 3, 3)``.
+        wheel_rotations: d x_next / d [n_rl, n_rr], shape ``(..., 3, 2)`` [state unit per rev].
+        theta: d x_next / d theta, shape ``(..., 3, 4)``.
+    """
+
+    state: np.ndarray
+    wheel_rotations: np.ndarray
+    theta: np.ndarray
+
+
+def step_jacobians(state: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> StepJacobians:
+    """Analytic Jacobians of :func:`step` with respect to state, wheel rotations and theta."""
+    state = np.asarray(state, dtype=float)
+    v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, False)
+    course = state[..., 2] + 0.5 * omega + np.asarray(inputs)[..., BETA]
+    cos_c, sin_c = np.cos(course), np.sin(course)
+    shape = np.broadcast_shapes(state.shape[:-1], v.shape)
+
+    d_state = np.zeros((*shape, 3, 3))
+    d_state[..., 0, 0] = 1.0
+    d_state[..., 1, 1] = 1.0
+    d_state[..., 2, 2] = 1.0
+    d_state[..., 0, 2] = -v * sin_c
+    d_state[..., 1, 2] = v * cos_c
+
+    def rows(dv: np.ndarray, domega: np.ndarray) -> np.ndarray:
+        c, s, vv = cos_c[..., None], sin_c[..., None], v[..., None]
+        return np.stack(
+            [dv * c - vv * s * 0.5 * domega, dv * s + vv * c * 0.5 * domega, domega], axis=-2
+        )
+
+    return StepJacobians(
+        state=d_state,
+        wheel_rotations=np.broadcast_to(rows(dv_dn, domega_dn), (*shape, 3, 2)),
+        theta=np.broadcast_to(rows(dv_dth, domega_dth), (*shape, 3, 4)),
+    )
+
+
+def _prefix_sum(x: np.ndarray, axis: int) -> np.ndarray:
+    """Cumulative sum with a leading zero along ``axis`` (length grows by one)."""
+    x = np.moveaxis(x, axis, -1)
+    out = np.zeros((*x.shape[:-1], x.shape[-1] + 1))
+    np.cumsum(x, axis=-1, out=out[..., 1:])
+    return np.moveaxis(out, -1, axis)
+
+
+def integrate(start: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Integrate eq. (1) from ``start`` over all steps: states of shape ``(..., K+1, 3)``.
+
+    ``start`` is ``(..., 3)``, ``inputs`` ``(..., K, 4)``; state ``k`` results from the inputs of
+    steps ``0 .. k-1``; state 0 is ``start``.
+    """
+    return integrate_with_jacobians(start, inputs, theta, jacobians=False)[0]
+
+
+def integrate_with_jacobians(
+    start: np.ndarray, inputs: np.ndarray, theta: np.ndarray, jacobians: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """Integrate eq. (1) and differentiate every state with respect to the start and theta.
+
+    Returns ``states (..., K+1, 3)``, ``d states / d start (..., K+1, 3, 3)`` and
+    ``d states / d theta (..., K+1, 3, 4)`` (the recursive Jacobians ``j_k`` of eq. 7, computed
+    in closed form as prefix sums). With ``jacobians=False`` the two Jacobians are ``None``.
+    """
+    start = np.asarray(start, dtype=float)
+    inputs = np.asarray(inputs, dtype=float)
+    if inputs.shape[-1] != 4:
+        raise ValueError(f"inputs must be (..., K, 4) [n_rl, n_rr, beta, ay], got {inputs.shape}")
+    if jacobians:
+        v, omega, _, _, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
+    else:
+        v, omega = step_increments(inputs, theta, True)
+    psi = start[..., 2:3] + _prefix_sum(omega, -1)  # (..., K+1)
+    course = psi[..., :-1] + 0.5 * omega + inputs[..., BETA]
+    cos_c, sin_c = np.cos(course), np.sin(course)
+    dx, dy = v * cos_c, v * sin_c
+    px = start[..., 0:1] + _prefix_sum(dx, -1)
+    py = start[..., 1:2] + _prefix_sum(dy, -1)
+    states = np.stack(np.broadcast_arrays(px, py, psi), axis=-1)
+    if not jacobians:
+        return states, None, None
+
+    # d / d start: positions rotate rigidly about the start position when psi_0 changes.
+    d_start = np.zeros((*states.shape, 3))
+    d_start[..., 0, 0] = 1.0
+    d_start[..., 1, 1] = 1.0
+    d_start[..., 2, 2] = 1.0
+    d_start[..., 0, 2] = -(py - start[..., 1:2])
+    d_start[..., 1, 2] = px - start[..., 0:1]
+
+    # d / d theta: psi_k = psi_0 + sum omega_j, p_k = p_0 + sum v_j [cos, sin](course_j).
+    dpsi = _prefix_sum(domega_dth, -2)  # (..., K+1, 4)
+    dcourse = dpsi[..., :-1, :] + 0.5 * domega_dth
+    c, s, vv = cos_c[..., None], sin_c[..., None], v[..., None]
+    dpx = _prefix_sum(dv_dth * c - vv * s * dcourse, -2)
+    dpy = _prefix_sum(dv_dth * s + vv * c * dcourse, -2)
+    d_theta = np.stack(np.broadcast_arrays(dpx, dpy, dpsi), axis=-2)
+    return states, d_start, d_theta
+
+
+def wheel_rotations_for_motion(
+    distance: np.ndarray,
+    yaw_increment: np.ndarray,
+    lateral_acceleration: np.ndarray,
+    theta: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Invert eqs. (2)–(3): the wheel rotations [rev] that produce a given step motion.
+
+    ``distance`` [m] and ``yaw_increment`` [rad] are per step. Used to make model-consistent
+    synthetic drives.
+    """
+    c_rl, c_rr = wheel_circumferences(theta, lateral_acceleration)
+    t_r = _theta_parts(theta, False)[T_R]
+    n_rl = (2.0 * distance - yaw_increment * t_r) / (2.0 * c_rl)
+    n_rr = (2.0 * distance + yaw_increment * t_r) / (2.0 * c_rr)
+    return n_rl, n_rr
