@@ -1,0 +1,302 @@
+"""The drive-log format: CSV, one row per sample, columns ``t, px, py, psi, n_rl, n_rr, beta, ay``.
+
+* ``t`` time [s], uniformly sampled;
+* ``px, py`` measured position in a local metric frame [m];
+* ``psi`` measured heading [rad] (unwrapped on load);
+* ``n_rl, n_rr`` measured rear-left / rear-right wheel rotation during the sample interval [rev];
+* ``beta`` sideslip angle [rad]; ``ay`` lateral acceleration [m/s²].
+
+Row ``k``'s inputs drive the step from row ``k`` to row ``k+1`` (eq. 1), so the last row's
+inputs are unused. Extra columns are ignored. :func:`load_drive_log` validates the file and
+raises :class:`DriveLogError` with one line naming the file, the column and the first bad line.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from graphcal.errors import GraphcalError
+from graphcal.files import atomic_write_csv
+from graphcal.model import THETA_NOMINAL
+
+COLUMNS = ("t", "px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
+
+#: Relative tolerance on the sampling interval before a log counts as non-uniform.
+TIME_TOLERANCE = 0.01
+#: Most negative wheel rotation [rev] accepted as encoder noise at standstill.
+NEGATIVE_ROTATION_TOLERANCE = 0.005
+#: Highest plausible speed [m/s] implied by one wheel's rotation with the nominal circumference.
+MAX_PLAUSIBLE_SPEED = 100.0
+
+
+class DriveLogError(GraphcalError, ValueError):
+    """A drive log that cannot be used; the message is one line: what, where, how to fix."""
+
+
+@dataclass(frozen=True)
+class DriveLog:
+    """A validated drive log: equally long float arrays, SI units, heading unwrapped.
+
+    Use :func:`load_drive_log` to read one from CSV, :meth:`to_dataframe` for a pandas view.
+    """
+
+    t: np.ndarray
+    px: np.ndarray
+    py: np.ndarray
+    psi: np.ndarray
+    n_rl: np.ndarray
+    n_rr: np.ndarray
+    beta: np.ndarray
+    ay: np.ndarray
+    source: str = field(default="<memory>", compare=False)
+
+    def __post_init__(self) -> None:
+        lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
+        if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:
+            raise ValueError(f"DriveLog columns must be equally long 1-D arrays, got {lengths}")
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    @property
+    def dt(self) -> float:
+        """Sampling interval [s] (median of the time differences)."""
+        return float(np.median(np.diff(self.t)))
+
+    @property
+    def poses(self) -> np.ndarray:
+        """Measured states ``[px, py, psi]``, shape ``(N, 3)``."""
+        return np.column_stack([self.px, self.py, self.psi])
+
+    @property
+    def inputs(self) -> np.ndarray:
+        """Model inputs ``[n_rl, n_rr, beta, ay]``, shape ``(N, 4)``; row k drives step k → k+1."""
+        return np.column_stack([self.n_rl, self.n_rr, self.beta, self.ay])
+
+    def travelled_distance(self, wheel_circumference: float = THETA_NOMINAL[0]) -> np.ndarray:
+        """Distance [m] travelled up to each sample, from the mean wheel rotation, ``(N,)``."""
+        per_step = 0.5 * (self.n_rl[:-1] + self.n_rr[:-1]) * wheel_circumference
+        return np.concatenate([[0.0], np.cumsum(per_step)])
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """The log as a DataFrame with the format's columns."""
+        return pd.DataFrame({name: getattr(self, name) for name in COLUMNS})
+
+    @classmethod
+    def from_arrays(cls, source: str = "<memory>", **columns: np.ndarray) -> DriveLog:
+        """Build a log from arrays named like the columns (copies to float arrays)."""
+        missing = [c for c in COLUMNS if c not in columns]
+        if missing:
+            raise ValueError(f"missing columns {missing}")
+        return cls(**{c: np.array(columns[c], dtype=float) for c in COLUMNS}, source=source)
+
+
+def _line(row: int) -> int:
+    """File line of a data row (header is line 1)."""
+    return int(row) + 2
+
+
+def _fail(path: str, column: str | None, row: int | None, what: str, fix: str) -> DriveLogError:
+    where = path
+    if column is not None:
+        where += f": column '{column}'"
+    if row is not None:
+        where += f", line {_line(row)}"
+    return DriveLogError(f"{where}: {what}; {fix}")
+
+
+def _first(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) -> DriveLog:
+    """Validate a raw table in the drive-log format and return the :class:`DriveLog`.
+
+    Checks, in order: missing columns, non-numeric values, NaN/inf, time non-increasing or
+    non-uniform, heading apparently in degrees, negative or implausible wheel rotations and,
+    when ``min_distance`` [m] is given, a log too short for one segment.
+    """
+    missing = [c for c in COLUMNS if c not in frame.columns]
+    if missing:
+        raise _fail(
+            source,
+            None,
+            None,
+            f"missing column(s) {', '.join(repr(c) for c in missing)}",
+            f"the header must contain {', '.join(COLUMNS)}",
+        )
+    if len(frame) < 2:
+        raise _fail(
+            source, None, None, f"only {len(frame)} data row(s)", "a log needs many samples"
+        )
+
+    arrays: dict[str, np.ndarray] = {}
+    for column in COLUMNS:
+        raw = frame[column]
+        if pd.api.types.is_numeric_dtype(raw.dtype):
+            numeric = raw.to_numpy(dtype=float)
+        else:
+            numeric = pd.to_numeric(raw, errors="coerce").to_numpy(dtype=float)
+            text = raw.astype(str).str.strip().str.lower()
+            blank = raw.isna().to_numpy() | text.isin(["", "nan", "na", "null"]).to_numpy()
+            bad_text = np.isnan(numeric) & ~blank
+            if bad_text.any():
+                row = _first(bad_text)
+                raise _fail(
+                    source,
+                    column,
+                    row,
+                    f"non-numeric value {str(raw.iloc[row])!r}",
+                    "every value must be a number",
+                )
+        not_finite = ~np.isfinite(numeric)
+        if not_finite.any():
+            row = _first(not_finite)
+            raise _fail(
+                source,
+                column,
+                row,
+                f"value is {numeric[row]!r} (missing or not finite)",
+                "fill the gap or cut the log there",
+            )
+        arrays[column] = numeric
+
+    t = arrays["t"]
+    dt = np.diff(t)
+    if (dt <= 0).any():
+        row = _first(dt <= 0) + 1
+        raise _fail(
+            source,
+            "t",
+            row,
+            f"time does not increase ({t[row - 1]!r} then {t[row]!r})",
+            "sort the rows by time and remove duplicates",
+        )
+    dt_nominal = float(np.median(dt))
+    uneven = np.abs(dt - dt_nominal) > TIME_TOLERANCE * dt_nominal
+    if uneven.any():
+        row = _first(uneven) + 1
+        raise _fail(
+            source,
+            "t",
+            row,
+            f"non-uniform sampling: step {dt[row - 1]:.6g} s where the log's interval is "
+            f"{dt_nominal:.6g} s",
+            "resample the log to a uniform rate (gaps must be cut into separate logs)",
+        )
+
+    psi = arrays["psi"]
+    jumps = np.abs(np.diff(psi))
+    degree_wrap = (jumps > 4.0 * np.pi) & (jumps < 3.0 * 360.0)
+    if degree_wrap.any():
+        row = _first(degree_wrap) + 1
+        raise _fail(
+            source,
+            "psi",
+            row,
+            f"heading jumps by {jumps[row - 1]:.4g}, apparently degrees wrapping at 360",
+            "convert the heading to radians (multiply by pi/180)",
+        )
+
+    for column in ("n_rl", "n_rr"):
+        n = arrays[column]
+        negative = n < -NEGATIVE_ROTATION_TOLERANCE
+        if negative.any():
+            row = _first(negative)
+            raise _fail(
+                source,
+                column,
+                row,
+                f"negative wheel rotation {n[row]:.6g} rev",
+                "the model covers forward driving only: cut reversing manoeuvres from the log",
+            )
+        limit = MAX_PLAUSIBLE_SPEED * dt_nominal / THETA_NOMINAL[0]
+        too_big = n > limit
+        if too_big.any():
+            row = _first(too_big)
+            raise _fail(
+                source,
+                column,
+                row,
+                f"implausible wheel rotation {n[row]:.6g} rev per {dt_nominal:.4g} s sample "
+                f"(over {MAX_PLAUSIBLE_SPEED:.0f} m/s)",
+                "give the rotation during each sample interval, not a cumulative count or angle "
+                "in degrees (take the difference between rows)",
+            )
+
+    arrays["psi"] = np.unwrap(psi)
+    log = DriveLog(**arrays, source=source)
+    _check_heading_units(log)
+
+    if min_distance > 0:
+        distance = log.travelled_distance()[-1]
+        if distance < min_distance:
+            raise _fail(
+                source,
+                None,
+                None,
+                f"log covers only {distance:.1f} m, shorter than one {min_distance:.0f} m segment",
+                "use a longer drive or a shorter --segment-length",
+            )
+    return log
+
+
+def _check_heading_units(log: DriveLog, window_s: float = 2.0) -> None:
+    """Catch a heading given in degrees without wrap-arounds.
+
+    Compares heading changes over ``window_s`` windows (the heading is already unwrapped in
+    radians) with the yaw the wheel rotations imply (nominal theta). In radians the ratio is
+    near 1; in degrees it is near 57.
+    """
+    window = max(1, round(window_s / log.dt))
+    if len(log) <= 2 * window:
+        return
+    n_rl, n_rr = log.n_rl[:-1], log.n_rr[:-1]
+    wheel_yaw = np.concatenate(
+        [[0.0], np.cumsum((n_rr - n_rl) * THETA_NOMINAL[0] / THETA_NOMINAL[2])]
+    )
+    wheel_turn = np.abs(wheel_yaw[window::window] - wheel_yaw[:-window:window]).sum()
+    heading_turn = np.abs(log.psi[window::window] - log.psi[:-window:window]).sum()
+    if wheel_turn > 1.0 and heading_turn > 15.0 * wheel_turn:
+        raise _fail(
+            log.source,
+            "psi",
+            None,
+            f"heading turns {heading_turn / wheel_turn:.0f}x more than the wheel rotations imply, "
+            "apparently degrees",
+            "convert the heading to radians (multiply by pi/180)",
+        )
+
+
+def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> DriveLog:
+    """Read and validate a drive-log CSV (see the module docstring for the format).
+
+    Args:
+        path: CSV file with a header row.
+        min_distance: shortest acceptable travelled distance [m] (e.g. one segment length).
+
+    Raises:
+        DriveLogError: with one line naming the file, the column and the first bad line.
+    """
+    source = str(path)
+    if not Path(path).is_file():
+        raise DriveLogError(f"{source}: no such file; check the path")
+    try:
+        frame = pd.read_csv(path, engine="c", skipinitialspace=True)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise DriveLogError(
+            f"{source}: not a readable CSV ({first}); export the log as CSV"
+        ) from exc
+    frame.columns = [str(c).strip() for c in frame.columns]
+    return validate_frame(frame, source, min_distance)
+
+
+def write_drive_log(log: DriveLog, path: str | os.PathLike[str]) -> None:
+    """Write ``log`` as CSV atomically (full float precision; no partial file on failure)."""
+    atomic_write_csv(log.to_dataframe(), path)

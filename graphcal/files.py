@@ -1,0 +1,49 @@
+"""Atomic file writes: every result file appears whole or not at all.
+
+Each helper writes to a temporary file in the target directory and renames it into place
+(``os.replace`` is atomic on POSIX and Windows), so an interrupted run leaves no half-written
+file behind.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import IO, Any
+
+_UMASK = os.umask(0)
+os.umask(_UMASK)
+
+
+def _atomic(path: str | os.PathLike[str], write: Callable[[IO[Any]], None], mode: str) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})) as handle:
+            write(handle)
+        os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give result files normal modes
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
+    """Write ``text`` to ``path`` atomically."""
+    return _atomic(path, lambda handle: handle.write(text), "w")
+
+
+def atomic_write_csv(frame: Any, path: str | os.PathLike[str]) -> Path:
+    """Write a pandas DataFrame as CSV (full float precision, no index) atomically."""
+    return _atomic(
+        path, lambda handle: frame.to_csv(handle, index=False, float_format="%.17g"), "w"
+    )
+
+
+def atomic_save_figure(figure: Any, path: str | os.PathLike[str], dpi: int = 120) -> Path:
+    """Save a matplotlib figure as PNG atomically."""
+    return _atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=dpi), "wb")

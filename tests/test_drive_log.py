@@ -1,0 +1,140 @@
+"""The drive-log format: loading, unwrapping, and one clear line per kind of bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from graphcal.cli import main
+from graphcal.data.drive_log import COLUMNS, DriveLogError, load_drive_log, write_drive_log
+
+
+@pytest.fixture()
+def frame(drive) -> pd.DataFrame:
+    """The first 60 s of the test drive as a table (fresh copy per test)."""
+    return drive.measured.to_dataframe().iloc[:2400].reset_index(drop=True)
+
+
+def write(frame: pd.DataFrame, tmp_path, name: str = "log.csv"):
+    path = tmp_path / name
+    frame.to_csv(path, index=False)
+    return path
+
+
+def test_round_trip_preserves_values(drive, tmp_path):
+    path = tmp_path / "log.csv"
+    write_drive_log(drive.measured, path)
+    log = load_drive_log(path)
+    for column in COLUMNS:
+        np.testing.assert_array_equal(getattr(log, column), getattr(drive.measured, column))
+    assert log.to_dataframe().shape == (len(drive.measured), 8)
+
+
+def test_extra_columns_are_ignored(frame, tmp_path):
+    frame.insert(0, "gps_quality", 4)
+    frame["comment"] = "ok"
+    log = load_drive_log(write(frame, tmp_path))
+    assert len(log) == len(frame)
+
+
+def test_heading_is_unwrapped_on_load(frame, tmp_path):
+    truth = np.linspace(0, 20, len(frame))  # several turns
+    frame["psi"] = (truth + np.pi) % (2 * np.pi) - np.pi
+    frame["n_rr"] = frame["n_rl"] + (truth[1] - truth[0]) * 1.55 / 2.0
+    log = load_drive_log(write(frame, tmp_path))
+    np.testing.assert_allclose(log.psi, truth, atol=1e-9)
+
+
+def expect_error(frame, tmp_path, capsys, *fragments):
+    """Library raises DriveLogError; CLI prints one line with the same text and exits 2."""
+    path = write(frame, tmp_path)
+    with pytest.raises(DriveLogError) as info:
+        load_drive_log(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert str(path) in message
+    for fragment in fragments:
+        assert fragment in message
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("graphcal: error: ") and message in err
+    return message
+
+
+def test_missing_column(frame, tmp_path, capsys):
+    expect_error(frame.drop(columns=["n_rr"]), tmp_path, capsys, "missing column(s) 'n_rr'")
+
+
+def test_non_numeric_value(frame, tmp_path, capsys):
+    frame["ay"] = frame["ay"].astype(object)
+    frame.loc[100, "ay"] = "0.3g"
+    expect_error(frame, tmp_path, capsys, "column 'ay'", "line 102", "non-numeric value '0.3g'")
+
+
+def test_nan_value(frame, tmp_path, capsys):
+    frame.loc[50, "px"] = np.nan
+    expect_error(frame, tmp_path, capsys, "column 'px'", "line 52", "nan")
+
+
+def test_infinite_value(frame, tmp_path, capsys):
+    frame.loc[70, "beta"] = np.inf
+    expect_error(frame, tmp_path, capsys, "column 'beta'", "line 72", "inf")
+
+
+def test_time_not_increasing(frame, tmp_path, capsys):
+    frame.loc[300, "t"] = frame.loc[299, "t"]
+    expect_error(frame, tmp_path, capsys, "column 't'", "line 302", "time does not increase")
+
+
+def test_time_not_uniform(frame, tmp_path, capsys):
+    frame.loc[500:, "t"] += 0.1  # a 100 ms gap
+    expect_error(frame, tmp_path, capsys, "column 't'", "line 502", "non-uniform sampling")
+
+
+def test_heading_in_degrees_with_wraps(frame, tmp_path, capsys):
+    degrees = np.rad2deg(np.linspace(0, 12, len(frame)))
+    frame["psi"] = (degrees + 180) % 360 - 180
+    expect_error(frame, tmp_path, capsys, "column 'psi'", "degrees", "radians")
+
+
+def test_heading_in_degrees_without_wraps(drive, tmp_path, capsys):
+    frame = drive.measured.to_dataframe().iloc[:8000].reset_index(drop=True)
+    frame["psi"] = np.rad2deg(frame["psi"] - frame["psi"].iloc[0])
+    assert frame["psi"].diff().abs().max() < 180  # no wrap-around jump for the first check
+    expect_error(frame, tmp_path, capsys, "column 'psi'", "apparently degrees")
+
+
+def test_negative_wheel_rotation(frame, tmp_path, capsys):
+    frame.loc[900, "n_rl"] = -0.05
+    expect_error(frame, tmp_path, capsys, "column 'n_rl'", "line 902", "negative wheel rotation")
+
+
+def test_cumulative_wheel_rotation_is_implausible(frame, tmp_path, capsys):
+    frame["n_rr"] = frame["n_rr"].cumsum()
+    message = expect_error(frame, tmp_path, capsys, "column 'n_rr'", "implausible wheel rotation")
+    assert "cumulative" in message
+
+
+def test_log_too_short_for_one_segment(frame, tmp_path, capsys):
+    path = write(frame.iloc[:200], tmp_path)  # ~50 m
+    with pytest.raises(DriveLogError, match=r"shorter than one 150 m segment"):
+        load_drive_log(path, min_distance=150.0)
+    assert main(["calibrate", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "shorter than one 150 m segment" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_missing_file(tmp_path, capsys):
+    assert main(["check", str(tmp_path / "nope.csv")]) == 2
+    assert "no such file" in capsys.readouterr().err
+
+
+def test_not_a_csv(tmp_path, capsys):
+    path = tmp_path / "log.csv"
+    path.write_bytes(b"\x00\x01\x02binary\xff\xfe")
+    assert main(["check", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("graphcal: error: ") and "Traceback" not in err
