@@ -1,0 +1,196 @@
+"""Segments and batches of a drive log (paper §5.1).
+
+A log is cut by travelled distance (from the wheel rotations) into calibration segments
+(default 150 m) and validation segments (default 300 m), optionally overlapping (a stride
+shorter than the length). Calibration segments are selected by their yaw rate, because c_d,
+t_r and d are observable only through the yaw-rate equation (2b). Batches are sets of N
+distinct segments drawn with a seed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog
+from graphcal.model import THETA_NOMINAL
+
+YawRateStatistic = Literal["mean", "median", "rms"]
+
+
+@dataclass(frozen=True)
+class Segments:
+    """Sample ranges of one drive log.
+
+    Segment ``i`` covers samples ``start[i] .. stop[i]`` inclusive, i.e. ``stop - start`` steps
+    of the model; its first sample is the segment's initial state.
+    """
+
+    start: np.ndarray
+    stop: np.ndarray
+    length: float
+
+    def __len__(self) -> int:
+        return len(self.start)
+
+    @property
+    def n_steps(self) -> np.ndarray:
+        """Number of model steps per segment."""
+        return self.stop - self.start
+
+    def subset(self, index: np.ndarray) -> Segments:
+        """The segments picked by a boolean mask or an index array."""
+        return Segments(self.start[index], self.stop[index], self.length)
+
+
+@dataclass(frozen=True)
+class SegmentData:
+    """Measured signals of segments, padded to a common length for vectorized evaluation.
+
+    Attributes:
+        poses: measured states, ``(S, K+1, 3)``; padding repeats each segment's last pose.
+        inputs: measured inputs, ``(S, K, 4)``; padding is zero (a zero step leaves the pose as is).
+        n_steps: true number of steps of each segment, ``(S,)``.
+        valid: ``(S, K+1)`` mask of real (not padded) samples.
+    """
+
+    poses: np.ndarray
+    inputs: np.ndarray
+    n_steps: np.ndarray
+    valid: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.n_steps)
+
+    def take(self, index: np.ndarray) -> SegmentData:
+        """The segments at ``index`` (trimmed to their own longest length)."""
+        k = int(self.n_steps[index].max())
+        return SegmentData(
+            self.poses[index, : k + 1],
+            self.inputs[index, :k],
+            self.n_steps[index],
+            self.valid[index, : k + 1],
+        )
+
+
+def split_segments(
+    log: DriveLog,
+    length: float = 150.0,
+    stride: float | None = None,
+    wheel_circumference: float = THETA_NOMINAL[0],
+) -> Segments:
+    """Cut ``log`` into segments of ``length`` metres of travelled distance.
+
+    Args:
+        log: the drive log.
+        length: segment length [m] (paper: 150 m for calibration, 300 m for validation).
+        stride: distance [m] between segment starts; ``None`` means ``length`` (disjoint
+            segments), shorter values give overlapping segments.
+        wheel_circumference: circumference [m] used to turn wheel rotations into distance.
+    """
+    if length <= 0:
+        raise ValueError(f"segment length must be positive, got {length}")
+    stride = length if stride is None else stride
+    if stride <= 0:
+        raise ValueError(f"segment stride must be positive, got {stride}")
+    distance = log.travelled_distance(wheel_circumference)
+    offsets = np.arange(0.0, distance[-1] - length + 1e-9, stride)
+    # Both ends come from the nominal offsets, so with stride == length consecutive segments
+    # share their boundary sample but no step.
+    start = np.searchsorted(distance, offsets, side="left")
+    stop = np.searchsorted(distance, offsets + length, side="left")
+    start, first = np.unique(start, return_index=True)  # standstill can repeat a start
+    stop = stop[first]
+    keep = (stop < len(distance)) & (stop > start)
+    return Segments(start[keep].astype(np.int64), stop[keep].astype(np.int64), float(length))
+
+
+def smoothed_yaw_rate(log: DriveLog, window_s: float = 1.0) -> np.ndarray:
+    """Yaw rate [rad/s] from the measured heading, as a central difference over ``window_s``.
+
+    Differencing over a window keeps heading noise (1.5° per sample in the paper) from
+    dominating the per-sample rate.
+    """
+    half = max(1, round(0.5 * window_s / log.dt))
+    index = np.arange(len(log))
+    ahead = np.minimum(index + half, len(log) - 1)
+    behind = np.maximum(index - half, 0)
+    return (log.psi[ahead] - log.psi[behind]) / (log.t[ahead] - log.t[behind])
+
+
+def yaw_rate_statistic(
+    log: DriveLog,
+    segments: Segments,
+    statistic: YawRateStatistic = "mean",
+    window_s: float = 1.0,
+) -> np.ndarray:
+    """Per-segment statistic of the absolute smoothed yaw rate [rad/s], shape ``(S,)``."""
+    rate = np.abs(smoothed_yaw_rate(log, window_s))
+    if len(segments) == 0:
+        return np.zeros(0)
+    if statistic == "mean":
+        prefix = np.concatenate([[0.0], np.cumsum(rate)])
+        return (prefix[segments.stop + 1] - prefix[segments.start]) / (segments.n_steps + 1)
+    if statistic == "rms":
+        prefix = np.concatenate([[0.0], np.cumsum(rate**2)])
+        return np.sqrt(
+            (prefix[segments.stop + 1] - prefix[segments.start]) / (segments.n_steps + 1)
+        )
+    if statistic == "median":
+        index, valid = _sample_index(segments)
+        return np.nanmedian(np.where(valid, rate[index], np.nan), axis=1)
+    raise ValueError(f"unknown yaw-rate statistic {statistic!r}; use 'mean', 'median' or 'rms'")
+
+
+def select_segments(
+    log: DriveLog,
+    segments: Segments,
+    min_yaw_rate: float = 0.15,
+    statistic: YawRateStatistic = "mean",
+    window_s: float = 1.0,
+) -> Segments:
+    """Keep the segments whose absolute yaw-rate ``statistic`` exceeds ``min_yaw_rate`` [rad/s]."""
+    return segments.subset(yaw_rate_statistic(log, segments, statistic, window_s) > min_yaw_rate)
+
+
+def make_batches(
+    n_segments: int, batch_size: int = 9, n_batches: int = 1000, seed: int = 0
+) -> np.ndarray:
+    """Draw ``n_batches`` batches of ``batch_size`` distinct segment indices.
+
+    Returns an ``(n_batches, batch_size)`` integer array, each row sorted; the same arguments
+    always give the same batches.
+    """
+    if batch_size < 1 or n_batches < 1:
+        raise ValueError("batch size and number of batches must be at least 1")
+    if n_segments < batch_size:
+        raise ValueError(
+            f"only {n_segments} segment(s) available for batches of {batch_size}: use a longer "
+            "drive, overlapping segments (smaller stride), a lower yaw-rate threshold or a "
+            "smaller batch size"
+        )
+    rng = np.random.default_rng(seed)
+    keys = rng.random((n_batches, n_segments))
+    return np.sort(np.argpartition(keys, batch_size - 1, axis=1)[:, :batch_size], axis=1)
+
+
+def _sample_index(segments: Segments) -> tuple[np.ndarray, np.ndarray]:
+    """Sample indices ``(S, K+1)`` of each segment, clipped to its end, and the valid mask."""
+    k = int(segments.n_steps.max()) if len(segments) else 0
+    offsets = np.arange(k + 1)
+    index = segments.start[:, None] + offsets[None, :]
+    valid = offsets[None, :] <= segments.n_steps[:, None]
+    return np.minimum(index, segments.stop[:, None]), valid
+
+
+def gather_segments(log: DriveLog, segments: Segments) -> SegmentData:
+    """Measured poses and inputs of ``segments``, padded to a common number of steps."""
+    if len(segments) == 0:
+        raise ValueError("no segments to gather")
+    index, valid = _sample_index(segments)
+    poses = log.poses[index]
+    inputs = log.inputs[index[:, :-1]]
+    inputs[~valid[:, 1:]] = 0.0
+    return SegmentData(poses, inputs, segments.n_steps.copy(), valid)

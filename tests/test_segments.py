@@ -1,0 +1,122 @@
+"""Segmentation, yaw-rate selection and batching (paper §5.1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from graphcal.data.segments import (
+    gather_segments,
+    make_batches,
+    select_segments,
+    split_segments,
+    yaw_rate_statistic,
+)
+from graphcal.model import integrate
+from graphcal.simulate.drive import simulate_drive
+
+
+def test_disjoint_segments_cover_the_given_distance(drive):
+    log = drive.measured
+    segments = split_segments(log, 150.0)
+    distance = log.travelled_distance()
+    lengths = distance[segments.stop] - distance[segments.start]
+    assert len(segments) == int(distance[-1] // 150.0)
+    step = np.diff(distance).max()
+    assert np.all(lengths > 150.0 - step) and np.all(lengths < 150.0 + step)
+    assert np.all(segments.start[1:] >= segments.stop[:-1])  # disjoint
+
+
+def test_stride_gives_overlapping_segments(drive):
+    disjoint = split_segments(drive.measured, 150.0)
+    overlapping = split_segments(drive.measured, 150.0, stride=50.0)
+    assert len(overlapping) > 2.5 * len(disjoint)
+    assert np.any(overlapping.start[1:] < overlapping.stop[:-1])
+
+
+def test_selection_keeps_turning_segments(drive):
+    log = drive.measured
+    segments = split_segments(log, 150.0)
+    selected = select_segments(log, segments, min_yaw_rate=0.15)
+    assert 0 < len(selected) < len(segments)
+    # Judged on the noise-free heading, the selected segments really do turn more.
+    truth_yaw = yaw_rate_statistic(drive.truth, segments)
+    picked = np.isin(segments.start, selected.start)
+    assert truth_yaw[picked].min() > 0.12
+    assert truth_yaw[picked].mean() > 1.5 * truth_yaw[~picked].mean()
+
+
+@pytest.mark.parametrize("statistic", ["mean", "median", "rms"])
+def test_statistics_agree_with_direct_computation(drive, statistic):
+    from graphcal.data.segments import smoothed_yaw_rate
+
+    log = drive.measured
+    segments = split_segments(log, 150.0)
+    values = yaw_rate_statistic(log, segments, statistic)
+    rate = np.abs(smoothed_yaw_rate(log))
+    for i in (0, len(segments) // 2, len(segments) - 1):
+        r = rate[segments.start[i] : segments.stop[i] + 1]
+        direct = {"mean": r.mean(), "median": np.median(r), "rms": np.sqrt((r**2).mean())}
+        assert values[i] == pytest.approx(direct[statistic])
+
+
+def test_straight_drive_has_no_selected_segment():
+    from graphcal.data.drive_log import DriveLog
+
+    k = 4000
+    inputs = np.tile([0.15, 0.15, 0.0, 0.0], (k, 1))
+    poses = integrate(np.zeros(3), inputs[:-1], np.array([2.0, 0, 1.55, 0]))
+    log = DriveLog(
+        t=np.arange(k) * 0.025,
+        px=poses[:, 0],
+        py=poses[:, 1],
+        psi=poses[:, 2],
+        n_rl=inputs[:, 0],
+        n_rr=inputs[:, 1],
+        beta=inputs[:, 2],
+        ay=inputs[:, 3],
+    )
+    assert len(select_segments(log, split_segments(log, 150.0))) == 0
+
+
+def test_batches_are_deterministic_and_distinct():
+    a = make_batches(40, batch_size=9, n_batches=1000, seed=3)
+    b = make_batches(40, batch_size=9, n_batches=1000, seed=3)
+    c = make_batches(40, batch_size=9, n_batches=1000, seed=4)
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c)
+    assert a.shape == (1000, 9)
+    assert all(len(set(row)) == 9 for row in a)
+    assert a.min() >= 0 and a.max() < 40
+    # Every segment gets used, roughly uniformly.
+    counts = np.bincount(a.ravel(), minlength=40)
+    assert counts.min() > 0.6 * counts.mean()
+
+
+def test_too_few_segments_for_a_batch():
+    with pytest.raises(ValueError, match="only 5 segment"):
+        make_batches(5, batch_size=9)
+
+
+def test_gather_pads_without_moving_the_pose(drive):
+    log = drive.measured
+    segments = split_segments(log, 150.0)
+    data = gather_segments(log, segments)
+    k = data.n_steps
+    assert data.poses.shape == (len(segments), k.max() + 1, 3)
+    i = int(np.argmin(k))
+    np.testing.assert_array_equal(
+        data.poses[i, : k[i] + 1], log.poses[segments.start[i] : segments.stop[i] + 1]
+    )
+    assert np.all(data.inputs[i, k[i] :] == 0)
+    assert data.valid.sum() == (k + 1).sum()
+
+
+def test_segments_of_an_overlapping_route_are_numerous():
+    # §5.1: overlap is how a 24 km route gives hundreds of selected segments.
+    drive = simulate_drive(8.0, seed=11)
+    disjoint = select_segments(drive.measured, split_segments(drive.measured, 150.0))
+    overlapping = select_segments(
+        drive.measured, split_segments(drive.measured, 150.0, stride=25.0)
+    )
+    assert len(overlapping) > 4 * len(disjoint) > 0
