@@ -1,0 +1,223 @@
+"""Model-consistent synthetic drives with the paper's measurement noise.
+
+A random route (:mod:`graphcal.simulate.route`) is driven with a speed profile limited by
+lateral and longitudinal acceleration, sampled at 40 Hz. Sideslip and lateral acceleration
+follow from the motion; the wheel rotations are eqs. (2)–(3) inverted with ``theta_true``; the
+true poses are eq. (1) integrated from those rotations, so the noise-free log satisfies the
+model exactly. Gaussian noise at the paper's levels (§3.3) is then added.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog, write_drive_log
+from graphcal.files import atomic_write_text
+from graphcal.model import PARAMETER_NAMES, integrate, wheel_rotations_for_motion
+from graphcal.simulate.route import generate_route
+
+#: Default true parameters, away from nominal: [1.985 m, 1.2 mm, 1.585 m, 1.5 mm·s²/m] in SI.
+THETA_TRUE_DEFAULT = np.array([1.985, 1.2e-3, 1.585, 1.5e-3])
+
+
+@dataclass(frozen=True)
+class NoiseLevels:
+    """Standard deviations of the additive Gaussian measurement noise (SI).
+
+    Defaults are the paper's (§3.3): position 0.2 m, heading 1.5°, wheel rotation 0.0005 rev.
+    """
+
+    position: float = 0.2
+    heading: float = float(np.deg2rad(1.5))
+    wheel_rotation: float = 0.0005
+    sideslip: float = 0.0
+    lateral_acceleration: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name, value in asdict(self).items():
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"noise level {name} must be a finite number >= 0, got {value}")
+
+
+@dataclass(frozen=True)
+class VehicleMotion:
+    """Driving-style and vehicle constants of the simulation (SI)."""
+
+    lateral_acceleration_limit: float = 2.5
+    acceleration_limit: float = 1.5
+    deceleration_limit: float = 2.0
+    start_speed: float = 3.0
+    rear_axle_to_cg: float = 1.35
+    sideslip_speed_gain: float = 0.0075  # s²/m: beta = curvature * (l_r - gain * v²)
+
+
+@dataclass(frozen=True)
+class SyntheticDrive:
+    """A simulated drive: the measured (noisy) log, the noise-free truth and how it was made."""
+
+    measured: DriveLog
+    truth: DriveLog
+    theta_true: np.ndarray
+    noise: NoiseLevels
+    seed: int
+    length_km: float
+    motion: VehicleMotion = field(default_factory=VehicleMotion)
+
+
+def _speed_profile(
+    arc_length: np.ndarray, curvature: np.ndarray, speed_limit: np.ndarray, motion: VehicleMotion
+) -> np.ndarray:
+    """Fastest speed [m/s] within the limits, as closed-form cumulative minima (no loop).
+
+    Forward: v(s)² <= v(s')² + 2 a_acc (s - s') for s' <= s; backward likewise with a_dec.
+    """
+    v_max = np.minimum(
+        speed_limit,
+        np.sqrt(motion.lateral_acceleration_limit / np.maximum(np.abs(curvature), 1e-9)),
+    )
+    v_max[0] = v_max[-1] = motion.start_speed
+    v2 = v_max**2
+    a, b = 2.0 * motion.acceleration_limit, 2.0 * motion.deceleration_limit
+    forward = a * arc_length + np.minimum.accumulate(v2 - a * arc_length)
+    backward = -b * arc_length + np.minimum.accumulate((v2 + b * arc_length)[::-1])[::-1]
+    return np.sqrt(np.minimum(forward, backward))
+
+
+def simulate_drive(
+    length_km: float = 24.0,
+    seed: int = 0,
+    theta_true: np.ndarray = THETA_TRUE_DEFAULT,
+    noise: NoiseLevels | None = None,
+    dt: float = 0.025,
+    motion: VehicleMotion | None = None,
+) -> SyntheticDrive:
+    """Simulate a city/suburban drive of ``length_km`` km sampled every ``dt`` seconds.
+
+    Args:
+        length_km: route length [km].
+        seed: seed of every random choice (route and noise); same seed, same drive.
+        theta_true: true parameters ``[c_e, c_d, t_r, d]`` (SI) used to make wheel rotations.
+        noise: measurement noise levels (default: the paper's).
+        dt: sampling interval [s] (paper: 0.025 s).
+        motion: driving-style constants.
+    """
+    if not length_km > 0:
+        raise ValueError(f"drive length must be positive, got {length_km} km")
+    if not dt > 0:
+        raise ValueError(f"sampling interval must be positive, got {dt} s")
+    noise = noise or NoiseLevels()
+    motion = motion or VehicleMotion()
+    theta_true = np.asarray(theta_true, dtype=float)
+    route_seed, noise_seed, heading_seed = np.random.SeedSequence(seed).spawn(3)
+
+    route = generate_route(1000.0 * length_km, np.random.default_rng(route_seed))
+    s, kappa = route.arc_length, route.curvature
+    speed = _speed_profile(s, kappa, route.speed_limit, motion)
+    # Time along the route (trapezoidal rule on ds / v), then resample at the sampling interval.
+    time_at_s = np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s) / (speed[1:] + speed[:-1]))])
+    course_at_s = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(s))])
+    t = np.arange(0.0, time_at_s[-1], dt)
+    s_t = np.interp(t, time_at_s, s)
+    v_t = np.interp(t, time_at_s, speed)
+    kappa_t = np.interp(s_t, s, kappa)
+    heading0 = np.random.default_rng(heading_seed).uniform(-np.pi, np.pi)
+    course_t = heading0 + np.interp(s_t, s, course_at_s)
+
+    lateral_acceleration = v_t**2 * kappa_t
+    sideslip = kappa_t * (motion.rear_axle_to_cg - motion.sideslip_speed_gain * v_t**2)
+    heading = course_t - sideslip
+    distance = np.diff(s_t)
+    yaw_increment = np.diff(heading)
+    n_rl, n_rr = wheel_rotations_for_motion(
+        distance, yaw_increment, lateral_acceleration[:-1], theta_true
+    )
+    # The last sample's inputs drive no step; repeat the previous ones.
+    n_rl, n_rr = np.append(n_rl, n_rl[-1]), np.append(n_rr, n_rr[-1])
+    inputs = np.column_stack([n_rl, n_rr, sideslip, lateral_acceleration])
+    poses = integrate(np.array([0.0, 0.0, heading0]), inputs[:-1], theta_true)
+
+    truth = DriveLog(
+        t=t,
+        px=poses[:, 0],
+        py=poses[:, 1],
+        psi=poses[:, 2],
+        n_rl=n_rl,
+        n_rr=n_rr,
+        beta=sideslip,
+        ay=lateral_acceleration,
+        source="<synthetic truth>",
+    )
+    rng = np.random.default_rng(noise_seed)
+    n = len(t)
+    measured = DriveLog(
+        t=t.copy(),
+        px=truth.px + noise.position * rng.standard_normal(n),
+        py=truth.py + noise.position * rng.standard_normal(n),
+        psi=truth.psi + noise.heading * rng.standard_normal(n),
+        n_rl=truth.n_rl + noise.wheel_rotation * rng.standard_normal(n),
+        n_rr=truth.n_rr + noise.wheel_rotation * rng.standard_normal(n),
+        beta=truth.beta + noise.sideslip * rng.standard_normal(n),
+        ay=truth.ay + noise.lateral_acceleration * rng.standard_normal(n),
+        source="<synthetic>",
+    )
+    return SyntheticDrive(measured, truth, theta_true, noise, int(seed), float(length_km), motion)
+
+
+def truth_path(csv_path: str | os.PathLike[str]) -> Path:
+    """Where the noise-free signals of a synthetic drive written to ``csv_path`` live."""
+    p = Path(csv_path)
+    return p.with_name(f"{p.stem}_truth.csv")
+
+
+def sidecar_path(csv_path: str | os.PathLike[str]) -> Path:
+    """The JSON sidecar of a synthetic drive written to ``csv_path``."""
+    p = Path(csv_path)
+    return p.with_name(f"{p.stem}.json")
+
+
+def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str]) -> list[Path]:
+    """Write the measured CSV, the noise-free ``*_truth.csv`` and the ``*.json`` sidecar.
+
+    Each file is written atomically. Returns the three paths.
+    """
+    from graphcal import __version__
+
+    csv_path = Path(csv_path)
+    truth_csv, sidecar = truth_path(csv_path), sidecar_path(csv_path)
+    write_drive_log(drive.measured, csv_path)
+    write_drive_log(drive.truth, truth_csv)
+    meta = {
+        "generator": f"graphcal {__version__} simulate",
+        "seed": drive.seed,
+        "length_km": drive.length_km,
+        "dt_s": float(drive.measured.dt),
+        "samples": len(drive.measured),
+        "theta_true": dict(zip(PARAMETER_NAMES, map(float, drive.theta_true), strict=True)),
+        "theta_units": {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"},
+        "noise": {
+            "position_m": drive.noise.position,
+            "heading_rad": drive.noise.heading,
+            "wheel_rotation_rev": drive.noise.wheel_rotation,
+            "sideslip_rad": drive.noise.sideslip,
+            "lateral_acceleration_m_s2": drive.noise.lateral_acceleration,
+        },
+        "motion": asdict(drive.motion),
+        "truth_file": truth_csv.name,
+    }
+    atomic_write_text(sidecar, json.dumps(meta, indent=2) + "\n")
+    return [csv_path, truth_csv, sidecar]
+
+
+def read_sidecar(csv_path: str | os.PathLike[str]) -> dict | None:
+    """The sidecar of a synthetic drive (``theta_true`` as an SI array), or ``None`` if absent."""
+    path = sidecar_path(csv_path)
+    if not path.is_file():
+        return None
+    meta = json.loads(path.read_text())
+    meta["theta_true"] = np.array([meta["theta_true"][name] for name in PARAMETER_NAMES])
+    return meta
