@@ -1,0 +1,103 @@
+"""Batch calibration and the end-to-end ``graphcal calibrate`` run."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from graphcal.cli import main
+from graphcal.data.segments import gather_segments, select_segments, split_segments
+from graphcal.model import THETA_NOMINAL
+from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
+from graphcal.pipeline.run import NoUsableSegments, RunSettings, run_calibration
+from graphcal.simulate.drive import write_synthetic_drive
+
+
+def test_noise_free_drive_gives_the_true_theta(clean_drive):
+    log = clean_drive.measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+    for estimate_start in (True, False):
+        result = calibrate_batch(data, BatchSettings(estimate_start_poses=estimate_start))
+        # Only the weak prior at nominal pulls: micrometres on c_e, c_d, t_r.
+        error = np.abs(result.theta - clean_drive.theta_true)
+        assert np.all(error < [1e-6, 1e-7, 2e-5, 1e-6]), error
+
+
+def test_noisy_drive_calibrates_close_to_truth(drive):
+    run = run_calibration(
+        drive.measured, RunSettings(segment_stride=50.0), theta_true=drive.theta_true
+    )
+    error = np.abs(run.theta - drive.theta_true)
+    # Well inside the nominal-to-truth distance (15 mm, 1.2 mm, 35 mm, 1.5 mm·s²/m).
+    assert np.all(error < [2e-3, 0.3e-3, 25e-3, 0.4e-3])
+    e = {name: np.median(v) for name, v in run.validation_errors.items()}
+    assert e["calibrated"] < 0.4 * e["nominal"]
+    assert e["calibrated"] < e["true"] + 0.3  # close to the reachable limit
+
+
+def test_holding_the_start_pose_is_worse_than_estimating_it(drive):
+    # NOTES.md: freeing the start pose removes most of the c_e and d error of Step 1.
+    log = drive.measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0, stride=25.0)))
+    held = calibrate_batch(data, BatchSettings(estimate_start_poses=False)).theta
+    free = calibrate_batch(data, BatchSettings(estimate_start_poses=True)).theta
+    truth = drive.theta_true
+    assert abs(free[0] - truth[0]) < abs(held[0] - truth[0])
+
+
+def test_straight_drive_has_nothing_to_calibrate(tmp_path, capsys):
+    from graphcal.data.drive_log import DriveLog, write_drive_log
+    from graphcal.model import integrate
+
+    k = 8000
+    inputs = np.tile([0.15, 0.15, 0.0, 0.0], (k, 1))
+    poses = integrate(np.zeros(3), inputs[:-1], THETA_NOMINAL)
+    log = DriveLog(
+        t=np.arange(k) * 0.025,
+        px=poses[:, 0],
+        py=poses[:, 1],
+        psi=poses[:, 2],
+        n_rl=inputs[:, 0],
+        n_rr=inputs[:, 1],
+        beta=inputs[:, 2],
+        ay=inputs[:, 3],
+    )
+    with pytest.raises(NoUsableSegments, match=r"highest: 0\.000 rad/s"):
+        run_calibration(log)
+    path = tmp_path / "straight.csv"
+    write_drive_log(log, path)
+    out = tmp_path / "out"
+    assert main(["calibrate", str(path), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "no 150 m segment has mean |yaw rate| above 0.15 rad/s" in err
+    assert "Traceback" not in err and not out.exists()
+
+
+def test_cli_calibrate_writes_complete_deterministic_results(drive, tmp_path, capsys):
+    log_path = tmp_path / "drive.csv"
+    write_synthetic_drive(drive, log_path)
+    outputs = []
+    for name in ("a", "b"):
+        out = tmp_path / name
+        assert main(["calibrate", str(log_path), "--out", str(out), "--segment-stride", "50"]) == 0
+        outputs.append(out)
+    printed = capsys.readouterr().out
+    assert "c_d [mm]" in printed and "calibrated" in printed
+    a, b = outputs
+    names = {"calibration.json", "validation.csv", "route.png", "validation.png", "trajectory.png"}
+    assert {p.name for p in a.iterdir()} == names  # no temporary files left behind
+    for name in ("calibration.json", "validation.csv"):
+        assert (a / name).read_text() == (b / name).read_text()
+    text = (a / "calibration.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    doc = json.loads(text)
+    theta = np.array([doc["theta"][n] for n in ("c_e", "c_d", "t_r", "d")])
+    assert np.all(np.abs(theta - drive.theta_true) < [2e-3, 0.3e-3, 25e-3, 0.4e-3])
+    assert doc["theta_display"]["c_d [mm]"] == pytest.approx(theta[1] * 1e3)
+    assert doc["segments"]["selected"] > 0
+    assert (
+        doc["validation_error_m"]["calibrated"]["median"]
+        < doc["validation_error_m"]["nominal"]["median"]
+    )
