@@ -1,0 +1,278 @@
+"""The ``graphcal`` command line: thin wrappers around the library.
+
+Bad input prints one line ``graphcal: error: …`` and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from graphcal import __version__
+from graphcal.errors import GraphcalError
+from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
+
+EXIT_BAD_INPUT = 2
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (np.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
+    return value
+
+
+def _non_negative(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
+    return value
+
+
+def _log_line(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def _timed_progress() -> Callable[[str], None]:
+    start = time.perf_counter()
+
+    def say(message: str) -> None:
+        _log_line(f"[{time.perf_counter() - start:6.1f} s] {message}")
+
+    return say
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Write a synthetic drive, its noise-free truth and a JSON sidecar."""
+    from graphcal.simulate.drive import NoiseLevels, simulate_drive, write_synthetic_drive
+
+    theta_true = np.asarray(args.theta_true, dtype=float) / DISPLAY_SCALE
+    if not (np.all(np.isfinite(theta_true)) and theta_true[0] > 0 and theta_true[2] > 0):
+        raise GraphcalError(
+            f"--theta-true {' '.join(map(str, args.theta_true))}: c_e and t_r must be positive "
+            f"and all values finite ({', '.join(DISPLAY_UNITS)})"
+        )
+    noise = NoiseLevels(
+        position=args.position_noise,
+        heading=float(np.deg2rad(args.heading_noise_deg)),
+        wheel_rotation=args.wheel_noise,
+        sideslip=float(np.deg2rad(args.sideslip_noise_deg)),
+        lateral_acceleration=args.ay_noise,
+    )
+    say = _timed_progress()
+    drive = simulate_drive(args.length_km, args.seed, theta_true, noise, args.dt)
+    say(f"simulated {len(drive.measured)} samples ({drive.measured.t[-1]:.0f} s)")
+    try:
+        written = write_synthetic_drive(drive, args.out)
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+    for path in written:
+        say(f"wrote {path}")
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Validate a drive log and summarize what calibration would use."""
+    from graphcal.data.drive_log import load_drive_log
+    from graphcal.data.segments import split_segments, yaw_rate_statistic
+
+    log = load_drive_log(args.log)
+    segments = split_segments(log, args.segment_length, args.segment_stride)
+    yaw = yaw_rate_statistic(log, segments, args.yaw_statistic)
+    print(f"{args.log}: valid drive log")
+    print(f"  samples          {len(log)} at {log.dt * 1e3:.1f} ms ({1 / log.dt:.1f} Hz)")
+    print(f"  duration         {log.t[-1] - log.t[0]:.1f} s")
+    print(f"  distance         {log.travelled_distance()[-1]:.1f} m (wheels, c_e = 2 m)")
+    print(
+        f"  segments         {len(segments)} of {args.segment_length:g} m, "
+        f"{int((yaw > args.min_yaw_rate).sum())} with {args.yaw_statistic} |yaw rate| > "
+        f"{args.min_yaw_rate:g} rad/s"
+    )
+    return 0
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    """Calibrate theta from a drive log and write results, figures and a summary."""
+    from graphcal.data.drive_log import load_drive_log
+    from graphcal.pipeline.batch_calibration import BatchSettings
+    from graphcal.pipeline.run import RunSettings, run_calibration
+    from graphcal.report.results import summary_text, write_results
+    from graphcal.simulate.drive import read_sidecar
+
+    settings = RunSettings(
+        segment_length=args.segment_length,
+        segment_stride=args.segment_stride,
+        min_yaw_rate=args.min_yaw_rate,
+        yaw_statistic=args.yaw_statistic,
+        validation_length=args.validation_length,
+        batch=BatchSettings(estimate_start_poses=not args.hold_start),
+    )
+    say = _timed_progress()
+    log = load_drive_log(args.log, min_distance=settings.segment_length)
+    say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
+    sidecar = read_sidecar(args.log)
+    theta_true = None if sidecar is None else sidecar["theta_true"]
+    if theta_true is not None:
+        say("synthetic drive: comparing with theta_true from its sidecar")
+    run = run_calibration(log, settings, theta_true, say)
+    try:
+        written = write_results(run, args.out)
+    except OSError as exc:
+        raise GraphcalError(f"cannot write results to {args.out}: {exc.strerror or exc}") from exc
+    say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")
+    print(summary_text(run))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``graphcal`` command."""
+    parser = argparse.ArgumentParser(
+        prog="graphcal",
+        description="Wheel-odometry calibration with noise compensation, as GTSAM factor graphs.",
+    )
+    parser.add_argument("--version", action="version", version=f"graphcal {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    def segment_options(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--segment-length",
+            type=_positive,
+            default=150.0,
+            metavar="M",
+            help="calibration segment length [m] (default 150, paper §5.1)",
+        )
+        p.add_argument(
+            "--segment-stride",
+            type=_positive,
+            default=None,
+            metavar="M",
+            help="distance between segment starts [m]; shorter than the length gives "
+            "overlapping segments (default: disjoint)",
+        )
+        p.add_argument(
+            "--min-yaw-rate",
+            type=_non_negative,
+            default=0.15,
+            metavar="RAD_S",
+            help="select segments whose |yaw rate| statistic exceeds this (default 0.15 rad/s)",
+        )
+        p.add_argument(
+            "--yaw-statistic",
+            choices=["mean", "median", "rms"],
+            default="mean",
+            help="statistic of |yaw rate| used for selection (default mean)",
+        )
+
+    p = sub.add_parser(
+        "simulate",
+        help="write a synthetic drive with known theta",
+        description=cmd_simulate.__doc__,
+    )
+    p.add_argument("--length-km", type=_positive, default=24.0, help="route length [km] (24)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (0)")
+    p.add_argument("--out", required=True, type=Path, help="output CSV path")
+    p.add_argument("--dt", type=_positive, default=0.025, help="sampling interval [s] (0.025)")
+    p.add_argument(
+        "--theta-true",
+        type=float,
+        nargs=4,
+        metavar=("C_E", "C_D", "T_R", "D"),
+        default=[1.985, 1.2, 1.585, 1.5],
+        help=f"true theta in {', '.join(DISPLAY_UNITS)} (1.985 1.2 1.585 1.5)",
+    )
+    p.add_argument(
+        "--position-noise",
+        type=_non_negative,
+        default=0.2,
+        metavar="M",
+        help="position noise sigma [m] (0.2)",
+    )
+    p.add_argument(
+        "--heading-noise-deg",
+        type=_non_negative,
+        default=1.5,
+        metavar="DEG",
+        help="heading noise sigma [deg] (1.5)",
+    )
+    p.add_argument(
+        "--wheel-noise",
+        type=_non_negative,
+        default=0.0005,
+        metavar="REV",
+        help="wheel rotation noise sigma [rev] (0.0005)",
+    )
+    p.add_argument(
+        "--sideslip-noise-deg",
+        type=_non_negative,
+        default=0.0,
+        metavar="DEG",
+        help="sideslip noise sigma [deg] (0)",
+    )
+    p.add_argument(
+        "--ay-noise",
+        type=_non_negative,
+        default=0.0,
+        metavar="M_S2",
+        help="lateral acceleration noise sigma [m/s²] (0)",
+    )
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser(
+        "check", help="validate a drive log and summarize it", description=cmd_check.__doc__
+    )
+    p.add_argument("log", type=Path, help="drive-log CSV")
+    segment_options(p)
+    p.set_defaults(func=cmd_check)
+
+    p = sub.add_parser(
+        "calibrate", help="calibrate theta from a drive log", description=cmd_calibrate.__doc__
+    )
+    p.add_argument("log", type=Path, help="drive-log CSV (t, px, py, psi, n_rl, n_rr, beta, ay)")
+    p.add_argument(
+        "--out", type=Path, default=Path("results"), help="output directory (default results/)"
+    )
+    segment_options(p)
+    p.add_argument(
+        "--validation-length",
+        type=_positive,
+        default=300.0,
+        metavar="M",
+        help="validation segment length [m] (default 300)",
+    )
+    p.add_argument(
+        "--hold-start",
+        action="store_true",
+        help="hold each segment's first pose at its measurement (the paper's Step 1) "
+        "instead of estimating it",
+    )
+    p.set_defaults(func=cmd_calibrate)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``graphcal`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except GraphcalError as exc:
+        print(f"graphcal: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print("graphcal: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

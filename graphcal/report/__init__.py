@@ -1,0 +1,1 @@
+"""Reports of a calibration run: tables in display units, figures, result files."""
