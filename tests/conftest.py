@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from graphcal.data.drive_log import DriveLog
+from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.simulate.drive import (
     NoiseLevels,
     SyntheticDrive,
@@ -32,6 +34,24 @@ def drive_csv(tmp_path_factory: pytest.TempPathFactory, drive: SyntheticDrive):
     path = tmp_path_factory.mktemp("drive") / "drive.csv"
     write_synthetic_drive(drive, path)
     return path
+
+
+@pytest.fixture(scope="session")
+def straight_log() -> DriveLog:
+    """A noise-free 1.2 km drive on a straight line at 12 m/s (nothing turns)."""
+    k = 4000
+    inputs = np.tile([0.15, 0.15, 0.0, 0.0], (k, 1))
+    poses = integrate(np.zeros(3), inputs[:-1], THETA_NOMINAL)
+    return DriveLog.from_arrays(
+        t=np.arange(k) * 0.025,
+        px=poses[:, 0],
+        py=poses[:, 1],
+        psi=poses[:, 2],
+        n_rl=inputs[:, 0],
+        n_rr=inputs[:, 1],
+        beta=inputs[:, 2],
+        ay=inputs[:, 3],
+    )
 
 
 @pytest.fixture()

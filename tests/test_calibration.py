@@ -9,7 +9,6 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.data.segments import gather_segments, select_segments, split_segments
-from graphcal.model import THETA_NOMINAL
 from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.run import NoUsableSegments, RunSettings, run_calibration
 from graphcal.simulate.drive import write_synthetic_drive
@@ -47,23 +46,10 @@ def test_holding_the_start_pose_is_worse_than_estimating_it(drive):
     assert abs(free[0] - truth[0]) < abs(held[0] - truth[0])
 
 
-def test_straight_drive_has_nothing_to_calibrate(tmp_path, capsys):
-    from graphcal.data.drive_log import DriveLog, write_drive_log
-    from graphcal.model import integrate
+def test_straight_drive_has_nothing_to_calibrate(straight_log, tmp_path, capsys):
+    from graphcal.data.drive_log import write_drive_log
 
-    k = 8000
-    inputs = np.tile([0.15, 0.15, 0.0, 0.0], (k, 1))
-    poses = integrate(np.zeros(3), inputs[:-1], THETA_NOMINAL)
-    log = DriveLog(
-        t=np.arange(k) * 0.025,
-        px=poses[:, 0],
-        py=poses[:, 1],
-        psi=poses[:, 2],
-        n_rl=inputs[:, 0],
-        n_rr=inputs[:, 1],
-        beta=inputs[:, 2],
-        ay=inputs[:, 3],
-    )
+    log = straight_log
     with pytest.raises(NoUsableSegments, match=r"highest: 0\.000 rad/s"):
         run_calibration(log)
     path = tmp_path / "straight.csv"

@@ -12,7 +12,6 @@ from graphcal.data.segments import (
     split_segments,
     yaw_rate_statistic,
 )
-from graphcal.model import integrate
 from graphcal.simulate.drive import simulate_drive
 
 
@@ -60,22 +59,8 @@ def test_statistics_agree_with_direct_computation(drive, statistic):
         assert values[i] == pytest.approx(direct[statistic])
 
 
-def test_straight_drive_has_no_selected_segment():
-    from graphcal.data.drive_log import DriveLog
-
-    k = 4000
-    inputs = np.tile([0.15, 0.15, 0.0, 0.0], (k, 1))
-    poses = integrate(np.zeros(3), inputs[:-1], np.array([2.0, 0, 1.55, 0]))
-    log = DriveLog(
-        t=np.arange(k) * 0.025,
-        px=poses[:, 0],
-        py=poses[:, 1],
-        psi=poses[:, 2],
-        n_rl=inputs[:, 0],
-        n_rr=inputs[:, 1],
-        beta=inputs[:, 2],
-        ay=inputs[:, 3],
-    )
+def test_straight_drive_has_no_selected_segment(straight_log):
+    log = straight_log
     assert len(select_segments(log, split_segments(log, 150.0))) == 0
 
 
