@@ -232,6 +232,45 @@ def integrate_with_jacobians(
     return states, d_start, d_theta
 
 
+def wheel_rotation_jacobian(
+    states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """d states / d wheel rotations of a trajectory from :func:`integrate`.
+
+    Args:
+        states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
+        inputs: ``(..., K, 4)``.
+        theta: ``(4,)`` or ``(..., 4)``.
+
+    Returns:
+        ``(..., K+1, 3, K, 2)``: entry ``[k, :, j, :]`` is d x_k / d [n_rl, n_rr]_j, zero for
+        ``j >= k``. A rotation at step j moves the pose of step j+1 directly and turns the rest
+        of the path about the position ``p_{j+1}`` by d omega_j::
+
+            d psi_k / d n_j = d omega_j
+            d p_k / d n_j = d v_j [cos, sin](course_j) + v_j [-sin, cos](course_j) d omega_j / 2
+                            + d omega_j * J (p_k - p_{j+1}),  J = 90° rotation
+    """
+    inputs = np.asarray(inputs, dtype=float)
+    v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
+    course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
+    c, s = np.cos(course)[..., None], np.sin(course)[..., None]
+    vv = v[..., None]
+    direct_x = dv_dn * c - vv * s * 0.5 * domega_dn  # (..., K, 2)
+    direct_y = dv_dn * s + vv * c * 0.5 * domega_dn
+    px, py = states[..., 0], states[..., 1]  # (..., K+1)
+    # lever[k, j] = p_k - p_{j+1}, used for k > j only.
+    lever_x = px[..., :, None] - px[..., None, 1:]
+    lever_y = py[..., :, None] - py[..., None, 1:]
+    k_index = np.arange(states.shape[-2])[:, None]
+    after = (k_index > np.arange(inputs.shape[-2])[None, :])[..., None]  # (K+1, K, 1)
+    d_om = domega_dn[..., None, :, :]  # (..., 1, K, 2)
+    jx = np.where(after, direct_x[..., None, :, :] - d_om * lever_y[..., None], 0.0)
+    jy = np.where(after, direct_y[..., None, :, :] + d_om * lever_x[..., None], 0.0)
+    jpsi = np.where(after, d_om, 0.0)
+    return np.stack([jx, jy, np.broadcast_to(jpsi, jx.shape)], axis=-3)
+
+
 def wheel_rotations_for_motion(
     distance: np.ndarray,
     yaw_increment: np.ndarray,

@@ -128,3 +128,21 @@ def test_wheel_rotations_for_motion_inverts_eq_2(rng):
 def test_theta_with_wrong_length_is_rejected():
     with pytest.raises(ValueError, match="4 components"):
         integrate(np.zeros(3), np.zeros((5, 4)), np.ones(3))
+
+
+def test_wheel_rotation_jacobian_matches_finite_differences(rng):
+    from graphcal.model import wheel_rotation_jacobian
+
+    inputs = random_inputs(rng, (25,))
+    start = np.array([1.0, -1.0, 0.4])
+    states = integrate(start, inputs, THETA)
+    analytic = wheel_rotation_jacobian(states, inputs, THETA)
+    assert analytic.shape == (26, 3, 25, 2)
+
+    def trajectory(wheels: np.ndarray) -> np.ndarray:
+        changed = inputs.copy()
+        changed[:, :2] = wheels.reshape(25, 2)
+        return integrate(start, changed, THETA)
+
+    numeric = central_difference(trajectory, inputs[:, :2].ravel(), 1e-7)
+    np.testing.assert_allclose(analytic.reshape(26, 3, 50), numeric, rtol=1e-6, atol=1e-7)
