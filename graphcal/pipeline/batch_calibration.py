@@ -15,7 +15,7 @@ import numpy as np
 
 from graphcal.data.segments import SegmentData
 from graphcal.errors import GraphcalError
-from graphcal.factors.segment import (
+from graphcal.factors import (
     PAPER_POSE_WEIGHTS,
     pose2_from_state,
     pose_sigmas,

@@ -1,0 +1,111 @@
+"""Factors on wheel-rotation corrections and on theta (built-in C++ GTSAM factors).
+
+A correction ``c_k = [dn_rl, dn_rr]`` [rev] is added to the measured rotations of step k, so
+the corrected input is ``u_k = u~_k + c_k``.
+
+* Smoothness (the paper's R on Δu, §4.2): penalizes the change of the *corrected* rotation
+  between consecutive steps, ``u_{k+1} - u_k``. As a ``BetweenFactorVector`` on
+  ``(c_k, c_{k+1})`` with measurement ``-(u~_{k+1} - u~_k)``, its error is exactly that change.
+* Size (the paper bounds inputs to measured × [0.95, 1.05], §4.4): a zero-mean prior on
+  ``c_k`` whose sigma is the bound, a soft version of the box constraint.
+* Theta prior: the nominal theta with broad sigmas.
+
+For a chunk whose corrections are one ``2L``-vector variable, :func:`chunk_correction_prior`
+and :func:`chunk_boundary_smoothness` express the same size and smoothness terms as linear
+factors (``gtsam.LinearContainerFactor``, evaluated in C++): the terms are linear in the
+corrections, so linearizing them once is exact.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+from graphcal.model import THETA_NOMINAL
+
+
+def correction_smoothness_factor(
+    key: int, next_key: int, measured: np.ndarray, next_measured: np.ndarray, sigma: float
+) -> gtsam.BetweenFactorVector:
+    """Penalize the change of the corrected wheel rotations from step k to k+1.
+
+    Args:
+        key, next_key: the 2-vector corrections of steps k and k+1.
+        measured, next_measured: measured ``[n_rl, n_rr]`` of steps k and k+1 [rev].
+        sigma: standard deviation of the change [rev] (the paper's R = 1000 is sigma ≈ 0.032).
+    """
+    change = np.asarray(next_measured, float) - np.asarray(measured, float)
+    return gtsam.BetweenFactorVector(
+        key, next_key, -change, gtsam.noiseModel.Isotropic.Sigma(2, sigma)
+    )
+
+
+def correction_size_factor(key: int, sigmas: np.ndarray) -> gtsam.PriorFactorVector:
+    """Keep a correction small: zero-mean prior with per-wheel ``sigmas`` [rev]."""
+    return gtsam.PriorFactorVector(
+        key, np.zeros(2), gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
+    )
+
+
+def size_sigmas(measured: np.ndarray, bound: float = 0.05, floor: float = 1e-4) -> np.ndarray:
+    """Sigmas ``(..., 2)`` [rev] for the size prior: ``bound`` × |measured|, at least ``floor``."""
+    return np.maximum(bound * np.abs(np.asarray(measured, float)), floor)
+
+
+def _linear(jacobian_factor: gtsam.JacobianFactor, keys_and_dims: list[tuple[int, int]]):
+    point = gtsam.Values()
+    for key, dim in keys_and_dims:
+        point.insert(key, np.zeros(dim))
+    return gtsam.LinearContainerFactor(jacobian_factor, point)
+
+
+def chunk_correction_prior(
+    key: int, measured: np.ndarray, size: np.ndarray, smooth_sigma: float
+) -> gtsam.LinearContainerFactor:
+    """Size and within-chunk smoothness of a ``2L``-vector of corrections, as one linear factor.
+
+    Args:
+        key: the chunk's correction vector ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``.
+        measured: measured ``[n_rl, n_rr]`` of its ``L`` steps, ``(L, 2)`` [rev].
+        size: size-prior sigmas ``(L, 2)`` [rev] (see :func:`size_sigmas`).
+        smooth_sigma: sigma of the change of a corrected rotation between steps [rev].
+    """
+    measured = np.asarray(measured, float)
+    n = 2 * len(measured)
+    difference = np.eye(n, k=2)[: n - 2] - np.eye(n)[: n - 2]  # c_{k+1} - c_k per wheel
+    a = np.vstack([np.eye(n), difference])
+    b = np.concatenate([np.zeros(n), -np.diff(measured, axis=0).reshape(-1)])
+    sigmas = np.concatenate([np.asarray(size, float).reshape(-1), np.full(n - 2, smooth_sigma)])
+    return _linear(
+        gtsam.JacobianFactor(key, a, b, gtsam.noiseModel.Diagonal.Sigmas(sigmas)), [(key, n)]
+    )
+
+
+def chunk_boundary_smoothness(
+    key: int,
+    n_steps: int,
+    last_measured: np.ndarray,
+    next_key: int,
+    next_n_steps: int,
+    next_first_measured: np.ndarray,
+    smooth_sigma: float,
+) -> gtsam.LinearContainerFactor:
+    """Smoothness between the last step of one correction chunk and the first of the next."""
+    a1 = np.zeros((2, 2 * n_steps))
+    a1[:, -2:] = -np.eye(2)
+    a2 = np.zeros((2, 2 * next_n_steps))
+    a2[:, :2] = np.eye(2)
+    b = -(np.asarray(next_first_measured, float) - np.asarray(last_measured, float))
+    factor = gtsam.JacobianFactor(
+        key, a1, next_key, a2, b, gtsam.noiseModel.Isotropic.Sigma(2, smooth_sigma)
+    )
+    return _linear(factor, [(key, 2 * n_steps), (next_key, 2 * next_n_steps)])
+
+
+def theta_prior_factor(
+    key: int, sigmas: np.ndarray, mean: np.ndarray = THETA_NOMINAL
+) -> gtsam.PriorFactorVector:
+    """A prior on theta ``[c_e, c_d, t_r, d]`` (SI), by default at the nominal values."""
+    return gtsam.PriorFactorVector(
+        key, np.asarray(mean, float), gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
+    )
