@@ -72,10 +72,17 @@ def test_batches_are_deterministic_and_distinct():
     assert not np.array_equal(a, c)
     assert a.shape == (1000, 9)
     assert all(len(set(row)) == 9 for row in a)
+    assert len(np.unique(a, axis=0)) == 1000
     assert a.min() >= 0 and a.max() < 40
     # Every segment gets used, roughly uniformly.
     counts = np.bincount(a.ravel(), minlength=40)
     assert counts.min() > 0.6 * counts.mean()
+
+
+def test_batches_are_never_repeated():
+    batches = make_batches(10, batch_size=9, n_batches=1000, seed=0)
+    assert len(batches) == 10  # C(10, 9): every distinct batch once
+    assert len(np.unique(batches, axis=0)) == 10
 
 
 def test_too_few_segments_for_a_batch():

@@ -9,6 +9,7 @@ distinct segments drawn with a seed.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -158,10 +159,11 @@ def select_segments(
 def make_batches(
     n_segments: int, batch_size: int = 9, n_batches: int = 1000, seed: int = 0
 ) -> np.ndarray:
-    """Draw ``n_batches`` batches of ``batch_size`` distinct segment indices.
+    """Draw up to ``n_batches`` distinct batches of ``batch_size`` distinct segment indices.
 
-    Returns an ``(n_batches, batch_size)`` integer array, each row sorted; the same arguments
-    always give the same batches.
+    Returns an ``(B, batch_size)`` integer array, each row sorted, no two rows equal;
+    ``B = min(n_batches, C(n_segments, batch_size))`` since a repeated batch adds no
+    information. The same arguments always give the same batches.
     """
     if batch_size < 1 or n_batches < 1:
         raise ValueError("batch size and number of batches must be at least 1")
@@ -171,9 +173,16 @@ def make_batches(
             "drive, overlapping segments (smaller stride), a lower yaw-rate threshold or a "
             "smaller batch size"
         )
+    wanted = min(n_batches, math.comb(n_segments, batch_size))
     rng = np.random.default_rng(seed)
-    keys = rng.random((n_batches, n_segments))
-    return np.sort(np.argpartition(keys, batch_size - 1, axis=1)[:, :batch_size], axis=1)
+    batches = np.zeros((0, batch_size), dtype=np.int64)
+    while len(batches) < wanted:
+        keys = rng.random((2 * wanted, n_segments))
+        draws = np.sort(np.argpartition(keys, batch_size - 1, axis=1)[:, :batch_size], axis=1)
+        pooled = np.concatenate([batches, draws])
+        _, first = np.unique(pooled, axis=0, return_index=True)
+        batches = pooled[np.sort(first)]
+    return batches[:wanted]
 
 
 def _sample_index(segments: Segments) -> tuple[np.ndarray, np.ndarray]:
