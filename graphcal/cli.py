@@ -6,6 +6,7 @@ Bad input prints one line ``graphcal: error: …`` and exits with status 2.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -20,14 +21,19 @@ from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 EXIT_BAD_INPUT = 2
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (np.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text!r}")
-    return value
+def _at_least(minimum: float, unit: str) -> Callable[[str], float]:
+    """An argparse type: a finite number >= ``minimum``."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        if not (np.isfinite(value) and value >= minimum):
+            raise argparse.ArgumentTypeError(f"must be at least {minimum:g} {unit}, got {text!r}")
+        return value
+
+    return parse
 
 
 def _non_negative(text: str) -> float:
@@ -121,7 +127,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     say = _timed_progress()
     log = load_drive_log(args.log, min_distance=settings.segment_length)
     say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
-    sidecar = read_sidecar(args.log)
+    sidecar = read_sidecar(args.log, len(log))
     theta_true = None if sidecar is None else sidecar["theta_true"]
     if theta_true is not None:
         say("synthetic drive: comparing with theta_true from its sidecar")
@@ -147,14 +153,14 @@ def build_parser() -> argparse.ArgumentParser:
     def segment_options(p: argparse.ArgumentParser) -> None:
         p.add_argument(
             "--segment-length",
-            type=_positive,
+            type=_at_least(10.0, "m"),
             default=150.0,
             metavar="M",
             help="calibration segment length [m] (default 150, paper §5.1)",
         )
         p.add_argument(
             "--segment-stride",
-            type=_positive,
+            type=_at_least(1.0, "m"),
             default=None,
             metavar="M",
             help="distance between segment starts [m]; shorter than the length gives "
@@ -179,10 +185,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="write a synthetic drive with known theta",
         description=cmd_simulate.__doc__,
     )
-    p.add_argument("--length-km", type=_positive, default=24.0, help="route length [km] (24)")
+    p.add_argument(
+        "--length-km", type=_at_least(0.1, "km"), default=24.0, help="route length [km] (24)"
+    )
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice (0)")
     p.add_argument("--out", required=True, type=Path, help="output CSV path")
-    p.add_argument("--dt", type=_positive, default=0.025, help="sampling interval [s] (0.025)")
+    p.add_argument(
+        "--dt", type=_at_least(1e-3, "s"), default=0.025, help="sampling interval [s] (0.025)"
+    )
     p.add_argument(
         "--theta-true",
         type=float,
@@ -245,7 +255,7 @@ def build_parser() -> argparse.ArgumentParser:
     segment_options(p)
     p.add_argument(
         "--validation-length",
-        type=_positive,
+        type=_at_least(10.0, "m"),
         default=300.0,
         metavar="M",
         help="validation segment length [m] (default 300)",
@@ -272,6 +282,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("graphcal: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # e.g. `graphcal check LOG | head`: the reader left, not an error
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":

@@ -138,3 +138,48 @@ def test_not_a_csv(tmp_path, capsys):
     assert main(["check", str(path)]) == 2
     err = capsys.readouterr().err
     assert err.startswith("graphcal: error: ") and "Traceback" not in err
+
+
+def test_repeated_column_after_stripping_spaces(frame, tmp_path, capsys):
+    frame["t "] = frame["t"]
+    expect_error(frame, tmp_path, capsys, "column 't'", "more than once")
+
+
+def test_trailing_comma_on_data_rows_keeps_the_columns(frame, tmp_path):
+    path = tmp_path / "log.csv"
+    body = frame.to_csv(index=False, float_format="%.17g").splitlines()
+    path.write_text("\n".join([body[0]] + [row + "," for row in body[1:]]) + "\n")
+    log = load_drive_log(path)
+    np.testing.assert_array_equal(log.t, frame["t"].to_numpy())
+
+
+def test_time_in_nanoseconds(frame, tmp_path, capsys):
+    frame["t"] = (frame["t"] * 1e9).round()
+    expect_error(frame, tmp_path, capsys, "column 't'", "not plausible in seconds")
+
+
+def test_sampling_jitter_is_accepted(frame, tmp_path):
+    jitter = np.random.default_rng(0).uniform(-0.002, 0.002, len(frame))
+    frame["t"] = frame["t"] + jitter
+    assert len(load_drive_log(write(frame, tmp_path))) == len(frame)
+
+
+def test_sideslip_in_degrees(frame, tmp_path, capsys):
+    frame["beta"] = np.rad2deg(frame["beta"]) + 5.0
+    expect_error(frame, tmp_path, capsys, "column 'beta'", "implausible value", "radians")
+
+
+def test_lateral_acceleration_in_g_times_100(frame, tmp_path, capsys):
+    frame.loc[40, "ay"] = 250.0
+    expect_error(frame, tmp_path, capsys, "column 'ay'", "line 42", "m/s²")
+
+
+def test_unrelated_json_next_to_the_log_is_not_a_sidecar(drive, tmp_path, capsys):
+    from graphcal.simulate.drive import read_sidecar
+
+    path = tmp_path / "log.csv"
+    write_drive_log(drive.measured, path)
+    for text in ("{not json", '{"seed": 1}', '{"generator": "other", "theta_true": {}}'):
+        (tmp_path / "log.json").write_text(text)
+        assert read_sidecar(path) is None
+    assert main(["check", str(path)]) == 0

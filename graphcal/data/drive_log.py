@@ -20,14 +20,20 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from graphcal.errors import GraphcalError
+from graphcal.errors import GraphcalError, first_line
 from graphcal.files import atomic_write_csv
 from graphcal.model import THETA_NOMINAL
 
 COLUMNS = ("t", "px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
 
-#: Relative tolerance on the sampling interval before a log counts as non-uniform.
-TIME_TOLERANCE = 0.01
+#: Relative tolerance on the sampling interval before a log counts as non-uniform: 25 % lets
+#: timestamp jitter through (±3 ms per sample at 40 Hz) but stops at a dropped sample.
+TIME_TOLERANCE = 0.25
+#: Plausible sampling intervals [s]; outside, the time is probably not in seconds.
+SAMPLING_INTERVAL_RANGE = (1e-4, 10.0)
+#: Largest plausible |sideslip| [rad] (about 29°) and |lateral acceleration| [m/s²] (1.5 g).
+MAX_SIDESLIP = 0.5
+MAX_LATERAL_ACCELERATION = 15.0
 #: Most negative wheel rotation [rev] accepted as encoder noise at standstill.
 NEGATIVE_ROTATION_TOLERANCE = 0.005
 #: Highest plausible speed [m/s] implied by one wheel's rotation with the nominal circumference.
@@ -117,10 +123,21 @@ def _first(mask: np.ndarray) -> int:
 def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) -> DriveLog:
     """Validate a raw table in the drive-log format and return the :class:`DriveLog`.
 
-    Checks, in order: missing columns, non-numeric values, NaN/inf, time non-increasing or
-    non-uniform, heading apparently in degrees, negative or implausible wheel rotations and,
-    when ``min_distance`` [m] is given, a log too short for one segment.
+    Checks, in order: repeated or missing columns, non-numeric values, NaN/inf, time
+    non-increasing, not in seconds or non-uniform, heading apparently in degrees, implausible
+    sideslip or lateral acceleration, negative or implausible wheel rotations and, when
+    ``min_distance`` [m] is given, a log too short for one segment.
     """
+    names = [str(c) for c in frame.columns]
+    repeated = sorted({c for c in names if c in COLUMNS and names.count(c) > 1})
+    if repeated:
+        raise _fail(
+            source,
+            repeated[0],
+            None,
+            "column appears more than once in the header",
+            "keep one column of each name",
+        )
     missing = [c for c in COLUMNS if c not in frame.columns]
     if missing:
         raise _fail(
@@ -161,23 +178,38 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
                 source,
                 column,
                 row,
-                f"value is {numeric[row]!r} (missing or not finite)",
+                f"value is {numeric[row]} (missing or not finite)",
                 "fill the gap or cut the log there",
             )
         arrays[column] = numeric
 
     t = arrays["t"]
-    dt = np.diff(t)
+    with np.errstate(over="ignore", invalid="ignore"):
+        dt = np.diff(t)
+    if not np.all(np.isfinite(dt)):
+        row = _first(~np.isfinite(dt)) + 1
+        raise _fail(
+            source, "t", row, "time value too large to difference", "give the time in seconds"
+        )
     if (dt <= 0).any():
         row = _first(dt <= 0) + 1
         raise _fail(
             source,
             "t",
             row,
-            f"time does not increase ({t[row - 1]!r} then {t[row]!r})",
+            f"time does not increase ({t[row - 1]:.9g} then {t[row]:.9g})",
             "sort the rows by time and remove duplicates",
         )
     dt_nominal = float(np.median(dt))
+    low, high = SAMPLING_INTERVAL_RANGE
+    if not low <= dt_nominal <= high:
+        raise _fail(
+            source,
+            "t",
+            None,
+            f"sampling interval {dt_nominal:.6g} is not plausible in seconds",
+            "give the time in seconds (not ms, µs or ns)",
+        )
     uneven = np.abs(dt - dt_nominal) > TIME_TOLERANCE * dt_nominal
     if uneven.any():
         row = _first(uneven) + 1
@@ -202,6 +234,21 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
             f"heading jumps by {jumps[row - 1]:.4g}, apparently degrees wrapping at 360",
             "convert the heading to radians (multiply by pi/180)",
         )
+
+    for column, limit, unit, hint in (
+        ("beta", MAX_SIDESLIP, "rad", "give the sideslip in radians"),
+        ("ay", MAX_LATERAL_ACCELERATION, "m/s²", "give the lateral acceleration in m/s²"),
+    ):
+        too_big = np.abs(arrays[column]) > limit
+        if too_big.any():
+            row = _first(too_big)
+            raise _fail(
+                source,
+                column,
+                row,
+                f"implausible value {arrays[column][row]:.6g} (|{column}| over {limit:g} {unit})",
+                hint,
+            )
 
     for column in ("n_rl", "n_rr"):
         n = arrays[column]
@@ -287,9 +334,14 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
     if not Path(path).is_file():
         raise DriveLogError(f"{source}: no such file; check the path")
     try:
-        frame = pd.read_csv(path, engine="c", skipinitialspace=True)
+        # index_col=False: a trailing comma on data rows must not shift the columns.
+        frame = pd.read_csv(path, engine="c", skipinitialspace=True, index_col=False)
+    except OSError as exc:
+        raise DriveLogError(
+            f"{source}: cannot read ({exc.strerror or exc}); check the file"
+        ) from exc
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        first = first_line(str(exc)) or type(exc).__name__
         raise DriveLogError(
             f"{source}: not a readable CSV ({first}); export the log as CSV"
         ) from exc

@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError
+from graphcal.errors import GraphcalError, first_line
 from graphcal.factors import (
     PAPER_POSE_WEIGHTS,
     pose2_from_state,
@@ -84,6 +84,23 @@ class CalibrationFailed(GraphcalError, RuntimeError):
     """A batch solve that did not produce a finite estimate."""
 
 
+#: Plausible ranges of theta (SI) for a road vehicle; outside them the data is almost surely in
+#: wrong units (e.g. sideslip in degrees) rather than the vehicle unusual.
+PLAUSIBLE_THETA = np.array([[0.5, 5.0], [-0.1, 0.1], [0.5, 3.0], [-0.05, 0.05]])
+
+
+def check_plausible(theta: np.ndarray) -> None:
+    """Raise :class:`CalibrationFailed` if theta lies outside :data:`PLAUSIBLE_THETA`."""
+    outside = (theta < PLAUSIBLE_THETA[:, 0]) | (theta > PLAUSIBLE_THETA[:, 1])
+    if outside.any():
+        names = ("c_e", "c_d", "t_r", "d")
+        bad = ", ".join(f"{names[i]} = {theta[i]:.4g}" for i in np.flatnonzero(outside))
+        raise CalibrationFailed(
+            f"the solve gave an implausible theta ({bad}, SI units); check the units of the "
+            "wheel rotations (rev per sample), sideslip (rad) and lateral acceleration (m/s²)"
+        )
+
+
 def build_batch_graph(
     data: SegmentData, settings: BatchSettings
 ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
@@ -130,10 +147,12 @@ def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) ->
         result = optimizer.optimize()
         covariance = gtsam.Marginals(graph, result).marginalCovariance(THETA_KEY)
     except RuntimeError as exc:  # gtsam raises IndeterminateLinearSystem etc. as RuntimeError
-        raise CalibrationFailed(f"batch solve failed: {str(exc).splitlines()[0]}") from exc
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise CalibrationFailed(f"batch solve failed: {reason}") from exc
     theta = result.atVector(THETA_KEY)
     if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))):
         raise CalibrationFailed("batch solve produced a non-finite theta")
+    check_plausible(theta)
     if settings.estimate_start_poses:
         starts = np.array(
             [

@@ -130,18 +130,17 @@ def run_calibration(
             f"|yaw rate| above {settings.min_yaw_rate:g} rad/s (highest: {best} rad/s); lower "
             "--min-yaw-rate, use overlapping segments (--segment-stride) or a drive with more bends"
         )
-    data = gather_segments(log, selected)
-    mode = "estimated" if settings.batch.estimate_start_poses else "held at measurement"
-    say(f"solving: one graph over {len(selected)} segments, start poses {mode}")
-    calibration = calibrate_batch(data, settings.batch)
-    say(f"solved in {calibration.iterations} Levenberg–Marquardt iterations")
-
     validation_segments = split_segments(log, settings.validation_length)
     if len(validation_segments) == 0:
         raise NoUsableSegments(
             f"{log.source}: log is shorter than one {settings.validation_length:g} m validation "
             "segment; use a longer drive or a shorter --validation-length"
         )
+    data = gather_segments(log, selected)
+    mode = "estimated" if settings.batch.estimate_start_poses else "held at measurement"
+    say(f"solving: one graph over {len(selected)} segments, start poses {mode}")
+    calibration = calibrate_batch(data, settings.batch)
+    say(f"solved in {calibration.iterations} Levenberg–Marquardt iterations")
     validation = gather_segments(log, validation_segments)
     errors = {
         "nominal": position_errors(validation, THETA_NOMINAL),

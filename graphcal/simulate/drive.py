@@ -213,11 +213,25 @@ def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str
     return [csv_path, truth_csv, sidecar]
 
 
-def read_sidecar(csv_path: str | os.PathLike[str]) -> dict | None:
-    """The sidecar of a synthetic drive (``theta_true`` as an SI array), or ``None`` if absent."""
+def read_sidecar(csv_path: str | os.PathLike[str], n_samples: int | None = None) -> dict | None:
+    """The sidecar of a synthetic drive (``theta_true`` as an SI array), or ``None``.
+
+    ``None`` unless ``<stem>.json`` next to the CSV is a graphcal simulation sidecar (valid
+    JSON from ``graphcal simulate`` with a finite ``theta_true``) and, when ``n_samples`` is
+    given, describes a log of that many samples — so unrelated JSON or a stale sidecar is
+    never mistaken for the truth.
+    """
     path = sidecar_path(csv_path)
-    if not path.is_file():
+    try:
+        meta = json.loads(path.read_text())
+        if not str(meta.get("generator", "")).startswith("graphcal"):
+            return None
+        theta = np.array([float(meta["theta_true"][name]) for name in PARAMETER_NAMES])
+    except (OSError, ValueError, TypeError, KeyError, AttributeError):
         return None
-    meta = json.loads(path.read_text())
-    meta["theta_true"] = np.array([meta["theta_true"][name] for name in PARAMETER_NAMES])
+    if not np.all(np.isfinite(theta)):
+        return None
+    if n_samples is not None and meta.get("samples") != n_samples:
+        return None
+    meta["theta_true"] = theta
     return meta
