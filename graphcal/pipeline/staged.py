@@ -1,0 +1,242 @@
+"""The paper's five-step calibration (§4.3, Fig. 3), each step a GTSAM graph solve.
+
+1. Prior parameter estimation: a batch solve per batch, measured inputs, the first pose of each
+   segment held at its measurement → theta_I.
+2. Orientation correction: per segment of each batch, input estimation with theta_I;
+   Δψ at k = 10 (eq. 15; see ``StagedSettings.heading_correction`` for the two forms).
+3. Compensated parameter estimation: the batch solve with the corrected heading → theta_II.
+4. Rotation input estimation: per segment, input estimation with 12 theta_II values (q_ψ = 10);
+   the compensated rotations are the mean of the middle 80 % of the estimates.
+5. Final parameter estimation: the batch solve with compensated rotations and corrected
+   heading → theta_F. The recommended theta is the median of theta_F over the batches.
+
+Batches and segments are independent tasks; they run in worker processes and come back in
+order, so the result does not depend on the number of workers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from graphcal.data.segments import SegmentData
+from graphcal.errors import GraphcalError
+from graphcal.model import integrate
+from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
+from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
+from graphcal.pipeline.parallel import map_tasks
+from graphcal.settings import Settings
+
+STEPS = ("step1", "step3", "step5")
+
+
+@dataclass(frozen=True)
+class StagedResult:
+    """What the five steps produced (SI).
+
+    Attributes:
+        batches: ``(B, N)`` segment indices of each batch (into the selected segments).
+        theta: ``{"step1"|"step3"|"step5": (B, 4)}``; rows of failed batches are NaN and
+            marked in ``failed``.
+        failed: ``{step: (B,) bool}`` batches whose solve failed.
+        heading_correction: ``(B, N)`` Δψ [rad] of each segment of each batch (eq. 15).
+        compensated_rotations: ``(S, K, 2)`` Step 4's compensated ``[n_rl, n_rr]`` per selected
+            segment (padded like the segment data; measured values for unused segments).
+        step4_estimates: the Step 4 estimates ``(E, K, 2)`` of ``example_segment``.
+        example_segment: index of the segment whose estimates are kept (for Fig. 4).
+        warnings: messages about steps that fell back (e.g. a failed input estimation).
+    """
+
+    batches: np.ndarray
+    theta: dict[str, np.ndarray]
+    failed: dict[str, np.ndarray]
+    heading_correction: np.ndarray
+    compensated_rotations: np.ndarray
+    step4_estimates: np.ndarray
+    example_segment: int
+    warnings: list[str]
+
+    @property
+    def final_theta(self) -> np.ndarray:
+        """The recommended theta: the median of Step 5 over the batches that solved."""
+        good = self.theta["step5"][~self.failed["step5"]]
+        if len(good) == 0:
+            raise GraphcalError("every Step 5 batch solve failed; no calibration to report")
+        return np.median(good, axis=0)
+
+
+def _batch_task(
+    poses: np.ndarray, inputs: np.ndarray, n_steps: np.ndarray, settings: BatchSettings
+) -> np.ndarray | None:
+    data = SegmentData(poses, inputs, n_steps, np.ones(poses.shape[:2], bool))
+    try:
+        return calibrate_batch(data, settings).theta
+    except GraphcalError:
+        return None
+
+
+def _heading_task(
+    poses: np.ndarray,
+    inputs: np.ndarray,
+    theta: np.ndarray,
+    settings: InputEstimationSettings,
+    k: int,
+    form: str,
+) -> float | None:
+    if not np.all(np.isfinite(theta)):
+        return None
+    try:
+        estimate = estimate_inputs(poses, inputs, theta, settings)
+    except GraphcalError:
+        return None
+    k = min(k, len(inputs))
+    if form == "paper":  # eq. (15) verbatim
+        return float(estimate.states[k, 2] - poses[k, 2])
+    # The yaw the estimated inputs add over the first k steps corrects the start heading.
+    nominal = integrate(poses[0], inputs[:k], theta)
+    return float(estimate.states[k, 2] - nominal[k, 2])
+
+
+def apply_heading_correction(poses: np.ndarray, correction: np.ndarray, form: str) -> np.ndarray:
+    """Poses ``(..., K+1, 3)`` with heading corrections ``(...)`` applied (eq. 15).
+
+    ``"paper"`` shifts every heading, ``"start"`` only the first (held) one.
+    """
+    corrected = poses.copy()
+    if form == "paper":
+        corrected[..., 2] += np.asarray(correction)[..., None]
+    else:
+        corrected[..., 0, 2] += correction
+    return corrected
+
+
+def _rotation_task(
+    poses: np.ndarray, inputs: np.ndarray, theta: np.ndarray, settings: InputEstimationSettings
+) -> np.ndarray | None:
+    try:
+        estimate = estimate_inputs(poses, inputs, theta, settings)
+    except GraphcalError:
+        return None
+    return inputs[:, :2] + estimate.corrections
+
+
+def trimmed_mean(values: np.ndarray, trim_fraction: float, axis: int = 0) -> np.ndarray:
+    """Mean after dropping ``round(trim_fraction * n)`` of the lowest and highest values."""
+    values = np.sort(values, axis=axis)
+    n = values.shape[axis]
+    cut = min(round(trim_fraction * n), (n - 1) // 2)
+    kept = np.take(values, np.arange(cut, n - cut), axis=axis)
+    return kept.mean(axis=axis)
+
+
+def _segment_arrays(data: SegmentData, s: int) -> tuple[np.ndarray, np.ndarray]:
+    k = int(data.n_steps[s])
+    return data.poses[s, : k + 1], data.inputs[s, :k]
+
+
+def run_staged(
+    data: SegmentData,
+    batches: np.ndarray,
+    settings: Settings,
+    workers: int = 1,
+    progress: Callable[[str], None] | None = None,
+) -> StagedResult:
+    """Run Steps 1–5 on the selected segments ``data`` and the ``batches`` of their indices."""
+    say = progress or (lambda _line: None)
+    form = settings.staged.heading_correction
+    n_batches, batch_size = batches.shape
+    theta: dict[str, np.ndarray] = {}
+    failed: dict[str, np.ndarray] = {}
+    warnings: list[str] = []
+
+    def batch_solves(step: str, heading: np.ndarray, rotations: np.ndarray | None) -> None:
+        tasks = []
+        for b, batch in enumerate(batches):
+            sub = data.take(batch)
+            poses = apply_heading_correction(sub.poses, heading[b], form)
+            inputs = sub.inputs.copy()
+            if rotations is not None:
+                inputs[..., :2] = rotations[batch][:, : inputs.shape[1]]
+            tasks.append((poses, inputs, sub.n_steps, settings.calibration))
+        results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
+        failed[step] = np.array([r is None for r in results])
+        theta[step] = np.array([np.full(4, np.nan) if r is None else r for r in results])
+        if failed[step].any():
+            warnings.append(f"{step}: {int(failed[step].sum())} of {n_batches} batch solves failed")
+
+    # Step 1: prior parameters, measured signals, start held at the measurement.
+    no_correction = np.zeros((n_batches, batch_size))
+    batch_solves("step1", no_correction, None)
+
+    # Step 2: orientation correction per segment of each batch (eq. 15).
+    tasks = []
+    for b, batch in enumerate(batches):
+        for s in batch:
+            poses, inputs = _segment_arrays(data, s)
+            tasks.append(
+                (
+                    poses,
+                    inputs,
+                    theta["step1"][b],
+                    settings.staged.step2,
+                    settings.staged.heading_correction_step,
+                    form,
+                )
+            )
+    results = map_tasks(_heading_task, tasks, workers, say, "step2 orientation corrections")
+    heading = np.array([0.0 if r is None else r for r in results]).reshape(n_batches, batch_size)
+    n_failed = sum(r is None for r in results)
+    if n_failed:
+        warnings.append(f"step2: {n_failed} input estimations failed; heading left uncorrected")
+
+    # Step 3: batch solves with the corrected heading.
+    batch_solves("step3", heading, None)
+
+    # Step 4: compensated rotations per used segment from several theta_II values.
+    used = np.unique(batches)
+    estimations = settings.staged.estimations
+    good_batches = np.flatnonzero(~failed["step3"])
+    if len(good_batches) == 0:
+        raise GraphcalError("every Step 3 batch solve failed; cannot estimate the inputs")
+    tasks, owners = [], []
+    for s in used:
+        rng = np.random.default_rng([settings.batches.seed, int(s)])
+        containing = [b for b in good_batches if s in batches[b]]
+        others = [b for b in good_batches if s not in batches[b]]
+        chosen = list(rng.permutation(containing))[:estimations]
+        if len(chosen) < estimations and others:
+            extra = rng.permutation(others)[: estimations - len(chosen)]
+            chosen += list(extra)
+        own = {b: heading[b][list(batches[b]).index(s)] for b in containing}
+        fallback = float(np.median(list(own.values()))) if own else 0.0
+        poses, inputs = _segment_arrays(data, s)
+        for b in chosen:
+            corrected = apply_heading_correction(poses, own.get(b, fallback), form)
+            tasks.append((corrected, inputs, theta["step3"][b], settings.staged.step4))
+            owners.append(int(s))
+    results = map_tasks(_rotation_task, tasks, workers, say, "step4 input estimations")
+    compensated = data.inputs[..., :2].copy()
+    owners_arr = np.asarray(owners)
+    example = int(used[0])
+    example_estimates = np.zeros((0, int(data.n_steps[example]), 2))
+    n_failed = 0
+    for s in used:
+        estimates = [results[i] for i in np.flatnonzero(owners_arr == s) if results[i] is not None]
+        n_failed += int((owners_arr == s).sum()) - len(estimates)
+        if not estimates:
+            continue
+        stack = np.stack(estimates)
+        k = stack.shape[1]
+        compensated[s, :k] = trimmed_mean(stack, settings.staged.trim_fraction)
+        if s == example:
+            example_estimates = stack
+    if n_failed:
+        warnings.append(f"step4: {n_failed} input estimations failed and were left out")
+
+    # Step 5: batch solves with compensated rotations and corrected heading.
+    batch_solves("step5", heading, compensated)
+    return StagedResult(
+        batches, theta, failed, heading, compensated, example_estimates, example, warnings
+    )
