@@ -6,6 +6,7 @@ Bad input prints one line ``graphcal: error: …`` and exits with status 2.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import time
@@ -16,6 +17,9 @@ import numpy as np
 
 from graphcal import __version__
 from graphcal.errors import GraphcalError
+from graphcal.pipeline.parallel import default_workers
+from graphcal.pipeline.run import METHODS
+from graphcal.settings import Settings, load_settings
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 EXIT_BAD_INPUT = 2
@@ -93,47 +97,70 @@ def cmd_check(args: argparse.Namespace) -> int:
     from graphcal.data.drive_log import load_drive_log
     from graphcal.data.segments import split_segments, yaw_rate_statistic
 
+    seg = settings_from_args(args).segments
     log = load_drive_log(args.log)
-    segments = split_segments(log, args.segment_length, args.segment_stride)
-    yaw = yaw_rate_statistic(log, segments, args.yaw_statistic)
+    segments = split_segments(log, seg.length, seg.stride)
+    yaw = yaw_rate_statistic(log, segments, seg.yaw_statistic, seg.yaw_window)
     print(f"{args.log}: valid drive log")
     print(f"  samples          {len(log)} at {log.dt * 1e3:.1f} ms ({1 / log.dt:.1f} Hz)")
     print(f"  duration         {log.t[-1] - log.t[0]:.1f} s")
     print(f"  distance         {log.travelled_distance()[-1]:.1f} m (wheels, c_e = 2 m)")
     print(
-        f"  segments         {len(segments)} of {args.segment_length:g} m, "
-        f"{int((yaw > args.min_yaw_rate).sum())} with {args.yaw_statistic} |yaw rate| > "
-        f"{args.min_yaw_rate:g} rad/s"
+        f"  segments         {len(segments)} of {seg.length:g} m, "
+        f"{int((yaw > seg.min_yaw_rate).sum())} with {seg.yaw_statistic} |yaw rate| > "
+        f"{seg.min_yaw_rate:g} rad/s"
     )
     return 0
+
+
+def settings_from_args(args: argparse.Namespace) -> Settings:
+    """Settings: the paper's defaults, then ``--config FILE``, then explicit options."""
+    settings = load_settings(args.config) if getattr(args, "config", None) else Settings()
+    segments = {
+        "length": args.segment_length,
+        "stride": args.segment_stride,
+        "min_yaw_rate": args.min_yaw_rate,
+        "yaw_statistic": args.yaw_statistic,
+        "validation_length": getattr(args, "validation_length", None),
+    }
+    segments = {k: v for k, v in segments.items() if v is not None}
+    batches = {"count": getattr(args, "batches", None), "seed": getattr(args, "seed", None)}
+    batches = {k: v for k, v in batches.items() if v is not None}
+    try:
+        settings = dataclasses.replace(
+            settings,
+            segments=dataclasses.replace(settings.segments, **segments),
+            batches=dataclasses.replace(settings.batches, **batches),
+        )
+        if getattr(args, "paper_exact", False):
+            staged = dataclasses.replace(
+                settings.staged, heading_correction="paper", estimate_start_poses=False
+            )
+            settings = dataclasses.replace(settings, staged=staged)
+    except ValueError as exc:
+        raise GraphcalError(str(exc)) from exc
+    return settings
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate theta from a drive log and write results, figures and a summary."""
     from graphcal.data.drive_log import load_drive_log
-    from graphcal.pipeline.batch_calibration import BatchSettings
-    from graphcal.pipeline.run import RunSettings, run_calibration
+    from graphcal.pipeline.run import run_calibration
     from graphcal.report.results import summary_text, write_results
     from graphcal.simulate.drive import read_sidecar
 
-    settings = RunSettings(
-        segment_length=args.segment_length,
-        segment_stride=args.segment_stride,
-        min_yaw_rate=args.min_yaw_rate,
-        yaw_statistic=args.yaw_statistic,
-        validation_length=args.validation_length,
-        batch=BatchSettings(estimate_start_poses=not args.hold_start),
-    )
+    settings = settings_from_args(args)
+    workers = args.workers or default_workers()
     say = _timed_progress()
-    log = load_drive_log(args.log, min_distance=settings.segment_length)
+    log = load_drive_log(args.log, min_distance=settings.segments.length)
     say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
     sidecar = read_sidecar(args.log, len(log))
     theta_true = None if sidecar is None else sidecar["theta_true"]
     if theta_true is not None:
         say("synthetic drive: comparing with theta_true from its sidecar")
-    run = run_calibration(log, settings, theta_true, say)
+    run = run_calibration(log, settings, args.method, theta_true, say, workers)
     try:
-        written = write_results(run, args.out)
+        written = write_results(run, args.out, workers)
     except OSError as exc:
         raise GraphcalError(f"cannot write results to {args.out}: {exc.strerror or exc}") from exc
     say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")
@@ -154,7 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(
             "--segment-length",
             type=_at_least(10.0, "m"),
-            default=150.0,
+            default=None,
             metavar="M",
             help="calibration segment length [m] (default 150, paper §5.1)",
         )
@@ -169,14 +196,14 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument(
             "--min-yaw-rate",
             type=_non_negative,
-            default=0.15,
+            default=None,
             metavar="RAD_S",
             help="select segments whose |yaw rate| statistic exceeds this (default 0.15 rad/s)",
         )
         p.add_argument(
             "--yaw-statistic",
             choices=["mean", "median", "rms"],
-            default="mean",
+            default=None,
             help="statistic of |yaw rate| used for selection (default mean)",
         )
 
@@ -256,15 +283,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--validation-length",
         type=_at_least(10.0, "m"),
-        default=300.0,
+        default=None,
         metavar="M",
         help="validation segment length [m] (default 300)",
     )
     p.add_argument(
-        "--hold-start",
+        "--method",
+        choices=list(METHODS),
+        default="staged",
+        help="staged: the paper's five steps over batches (default); whole: one solve over "
+        "all selected segments, quick",
+    )
+    p.add_argument(
+        "--batches",
+        type=int,
+        default=None,
+        metavar="N",
+        help="number of batches for staged (default 1000, paper §5.1)",
+    )
+    p.add_argument("--seed", type=int, default=None, help="seed of the batch draw (default 0)")
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="TOML settings file (see graphcal/settings.py); options override it",
+    )
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="worker processes (default: one per core); results do not depend on it",
+    )
+    p.add_argument(
+        "--paper-exact",
         action="store_true",
-        help="hold each segment's first pose at its measurement (the paper's Step 1) "
-        "instead of estimating it",
+        help="follow the paper literally: eq. 15 heading correction on every sample and start "
+        "poses held in Steps 3 and 5 (graphcal's defaults are measured to be more accurate)",
     )
     p.set_defaults(func=cmd_calibrate)
     return parser

@@ -1,9 +1,23 @@
-"""End-to-end calibration of one drive log: segments → selection → batch solve → validation."""
+"""End-to-end calibration of one drive log: segments → selection → method → validation.
+
+Methods:
+
+* ``"staged"`` — the paper's five steps over batches (:mod:`graphcal.pipeline.staged`); the
+  recommended theta is the median of Step 5 over the batches.
+* ``"whole"`` — one batch solve over all selected segments at once, start poses estimated: a
+  quick calibration from a short log.
+
+Validation (§5.2): every theta is judged by its position error E_p (eq. 16 / K, averaged over
+the 300 m validation segments), next to nominal theta and, on synthetic data, the reachable
+limit (the true theta).
+"""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -11,18 +25,21 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import (
     SegmentData,
     Segments,
-    YawRateStatistic,
     gather_segments,
-    select_segments,
+    make_batches,
     split_segments,
     yaw_rate_statistic,
 )
 from graphcal.errors import GraphcalError
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.batch_calibration import BatchCalibration, BatchSettings, calibrate_batch
+from graphcal.pipeline.batch_calibration import BatchCalibration, calibrate_batch
+from graphcal.pipeline.staged import STEPS, StagedResult, run_staged
 from graphcal.pipeline.validation import position_errors
+from graphcal.settings import Settings
 
 Progress = Callable[[str], None]
+Method = Literal["staged", "whole"]
+METHODS = ("staged", "whole")
 
 
 class NoUsableSegments(GraphcalError, ValueError):
@@ -30,134 +47,157 @@ class NoUsableSegments(GraphcalError, ValueError):
 
 
 @dataclass(frozen=True)
-class RunSettings:
-    """Settings of an end-to-end calibration (SI; paper defaults, §4.4 and §5.1).
-
-    Attributes:
-        segment_length: calibration segment length [m].
-        segment_stride: distance between calibration segment starts [m]; ``None`` = disjoint.
-        min_yaw_rate: selection threshold on the segment's yaw-rate statistic [rad/s].
-        yaw_statistic: ``"mean"``, ``"median"`` or ``"rms"`` of the absolute yaw rate.
-        yaw_window: heading-difference window for the yaw rate [s].
-        validation_length: validation segment length [m] (disjoint).
-        batch: settings of the graph solve.
-    """
-
-    segment_length: float = 150.0
-    segment_stride: float | None = None
-    min_yaw_rate: float = 0.15
-    yaw_statistic: YawRateStatistic = "mean"
-    yaw_window: float = 1.0
-    validation_length: float = 300.0
-    batch: BatchSettings = field(default_factory=BatchSettings)
-
-    def __post_init__(self) -> None:
-        for name in ("segment_length", "validation_length", "yaw_window"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"{name.replace('_', '-')} must be positive")
-        if self.segment_stride is not None and not self.segment_stride > 0:
-            raise ValueError("segment-stride must be positive")
-        if not self.min_yaw_rate >= 0:
-            raise ValueError("min-yaw-rate must be >= 0")
-
-
-@dataclass(frozen=True)
 class CalibrationRun:
     """Everything a calibration run produced (SI).
 
     Attributes:
-        log: the drive log.
-        settings: the settings used.
-        segments: all calibration segments; ``selected`` those used.
+        log, settings, method: what was run.
+        segments: all calibration segments; ``selected`` those passing the selection.
         yaw_rate: the selection statistic of every calibration segment [rad/s].
-        calibration: the batch solve over the selected segments.
-        validation_segments: the validation segments; ``validation`` their data.
-        validation_errors: per validation segment, mean position error [m] of odometry with
-            ``{"nominal", "calibrated"}`` theta, and ``"true"`` when the truth is known.
-        theta_true: true theta of a synthetic drive, else ``None``.
+        data: the selected segments' signals.
+        theta: the recommended theta.
+        staged: the five steps' results (``method == "staged"``).
+        whole: the single solve (``method == "whole"``).
+        validation_segments, validation: the validation segments and their signals.
+        segment_errors: per validation segment, mean position error [m] of odometry with
+            ``"nominal"``, ``"calibrated"`` and, when known, ``"true"`` theta.
+        batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
+            failed (never written to a file).
+        theta_true: the truth of a synthetic drive, else ``None``.
     """
 
     log: DriveLog
-    settings: RunSettings
+    settings: Settings
+    method: Method
     segments: Segments
     selected: Segments
     yaw_rate: np.ndarray
-    calibration: BatchCalibration
+    data: SegmentData
+    theta: np.ndarray
+    staged: StagedResult | None
+    whole: BatchCalibration | None
     validation_segments: Segments
     validation: SegmentData
-    validation_errors: dict[str, np.ndarray]
+    segment_errors: dict[str, np.ndarray]
+    batch_errors: dict[str, np.ndarray]
     theta_true: np.ndarray | None = None
 
-    @property
-    def theta(self) -> np.ndarray:
-        """The calibrated theta (SI)."""
-        return self.calibration.theta
+    def validation_error(self, name: str) -> float:
+        """E_p [m] of ``"nominal"``, ``"calibrated"`` or ``"true"`` theta."""
+        return float(np.mean(self.segment_errors[name]))
 
 
-def run_calibration(
-    log: DriveLog,
-    settings: RunSettings | None = None,
-    theta_true: np.ndarray | None = None,
-    progress: Progress | None = None,
-) -> CalibrationRun:
-    """Calibrate theta from ``log``: select segments, solve one batch over all, validate.
+def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
+    """E_p [m]: the position error of eq. (16) / K averaged over the validation segments."""
+    if not np.all(np.isfinite(theta)):
+        return float("nan")
+    return float(np.mean(position_errors(validation, theta)))
 
-    Args:
-        log: a validated drive log.
-        settings: run settings (paper defaults).
-        theta_true: the true theta if known (synthetic drives); adds the reachable limit.
-        progress: called with one line per stage.
 
-    Raises:
-        NoUsableSegments: no calibration segment passes the selection.
-        CalibrationFailed: the solve failed.
-    """
-    settings = settings or RunSettings()
-    say = progress or (lambda _line: None)
-    segments = split_segments(log, settings.segment_length, settings.segment_stride)
-    yaw = yaw_rate_statistic(log, segments, settings.yaw_statistic, settings.yaw_window)
-    selected = select_segments(
-        log, segments, settings.min_yaw_rate, settings.yaw_statistic, settings.yaw_window
-    )
-    say(
-        f"segments: {len(selected)} of {len(segments)} {settings.segment_length:g} m segments have "
-        f"{settings.yaw_statistic} |yaw rate| > {settings.min_yaw_rate:g} rad/s"
+def select(
+    log: DriveLog, settings: Settings, progress: Progress
+) -> tuple[Segments, np.ndarray, Segments, Segments]:
+    """Calibration segments, their yaw statistic, the selected ones, validation segments."""
+    s = settings.segments
+    segments = split_segments(log, s.length, s.stride)
+    yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window)
+    selected = segments.subset(yaw > s.min_yaw_rate)
+    progress(
+        f"segments: {len(selected)} of {len(segments)} {s.length:g} m segments have "
+        f"{s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s"
     )
     if len(selected) == 0:
         best = f"{yaw.max():.3f}" if len(yaw) else "n/a"
         raise NoUsableSegments(
-            f"{log.source}: no {settings.segment_length:g} m segment has {settings.yaw_statistic} "
-            f"|yaw rate| above {settings.min_yaw_rate:g} rad/s (highest: {best} rad/s); lower "
-            "--min-yaw-rate, use overlapping segments (--segment-stride) or a drive with more bends"
+            f"{log.source}: no {s.length:g} m segment has {s.yaw_statistic} |yaw rate| above "
+            f"{s.min_yaw_rate:g} rad/s (highest: {best} rad/s); lower --min-yaw-rate, use "
+            "overlapping segments (--segment-stride) or a drive with more bends"
         )
-    validation_segments = split_segments(log, settings.validation_length)
-    if len(validation_segments) == 0:
+    validation = split_segments(log, s.validation_length)
+    if len(validation) == 0:
         raise NoUsableSegments(
-            f"{log.source}: log is shorter than one {settings.validation_length:g} m validation "
+            f"{log.source}: log is shorter than one {s.validation_length:g} m validation "
             "segment; use a longer drive or a shorter --validation-length"
         )
+    return segments, yaw, selected, validation
+
+
+def run_calibration(
+    log: DriveLog,
+    settings: Settings | None = None,
+    method: Method = "staged",
+    theta_true: np.ndarray | None = None,
+    progress: Progress | None = None,
+    workers: int = 1,
+) -> CalibrationRun:
+    """Calibrate theta from ``log``.
+
+    Args:
+        log: a validated drive log.
+        settings: run settings (the paper's by default).
+        method: ``"staged"`` (the paper's five steps over batches) or ``"whole"`` (one solve
+            over all selected segments).
+        theta_true: the true theta if known (synthetic drives); adds the reachable limit.
+        progress: called with one line per stage.
+        workers: worker processes for batches and segments (results do not depend on it).
+
+    Raises:
+        NoUsableSegments: no segment passes the selection, or the log is too short.
+        GraphcalError: the calibration failed.
+    """
+    settings = settings or Settings()
+    say = progress or (lambda _line: None)
+    if method not in METHODS:
+        raise GraphcalError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+    segments, yaw, selected, validation_segments = select(log, settings, say)
     data = gather_segments(log, selected)
-    mode = "estimated" if settings.batch.estimate_start_poses else "held at measurement"
-    say(f"solving: one graph over {len(selected)} segments, start poses {mode}")
-    calibration = calibrate_batch(data, settings.batch)
-    say(f"solved in {calibration.iterations} Levenberg–Marquardt iterations")
     validation = gather_segments(log, validation_segments)
-    errors = {
+    staged = whole = None
+    batch_errors: dict[str, np.ndarray] = {}
+    if method == "staged":
+        b = settings.batches
+        size = min(b.size, len(selected))
+        if size < b.size:
+            say(f"only {len(selected)} segments: batches of {size} instead of {b.size}")
+        batches = make_batches(len(selected), size, b.count, b.seed)
+        say(f"staged: {len(batches)} batches of {size} segments, {workers} worker(s)")
+        staged = run_staged(data, batches, settings, workers, say)
+        theta = staged.final_theta
+        for step in STEPS:
+            batch_errors[step] = np.array(
+                [mean_validation_error(validation, t) for t in staged.theta[step]]
+            )
+    else:
+        solve = dataclasses.replace(
+            settings.calibration,
+            estimate_start_poses=True,
+            max_iterations=max(settings.calibration.max_iterations, 20),
+        )
+        say(f"whole: one graph over {len(selected)} segments, start poses estimated")
+        whole = calibrate_batch(data, solve)
+        theta = whole.theta
+        batch_errors["whole"] = np.array([mean_validation_error(validation, theta)])
+    segment_errors = {
         "nominal": position_errors(validation, THETA_NOMINAL),
-        "calibrated": position_errors(validation, calibration.theta),
+        "calibrated": position_errors(validation, theta),
     }
     if theta_true is not None:
-        errors["true"] = position_errors(validation, theta_true)
-    say(f"validated on {len(validation)} {settings.validation_length:g} m segments")
+        segment_errors["true"] = position_errors(validation, theta_true)
+    say(f"validated on {len(validation)} {settings.segments.validation_length:g} m segments")
     return CalibrationRun(
         log,
         settings,
+        method,
         segments,
         selected,
         yaw,
-        calibration,
+        data,
+        theta,
+        staged,
+        whole,
         validation_segments,
         validation,
-        errors,
+        segment_errors,
+        batch_errors,
         None if theta_true is None else np.asarray(theta_true, dtype=float),
     )

@@ -16,6 +16,7 @@ order, so the result does not depend on the number of workers.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -159,7 +160,10 @@ def run_staged(
             inputs = sub.inputs.copy()
             if rotations is not None:
                 inputs[..., :2] = rotations[batch][:, : inputs.shape[1]]
-            tasks.append((poses, inputs, sub.n_steps, settings.calibration))
+            solve = settings.calibration
+            if step != "step1" and settings.staged.estimate_start_poses:
+                solve = dataclasses.replace(solve, estimate_start_poses=True)
+            tasks.append((poses, inputs, sub.n_steps, solve))
         results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
         failed[step] = np.array([r is None for r in results])
         theta[step] = np.array([np.full(4, np.nan) if r is None else r for r in results])

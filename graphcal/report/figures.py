@@ -5,10 +5,13 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
-from graphcal.model import THETA_NOMINAL, integrate
+from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, integrate
 from graphcal.pipeline.run import CalibrationRun
+from graphcal.pipeline.staged import STEPS
+from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 _COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}
+_STEP_LABELS = {"step1": "Step 1", "step3": "Step 3", "step5": "Step 5", "whole": "whole log"}
 
 
 def route_figure(run: CalibrationRun) -> Figure:
@@ -28,33 +31,122 @@ def route_figure(run: CalibrationRun) -> Figure:
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("px [m]")
     ax.set_ylabel("py [m]")
+    s = run.settings.segments
     ax.set_title(
         f"{len(run.selected)} of {len(run.segments)} segments selected "
-        f"({run.settings.yaw_statistic} |yaw rate| > {run.settings.min_yaw_rate:g} rad/s)"
+        f"({s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s)"
     )
     ax.legend(loc="best")
     return fig
 
 
+def parameters_figure(run: CalibrationRun) -> Figure:
+    """Box plots of each parameter over the batches, Step 1 vs Steps 3 and 5 (paper Fig. 5)."""
+    assert run.staged is not None
+    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    for i, name in enumerate(PARAMETER_NAMES):
+        ax = fig.add_subplot(1, 4, i + 1)
+        data = []
+        for step in STEPS:
+            t = run.staged.theta[step][:, i]
+            data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
+        ax.boxplot(data, tick_labels=[_STEP_LABELS[s] for s in STEPS])
+        if run.theta_true is not None:
+            ax.axhline(
+                run.theta_true[i] * DISPLAY_SCALE[i], color="tab:green", ls="--", label="true"
+            )
+        ax.axhline(run.theta[i] * DISPLAY_SCALE[i], color="tab:blue", lw=0.8, label="recommended")
+        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]")
+        ax.grid(axis="y", alpha=0.3)
+        if i == 0:
+            ax.legend(loc="best", fontsize="small")
+    fig.suptitle(f"Estimates over {len(run.staged.batches)} batches")
+    return fig
+
+
 def validation_figure(run: CalibrationRun) -> Figure:
-    """Box plots of the validation errors (eq. 16 / K) per theta, the paper's Fig. 6 layout."""
+    """Validation errors E_p of the batches' theta per step (paper Fig. 6)."""
     fig = Figure(figsize=(7, 3.8), layout="constrained")
     ax = fig.add_subplot()
-    names = list(run.validation_errors)
-    ax.boxplot(
-        [run.validation_errors[n] for n in names], orientation="horizontal", tick_labels=names
-    )
-    ax.set_xlabel("mean position error on a validation segment [m]")
+    names = list(run.batch_errors)
+    data = [e[np.isfinite(e)] for e in run.batch_errors.values()]
+    ax.boxplot(data, orientation="horizontal", tick_labels=[_STEP_LABELS[n] for n in names])
+    top = max(float(np.max(d)) for d in data if len(d))
+    for name, style in (("nominal", ":"), ("true", "--"), ("calibrated", "-")):
+        if name == "nominal" and run.validation_error(name) > 1.5 * top:
+            ax.plot(
+                [],
+                [],
+                color=_COLOURS[name],
+                ls=style,
+                label=f"nominal: {run.validation_error(name):.2f} m (off scale)",
+            )
+            continue
+        if name in run.segment_errors:
+            label = {"true": "reachable (true θ)", "calibrated": "recommended θ"}.get(name, name)
+            ax.axvline(
+                run.validation_error(name),
+                color=_COLOURS[name],
+                ls=style,
+                label=f"{label}: {run.validation_error(name):.2f} m",
+            )
+    ax.set_xlabel("validation error E_p [m] (mean position error, eq. 16 / K)")
     ax.set_title(
-        f"Validation on {len(run.validation)} segments of {run.settings.validation_length:g} m"
+        f"Validation on {len(run.validation)} segments of "
+        f"{run.settings.segments.validation_length:g} m"
     )
     ax.grid(axis="x", alpha=0.3)
+    ax.legend(loc="best", fontsize="small")
+    return fig
+
+
+def wheel_rotations_figure(run: CalibrationRun) -> Figure:
+    """Measured vs estimated wheel rotations of one segment and their difference (Fig. 4)."""
+    assert run.staged is not None
+    s = run.staged.example_segment
+    k = int(run.data.n_steps[s])
+    dt = run.log.dt
+    t = np.arange(k) * dt
+    measured = run.data.inputs[s, :k, :2]
+    compensated = run.staged.compensated_rotations[s, :k]
+    estimates = run.staged.step4_estimates
+    fig = Figure(figsize=(11, 4.2), layout="constrained")
+    left, right = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    for e in estimates:
+        left.plot(t, (e - measured)[:, 0] * 1e3, color="tab:blue", lw=0.5, alpha=0.4)
+        left.plot(t, (e - measured)[:, 1] * 1e3, color="tab:orange", lw=0.5, alpha=0.4)
+        right.plot(t, e[:, 1] - e[:, 0], color="tab:blue", lw=0.5, alpha=0.4)
+    left.plot(
+        t,
+        (compensated - measured)[:, 0] * 1e3,
+        color="tab:blue",
+        lw=1.4,
+        label="compensated − measured, rear left",
+    )
+    left.plot(
+        t,
+        (compensated - measured)[:, 1] * 1e3,
+        color="tab:orange",
+        lw=1.4,
+        label="compensated − measured, rear right",
+    )
+    left.plot([], [], color="0.4", lw=0.5, label=f"thin: the {len(estimates)} Step 4 estimates")
+    right.plot(t, measured[:, 1] - measured[:, 0], ".", ms=1.5, color="0.5", label="measured")
+    right.plot(t, compensated[:, 1] - compensated[:, 0], color="k", lw=1.2, label="compensated")
+    right.plot([], [], color="tab:blue", lw=0.5, label="Step 4 estimates")
+    left.set_ylabel("wheel-rotation correction [10⁻³ rev per sample]")
+    right.set_ylabel("n_rr − n_rl [rev]")
+    for ax in (left, right):
+        ax.set_xlabel("time in segment [s]")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize="small")
+    fig.suptitle(f"Wheel rotations of selected segment {s}")
     return fig
 
 
 def trajectory_figure(run: CalibrationRun) -> Figure:
     """The validation segment with the median nominal error: measured vs odometry paths."""
-    errors = run.validation_errors["nominal"]
+    errors = run.segment_errors["nominal"]
     i = int(np.argsort(errors)[len(errors) // 2])
     k = int(run.validation.n_steps[i])
     poses, inputs = run.validation.poses[i, : k + 1], run.validation.inputs[i, :k]
@@ -71,7 +163,7 @@ def trajectory_figure(run: CalibrationRun) -> Figure:
             path[:, 1],
             color=_COLOURS[name],
             ls="--" if name == "true" else "-",
-            label=f"odometry, {name} θ ({run.validation_errors[name][i]:.2f} m)",
+            label=f"odometry, {name} θ ({run.segment_errors[name][i]:.2f} m)",
         )
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("px [m]")
@@ -79,3 +171,16 @@ def trajectory_figure(run: CalibrationRun) -> Figure:
     ax.set_title(f"Validation segment {i}: odometry from the measured start pose")
     ax.legend(loc="best")
     return fig
+
+
+def figures(run: CalibrationRun) -> dict[str, Figure]:
+    """All figures of a run, by file name."""
+    out = {
+        "route.png": route_figure(run),
+        "validation.png": validation_figure(run),
+        "trajectory.png": trajectory_figure(run),
+    }
+    if run.staged is not None:
+        out["parameters.png"] = parameters_figure(run)
+        out["wheel_rotations.png"] = wheel_rotations_figure(run)
+    return out

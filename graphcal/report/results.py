@@ -1,7 +1,8 @@
-"""Result files of a calibration run: ``calibration.json``, ``validation.csv`` and PNG figures.
+"""Result files of a calibration run: ``calibration.json``, ``batches.csv``,
+``validation.csv`` and PNG figures.
 
-Everything is computed before the first file is written, and each file is written atomically,
-so an interrupted or failed run never leaves a half-written result.
+Everything is computed before the first file is written, each file is written atomically and
+non-finite numbers never reach a file (failed batches are empty cells in ``batches.csv``).
 """
 
 from __future__ import annotations
@@ -19,8 +20,16 @@ from graphcal import __version__
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.run import CalibrationRun
-from graphcal.report.figures import route_figure, trajectory_figure, validation_figure
-from graphcal.report.tables import error_table, theta_table
+from graphcal.pipeline.staged import STEPS
+from graphcal.report.figures import figures
+from graphcal.report.tables import (
+    PAPER_IQR_REDUCTION,
+    iqr_reduction,
+    step_statistics,
+    steps_table,
+    theta_table,
+    validation_table,
+)
 from graphcal.units import DISPLAY_UNITS, to_display
 
 
@@ -39,9 +48,27 @@ def _finite(obj: object) -> object:
     return obj
 
 
-def results_document(run: CalibrationRun) -> dict:
+def run_statistics(run: CalibrationRun) -> dict[str, dict]:
+    """Per step (staged) or for the single solve: :func:`step_statistics` of its thetas."""
+    if run.staged is not None:
+        return {s: step_statistics(run.staged.theta[s], run.theta_true) for s in STEPS}
+    return {"whole": step_statistics(run.theta[None], run.theta_true)}
+
+
+def validation_summary(run: CalibrationRun) -> dict[str, float]:
+    """E_p [m] of nominal, recommended and (when known) true theta."""
+    out = {
+        "nominal": run.validation_error("nominal"),
+        "calibrated": run.validation_error("calibrated"),
+    }
+    if "true" in run.segment_errors:
+        out["reachable (true theta)"] = run.validation_error("true")
+    return out
+
+
+def results_document(run: CalibrationRun, workers: int = 1) -> dict:
     """The content of ``calibration.json`` (SI values; display units in ``theta_display``)."""
-    s = run.settings
+    stats = run_statistics(run)
     doc: dict = {
         "theta": _named(run.theta),
         "theta_units": {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"},
@@ -50,7 +77,7 @@ def results_document(run: CalibrationRun) -> dict:
             for n, u, v in zip(PARAMETER_NAMES, DISPLAY_UNITS, to_display(run.theta), strict=True)
         },
         "theta_nominal": _named(THETA_NOMINAL),
-        "method": "batch Levenberg-Marquardt over all selected segments (paper section 4.1)",
+        "method": run.method,
         "log": {
             "file": run.log.source,
             "samples": len(run.log),
@@ -63,39 +90,49 @@ def results_document(run: CalibrationRun) -> dict:
             "selected": len(run.selected),
             "validation": len(run.validation),
         },
-        "solve": {
-            "iterations": run.calibration.iterations,
-            "initial_error": run.calibration.initial_error,
-            "final_error": run.calibration.final_error,
-        },
+        "steps": stats,
         "validation_error_m": {
-            name: {
-                "median": float(np.median(e)),
-                "p75": float(np.percentile(e, 75)),
-                "max": float(np.max(e)),
-            }
-            for name, e in run.validation_errors.items()
+            **validation_summary(run),
+            "per_step_median": {
+                step: float(np.nanmedian(e)) if np.isfinite(e).any() else None
+                for step, e in run.batch_errors.items()
+            },
         },
-        "settings": {
-            "segment_length_m": s.segment_length,
-            "segment_stride_m": s.segment_stride,
-            "min_yaw_rate_rad_s": s.min_yaw_rate,
-            "yaw_statistic": s.yaw_statistic,
-            "yaw_window_s": s.yaw_window,
-            "validation_length_m": s.validation_length,
-            "theta_initial": _named(s.batch.theta_initial),
-            "theta_prior_sigmas": _named(s.batch.theta_prior_sigmas),
-            "pose_weights": list(s.batch.pose_weights),
-            "position_sigma_m": s.batch.position_sigma,
-            "estimate_start_poses": s.batch.estimate_start_poses,
-            "max_iterations": s.batch.max_iterations,
-        },
-        "versions": {"graphcal": __version__, "gtsam": getattr(gtsam, "__version__", "unknown")},
     }
+    if run.staged is not None:
+        doc["batches"] = {
+            "count": len(run.staged.batches),
+            "size": int(run.staged.batches.shape[1]),
+            "failed": {s: int(run.staged.failed[s].sum()) for s in STEPS},
+        }
+        doc["iqr_reduction_percent"] = {
+            "step1_to_step5": iqr_reduction(stats["step1"], stats["step5"]),
+            "paper": PAPER_IQR_REDUCTION,
+        }
+        doc["warnings"] = list(run.staged.warnings)
     if run.theta_true is not None:
         doc["theta_true"] = _named(run.theta_true)
         doc["theta_error"] = _named(run.theta - run.theta_true)
+    doc["settings"] = run.settings.to_dict()
+    doc["workers"] = workers
+    doc["versions"] = {"graphcal": __version__, "gtsam": getattr(gtsam, "__version__", "?")}
     return _finite(doc)
+
+
+def batches_frame(run: CalibrationRun) -> pd.DataFrame:
+    """One row per batch: its segments and theta (SI) of Steps 1, 3 and 5; empty if failed."""
+    assert run.staged is not None
+    frame = pd.DataFrame(
+        {
+            "batch": np.arange(len(run.staged.batches)),
+            "segments": [" ".join(map(str, b)) for b in run.staged.batches],
+        }
+    )
+    for step in STEPS:
+        for i, name in enumerate(PARAMETER_NAMES):
+            frame[f"{step}_{name}"] = run.staged.theta[step][:, i]
+        frame[f"{step}_validation_error_m"] = run.batch_errors[step]
+    return frame
 
 
 def summary_text(run: CalibrationRun) -> str:
@@ -103,29 +140,34 @@ def summary_text(run: CalibrationRun) -> str:
     rows = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
     if run.theta_true is not None:
         rows["true"] = run.theta_true
-    return f"{theta_table(rows)}\n\n{error_table(run.validation_errors)}"
+    parts = [theta_table(rows)]
+    if run.staged is not None:
+        parts.append(steps_table(run_statistics(run), run.theta_true is not None))
+    parts.append(validation_table(validation_summary(run)))
+    if run.staged is not None and run.staged.warnings:
+        parts.append("\n".join(f"warning: {w}" for w in run.staged.warnings))
+    return "\n\n".join(parts)
 
 
-def write_results(run: CalibrationRun, out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Write ``calibration.json``, ``validation.csv`` and the figures into ``out_dir``."""
+def write_results(
+    run: CalibrationRun, out_dir: str | os.PathLike[str], workers: int = 1
+) -> list[Path]:
+    """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures."""
     out = Path(out_dir)
-    document = json.dumps(results_document(run), indent=2, allow_nan=False) + "\n"
-    table = pd.DataFrame(
+    document = json.dumps(results_document(run, workers), indent=2, allow_nan=False) + "\n"
+    validation = pd.DataFrame(
         {
             "segment": np.arange(len(run.validation)),
             "start_t_s": run.log.t[run.validation_segments.start],
             "end_t_s": run.log.t[run.validation_segments.stop],
-            **{f"error_{name}_m": e for name, e in run.validation_errors.items()},
+            **{f"error_{name}_m": e for name, e in run.segment_errors.items()},
         }
     )
-    figures = {
-        "route.png": route_figure(run),
-        "validation.png": validation_figure(run),
-        "trajectory.png": trajectory_figure(run),
-    }
-    written = [
-        atomic_write_text(out / "calibration.json", document),
-        atomic_write_csv(table, out / "validation.csv"),
-    ]
-    written += [atomic_save_figure(fig, out / name) for name, fig in figures.items()]
+    tables = {"validation.csv": validation}
+    if run.staged is not None:
+        tables["batches.csv"] = batches_frame(run)
+    images = figures(run)
+    written = [atomic_write_text(out / "calibration.json", document)]
+    written += [atomic_write_csv(frame, out / name) for name, frame in tables.items()]
+    written += [atomic_save_figure(fig, out / name) for name, fig in images.items()]
     return written

@@ -1,13 +1,43 @@
-"""Plain-text tables of theta in the paper's display units (m, mm, m, mm·s²/m)."""
+"""Statistics and plain-text tables of a run, theta in the paper's display units."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from graphcal.model import PARAMETER_NAMES
-from graphcal.units import DISPLAY_UNITS, to_display
+from graphcal.units import DEVIATION_SCALE, DISPLAY_SCALE, DISPLAY_UNITS, to_display
 
 _FORMATS = ("{:.4f}", "{:.3f}", "{:.4f}", "{:.3f}")
+
+#: The paper's reductions of the middle-50 % range from Step 1 to Step 5 (§5.5), in percent.
+PAPER_IQR_REDUCTION = {"c_e": 78.0, "c_d": 87.0, "t_r": 80.0, "d": 84.0}
+
+
+def step_statistics(thetas: np.ndarray, truth: np.ndarray | None = None) -> dict[str, dict]:
+    """Per parameter: median, IQR and, given the truth, bias (median − truth) and RMSE (SI).
+
+    ``thetas`` is ``(B, 4)``; rows with NaN (failed batches) are left out.
+    """
+    good = thetas[np.all(np.isfinite(thetas), axis=1)]
+    q25, median, q75 = np.percentile(good, [25, 50, 75], axis=0)
+    stats: dict[str, dict] = {}
+    for i, name in enumerate(PARAMETER_NAMES):
+        entry = {"median": float(median[i]), "iqr": float(q75[i] - q25[i])}
+        if truth is not None:
+            entry["bias"] = float(median[i] - truth[i])
+            entry["rmse"] = float(np.sqrt(np.mean((good[:, i] - truth[i]) ** 2)))
+        stats[name] = entry
+    return stats
+
+
+def iqr_reduction(first: dict[str, dict], last: dict[str, dict]) -> dict[str, float]:
+    """Reduction of the IQR from ``first`` to ``last`` step, percent, per parameter."""
+    return {
+        name: 100.0 * (1.0 - last[name]["iqr"] / first[name]["iqr"])
+        if first[name]["iqr"] > 0
+        else 0.0
+        for name in PARAMETER_NAMES
+    }
 
 
 def theta_table(rows: dict[str, np.ndarray]) -> str:
@@ -20,14 +50,39 @@ def theta_table(rows: dict[str, np.ndarray]) -> str:
     return _render([header, *body])
 
 
-def error_table(errors: dict[str, np.ndarray]) -> str:
-    """Median / 75th percentile / max of validation errors [m] per theta."""
-    header = ["validation error [m]", "median", "75 %", "max"]
-    body = [
-        [name, f"{np.median(e):.3f}", f"{np.percentile(e, 75):.3f}", f"{np.max(e):.3f}"]
-        for name, e in errors.items()
-    ]
+def steps_table(stats: dict[str, dict[str, dict]], has_truth: bool) -> str:
+    """Step 1 vs Step 5 per parameter: median, IQR, bias, RMSE, IQR reduction vs the paper.
+
+    Medians in display units (m, mm, m, mm·s²/m); IQR, bias and RMSE in mm (mm·s²/m for d).
+    """
+    first, last = stats["step1"], stats["step5"]
+    reduction = iqr_reduction(first, last)
+    columns = ["median", "iqr"] + (["bias", "rmse"] if has_truth else [])
+    header = ["parameter"]
+    for step in ("step1", "step5"):
+        header += [f"{step} {c}" for c in columns]
+    header += ["IQR cut %", "paper %"]
+    body = []
+    for i, name in enumerate(PARAMETER_NAMES):
+        spread = "mm·s²/m" if name == "d" else "mm"
+        row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]"]
+        for step in (first, last):
+            entry = step[name]
+            row.append(_FORMATS[i].format(entry["median"] * DISPLAY_SCALE[i]))
+            row += [f"{entry[c] * DEVIATION_SCALE[i]:.3f}" for c in columns[1:]]
+        row += [f"{reduction[name]:.0f}", f"{PAPER_IQR_REDUCTION[name]:.0f}"]
+        body.append(row)
     return _render([header, *body])
+
+
+def validation_table(errors: dict[str, float]) -> str:
+    """E_p [m] per named theta."""
+    return _render(
+        [
+            ["validation error E_p [m]", "mean"],
+            *([name, f"{value:.3f}"] for name, value in errors.items()),
+        ]
+    )
 
 
 def _render(rows: list[list[str]]) -> str:
