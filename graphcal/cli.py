@@ -168,6 +168,28 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_bench(args: argparse.Namespace) -> int:
+    """Time graphcal's solves next to the naive per-step GTSAM formulation; write JSON."""
+    from graphcal.bench.run import run_benchmarks, write_report
+
+    report = run_benchmarks(
+        length_km=args.length_km,
+        repeats=args.repeats,
+        workers=args.workers,
+        naive_iterations=args.naive_iterations,
+        pipeline_batches=args.pipeline_batches,
+        agreement_segments=args.agreement_segments,
+        progress=print,
+    )
+    print(f"(a)/(b) per iteration: {report['naive_over_graphcal_per_iteration']:.0f}x")
+    try:
+        write_report(report, args.out)
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+    print(f"wrote {args.out}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``graphcal`` command."""
     parser = argparse.ArgumentParser(
@@ -264,6 +286,35 @@ def build_parser() -> argparse.ArgumentParser:
         help="lateral acceleration noise sigma [m/s²] (0)",
     )
     p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser(
+        "bench", help="benchmark against the naive GTSAM formulation", description=cmd_bench.__doc__
+    )
+    p.add_argument(
+        "--length-km",
+        type=_at_least(1.0, "km"),
+        default=24.0,
+        help="synthetic drive length [km] (24)",
+    )
+    p.add_argument("--repeats", type=int, default=3, help="repeats per item (median; 3)")
+    p.add_argument("--workers", type=int, default=2, help="workers for the pipeline item (2)")
+    p.add_argument(
+        "--naive-iterations",
+        type=int,
+        default=2,
+        help="LM iterations of the naive formulation to time (2)",
+    )
+    p.add_argument(
+        "--pipeline-batches", type=int, default=20, help="batches of the staged pipeline item (20)"
+    )
+    p.add_argument(
+        "--agreement-segments",
+        type=int,
+        default=3,
+        help="whole segments of the (a)-vs-(b) agreement problem (3)",
+    )
+    p.add_argument("--out", type=Path, default=Path("bench.json"), help="JSON report path")
+    p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser(
         "check", help="validate a drive log and summarize it", description=cmd_check.__doc__

@@ -34,6 +34,12 @@ settings as printed into ``calibration.json``. A TOML file may set any subset::
     estimations = 12
     trim_fraction = 0.1
     estimate_start_poses = true   # in Steps 3 and 5; false = the paper's held start
+
+    [joint]                   # --method joint
+    wheel_noise = 0.0005      # rev, sigma of the corrections' prior
+    smoothness_weight = 0.0   # R on Δu; 0 = off
+    chunk_steps = 50
+    max_iterations = 30
 """
 
 from __future__ import annotations
@@ -50,6 +56,7 @@ from graphcal.data.segments import YawRateStatistic
 from graphcal.errors import GraphcalError
 from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.input_estimation import InputEstimationSettings
+from graphcal.pipeline.joint import JointSettings
 
 
 @dataclass(frozen=True)
@@ -146,6 +153,7 @@ class Settings:
         default_factory=lambda: BatchSettings(estimate_start_poses=False, max_iterations=5)
     )
     staged: StagedSettings = field(default_factory=StagedSettings)
+    joint: JointSettings = field(default_factory=JointSettings)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view (lists instead of arrays), as written into ``calibration.json``."""
@@ -175,10 +183,11 @@ class Settings:
                 "trim_fraction": st.trim_fraction,
                 "estimate_start_poses": st.estimate_start_poses,
             },
+            "joint": section(self.joint),
         }
 
 
-_SECTIONS = {"segments", "batches", "calibration", "input_estimation"}
+_SECTIONS = {"segments", "batches", "calibration", "input_estimation", "joint"}
 
 
 def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Settings:
@@ -223,9 +232,17 @@ def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Sett
         )
         step4 = dataclasses.replace(step2, tracking_weights=w4)
         staged = StagedSettings(step2=step2, step4=step4, **staged_args)
+        joint_args = dict(data.get("joint", {}))
+        for key in ("theta_initial", "theta_prior_sigmas"):
+            if key in joint_args:
+                joint_args[key] = _vector(joint_args[key], 4, f"joint.{key}", source)
+        for key in ("pose_weights", "continuity_sigmas"):
+            if key in joint_args:
+                joint_args[key] = tuple(_vector(joint_args[key], 3, f"joint.{key}", source))
+        joint = _build(JointSettings, joint_args, "joint", source)
     except (TypeError, ValueError) as exc:
         raise GraphcalError(f"{source}: {exc}") from exc
-    return Settings(segments, batches, calibration, staged)
+    return Settings(segments, batches, calibration, staged, joint)
 
 
 def load_settings(path: str | os.PathLike[str]) -> Settings:

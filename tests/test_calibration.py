@@ -90,3 +90,40 @@ def test_cli_calibrate_writes_complete_deterministic_results(drive, tmp_path, ca
     assert doc["theta_display"]["c_d [mm]"] == pytest.approx(theta[1] * 1e3)
     assert doc["segments"]["selected"] > 0
     assert doc["validation_error_m"]["calibrated"] < doc["validation_error_m"]["nominal"]
+
+
+def test_joint_solve_recovers_theta_on_noise_free_data(clean_drive):
+    from graphcal.pipeline.joint import calibrate_joint
+
+    log = clean_drive.measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+    result = calibrate_joint(data.take(np.arange(min(4, len(data)))))
+    error = np.abs(result.theta - clean_drive.theta_true)
+    # Micrometre level: 0.002 mm on c_d, 0.005 mm·s²/m on d, 0.5 mm on t_r.
+    assert np.all(error < [1e-6, 2e-6, 5e-4, 5e-6]), error
+    np.testing.assert_allclose(result.start_states[:, :2], data.poses[:4, 0, :2], atol=1e-4)
+
+
+def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
+    log_path = tmp_path / "drive.csv"
+    write_synthetic_drive(drive, log_path)
+    out = tmp_path / "joint"
+    args = [
+        "calibrate",
+        str(log_path),
+        "--out",
+        str(out),
+        "--method",
+        "joint",
+        "--segment-stride",
+        "25",
+        "--batches",
+        "3",
+    ]
+    assert main(args) == 0
+    assert "joint rmse" in capsys.readouterr().out
+    doc = json.loads((out / "calibration.json").read_text())
+    assert doc["method"] == "joint" and set(doc["steps"]) == {"joint"}
+    theta = np.array([doc["theta"][n] for n in ("c_e", "c_d", "t_r", "d")])
+    assert np.all(np.abs(theta - drive.theta_true) < [1e-3, 0.3e-3, 15e-3, 0.3e-3])
+    assert (out / "parameters.png").is_file() and (out / "batches.csv").is_file()

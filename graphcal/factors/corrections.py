@@ -60,7 +60,7 @@ def _linear(jacobian_factor: gtsam.JacobianFactor, keys_and_dims: list[tuple[int
 
 
 def chunk_correction_prior(
-    key: int, measured: np.ndarray, size: np.ndarray, smooth_sigma: float
+    key: int, measured: np.ndarray, size: np.ndarray, smooth_sigma: float | None
 ) -> gtsam.LinearContainerFactor:
     """Size and within-chunk smoothness of a ``2L``-vector of corrections, as one linear factor.
 
@@ -68,17 +68,24 @@ def chunk_correction_prior(
         key: the chunk's correction vector ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``.
         measured: measured ``[n_rl, n_rr]`` of its ``L`` steps, ``(L, 2)`` [rev].
         size: size-prior sigmas ``(L, 2)`` [rev] (see :func:`size_sigmas`).
-        smooth_sigma: sigma of the change of a corrected rotation between steps [rev].
+        smooth_sigma: sigma of the change of a corrected rotation between steps [rev], or
+            ``None`` for no smoothness term.
     """
     measured = np.asarray(measured, float)
     n = 2 * len(measured)
-    difference = np.eye(n, k=2)[: n - 2] - np.eye(n)[: n - 2]  # c_{k+1} - c_k per wheel
-    a = np.vstack([np.eye(n), difference])
-    b = np.concatenate([np.zeros(n), -np.diff(measured, axis=0).reshape(-1)])
-    sigmas = np.concatenate([np.asarray(size, float).reshape(-1), np.full(n - 2, smooth_sigma)])
-    return _linear(
-        gtsam.JacobianFactor(key, a, b, gtsam.noiseModel.Diagonal.Sigmas(sigmas)), [(key, n)]
+    a, b = [np.eye(n)], [np.zeros(n)]
+    sigmas = [np.asarray(size, float).reshape(-1)]
+    if smooth_sigma is not None and n > 2:
+        a.append(np.eye(n, k=2)[: n - 2] - np.eye(n)[: n - 2])  # c_{k+1} - c_k per wheel
+        b.append(-np.diff(measured, axis=0).reshape(-1))
+        sigmas.append(np.full(n - 2, smooth_sigma))
+    factor = gtsam.JacobianFactor(
+        key,
+        np.vstack(a),
+        np.concatenate(b),
+        gtsam.noiseModel.Diagonal.Sigmas(np.concatenate(sigmas)),
     )
+    return _linear(factor, [(key, n)])
 
 
 def chunk_boundary_smoothness(

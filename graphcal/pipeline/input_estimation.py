@@ -98,7 +98,7 @@ class InputEstimate:
     iterations: int
 
 
-def _chunk_bounds(n_steps: int, chunk_steps: int) -> np.ndarray:
+def chunk_bounds(n_steps: int, chunk_steps: int) -> np.ndarray:
     """Chunk boundaries ``[0, ..., n_steps]``; the last chunk absorbs a short remainder."""
     bounds = [*range(0, n_steps, chunk_steps), n_steps]
     if len(bounds) > 2 and bounds[-1] - bounds[-2] < chunk_steps // 2:
@@ -121,7 +121,7 @@ def build_input_estimation_graph(
     smooth_sigma = 1.0 / np.sqrt(settings.smoothness_weight)
     sizes = size_sigmas(measured, settings.input_bound)
     nominal = integrate(poses[0], inputs, theta)  # the paper's nominal trajectory
-    bounds = _chunk_bounds(n_steps, settings.chunk_steps)
+    bounds = chunk_bounds(n_steps, settings.chunk_steps)
     n_chunks = len(bounds) - 1
     for j in range(n_chunks):
         a, b = int(bounds[j]), int(bounds[j + 1])

@@ -4,6 +4,8 @@ Methods:
 
 * ``"staged"`` — the paper's five steps over batches (:mod:`graphcal.pipeline.staged`); the
   recommended theta is the median of Step 5 over the batches.
+* ``"joint"`` — one joint graph per batch (:mod:`graphcal.pipeline.joint`): start poses,
+  wheel-rotation corrections and theta solved together; the median over the batches.
 * ``"whole"`` — one batch solve over all selected segments at once, start poses estimated: a
   quick calibration from a short log.
 
@@ -32,14 +34,16 @@ from graphcal.data.segments import (
 )
 from graphcal.errors import GraphcalError
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.batch_calibration import BatchCalibration, calibrate_batch
-from graphcal.pipeline.staged import STEPS, StagedResult, run_staged
+from graphcal.pipeline.batch_calibration import calibrate_batch
+from graphcal.pipeline.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.parallel import map_tasks
+from graphcal.pipeline.staged import StagedResult, run_staged
 from graphcal.pipeline.validation import position_errors
 from graphcal.settings import Settings
 
 Progress = Callable[[str], None]
-Method = Literal["staged", "whole"]
-METHODS = ("staged", "whole")
+Method = Literal["staged", "joint", "whole"]
+METHODS = ("staged", "joint", "whole")
 
 
 class NoUsableSegments(GraphcalError, ValueError):
@@ -56,8 +60,10 @@ class CalibrationRun:
         yaw_rate: the selection statistic of every calibration segment [rad/s].
         data: the selected segments' signals.
         theta: the recommended theta.
+        batches: ``(B, N)`` segment indices of the batches (``None`` for ``"whole"``).
+        batch_theta: per step or method (``"step1"``, ``"step3"``, ``"step5"``; ``"joint"``;
+            ``"whole"``), theta of each batch ``(B, 4)``; NaN rows for failed solves.
         staged: the five steps' results (``method == "staged"``).
-        whole: the single solve (``method == "whole"``).
         validation_segments, validation: the validation segments and their signals.
         segment_errors: per validation segment, mean position error [m] of odometry with
             ``"nominal"``, ``"calibrated"`` and, when known, ``"true"`` theta.
@@ -74,8 +80,9 @@ class CalibrationRun:
     yaw_rate: np.ndarray
     data: SegmentData
     theta: np.ndarray
+    batches: np.ndarray | None
+    batch_theta: dict[str, np.ndarray]
     staged: StagedResult | None
-    whole: BatchCalibration | None
     validation_segments: Segments
     validation: SegmentData
     segment_errors: dict[str, np.ndarray]
@@ -92,6 +99,13 @@ def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
     if not np.all(np.isfinite(theta)):
         return float("nan")
     return float(np.mean(position_errors(validation, theta)))
+
+
+def _joint_task(data: SegmentData, settings: JointSettings) -> np.ndarray | None:
+    try:
+        return calibrate_joint(data, settings).theta
+    except GraphcalError:
+        return None
 
 
 def select(
@@ -135,8 +149,8 @@ def run_calibration(
     Args:
         log: a validated drive log.
         settings: run settings (the paper's by default).
-        method: ``"staged"`` (the paper's five steps over batches) or ``"whole"`` (one solve
-            over all selected segments).
+        method: ``"staged"`` (the paper's five steps over batches), ``"joint"`` (one joint
+            graph per batch) or ``"whole"`` (one solve over all selected segments).
         theta_true: the true theta if known (synthetic drives); adds the reachable limit.
         progress: called with one line per stage.
         workers: worker processes for batches and segments (results do not depend on it).
@@ -152,21 +166,30 @@ def run_calibration(
     segments, yaw, selected, validation_segments = select(log, settings, say)
     data = gather_segments(log, selected)
     validation = gather_segments(log, validation_segments)
-    staged = whole = None
-    batch_errors: dict[str, np.ndarray] = {}
-    if method == "staged":
+    staged = None
+    batches = None
+    batch_theta: dict[str, np.ndarray] = {}
+    if method in ("staged", "joint"):
         b = settings.batches
         size = min(b.size, len(selected))
         if size < b.size:
             say(f"only {len(selected)} segments: batches of {size} instead of {b.size}")
         batches = make_batches(len(selected), size, b.count, b.seed)
-        say(f"staged: {len(batches)} batches of {size} segments, {workers} worker(s)")
+        say(f"{method}: {len(batches)} batches of {size} segments, {workers} worker(s)")
+    if method == "staged":
         staged = run_staged(data, batches, settings, workers, say)
         theta = staged.final_theta
-        for step in STEPS:
-            batch_errors[step] = np.array(
-                [mean_validation_error(validation, t) for t in staged.theta[step]]
-            )
+        batch_theta = dict(staged.theta)
+    elif method == "joint":
+        tasks = [(data.take(batch), settings.joint) for batch in batches]
+        results = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
+        batch_theta["joint"] = np.array([np.full(4, np.nan) if r is None else r for r in results])
+        good = batch_theta["joint"][np.all(np.isfinite(batch_theta["joint"]), axis=1)]
+        if len(good) == 0:
+            raise GraphcalError("every joint batch solve failed; no calibration to report")
+        if len(good) < len(batches):
+            say(f"warning: {len(batches) - len(good)} of {len(batches)} joint solves failed")
+        theta = np.median(good, axis=0)
     else:
         solve = dataclasses.replace(
             settings.calibration,
@@ -174,9 +197,12 @@ def run_calibration(
             max_iterations=max(settings.calibration.max_iterations, 20),
         )
         say(f"whole: one graph over {len(selected)} segments, start poses estimated")
-        whole = calibrate_batch(data, solve)
-        theta = whole.theta
-        batch_errors["whole"] = np.array([mean_validation_error(validation, theta)])
+        theta = calibrate_batch(data, solve).theta
+        batch_theta["whole"] = theta[None]
+    batch_errors = {
+        name: np.array([mean_validation_error(validation, t) for t in thetas])
+        for name, thetas in batch_theta.items()
+    }
     segment_errors = {
         "nominal": position_errors(validation, THETA_NOMINAL),
         "calibrated": position_errors(validation, theta),
@@ -193,8 +219,9 @@ def run_calibration(
         yaw,
         data,
         theta,
+        batches,
+        batch_theta,
         staged,
-        whole,
         validation_segments,
         validation,
         segment_errors,

@@ -7,11 +7,16 @@ from matplotlib.figure import Figure
 
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, integrate
 from graphcal.pipeline.run import CalibrationRun
-from graphcal.pipeline.staged import STEPS
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 _COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}
-_STEP_LABELS = {"step1": "Step 1", "step3": "Step 3", "step5": "Step 5", "whole": "whole log"}
+_STEP_LABELS = {
+    "step1": "Step 1",
+    "step3": "Step 3",
+    "step5": "Step 5",
+    "joint": "joint",
+    "whole": "whole log",
+}
 
 
 def route_figure(run: CalibrationRun) -> Figure:
@@ -41,16 +46,17 @@ def route_figure(run: CalibrationRun) -> Figure:
 
 
 def parameters_figure(run: CalibrationRun) -> Figure:
-    """Box plots of each parameter over the batches, Step 1 vs Steps 3 and 5 (paper Fig. 5)."""
-    assert run.staged is not None
+    """Box plots of each parameter over the batches per step or method (paper Fig. 5)."""
+    assert run.batches is not None
     fig = Figure(figsize=(11, 3.6), layout="constrained")
+    names = list(run.batch_theta)
     for i, name in enumerate(PARAMETER_NAMES):
         ax = fig.add_subplot(1, 4, i + 1)
         data = []
-        for step in STEPS:
-            t = run.staged.theta[step][:, i]
+        for step in names:
+            t = run.batch_theta[step][:, i]
             data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
-        ax.boxplot(data, tick_labels=[_STEP_LABELS[s] for s in STEPS])
+        ax.boxplot(data, tick_labels=[_STEP_LABELS[s] for s in names])
         if run.theta_true is not None:
             ax.axhline(
                 run.theta_true[i] * DISPLAY_SCALE[i], color="tab:green", ls="--", label="true"
@@ -60,7 +66,7 @@ def parameters_figure(run: CalibrationRun) -> Figure:
         ax.grid(axis="y", alpha=0.3)
         if i == 0:
             ax.legend(loc="best", fontsize="small")
-    fig.suptitle(f"Estimates over {len(run.staged.batches)} batches")
+    fig.suptitle(f"Estimates over {len(run.batches)} batches")
     return fig
 
 
@@ -180,7 +186,8 @@ def figures(run: CalibrationRun) -> dict[str, Figure]:
         "validation.png": validation_figure(run),
         "trajectory.png": trajectory_figure(run),
     }
-    if run.staged is not None:
+    if run.batches is not None:
         out["parameters.png"] = parameters_figure(run)
+    if run.staged is not None:
         out["wheel_rotations.png"] = wheel_rotations_figure(run)
     return out

@@ -20,7 +20,6 @@ from graphcal import __version__
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.run import CalibrationRun
-from graphcal.pipeline.staged import STEPS
 from graphcal.report.figures import figures
 from graphcal.report.tables import (
     PAPER_IQR_REDUCTION,
@@ -49,10 +48,8 @@ def _finite(obj: object) -> object:
 
 
 def run_statistics(run: CalibrationRun) -> dict[str, dict]:
-    """Per step (staged) or for the single solve: :func:`step_statistics` of its thetas."""
-    if run.staged is not None:
-        return {s: step_statistics(run.staged.theta[s], run.theta_true) for s in STEPS}
-    return {"whole": step_statistics(run.theta[None], run.theta_true)}
+    """Per step or method: :func:`step_statistics` of its per-batch thetas."""
+    return {name: step_statistics(t, run.theta_true) for name, t in run.batch_theta.items()}
 
 
 def validation_summary(run: CalibrationRun) -> dict[str, float]:
@@ -99,12 +96,16 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             },
         },
     }
-    if run.staged is not None:
+    if run.batches is not None:
         doc["batches"] = {
-            "count": len(run.staged.batches),
-            "size": int(run.staged.batches.shape[1]),
-            "failed": {s: int(run.staged.failed[s].sum()) for s in STEPS},
+            "count": len(run.batches),
+            "size": int(run.batches.shape[1]),
+            "failed": {
+                name: int((~np.all(np.isfinite(t), axis=1)).sum())
+                for name, t in run.batch_theta.items()
+            },
         }
+    if run.staged is not None:
         doc["iqr_reduction_percent"] = {
             "step1_to_step5": iqr_reduction(stats["step1"], stats["step5"]),
             "paper": PAPER_IQR_REDUCTION,
@@ -120,17 +121,17 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
 
 
 def batches_frame(run: CalibrationRun) -> pd.DataFrame:
-    """One row per batch: its segments and theta (SI) of Steps 1, 3 and 5; empty if failed."""
-    assert run.staged is not None
+    """One row per batch: its segments and theta (SI) per step or method; empty if failed."""
+    assert run.batches is not None
     frame = pd.DataFrame(
         {
-            "batch": np.arange(len(run.staged.batches)),
-            "segments": [" ".join(map(str, b)) for b in run.staged.batches],
+            "batch": np.arange(len(run.batches)),
+            "segments": [" ".join(map(str, b)) for b in run.batches],
         }
     )
-    for step in STEPS:
+    for step, thetas in run.batch_theta.items():
         for i, name in enumerate(PARAMETER_NAMES):
-            frame[f"{step}_{name}"] = run.staged.theta[step][:, i]
+            frame[f"{step}_{name}"] = thetas[:, i]
         frame[f"{step}_validation_error_m"] = run.batch_errors[step]
     return frame
 
@@ -143,6 +144,8 @@ def summary_text(run: CalibrationRun) -> str:
     parts = [theta_table(rows)]
     if run.staged is not None:
         parts.append(steps_table(run_statistics(run), run.theta_true is not None))
+    elif run.method == "joint":
+        parts.append(steps_table(run_statistics(run), run.theta_true is not None, steps=("joint",)))
     parts.append(validation_table(validation_summary(run)))
     if run.staged is not None and run.staged.warnings:
         parts.append("\n".join(f"warning: {w}" for w in run.staged.warnings))
@@ -164,7 +167,7 @@ def write_results(
         }
     )
     tables = {"validation.csv": validation}
-    if run.staged is not None:
+    if run.batches is not None:
         tables["batches.csv"] = batches_frame(run)
     images = figures(run)
     written = [atomic_write_text(out / "calibration.json", document)]

@@ -50,27 +50,34 @@ def theta_table(rows: dict[str, np.ndarray]) -> str:
     return _render([header, *body])
 
 
-def steps_table(stats: dict[str, dict[str, dict]], has_truth: bool) -> str:
-    """Step 1 vs Step 5 per parameter: median, IQR, bias, RMSE, IQR reduction vs the paper.
+def steps_table(
+    stats: dict[str, dict[str, dict]],
+    has_truth: bool,
+    steps: tuple[str, ...] = ("step1", "step5"),
+) -> str:
+    """Per parameter and step: median, IQR and, given the truth, bias and RMSE.
 
     Medians in display units (m, mm, m, mm·s²/m); IQR, bias and RMSE in mm (mm·s²/m for d).
+    With Steps 1 and 5 the IQR reduction is shown next to the paper's.
     """
-    first, last = stats["step1"], stats["step5"]
-    reduction = iqr_reduction(first, last)
     columns = ["median", "iqr"] + (["bias", "rmse"] if has_truth else [])
     header = ["parameter"]
-    for step in ("step1", "step5"):
+    for step in steps:
         header += [f"{step} {c}" for c in columns]
-    header += ["IQR cut %", "paper %"]
+    compare = steps == ("step1", "step5")
+    if compare:
+        reduction = iqr_reduction(stats["step1"], stats["step5"])
+        header += ["IQR cut %", "paper %"]
     body = []
     for i, name in enumerate(PARAMETER_NAMES):
         spread = "mm·s²/m" if name == "d" else "mm"
         row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]"]
-        for step in (first, last):
-            entry = step[name]
+        for step in steps:
+            entry = stats[step][name]
             row.append(_FORMATS[i].format(entry["median"] * DISPLAY_SCALE[i]))
             row += [f"{entry[c] * DEVIATION_SCALE[i]:.3f}" for c in columns[1:]]
-        row += [f"{reduction[name]:.0f}", f"{PAPER_IQR_REDUCTION[name]:.0f}"]
+        if compare:
+            row += [f"{reduction[name]:.0f}", f"{PAPER_IQR_REDUCTION[name]:.0f}"]
         body.append(row)
     return _render([header, *body])
 

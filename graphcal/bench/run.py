@@ -1,0 +1,204 @@
+"""The benchmark: graphcal's solves next to the naive GTSAM formulation, in one run.
+
+Items (median wall time over ``repeats``; peak memory of the process after each item):
+
+* foundation: simulate, write, load, segment, integrate;
+* (a) the naive formulation of one batch (per-step Python factors between Pose2 variables,
+  :mod:`graphcal.bench.naive`), ``gtsam.LevenbergMarquardtOptimizer`` capped at a few
+  iterations: seconds per iteration;
+* (b) graphcal's batch solve of the same batch (one factor per segment): seconds, and per
+  iteration;
+* agreement of (a) and (b): both run to convergence on a reduced batch;
+* (c) graphcal's input estimation (Steps 2 and 4) per segment;
+* (d) graphcal's joint batch solve of the same batch;
+* (e) the staged and joint pipelines end to end at a chosen number of batches, with
+  ``workers``.
+
+Ratios are taken within one run, never against figures from another machine.
+"""
+
+from __future__ import annotations
+
+import json
+import resource
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from graphcal.bench.naive import build_naive_graph, naive_optimizer
+from graphcal.data.drive_log import load_drive_log
+from graphcal.data.segments import (
+    SegmentData,
+    gather_segments,
+    make_batches,
+    select_segments,
+    split_segments,
+)
+from graphcal.model import integrate, integrate_with_jacobians
+from graphcal.pipeline.batch_calibration import THETA_KEY, calibrate_batch
+from graphcal.pipeline.input_estimation import estimate_inputs
+from graphcal.pipeline.joint import calibrate_joint
+from graphcal.pipeline.run import run_calibration
+from graphcal.settings import BatchingSettings, Settings
+from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
+
+
+def peak_memory_mb() -> float:
+    """Peak resident memory of this process so far [MB] (Linux ``ru_maxrss`` is in KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def timed(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
+    """Median wall time [s] of ``fn`` over ``repeats`` calls, and its last result."""
+    times, result = [], None
+    for _ in range(max(1, repeats)):
+        start = time.perf_counter()
+        result = fn()
+        times.append(time.perf_counter() - start)
+    return statistics.median(times), result
+
+
+def reduced(data: SegmentData, segments: int, steps: int) -> SegmentData:
+    """The first ``segments`` segments cut to at most ``steps`` steps."""
+    index = np.arange(min(segments, len(data)))
+    sub = data.take(index)
+    n = np.minimum(sub.n_steps, steps)
+    k = int(n.max())
+    return SegmentData(sub.poses[:, : k + 1], sub.inputs[:, :k], n, sub.valid[:, : k + 1])
+
+
+def run_benchmarks(
+    length_km: float = 24.0,
+    repeats: int = 3,
+    workers: int = 2,
+    naive_iterations: int = 2,
+    pipeline_batches: int = 20,
+    agreement_segments: int = 3,
+    progress: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Run every item; return ``{"config": ..., "items": [...], "agreement": ...}``."""
+    say = progress or (lambda _line: None)
+    rows: list[dict[str, Any]] = []
+
+    def record(name: str, seconds: float, **extra: Any) -> None:
+        row = {"item": name, "median_s": seconds, "peak_mb": peak_memory_mb(), **extra}
+        rows.append(row)
+        note = ", ".join(
+            f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in extra.items()
+        )
+        say(f"{name:<46} {seconds:10.4f} s  {row['peak_mb']:7.0f} MB  {note}")
+
+    seconds, drive = timed(lambda: simulate_drive(length_km, seed=0), repeats)
+    record("simulate drive (in memory)", seconds, samples=len(drive.measured))
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "drive.csv"
+        seconds, _ = timed(lambda: write_synthetic_drive(drive, csv), repeats)
+        record("write drive CSV + truth + sidecar", seconds)
+        seconds, log = timed(lambda: load_drive_log(csv), repeats)
+        record("load + validate drive CSV", seconds)
+    seconds, segments = timed(lambda: split_segments(log, 150.0), repeats)
+    record("split into 150 m segments", seconds, segments=len(segments))
+    seconds, selected = timed(lambda: select_segments(log, segments), repeats)
+    record("select by mean |yaw rate| > 0.15 rad/s", seconds, selected=len(selected))
+    data = gather_segments(log, selected)
+    theta = drive.theta_true
+    seconds, _ = timed(lambda: integrate(data.poses[:, 0], data.inputs, theta), repeats)
+    record("integrate all selected segments", seconds, steps=int(data.n_steps.sum()))
+    seconds, _ = timed(
+        lambda: integrate_with_jacobians(data.poses[:, 0], data.inputs, theta), repeats
+    )
+    record("integrate + Jacobians (start, theta)", seconds)
+
+    settings = Settings()
+    step1 = settings.calibration  # held start, the paper's Step 1
+    batch = make_batches(len(selected), min(9, len(selected)), 1, seed=0)[0]
+    one = data.take(batch)
+    steps = int(one.n_steps.sum())
+
+    naive = build_naive_graph(one, step1)
+    optimizer = naive_optimizer(naive, naive_iterations)
+    per_iteration = []
+    for _ in range(naive_iterations):
+        start = time.perf_counter()
+        optimizer.iterate()
+        per_iteration.append(time.perf_counter() - start)
+    naive_s = statistics.median(per_iteration)
+    record(
+        "(a) naive per-step graph, LM, per iteration",
+        naive_s,
+        python_factors=naive.python_factors,
+        steps=steps,
+    )
+
+    seconds, result = timed(lambda: calibrate_batch(one, step1), repeats)
+    graphcal_s = seconds / max(1, result.iterations)
+    record(
+        "(b) graphcal batch solve",
+        seconds,
+        iterations=result.iterations,
+        per_iteration_s=graphcal_s,
+        python_factors=len(one),
+    )
+    speedup = naive_s / graphcal_s
+
+    # Agreement: both formulations to convergence on the first whole segments of the batch
+    # (cut-down segments leave t_r unobservable with a held start).
+    small = reduced(one, agreement_segments, 10**9)
+    exact = calibrate_batch(small, step1).theta
+    approx = naive_optimizer(build_naive_graph(small, step1), 100).optimize().atVector(THETA_KEY)
+    relative = float(np.linalg.norm(approx - exact) / np.linalg.norm(exact))
+    say(f"(a) vs (b) converged on {len(small)} whole segments: |dtheta|/|theta| = {relative:.2e}")
+
+    k0 = int(one.n_steps[0])
+    seconds, _ = timed(
+        lambda: estimate_inputs(
+            one.poses[0, : k0 + 1], one.inputs[0, :k0], theta, settings.staged.step2
+        ),
+        repeats,
+    )
+    record("(c) input estimation, one segment", seconds, steps=k0)
+
+    seconds, joint = timed(lambda: calibrate_joint(one, settings.joint), repeats)
+    record("(d) graphcal joint batch solve", seconds, iterations=joint.iterations, steps=steps)
+
+    pipeline = Settings(batches=BatchingSettings(count=pipeline_batches))
+    for method in ("staged", "joint"):
+        start = time.perf_counter()
+        run = run_calibration(log, pipeline, method, drive.theta_true, None, workers)
+        record(
+            f"(e) {method} pipeline",
+            time.perf_counter() - start,
+            batches=len(run.batches),
+            workers=workers,
+        )
+
+    return {
+        "config": {
+            "length_km": length_km,
+            "repeats": repeats,
+            "workers": workers,
+            "naive_iterations": naive_iterations,
+            "pipeline_batches": pipeline_batches,
+            "python": sys.version.split()[0],
+        },
+        "items": rows,
+        "naive_over_graphcal_per_iteration": speedup,
+        "agreement": {
+            "segments": len(small),
+            "steps": int(small.n_steps.sum()),
+            "relative_theta_difference": relative,
+            "theta_segment_formulation": exact.tolist(),
+            "theta_naive_formulation": approx.tolist(),
+        },
+    }
+
+
+def write_report(report: dict[str, Any], path: str | Path) -> None:
+    """Write the benchmark report as JSON."""
+    Path(path).write_text(json.dumps(report, indent=2) + "\n")

@@ -1,0 +1,188 @@
+"""One joint graph per batch: compensation and calibration in a single solve.
+
+The paper needs five stages because its optimal control assumes a known theta and a correct
+initial pose. In a factor graph all of them can be variables at once:
+
+* theta, a 4-vector under a weak prior at the nominal values;
+* per segment, its start pose (Pose2) under the measured pose (world-frame position and
+  heading priors, the paper's W);
+* the segment cut into chunks of ``chunk_steps`` steps; one Python factor per chunk integrates
+  eq. (1) from the chunk's start pose with the corrected wheel rotations and theta and tracks
+  the measured poses; Pose2 variables at chunk boundaries carry a near-hard continuity
+  residual;
+* per chunk, one vector of wheel-rotation corrections under their noise prior (the measured
+  rotation is the true one plus noise, so the correction is minus the noise: zero-mean with
+  the wheel-noise sigma), optionally with the paper's smoothness prior on Δu.
+
+Levenberg–Marquardt solves it once from the nominal theta: an errors-in-variables maximum-
+likelihood estimate of theta, start poses and true rotations together.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from graphcal.data.segments import SegmentData
+from graphcal.errors import GraphcalError, first_line
+from graphcal.factors import (
+    OdometryChunkError,
+    chunk_boundary_smoothness,
+    chunk_correction_prior,
+    odometry_chunk_factor,
+    pose2_from_state,
+    pose_sigmas,
+    theta_prior_factor,
+)
+from graphcal.model import THETA_NOMINAL, integrate
+from graphcal.pipeline.batch_calibration import THETA_KEY, check_plausible
+from graphcal.pipeline.input_estimation import chunk_bounds
+
+
+@dataclass(frozen=True)
+class JointSettings:
+    """Settings of the joint solve (SI).
+
+    Attributes:
+        theta_initial, theta_prior_sigmas: start and weak prior of theta.
+        pose_weights, position_sigma: the paper's W with the position noise give the pose
+            sigmas of the measurement and tracking residuals.
+        wheel_noise: sigma [rev] of the measured wheel rotations: the corrections' prior.
+        smoothness_weight: R on the change of corrected rotations; 0 leaves it out (with
+            white rotation noise it adds nothing measurable, ``NOTES.md``).
+        chunk_steps: steps per Python factor.
+        continuity_sigmas: chunk-boundary continuity [m, m, rad].
+        max_iterations: Levenberg–Marquardt iteration limit.
+    """
+
+    theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
+    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.01, 0.2, 0.01]))
+    pose_weights: tuple[float, float, float] = (1.0, 1.0, 50.0)
+    position_sigma: float = 0.2
+    wheel_noise: float = 0.0005
+    smoothness_weight: float = 0.0
+    chunk_steps: int = 50
+    continuity_sigmas: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
+    max_iterations: int = 30
+
+
+@dataclass(frozen=True)
+class JointCalibration:
+    """Result of a joint solve (SI): theta, start states ``(S, 3)``, iterations, errors."""
+
+    theta: np.ndarray
+    start_states: np.ndarray
+    iterations: int
+    initial_error: float
+    final_error: float
+
+
+def _start_key(segment: int) -> int:
+    return gtsam.symbol("s", segment)
+
+
+def _boundary_key(segment: int, chunk: int) -> int:
+    return gtsam.symbol("b", segment * 10_000 + chunk)
+
+
+def _correction_key(segment: int, chunk: int) -> int:
+    return gtsam.symbol("c", segment * 10_000 + chunk)
+
+
+def build_joint_graph(
+    data: SegmentData, settings: JointSettings
+) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
+    """The joint graph over ``data``'s segments and its initial values."""
+    sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
+    position_noise = gtsam.noiseModel.Isotropic.Sigma(2, float(sigmas[0]))
+    heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(sigmas[2]))
+    continuity = np.asarray(settings.continuity_sigmas, float)
+    smooth = settings.smoothness_weight > 0
+    smooth_sigma = 1.0 / np.sqrt(settings.smoothness_weight) if smooth else None
+    theta0 = np.asarray(settings.theta_initial, float)
+    graph = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    values.insert(THETA_KEY, theta0)
+    graph.add(theta_prior_factor(THETA_KEY, np.asarray(settings.theta_prior_sigmas), theta0))
+    for s, n_steps in enumerate(data.n_steps):
+        poses, inputs = data.poses[s, : n_steps + 1], data.inputs[s, :n_steps]
+        nominal = integrate(poses[0], inputs, theta0)
+        values.insert(_start_key(s), pose2_from_state(poses[0]))
+        graph.add(
+            gtsam.PoseTranslationPrior2D(_start_key(s), gtsam.Point2(*poses[0, :2]), position_noise)
+        )
+        graph.add(gtsam.PoseRotationPrior2D(_start_key(s), gtsam.Rot2(poses[0, 2]), heading_noise))
+        bounds = chunk_bounds(int(n_steps), settings.chunk_steps)
+        n_chunks = len(bounds) - 1
+        for j in range(n_chunks):
+            a, b = int(bounds[j]), int(bounds[j + 1])
+            last = j == n_chunks - 1
+            size = np.full((b - a, 2), settings.wheel_noise)
+            values.insert(_correction_key(s, j), np.zeros(2 * (b - a)))
+            graph.add(
+                chunk_correction_prior(_correction_key(s, j), inputs[a:b, :2], size, smooth_sigma)
+            )
+            if smooth and not last:
+                c = int(bounds[j + 2])
+                graph.add(
+                    chunk_boundary_smoothness(
+                        _correction_key(s, j),
+                        b - a,
+                        inputs[b - 1, :2],
+                        _correction_key(s, j + 1),
+                        c - b,
+                        inputs[b, :2],
+                        smooth_sigma,
+                    )
+                )
+            start = _start_key(s) if j == 0 else _boundary_key(s, j)
+            if not last:
+                values.insert(_boundary_key(s, j + 1), pose2_from_state(nominal[b]))
+            error = OdometryChunkError(
+                inputs[a:b],
+                poses[a : b + 1],
+                reference_heading=float(nominal[a, 2]),
+                has_end=not last,
+                has_corrections=True,
+                corrections_as_vector=True,
+            )
+            keys = [start] + ([] if last else [_boundary_key(s, j + 1)])
+            keys += [_correction_key(s, j), THETA_KEY]
+            graph.add(odometry_chunk_factor(error, keys, sigmas, continuity))
+    return graph, values
+
+
+def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) -> JointCalibration:
+    """Estimate theta, start poses and wheel-rotation corrections of a batch in one solve.
+
+    Raises:
+        GraphcalError: if the solve fails or gives an implausible theta.
+    """
+    settings = settings or JointSettings()
+    graph, values = build_joint_graph(data, settings)
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(settings.max_iterations)
+    params.setDiagonalDamping(True)
+    params.setRelativeErrorTol(1e-7)
+    initial_error = graph.error(values)
+    try:
+        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
+        result = optimizer.optimize()
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise GraphcalError(f"joint solve failed: {reason}") from exc
+    theta = result.atVector(THETA_KEY)
+    if not np.all(np.isfinite(theta)):
+        raise GraphcalError("joint solve produced a non-finite theta")
+    check_plausible(theta)
+    starts = np.array(
+        [
+            [p.x(), p.y(), p.theta()]
+            for p in (result.atPose2(_start_key(s)) for s in range(len(data)))
+        ]
+    )
+    return JointCalibration(
+        theta, starts, int(optimizer.iterations()), float(initial_error), float(graph.error(result))
+    )
