@@ -89,3 +89,36 @@ def naive_optimizer(naive: NaiveGraph, max_iterations: int) -> gtsam.LevenbergMa
     params.setRelativeErrorTol(1e-12)
     params.setAbsoluteErrorTol(1e-12)
     return gtsam.LevenbergMarquardtOptimizer(naive.graph, naive.values, params)
+
+
+#: Odometry sigmas of the penalty continuation: each solve starts from the previous one, so
+#: the tight final constraint converges in a few iterations.
+CONTINUATION = (1e-4, 1e-5, 1e-6)
+
+
+def solve_naive(
+    data: SegmentData,
+    settings: BatchSettings,
+    sigmas: tuple[float, ...] = CONTINUATION,
+    max_iterations: int = 100,
+) -> tuple[np.ndarray, int]:
+    """Theta of the naive formulation, converged by a continuation over the odometry sigma.
+
+    Each stage tightens the per-step model equation (position sigma ``s``, heading ``s / 10``)
+    and starts from the previous stage's solution; the first starts from nominal odometry.
+    Measured on 3 segments (2249 steps): theta agrees with the segment formulation to 2.4e-3
+    relative at 1e-4, 5.6e-5 at 1e-5 and 5.6e-7 at 1e-6.
+
+    Returns:
+        theta and the total number of Levenberg–Marquardt iterations.
+    """
+    values = None
+    iterations = 0
+    for sigma in sigmas:
+        naive = build_naive_graph(data, settings, np.array([sigma, sigma, sigma / 10]))
+        if values is not None:
+            naive = NaiveGraph(naive.graph, values, naive.python_factors)
+        optimizer = naive_optimizer(naive, max_iterations)
+        values = optimizer.optimize()
+        iterations += optimizer.iterations()
+    return values.atVector(THETA_KEY), iterations
