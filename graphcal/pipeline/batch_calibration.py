@@ -23,6 +23,7 @@ from graphcal.factors import (
     state_from_pose2,
 )
 from graphcal.model import THETA_NOMINAL
+from graphcal.pipeline.solve import solve_lm
 
 THETA_KEY = gtsam.symbol("t", 0)
 
@@ -136,17 +137,13 @@ def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) ->
     """
     settings = settings or BatchSettings()
     graph, values = build_batch_graph(data, settings)
-    params = gtsam.LevenbergMarquardtParams()
-    params.setMaxIterations(settings.max_iterations)
-    params.setDiagonalDamping(True)  # the Hessian's diagonal spans many orders of magnitude
-    params.setRelativeErrorTol(1e-10)
-    params.setAbsoluteErrorTol(1e-12)
     initial_error = graph.error(values)
+    result, iterations = solve_lm(
+        graph, values, settings.max_iterations, 1e-10, "batch solve", CalibrationFailed
+    )
     try:
-        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-        result = optimizer.optimize()
         covariance = gtsam.Marginals(graph, result).marginalCovariance(THETA_KEY)
-    except RuntimeError as exc:  # gtsam raises IndeterminateLinearSystem etc. as RuntimeError
+    except RuntimeError as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise CalibrationFailed(f"batch solve failed: {reason}") from exc
     theta = result.atVector(THETA_KEY)
@@ -166,7 +163,7 @@ def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) ->
         theta=theta,
         covariance=covariance,
         start_states=starts,
-        iterations=int(optimizer.iterations()),
+        iterations=iterations,
         initial_error=float(initial_error),
         final_error=float(graph.error(result)),
     )

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError
 from graphcal.factors import (
     OdometryChunkError,
     chunk_boundary_smoothness,
@@ -34,6 +34,7 @@ from graphcal.factors import (
     size_sigmas,
 )
 from graphcal.model import integrate
+from graphcal.pipeline.solve import solve_lm
 
 
 def correction_key(chunk: int) -> int:
@@ -186,16 +187,7 @@ def estimate_inputs(
     settings = settings or InputEstimationSettings()
     poses, inputs = np.asarray(poses, float), np.asarray(inputs, float)
     graph, values, bounds = build_input_estimation_graph(poses, inputs, theta, settings)
-    params = gtsam.LevenbergMarquardtParams()
-    params.setMaxIterations(settings.max_iterations)
-    params.setDiagonalDamping(True)
-    params.setRelativeErrorTol(1e-6)
-    try:
-        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-        result = optimizer.optimize()
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise GraphcalError(f"input estimation failed: {reason}") from exc
+    result, iterations = solve_lm(graph, values, settings.max_iterations, 1e-6, "input estimation")
     corrections = np.concatenate(
         [result.atVector(correction_key(j)) for j in range(len(bounds) - 1)]
     ).reshape(-1, 2)
@@ -204,4 +196,4 @@ def estimate_inputs(
     corrected = inputs.copy()
     corrected[:, :2] += corrections
     states = integrate(poses[0], corrected, theta)
-    return InputEstimate(corrections, states, int(optimizer.iterations()))
+    return InputEstimate(corrections, states, iterations)

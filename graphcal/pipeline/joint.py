@@ -26,7 +26,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError
 from graphcal.factors import (
     OdometryChunkError,
     chunk_boundary_smoothness,
@@ -39,6 +39,7 @@ from graphcal.factors import (
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.pipeline.batch_calibration import THETA_KEY, check_plausible
 from graphcal.pipeline.input_estimation import chunk_bounds
+from graphcal.pipeline.solve import solve_lm
 
 
 @dataclass(frozen=True)
@@ -162,17 +163,8 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
     """
     settings = settings or JointSettings()
     graph, values = build_joint_graph(data, settings)
-    params = gtsam.LevenbergMarquardtParams()
-    params.setMaxIterations(settings.max_iterations)
-    params.setDiagonalDamping(True)
-    params.setRelativeErrorTol(1e-7)
     initial_error = graph.error(values)
-    try:
-        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-        result = optimizer.optimize()
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise GraphcalError(f"joint solve failed: {reason}") from exc
+    result, iterations = solve_lm(graph, values, settings.max_iterations, 1e-7, "joint solve")
     theta = result.atVector(THETA_KEY)
     if not np.all(np.isfinite(theta)):
         raise GraphcalError("joint solve produced a non-finite theta")
@@ -184,5 +176,5 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
         ]
     )
     return JointCalibration(
-        theta, starts, int(optimizer.iterations()), float(initial_error), float(graph.error(result))
+        theta, starts, iterations, float(initial_error), float(graph.error(result))
     )

@@ -1,0 +1,35 @@
+"""Levenberg–Marquardt as every graphcal solve runs it."""
+
+from __future__ import annotations
+
+import gtsam
+
+from graphcal.errors import GraphcalError, first_line
+
+
+def solve_lm(
+    graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    max_iterations: int,
+    relative_error_tol: float,
+    label: str,
+    error_type: type[GraphcalError] = GraphcalError,
+) -> tuple[gtsam.Values, int]:
+    """Optimize ``graph`` from ``values``; return the result and the iterations used.
+
+    Diagonal damping is on: odometry residuals are tight, so the Hessian's diagonal spans many
+    orders of magnitude (``NOTES.md``). GTSAM's exceptions (e.g. an indeterminate linear
+    system) become ``error_type`` with the message ``"<label> failed: <reason>"``.
+    """
+    params = gtsam.LevenbergMarquardtParams()
+    params.setMaxIterations(max_iterations)
+    params.setDiagonalDamping(True)
+    params.setRelativeErrorTol(relative_error_tol)
+    params.setAbsoluteErrorTol(1e-12)
+    try:
+        optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
+        result = optimizer.optimize()
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise error_type(f"{label} failed: {reason}") from exc
+    return result, int(optimizer.iterations())
