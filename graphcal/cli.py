@@ -40,6 +40,21 @@ def _at_least(minimum: float, unit: str) -> Callable[[str], float]:
     return parse
 
 
+def _whole(minimum: int) -> Callable[[str], int]:
+    """An argparse type: a whole number >= ``minimum``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {text!r}")
+        return value
+
+    return parse
+
+
 def _non_negative(text: str) -> float:
     try:
         value = float(text)
@@ -237,7 +252,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--length-km", type=_at_least(0.1, "km"), default=24.0, help="route length [km] (24)"
     )
-    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (0)")
+    p.add_argument("--seed", type=_whole(0), default=0, help="seed of every random choice (0)")
     p.add_argument("--out", required=True, type=Path, help="output CSV path")
     p.add_argument(
         "--dt", type=_at_least(1e-3, "s"), default=0.025, help="sampling interval [s] (0.025)"
@@ -296,20 +311,23 @@ def build_parser() -> argparse.ArgumentParser:
         default=24.0,
         help="synthetic drive length [km] (24)",
     )
-    p.add_argument("--repeats", type=int, default=3, help="repeats per item (median; 3)")
-    p.add_argument("--workers", type=int, default=2, help="workers for the pipeline item (2)")
+    p.add_argument("--repeats", type=_whole(1), default=3, help="repeats per item (median; 3)")
+    p.add_argument("--workers", type=_whole(1), default=2, help="workers for the pipeline item (2)")
     p.add_argument(
         "--naive-iterations",
-        type=int,
+        type=_whole(1),
         default=2,
         help="LM iterations of the naive formulation to time (2)",
     )
     p.add_argument(
-        "--pipeline-batches", type=int, default=20, help="batches of the staged pipeline item (20)"
+        "--pipeline-batches",
+        type=_whole(1),
+        default=20,
+        help="batches of the staged pipeline item (20)",
     )
     p.add_argument(
         "--agreement-segments",
-        type=int,
+        type=_whole(1),
         default=3,
         help="whole segments of the (a)-vs-(b) agreement problem (3)",
     )
@@ -342,17 +360,20 @@ def build_parser() -> argparse.ArgumentParser:
         "--method",
         choices=list(METHODS),
         default="staged",
-        help="staged: the paper's five steps over batches (default); whole: one solve over "
-        "all selected segments, quick",
+        help="staged: the paper's five steps over batches (default); joint: one graph per "
+        "batch for start poses, wheel-rotation corrections and theta together; whole: one "
+        "solve over all selected segments, quick",
     )
     p.add_argument(
         "--batches",
-        type=int,
+        type=_whole(1),
         default=None,
         metavar="N",
-        help="number of batches for staged (default 1000, paper §5.1)",
+        help="number of batches for staged and joint (default 1000, paper §5.1)",
     )
-    p.add_argument("--seed", type=int, default=None, help="seed of the batch draw (default 0)")
+    p.add_argument(
+        "--seed", type=_whole(0), default=None, help="seed of the batch draw (default 0)"
+    )
     p.add_argument(
         "--config",
         type=Path,
@@ -362,7 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--workers",
-        type=int,
+        type=_whole(1),
         default=None,
         metavar="N",
         help="worker processes (default: one per core); results do not depend on it",

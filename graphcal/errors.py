@@ -3,6 +3,8 @@
 The CLI prints such a message and exits with status 2; anything else is a bug.
 """
 
+import math
+
 
 class GraphcalError(Exception):
     """Base of every error caused by the user's input or settings."""
@@ -11,3 +13,41 @@ class GraphcalError(Exception):
 def first_line(message: str) -> str:
     """The first non-empty line of a message (GTSAM's often start with a newline)."""
     return next((line.strip() for line in message.splitlines() if line.strip()), "")
+
+
+def check_settings(
+    section: str,
+    positive_vectors: dict | None = None,
+    finite_vectors: dict | None = None,
+    positive: dict | None = None,
+    non_negative: dict | None = None,
+    at_least_one: dict | None = None,
+) -> None:
+    """Range checks of a settings object; raises ``ValueError`` naming ``section.key``."""
+
+    def numbers(value: object) -> list[float]:
+        try:
+            return [float(v) for v in value]  # type: ignore[union-attr]
+        except (TypeError, ValueError):
+            return [math.nan]
+
+    def number(value: object) -> bool:
+        return isinstance(value, int | float) and not isinstance(value, bool)
+
+    for key, value in (positive_vectors or {}).items():
+        if not all(math.isfinite(v) and v > 0 for v in numbers(value)):
+            shown = [float(f"{v:.6g}") for v in numbers(value)]
+            raise ValueError(f"{section}.{key} must be positive finite numbers, got {shown}")
+    for key, value in (finite_vectors or {}).items():
+        if not all(math.isfinite(v) for v in numbers(value)):
+            shown = [float(f"{v:.6g}") for v in numbers(value)]
+            raise ValueError(f"{section}.{key} must be finite numbers, got {shown}")
+    for key, value in (positive or {}).items():
+        if not (number(value) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{section}.{key} must be a positive number, got {value!r}")
+    for key, value in (non_negative or {}).items():
+        if not (number(value) and math.isfinite(value) and value >= 0):
+            raise ValueError(f"{section}.{key} must be a number >= 0, got {value!r}")
+    for key, value in (at_least_one or {}).items():
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            raise ValueError(f"{section}.{key} must be a whole number >= 1, got {value!r}")

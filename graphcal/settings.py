@@ -71,11 +71,13 @@ class SegmentSettings:
     validation_length: float = 300.0
 
     def __post_init__(self) -> None:
-        for name in ("length", "validation_length", "yaw_window"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"segments.{name} must be positive")
-        if self.stride is not None and not self.stride > 0:
-            raise ValueError("segments.stride must be positive")
+        for name in ("length", "validation_length"):
+            if not getattr(self, name) >= 10.0:
+                raise ValueError(f"segments.{name} must be at least 10 m")
+        if not self.yaw_window > 0:
+            raise ValueError("segments.yaw_window must be positive")
+        if self.stride is not None and not self.stride >= 1.0:
+            raise ValueError("segments.stride must be at least 1 m")
         if not self.min_yaw_rate >= 0:
             raise ValueError("segments.min_yaw_rate must be >= 0")
         if self.yaw_statistic not in ("mean", "median", "rms"):
@@ -93,6 +95,8 @@ class BatchingSettings:
     def __post_init__(self) -> None:
         if self.size < 1 or self.count < 1:
             raise ValueError("batches.size and batches.count must be at least 1")
+        if self.seed < 0:
+            raise ValueError("batches.seed must be >= 0")
 
 
 @dataclass(frozen=True)
@@ -215,6 +219,11 @@ def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Sett
             source,
         )
         ie = dict(data.get("input_estimation", {}))
+        if "tracking_weights" in ie:
+            raise GraphcalError(
+                f"{source}: [input_estimation] has step2_tracking_weights and "
+                "step4_tracking_weights, not tracking_weights"
+            )
         staged_keys = {
             "heading_correction_step",
             "heading_correction",
@@ -231,6 +240,7 @@ def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Sett
             InputEstimationSettings, {**ie, "tracking_weights": w2}, "input_estimation", source
         )
         step4 = dataclasses.replace(step2, tracking_weights=w4)
+        _check_types(StagedSettings, staged_args, "input_estimation", source)
         staged = StagedSettings(step2=step2, step4=step4, **staged_args)
         joint_args = dict(data.get("joint", {}))
         for key in ("theta_initial", "theta_prior_sigmas"):
@@ -258,6 +268,30 @@ def load_settings(path: str | os.PathLike[str]) -> Settings:
     return settings_from_dict(data, source)
 
 
+def _check_types(cls: type, values: dict[str, Any], section: str, source: str) -> None:
+    """Each value must have the type of the field's default (ints for counts, etc.)."""
+    defaults = {}
+    for f in dataclasses.fields(cls):
+        if f.default is not dataclasses.MISSING:
+            defaults[f.name] = f.default
+        elif f.default_factory is not dataclasses.MISSING:
+            defaults[f.name] = f.default_factory()
+    for key, value in values.items():
+        default = defaults.get(key)
+        if isinstance(default, bool):
+            ok, kind = isinstance(value, bool), "true or false"
+        elif isinstance(default, int):
+            ok, kind = isinstance(value, int) and not isinstance(value, bool), "a whole number"
+        elif isinstance(default, float) or (default is None and key == "stride"):
+            ok, kind = isinstance(value, int | float) and not isinstance(value, bool), "a number"
+        elif isinstance(default, str):
+            ok, kind = isinstance(value, str), "text"
+        else:
+            continue  # vectors are checked where they are converted
+        if not ok:
+            raise GraphcalError(f"{source}: [{section}] {key} must be {kind}, got {value!r}")
+
+
 def _build(cls: type, values: dict[str, Any], section: str, source: str) -> Any:
     names = {f.name for f in dataclasses.fields(cls)}
     unknown = set(values) - names
@@ -265,6 +299,7 @@ def _build(cls: type, values: dict[str, Any], section: str, source: str) -> Any:
         raise GraphcalError(
             f"{source}: unknown key(s) {sorted(unknown)} in [{section}]; known: {sorted(names)}"
         )
+    _check_types(cls, values, section, source)
     return cls(**values)
 
 

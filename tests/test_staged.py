@@ -191,3 +191,70 @@ def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, 
     assert len(batches) == 4 and "step5_c_e" in batches.columns
     validation = doc1["validation_error_m"]
     assert validation["calibrated"] < 0.5 * validation["nominal"]
+
+
+@pytest.mark.parametrize(
+    ("toml", "message"),
+    [
+        ("[joint]\nchunk_steps = -5\n", "joint.chunk_steps must be a whole number >= 1"),
+        ("[calibration]\nmax_iterations = 0\n", "calibration.max_iterations must be a whole"),
+        ('[batches]\nseed = "x"\n', "[batches] seed must be a whole number"),
+        ("[input_estimation]\nestimations = 2.5\n", "estimations must be a whole number"),
+        ('[input_estimation]\nestimate_start_poses = "no"\n', "must be true or false"),
+        ("[joint]\npose_weights = [1, 0, 50]\n", "joint.pose_weights must be positive"),
+        ("[segments]\nlength = 5\n", "segments.length must be at least 10 m"),
+    ],
+)
+def test_bad_setting_values_are_one_line_errors(drive_csv, tmp_path, capsys, toml, message):
+    config = tmp_path / "c.toml"
+    config.write_text(toml)
+    out = tmp_path / "o"
+    assert main(["calibrate", str(drive_csv), "--config", str(config), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and not out.exists()
+
+
+def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monkeypatch):
+    from graphcal.pipeline.batch_calibration import CalibrationFailed
+    from graphcal.pipeline.run import run_calibration
+    from graphcal.report.results import write_results
+    from graphcal.settings import BatchingSettings, SegmentSettings
+
+    real = staged_module.calibrate_batch
+    calls = {"n": 0}
+
+    def fail_step1(segment_data, settings):
+        calls["n"] += 1
+        if calls["n"] <= 3:  # the three Step 1 solves
+            raise CalibrationFailed("batch solve failed: test")
+        return real(segment_data, settings)
+
+    monkeypatch.setattr(staged_module, "calibrate_batch", fail_step1)
+    settings = Settings(segments=SegmentSettings(stride=25.0), batches=BatchingSettings(count=3))
+    run = run_calibration(drive.measured, settings, "staged", drive.theta_true)
+    write_results(run, tmp_path / "out")
+    doc = json.loads((tmp_path / "out" / "calibration.json").read_text())
+    assert doc["steps"]["step1"]["c_e"]["median"] is None
+    assert doc["iqr_reduction_percent"]["step1_to_step5"]["c_e"] is None
+    assert any("step1: 3 of 3 batch solves failed" in w for w in doc["warnings"])
+    assert all(np.isfinite(list(doc["theta"].values())))
+
+
+def test_too_little_data_is_flagged(drive):
+    from graphcal.pipeline.run import run_calibration
+    from graphcal.settings import BatchingSettings, SegmentSettings
+
+    settings = Settings(
+        segments=SegmentSettings(min_yaw_rate=0.25), batches=BatchingSettings(count=5)
+    )
+    run = run_calibration(drive.measured, settings, "staged", drive.theta_true)
+    assert len(run.selected) < 9
+    assert any("selected segments for batches of 9" in w for w in run.warnings)
+    assert any("step4: only" in w for w in run.warnings)
+
+
+def test_bench_rejects_meaningless_sizes(capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["bench", "--naive-iterations", "0"])
+    assert info.value.code == 2
+    assert "must be at least 1" in capsys.readouterr().err

@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError, check_settings, first_line
 from graphcal.factors import (
     PAPER_POSE_WEIGHTS,
     pose2_from_state,
@@ -53,6 +53,18 @@ class BatchSettings:
     position_sigma: float = 0.2
     estimate_start_poses: bool = True
     max_iterations: int = 20
+
+    def __post_init__(self) -> None:
+        check_settings(
+            "calibration",
+            positive_vectors={
+                "theta_prior_sigmas": self.theta_prior_sigmas,
+                "pose_weights": self.pose_weights,
+            },
+            finite_vectors={"theta_initial": self.theta_initial},
+            positive={"position_sigma": self.position_sigma},
+            at_least_one={"max_iterations": self.max_iterations},
+        )
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.errors import GraphcalError
+from graphcal.errors import GraphcalError, check_settings
 from graphcal.factors import (
     OdometryChunkError,
     chunk_boundary_smoothness,
@@ -74,14 +74,15 @@ class InputEstimationSettings:
     max_iterations: int = 10
 
     def __post_init__(self) -> None:
-        if not all(w > 0 for w in self.tracking_weights) or len(self.tracking_weights) != 3:
-            raise ValueError("tracking weights Q must be three positive numbers")
-        if not self.smoothness_weight > 0:
-            raise ValueError("smoothness weight R must be positive")
-        if not self.input_bound > 0:
-            raise ValueError("input bound must be positive")
-        if self.chunk_steps < 1 or self.max_iterations < 1:
-            raise ValueError("chunk steps and iterations must be at least 1")
+        check_settings(
+            "input_estimation",
+            positive_vectors={
+                "tracking_weights": self.tracking_weights,
+                "continuity_sigmas": self.continuity_sigmas,
+            },
+            positive={"smoothness_weight": self.smoothness_weight, "input_bound": self.input_bound},
+            at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
+        )
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError
+from graphcal.errors import GraphcalError, check_settings
 from graphcal.factors import (
     OdometryChunkError,
     chunk_boundary_smoothness,
@@ -67,6 +67,20 @@ class JointSettings:
     chunk_steps: int = 50
     continuity_sigmas: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     max_iterations: int = 30
+
+    def __post_init__(self) -> None:
+        check_settings(
+            "joint",
+            positive_vectors={
+                "theta_prior_sigmas": self.theta_prior_sigmas,
+                "pose_weights": self.pose_weights,
+                "continuity_sigmas": self.continuity_sigmas,
+            },
+            finite_vectors={"theta_initial": self.theta_initial},
+            positive={"position_sigma": self.position_sigma, "wheel_noise": self.wheel_noise},
+            non_negative={"smoothness_weight": self.smoothness_weight},
+            at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
+        )
 
 
 @dataclass(frozen=True)

@@ -70,6 +70,7 @@ class CalibrationRun:
         batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
             failed (never written to a file).
         theta_true: the truth of a synthetic drive, else ``None``.
+        warnings: what a user must know before trusting the result.
     """
 
     log: DriveLog
@@ -88,6 +89,7 @@ class CalibrationRun:
     segment_errors: dict[str, np.ndarray]
     batch_errors: dict[str, np.ndarray]
     theta_true: np.ndarray | None = None
+    warnings: tuple[str, ...] = ()
 
     def validation_error(self, name: str) -> float:
         """E_p [m] of ``"nominal"``, ``"calibrated"`` or ``"true"`` theta."""
@@ -209,6 +211,28 @@ def run_calibration(
     }
     if theta_true is not None:
         segment_errors["true"] = position_errors(validation, theta_true)
+    warnings = list(staged.warnings) if staged is not None else []
+    if method != "whole" and len(selected) < settings.batches.size:
+        warnings.append(
+            f"only {len(selected)} selected segments for batches of {settings.batches.size}: "
+            "every batch shares most segments, so spreads understate the uncertainty"
+        )
+    calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
+    if calibrated > nominal:
+        warnings.append(
+            f"the calibrated theta validates worse than the nominal one ({calibrated:.2f} m vs "
+            f"{nominal:.2f} m): check the log (units, a faulty wheel sensor) before using it"
+        )
+    solved = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
+    if staged is not None and len(solved["step1"]) and len(solved["step5"]):
+        first, last = np.median(solved["step1"]), np.median(solved["step5"])
+        if last > first:
+            warnings.append(
+                f"Step 5 validates worse than Step 1 (median {last:.2f} m vs {first:.2f} m): "
+                "too little data for the compensation; try --method joint or a longer drive"
+            )
+    for line in warnings:
+        say(f"warning: {line}")
     say(f"validated on {len(validation)} {settings.segments.validation_length:g} m segments")
     return CalibrationRun(
         log,
@@ -227,4 +251,5 @@ def run_calibration(
         segment_errors,
         batch_errors,
         None if theta_true is None else np.asarray(theta_true, dtype=float),
+        tuple(warnings),
     )

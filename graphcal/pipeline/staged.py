@@ -193,7 +193,10 @@ def run_staged(
     heading = np.array([0.0 if r is None else r for r in results]).reshape(n_batches, batch_size)
     n_failed = sum(r is None for r in results)
     if n_failed:
-        warnings.append(f"step2: {n_failed} input estimations failed; heading left uncorrected")
+        warnings.append(
+            f"step2: {n_failed} input estimations failed or were skipped (their batch's Step 1 "
+            "failed); their heading was left uncorrected"
+        )
 
     # Step 3: batch solves with the corrected heading.
     batch_solves("step3", heading, None)
@@ -205,6 +208,7 @@ def run_staged(
     if len(good_batches) == 0:
         raise GraphcalError("every Step 3 batch solve failed; cannot estimate the inputs")
     tasks, owners = [], []
+    fewest = estimations
     for s in used:
         rng = np.random.default_rng([settings.batches.seed, int(s)])
         containing = [b for b in good_batches if s in batches[b]]
@@ -213,6 +217,7 @@ def run_staged(
         if len(chosen) < estimations and others:
             extra = rng.permutation(others)[: estimations - len(chosen)]
             chosen += list(extra)
+        fewest = min(fewest, len(chosen))
         own = {b: heading[b][list(batches[b]).index(s)] for b in containing}
         fallback = float(np.median(list(own.values()))) if own else 0.0
         poses, inputs = _segment_arrays(data, s)
@@ -220,6 +225,11 @@ def run_staged(
             corrected = apply_heading_correction(poses, own.get(b, fallback), form)
             tasks.append((corrected, inputs, theta["step3"][b], settings.staged.step4))
             owners.append(int(s))
+    if fewest < estimations:
+        warnings.append(
+            f"step4: only {fewest} of {estimations} input estimations per segment were possible "
+            f"({len(good_batches)} batches); the compensated rotations average fewer estimates"
+        )
     results = map_tasks(_rotation_task, tasks, workers, say, "step4 input estimations")
     compensated = data.inputs[..., :2].copy()
     owners_arr = np.asarray(owners)

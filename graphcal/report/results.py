@@ -110,10 +110,11 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             "step1_to_step5": iqr_reduction(stats["step1"], stats["step5"]),
             "paper": PAPER_IQR_REDUCTION,
         }
-        doc["warnings"] = list(run.staged.warnings)
+
     if run.theta_true is not None:
         doc["theta_true"] = _named(run.theta_true)
         doc["theta_error"] = _named(run.theta - run.theta_true)
+    doc["warnings"] = list(run.warnings)
     doc["settings"] = run.settings.to_dict()
     doc["workers"] = workers
     doc["versions"] = {"graphcal": __version__, "gtsam": getattr(gtsam, "__version__", "?")}
@@ -147,8 +148,8 @@ def summary_text(run: CalibrationRun) -> str:
     elif run.method == "joint":
         parts.append(steps_table(run_statistics(run), run.theta_true is not None, steps=("joint",)))
     parts.append(validation_table(validation_summary(run)))
-    if run.staged is not None and run.staged.warnings:
-        parts.append("\n".join(f"warning: {w}" for w in run.staged.warnings))
+    if run.warnings:
+        parts.append("\n".join(f"warning: {w}" for w in run.warnings))
     return "\n\n".join(parts)
 
 

@@ -19,6 +19,11 @@ def step_statistics(thetas: np.ndarray, truth: np.ndarray | None = None) -> dict
     ``thetas`` is ``(B, 4)``; rows with NaN (failed batches) are left out.
     """
     good = thetas[np.all(np.isfinite(thetas), axis=1)]
+    if len(good) == 0:  # every batch of this step failed: nothing to summarize
+        empty = {"median": None, "iqr": None} | (
+            {"bias": None, "rmse": None} if truth is not None else {}
+        )
+        return {name: dict(empty) for name in PARAMETER_NAMES}
     q25, median, q75 = np.percentile(good, [25, 50, 75], axis=0)
     stats: dict[str, dict] = {}
     for i, name in enumerate(PARAMETER_NAMES):
@@ -30,14 +35,17 @@ def step_statistics(thetas: np.ndarray, truth: np.ndarray | None = None) -> dict
     return stats
 
 
-def iqr_reduction(first: dict[str, dict], last: dict[str, dict]) -> dict[str, float]:
-    """Reduction of the IQR from ``first`` to ``last`` step, percent, per parameter."""
-    return {
-        name: 100.0 * (1.0 - last[name]["iqr"] / first[name]["iqr"])
-        if first[name]["iqr"] > 0
-        else 0.0
-        for name in PARAMETER_NAMES
-    }
+def iqr_reduction(first: dict[str, dict], last: dict[str, dict]) -> dict[str, float | None]:
+    """Reduction of the IQR from ``first`` to ``last`` step, percent, per parameter.
+
+    ``None`` where it is undefined (a step without results, or a zero first IQR, e.g. with
+    a single batch).
+    """
+    out: dict[str, float | None] = {}
+    for name in PARAMETER_NAMES:
+        a, b = first[name]["iqr"], last[name]["iqr"]
+        out[name] = 100.0 * (1.0 - b / a) if a and b is not None else None
+    return out
 
 
 def theta_table(rows: dict[str, np.ndarray]) -> str:
@@ -74,10 +82,14 @@ def steps_table(
         row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]"]
         for step in steps:
             entry = stats[step][name]
+            if entry["median"] is None:
+                row += ["failed"] + ["-"] * (len(columns) - 1)
+                continue
             row.append(_FORMATS[i].format(entry["median"] * DISPLAY_SCALE[i]))
             row += [f"{entry[c] * DEVIATION_SCALE[i]:.3f}" for c in columns[1:]]
         if compare:
-            row += [f"{reduction[name]:.0f}", f"{PAPER_IQR_REDUCTION[name]:.0f}"]
+            cut = reduction[name]
+            row += ["n/a" if cut is None else f"{cut:.0f}", f"{PAPER_IQR_REDUCTION[name]:.0f}"]
         body.append(row)
     return _render([header, *body])
 
