@@ -70,12 +70,13 @@ class StagedResult:
 
 def _batch_task(
     poses: np.ndarray, inputs: np.ndarray, n_steps: np.ndarray, settings: BatchSettings
-) -> np.ndarray | None:
+) -> tuple[np.ndarray, np.ndarray] | None:
     data = SegmentData(poses, inputs, n_steps, np.ones(poses.shape[:2], bool))
     try:
-        return calibrate_batch(data, settings).theta
+        result = calibrate_batch(data, settings)
     except GraphcalError:
         return None
+    return result.theta, result.start_states
 
 
 def _heading_task(
@@ -149,6 +150,7 @@ def run_staged(
     form = settings.staged.heading_correction
     n_batches, batch_size = batches.shape
     theta: dict[str, np.ndarray] = {}
+    starts: dict[str, np.ndarray] = {}  # start states each batch solve used or estimated
     failed: dict[str, np.ndarray] = {}
     warnings: list[str] = []
 
@@ -166,7 +168,10 @@ def run_staged(
             tasks.append((poses, inputs, sub.n_steps, solve))
         results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
         failed[step] = np.array([r is None for r in results])
-        theta[step] = np.array([np.full(4, np.nan) if r is None else r for r in results])
+        theta[step] = np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
+        starts[step] = np.array(
+            [np.full((batch_size, 3), np.nan) if r is None else r[1] for r in results]
+        )
         if failed[step].any():
             warnings.append(f"{step}: {int(failed[step].sum())} of {n_batches} batch solves failed")
 
@@ -218,11 +223,25 @@ def run_staged(
             extra = rng.permutation(others)[: estimations - len(chosen)]
             chosen += list(extra)
         fewest = min(fewest, len(chosen))
-        own = {b: heading[b][list(batches[b]).index(s)] for b in containing}
-        fallback = float(np.median(list(own.values()))) if own else 0.0
+        # The held start of each estimation: the start Step 3 estimated in that batch when it
+        # estimates starts, else the Step 2 heading correction; batches without the segment
+        # use the median over the batches with it.
         poses, inputs = _segment_arrays(data, s)
+        own = {}
+        for b in containing:
+            i = list(batches[b]).index(s)
+            if settings.staged.estimate_start_poses:
+                own[b] = poses.copy()
+                own[b][0] = starts["step3"][b, i]
+            else:
+                own[b] = apply_heading_correction(poses, heading[b][i], form)
+        fallback = (
+            np.median(np.stack(list(own.values())), axis=0)
+            if own
+            else apply_heading_correction(poses, 0.0, form)
+        )
         for b in chosen:
-            corrected = apply_heading_correction(poses, own.get(b, fallback), form)
+            corrected = own.get(b, fallback)
             tasks.append((corrected, inputs, theta["step3"][b], settings.staged.step4))
             owners.append(int(s))
     if fewest < estimations:
