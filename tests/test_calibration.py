@@ -127,3 +127,58 @@ def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
     theta = np.array([doc["theta"][n] for n in ("c_e", "c_d", "t_r", "d")])
     assert np.all(np.abs(theta - drive.theta_true) < [1e-3, 0.3e-3, 15e-3, 0.3e-3])
     assert (out / "parameters.png").is_file() and (out / "batches.csv").is_file()
+    uncertainty = doc["uncertainty"]["joint"]
+    assert 0 < uncertainty["sigma_per_batch_median"]["c_d"] < 1e-3  # well under a mm
+    assert uncertainty["nees_batches"] == 3 and np.isfinite(uncertainty["nees_mean"])
+    header = (out / "batches.csv").read_text().splitlines()[0]
+    assert "joint_sigma_t_r" in header
+
+
+def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
+    """Marginal covariance of theta vs the inverse of JᵀJ built from numerical derivatives."""
+    import gtsam
+
+    from graphcal.bench.run import reduced
+    from graphcal.pipeline.batch_calibration import THETA_KEY
+    from graphcal.pipeline.joint import JointSettings, build_joint_graph, calibrate_joint
+
+    log = drive.measured
+    data = reduced(gather_segments(log, select_segments(log, split_segments(log, 150.0))), 2, 60)
+    settings = JointSettings(chunk_steps=30)
+    result = calibrate_joint(data, settings)
+    graph, values = build_joint_graph(data, settings)
+    # Linearize at the solution; the numerical Jacobian perturbs each tangent direction.
+    optimum = gtsam.Values(values)
+    optimum.update(THETA_KEY, result.theta)
+    solved = gtsam.LevenbergMarquardtOptimizer(graph, optimum).optimize()
+
+    def residuals(v: gtsam.Values) -> np.ndarray:
+        # A factor linearized at v is A·dx − b with b the negated whitened error at v.
+        return np.concatenate(
+            [-graph.at(i).linearize(v).jacobian()[1] for i in range(graph.size())]
+        )
+
+    columns, theta_columns = [], []
+    for key in solved.keys():
+        try:
+            pose, dim = solved.atPose2(key), 3
+        except RuntimeError:
+            pose, dim = None, len(solved.atVector(key))
+        for i in range(dim):
+            delta = np.zeros(dim)
+            delta[i] = 1e-6
+            pair = []
+            for sign in (1.0, -1.0):
+                v = gtsam.Values(solved)
+                if pose is not None:
+                    v.update(key, pose.retract(sign * delta))
+                else:
+                    v.update(key, solved.atVector(key) + sign * delta)
+                pair.append(residuals(v))
+            if key == THETA_KEY:
+                theta_columns.append(len(columns))
+            columns.append((pair[0] - pair[1]) / 2e-6)
+    jacobian = np.column_stack(columns)
+    covariance = np.linalg.inv(jacobian.T @ jacobian)[np.ix_(theta_columns, theta_columns)]
+    marginal = gtsam.Marginals(graph, solved).marginalCovariance(THETA_KEY)
+    np.testing.assert_allclose(marginal, covariance, rtol=1e-3, atol=1e-14)

@@ -26,7 +26,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, check_settings
+from graphcal.errors import GraphcalError, check_settings, first_line
 from graphcal.factors import (
     OdometryChunkError,
     chunk_boundary_smoothness,
@@ -85,13 +85,27 @@ class JointSettings:
 
 @dataclass(frozen=True)
 class JointCalibration:
-    """Result of a joint solve (SI): theta, start states ``(S, 3)``, iterations, errors."""
+    """Result of a joint solve (SI).
+
+    Attributes:
+        theta: ``[c_e, c_d, t_r, d]``.
+        covariance: 4×4 marginal covariance of theta (start poses and wheel-rotation
+            corrections marginalized), from the graph's information at the solution.
+        start_states: ``(S, 3)`` estimated start states.
+        iterations, initial_error, final_error: of the Levenberg–Marquardt run.
+    """
 
     theta: np.ndarray
+    covariance: np.ndarray
     start_states: np.ndarray
     iterations: int
     initial_error: float
     final_error: float
+
+    @property
+    def theta_sigma(self) -> np.ndarray:
+        """Standard deviation of each parameter (SI)."""
+        return np.sqrt(np.diag(self.covariance))
 
 
 def _start_key(segment: int) -> int:
@@ -183,6 +197,13 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
     if not np.all(np.isfinite(theta)):
         raise GraphcalError("joint solve produced a non-finite theta")
     check_plausible(theta)
+    try:
+        covariance = gtsam.Marginals(graph, result).marginalCovariance(THETA_KEY)
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise GraphcalError(f"joint solve failed: covariance: {reason}") from exc
+    if not np.all(np.isfinite(covariance)):
+        raise GraphcalError("joint solve produced a non-finite covariance")
     starts = np.array(
         [
             [p.x(), p.y(), p.theta()]
@@ -190,5 +211,5 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
         ]
     )
     return JointCalibration(
-        theta, starts, iterations, float(initial_error), float(graph.error(result))
+        theta, covariance, starts, iterations, float(initial_error), float(graph.error(result))
     )

@@ -63,6 +63,8 @@ class CalibrationRun:
         batches: ``(B, N)`` segment indices of the batches (``None`` for ``"whole"``).
         batch_theta: per step or method (``"step1"``, ``"step3"``, ``"step5"``; ``"joint"``;
             ``"whole"``), theta of each batch ``(B, 4)``; NaN rows for failed solves.
+        batch_covariance: per method that reports one (``"joint"``), the marginal covariance
+            of each batch's theta ``(B, 4, 4)``; NaN for failed solves.
         staged: the five steps' results (``method == "staged"``).
         validation_segments, validation: the validation segments and their signals.
         segment_errors: per validation segment, mean position error [m] of odometry with
@@ -83,6 +85,7 @@ class CalibrationRun:
     theta: np.ndarray
     batches: np.ndarray | None
     batch_theta: dict[str, np.ndarray]
+    batch_covariance: dict[str, np.ndarray]
     staged: StagedResult | None
     validation_segments: Segments
     validation: SegmentData
@@ -103,11 +106,12 @@ def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
     return float(np.mean(position_errors(validation, theta)))
 
 
-def _joint_task(data: SegmentData, settings: JointSettings) -> np.ndarray | None:
+def _joint_task(data: SegmentData, settings: JointSettings) -> tuple[np.ndarray, np.ndarray] | None:
     try:
-        return calibrate_joint(data, settings).theta
+        result = calibrate_joint(data, settings)
     except GraphcalError:
         return None
+    return result.theta, result.covariance
 
 
 def select(
@@ -171,6 +175,7 @@ def run_calibration(
     staged = None
     batches = None
     batch_theta: dict[str, np.ndarray] = {}
+    batch_covariance: dict[str, np.ndarray] = {}
     if method in ("staged", "joint"):
         b = settings.batches
         size = min(b.size, len(selected))
@@ -185,7 +190,12 @@ def run_calibration(
     elif method == "joint":
         tasks = [(data.take(batch), settings.joint) for batch in batches]
         results = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
-        batch_theta["joint"] = np.array([np.full(4, np.nan) if r is None else r for r in results])
+        batch_theta["joint"] = np.array(
+            [np.full(4, np.nan) if r is None else r[0] for r in results]
+        )
+        batch_covariance["joint"] = np.array(
+            [np.full((4, 4), np.nan) if r is None else r[1] for r in results]
+        )
         good = batch_theta["joint"][np.all(np.isfinite(batch_theta["joint"]), axis=1)]
         if len(good) == 0:
             raise GraphcalError("every joint batch solve failed; no calibration to report")
@@ -245,6 +255,7 @@ def run_calibration(
         theta,
         batches,
         batch_theta,
+        batch_covariance,
         staged,
         validation_segments,
         validation,

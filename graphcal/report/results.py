@@ -29,7 +29,7 @@ from graphcal.report.tables import (
     theta_table,
     validation_table,
 )
-from graphcal.units import DISPLAY_UNITS, to_display
+from graphcal.units import DEVIATION_SCALE, DISPLAY_UNITS, to_display
 
 
 def _named(theta: np.ndarray) -> dict[str, float]:
@@ -50,6 +50,32 @@ def _finite(obj: object) -> object:
 def run_statistics(run: CalibrationRun) -> dict[str, dict]:
     """Per step or method: :func:`step_statistics` of its per-batch thetas."""
     return {name: step_statistics(t, run.theta_true) for name, t in run.batch_theta.items()}
+
+
+def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
+    """Per method with covariances: median per-batch sigma (SI) and, given the truth, NEES.
+
+    NEES is the mean over batches of (theta − truth)ᵀ Σ⁻¹ (theta − truth); with 4 parameters
+    it is 4 when the reported covariance matches the actual errors.
+    """
+    out: dict[str, dict] = {}
+    for name, covariances in run.batch_covariance.items():
+        good = np.all(np.isfinite(covariances), axis=(1, 2))
+        if not good.any():
+            continue
+        sigmas = np.sqrt(np.diagonal(covariances[good], axis1=1, axis2=2))
+        entry: dict = {
+            "sigma_per_batch_median": dict(
+                zip(PARAMETER_NAMES, map(float, np.median(sigmas, axis=0)), strict=True)
+            )
+        }
+        if run.theta_true is not None:
+            errors = run.batch_theta[name][good] - run.theta_true
+            nees = np.einsum("bi,bij,bj->b", errors, np.linalg.inv(covariances[good]), errors)
+            entry["nees_mean"] = float(np.mean(nees))
+            entry["nees_batches"] = len(nees)
+        out[name] = entry
+    return out
 
 
 def validation_summary(run: CalibrationRun) -> dict[str, float]:
@@ -88,6 +114,7 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             "validation": len(run.validation),
         },
         "steps": stats,
+        "uncertainty": uncertainty_summary(run),
         "validation_error_m": {
             **validation_summary(run),
             "per_step_median": {
@@ -133,6 +160,9 @@ def batches_frame(run: CalibrationRun) -> pd.DataFrame:
     for step, thetas in run.batch_theta.items():
         for i, name in enumerate(PARAMETER_NAMES):
             frame[f"{step}_{name}"] = thetas[:, i]
+        if step in run.batch_covariance:
+            for i, name in enumerate(PARAMETER_NAMES):
+                frame[f"{step}_sigma_{name}"] = np.sqrt(run.batch_covariance[step][:, i, i])
         frame[f"{step}_validation_error_m"] = run.batch_errors[step]
     return frame
 
@@ -147,6 +177,21 @@ def summary_text(run: CalibrationRun) -> str:
         parts.append(steps_table(run_statistics(run), run.theta_true is not None))
     elif run.method == "joint":
         parts.append(steps_table(run_statistics(run), run.theta_true is not None, steps=("joint",)))
+    for name, entry in uncertainty_summary(run).items():
+        sigma = entry["sigma_per_batch_median"]
+        line = (
+            f"{name}: per-batch 1σ (median) "
+            + ", ".join(
+                f"{p} {sigma[p] * DEVIATION_SCALE[i]:.3f}" for i, p in enumerate(PARAMETER_NAMES)
+            )
+            + " (mm; d in mm·s²/m)"
+        )
+        if "nees_mean" in entry:
+            line += (
+                f"; NEES {entry['nees_mean']:.2f} over {entry['nees_batches']} batches "
+                "(4 = consistent)"
+            )
+        parts.append(line)
     parts.append(validation_table(validation_summary(run)))
     if run.warnings:
         parts.append("\n".join(f"warning: {w}" for w in run.warnings))
