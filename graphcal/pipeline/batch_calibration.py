@@ -14,7 +14,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, check_settings, first_line
+from graphcal.errors import GraphcalError, check_settings
 from graphcal.factors import (
     PAPER_POSE_WEIGHTS,
     pose2_from_state,
@@ -23,7 +23,7 @@ from graphcal.factors import (
     state_from_pose2,
 )
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.solve import solve_lm
+from graphcal.pipeline.solve import marginal_covariance, solve_lm
 
 THETA_KEY = gtsam.symbol("t", 0)
 
@@ -153,13 +153,9 @@ def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) ->
     result, iterations = solve_lm(
         graph, values, settings.max_iterations, 1e-10, "batch solve", CalibrationFailed
     )
-    try:
-        covariance = gtsam.Marginals(graph, result).marginalCovariance(THETA_KEY)
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise CalibrationFailed(f"batch solve failed: {reason}") from exc
+    covariance = marginal_covariance(graph, result, THETA_KEY, "batch solve", CalibrationFailed)
     theta = result.atVector(THETA_KEY)
-    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))):
+    if not np.all(np.isfinite(theta)):
         raise CalibrationFailed("batch solve produced a non-finite theta")
     check_plausible(theta)
     if settings.estimate_start_poses:

@@ -26,7 +26,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, check_settings, first_line
+from graphcal.errors import GraphcalError, check_settings
 from graphcal.factors import (
     OdometryChunkError,
     chunk_boundary_smoothness,
@@ -39,7 +39,7 @@ from graphcal.factors import (
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.pipeline.batch_calibration import THETA_KEY, check_plausible
 from graphcal.pipeline.input_estimation import chunk_bounds
-from graphcal.pipeline.solve import solve_lm
+from graphcal.pipeline.solve import marginal_covariance, solve_lm
 
 
 @dataclass(frozen=True)
@@ -197,13 +197,7 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
     if not np.all(np.isfinite(theta)):
         raise GraphcalError("joint solve produced a non-finite theta")
     check_plausible(theta)
-    try:
-        covariance = gtsam.Marginals(graph, result).marginalCovariance(THETA_KEY)
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise GraphcalError(f"joint solve failed: covariance: {reason}") from exc
-    if not np.all(np.isfinite(covariance)):
-        raise GraphcalError("joint solve produced a non-finite covariance")
+    covariance = marginal_covariance(graph, result, THETA_KEY, "joint solve")
     starts = np.array(
         [
             [p.x(), p.y(), p.theta()]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gtsam
+import numpy as np
 
 from graphcal.errors import GraphcalError, first_line
 
@@ -33,3 +34,25 @@ def solve_lm(
         reason = first_line(str(exc)) or type(exc).__name__
         raise error_type(f"{label} failed: {reason}") from exc
     return result, int(optimizer.iterations())
+
+
+def marginal_covariance(
+    graph: gtsam.NonlinearFactorGraph,
+    result: gtsam.Values,
+    key: int,
+    label: str,
+    error_type: type[GraphcalError] = GraphcalError,
+) -> np.ndarray:
+    """Marginal covariance of ``key`` at ``result`` (all other variables marginalized).
+
+    Raises ``error_type`` (``"<label> failed: <reason>"``) if GTSAM cannot factor the
+    information matrix or the covariance is not finite.
+    """
+    try:
+        covariance = gtsam.Marginals(graph, result).marginalCovariance(key)
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise error_type(f"{label} failed: covariance: {reason}") from exc
+    if not np.all(np.isfinite(covariance)):
+        raise error_type(f"{label} failed: non-finite covariance")
+    return covariance
