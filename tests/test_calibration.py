@@ -137,6 +137,7 @@ def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
 def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
     """Marginal covariance of theta vs the inverse of JᵀJ built from numerical derivatives."""
     import gtsam
+    from numerical import retract_jacobian
 
     from graphcal.bench.run import reduced
     from graphcal.pipeline.batch_calibration import THETA_KEY
@@ -158,27 +159,8 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
             [-graph.at(i).linearize(v).jacobian()[1] for i in range(graph.size())]
         )
 
-    columns, theta_columns = [], []
-    for key in solved.keys():
-        try:
-            pose, dim = solved.atPose2(key), 3
-        except RuntimeError:
-            pose, dim = None, len(solved.atVector(key))
-        for i in range(dim):
-            delta = np.zeros(dim)
-            delta[i] = 1e-6
-            pair = []
-            for sign in (1.0, -1.0):
-                v = gtsam.Values(solved)
-                if pose is not None:
-                    v.update(key, pose.retract(sign * delta))
-                else:
-                    v.update(key, solved.atVector(key) + sign * delta)
-                pair.append(residuals(v))
-            if key == THETA_KEY:
-                theta_columns.append(len(columns))
-            columns.append((pair[0] - pair[1]) / 2e-6)
-    jacobian = np.column_stack(columns)
-    covariance = np.linalg.inv(jacobian.T @ jacobian)[np.ix_(theta_columns, theta_columns)]
+    jacobian, columns = retract_jacobian(residuals, solved, solved.keys())
+    theta = columns[THETA_KEY]
+    covariance = np.linalg.inv(jacobian.T @ jacobian)[np.ix_(theta, theta)]
     marginal = gtsam.Marginals(graph, solved).marginalCovariance(THETA_KEY)
     np.testing.assert_allclose(marginal, covariance, rtol=1e-3, atol=1e-14)
