@@ -19,7 +19,7 @@ import numpy as np
 from graphcal.data.drive_log import DriveLog, write_drive_log
 from graphcal.files import atomic_write_text
 from graphcal.model import PARAMETER_NAMES, integrate, wheel_rotations_for_motion
-from graphcal.simulate.route import generate_route
+from graphcal.simulate.route import ROUTES
 
 #: Default true parameters, away from nominal: [1.985 m, 1.2 mm, 1.585 m, 1.5 mm·s²/m] in SI.
 THETA_TRUE_DEFAULT = np.array([1.985, 1.2e-3, 1.585, 1.5e-3])
@@ -67,6 +67,7 @@ class SyntheticDrive:
     seed: int
     length_km: float
     motion: VehicleMotion = field(default_factory=VehicleMotion)
+    route: str = "city"
 
 
 def _speed_profile(
@@ -95,6 +96,7 @@ def simulate_drive(
     noise: NoiseLevels | None = None,
     dt: float = 0.025,
     motion: VehicleMotion | None = None,
+    route: str = "city",
 ) -> SyntheticDrive:
     """Simulate a city/suburban drive of ``length_km`` km sampled every ``dt`` seconds.
 
@@ -105,19 +107,23 @@ def simulate_drive(
         noise: measurement noise levels (default: the paper's).
         dt: sampling interval [s] (paper: 0.025 s).
         motion: driving-style constants.
+        route: ``"city"`` (bends, turns, roundabouts; the paper's kind of drive) or
+            ``"straight"`` (a straight road, where t_r and d are not observable).
     """
     if not length_km > 0:
         raise ValueError(f"drive length must be positive, got {length_km} km")
     if not dt > 0:
         raise ValueError(f"sampling interval must be positive, got {dt} s")
+    if route not in ROUTES:
+        raise ValueError(f"unknown route {route!r}; use one of {', '.join(ROUTES)}")
     noise = noise or NoiseLevels()
     motion = motion or VehicleMotion()
     theta_true = np.asarray(theta_true, dtype=float)
     route_seed, noise_seed, heading_seed = np.random.SeedSequence(seed).spawn(3)
 
-    route = generate_route(1000.0 * length_km, np.random.default_rng(route_seed))
-    s, kappa = route.arc_length, route.curvature
-    speed = _speed_profile(s, kappa, route.speed_limit, motion)
+    path = ROUTES[route](1000.0 * length_km, np.random.default_rng(route_seed))
+    s, kappa = path.arc_length, path.curvature
+    speed = _speed_profile(s, kappa, path.speed_limit, motion)
     # Time along the route (trapezoidal rule on ds / v), then resample at the sampling interval.
     time_at_s = np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s) / (speed[1:] + speed[:-1]))])
     course_at_s = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(s))])
@@ -165,7 +171,9 @@ def simulate_drive(
         ay=truth.ay + noise.lateral_acceleration * rng.standard_normal(n),
         source="<synthetic>",
     )
-    return SyntheticDrive(measured, truth, theta_true, noise, int(seed), float(length_km), motion)
+    return SyntheticDrive(
+        measured, truth, theta_true, noise, int(seed), float(length_km), motion, route
+    )
 
 
 def truth_path(csv_path: str | os.PathLike[str]) -> Path:
@@ -195,6 +203,7 @@ def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str
         "generator": f"graphcal {__version__} simulate",
         "seed": drive.seed,
         "length_km": drive.length_km,
+        "route": drive.route,
         "dt_s": float(drive.measured.dt),
         "samples": len(drive.measured),
         "theta_true": dict(zip(PARAMETER_NAMES, map(float, drive.theta_true), strict=True)),

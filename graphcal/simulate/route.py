@@ -43,6 +43,13 @@ class _RouteBuilder:
     def length(self) -> float:
         return self.knot_s[-1]
 
+    def sample(self, spacing: float) -> Route:
+        """The route sampled every ``spacing`` metres of arc length."""
+        arc_length = np.arange(0.0, self.length, spacing)
+        curvature = np.interp(arc_length, self.knot_s, self.knot_kappa)
+        piece = np.searchsorted(np.asarray(self.limit_s), arc_length, side="right") - 1
+        return Route(arc_length, curvature, np.asarray(self.limit_v)[piece])
+
     def _knot(self, ds: float, kappa: float) -> None:
         self.knot_s.append(self.knot_s[-1] + ds)
         self.knot_kappa.append(kappa)
@@ -105,9 +112,20 @@ def generate_route(length: float, rng: np.random.Generator, spacing: float = 0.1
             b.arc(radius, -side * angle, 8.0)
     b.limit(50 * KMH)
     b.straight(50.0)
+    return b.sample(spacing)
 
-    arc_length = np.arange(0.0, b.length, spacing)
-    curvature = np.interp(arc_length, b.knot_s, b.knot_kappa)
-    piece = np.searchsorted(np.asarray(b.limit_s), arc_length, side="right") - 1
-    speed_limit = np.asarray(b.limit_v)[piece]
-    return Route(arc_length, curvature, speed_limit)
+
+def generate_straight_route(length: float, rng: np.random.Generator, spacing: float = 0.1) -> Route:
+    """A straight road of at least ``length`` metres (a motorway-like drive with no bends).
+
+    Speed limits change every few hundred metres (60–110 km/h), so the speed varies, but the
+    yaw rate and lateral acceleration are zero throughout: t_r and d are not observable.
+    """
+    b = _RouteBuilder()
+    while b.length < length:
+        b.limit(rng.choice([60.0, 80.0, 90.0, 110.0]) * KMH)
+        b.straight(rng.uniform(300.0, 1500.0))
+    return b.sample(spacing)
+
+
+ROUTES = {"city": generate_route, "straight": generate_straight_route}
