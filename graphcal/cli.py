@@ -96,7 +96,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         lateral_acceleration=args.ay_noise,
     )
     say = _timed_progress()
-    drive = simulate_drive(args.length_km, args.seed, theta_true, noise, args.dt)
+    drive = simulate_drive(args.length_km, args.seed, theta_true, noise, args.dt, route=args.route)
     say(f"simulated {len(drive.measured)} samples ({drive.measured.t[-1]:.0f} s)")
     try:
         written = write_synthetic_drive(drive, args.out)
@@ -139,7 +139,8 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
         "validation_length": getattr(args, "validation_length", None),
     }
     segments = {k: v for k, v in segments.items() if v is not None}
-    batches = {"count": getattr(args, "batches", None), "seed": getattr(args, "seed", None)}
+    count = getattr(args, "batches", None)
+    batches = {"count": count or None, "seed": getattr(args, "seed", None)}
     batches = {k: v for k, v in batches.items() if v is not None}
     try:
         settings = dataclasses.replace(
@@ -171,9 +172,19 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
     sidecar = read_sidecar(args.log, len(log))
     theta_true = None if sidecar is None else sidecar["theta_true"]
+    truth = None
     if theta_true is not None:
         say("synthetic drive: comparing with theta_true from its sidecar")
-    run = run_calibration(log, settings, args.method, theta_true, say, workers)
+        truth = _load_truth(args.log, len(log), say)
+    method = args.method
+    if args.batches == 0:
+        if method == "staged":
+            raise GraphcalError(
+                "--batches 0 (one solve over the whole log) needs --method joint or whole; "
+                "the staged method works on batches"
+            )
+        method = "whole"
+    run = run_calibration(log, settings, method, theta_true, say, workers, truth)
     try:
         written = write_results(run, args.out, workers)
     except OSError as exc:
@@ -181,6 +192,23 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")
     print(summary_text(run))
     return 0
+
+
+def _load_truth(log_path: Path, n_samples: int, say: Callable[[str], None]):
+    """The noise-free signals next to a synthetic drive, or ``None`` (with a note) if unusable."""
+    from graphcal.data.drive_log import load_drive_log
+    from graphcal.simulate.drive import truth_path
+
+    path = truth_path(log_path)
+    try:
+        truth = load_drive_log(path)
+    except GraphcalError as exc:
+        say(f"no Cramér–Rao bound: cannot use {path.name}: {exc}")
+        return None
+    if len(truth) != n_samples:
+        say(f"no Cramér–Rao bound: {path.name} has {len(truth)} samples, the log {n_samples}")
+        return None
+    return truth
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -253,6 +281,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--length-km", type=_at_least(0.1, "km"), default=24.0, help="route length [km] (24)"
     )
     p.add_argument("--seed", type=_whole(0), default=0, help="seed of every random choice (0)")
+    p.add_argument(
+        "--route",
+        choices=["city", "straight"],
+        default="city",
+        help="city: bends, turns and roundabouts (default); straight: a straight road, where "
+        "t_r and d are not observable",
+    )
     p.add_argument("--out", required=True, type=Path, help="output CSV path")
     p.add_argument(
         "--dt", type=_at_least(1e-3, "s"), default=0.025, help="sampling interval [s] (0.025)"
@@ -366,10 +401,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--batches",
-        type=_whole(1),
+        type=_whole(0),
         default=None,
         metavar="N",
-        help="number of batches for staged and joint (default 1000, paper §5.1)",
+        help="number of batches for staged and joint (default 1000, paper §5.1); 0 = one "
+        "joint solve over the whole log (same as --method whole)",
     )
     p.add_argument(
         "--seed", type=_whole(0), default=None, help="seed of the batch draw (default 0)"

@@ -35,11 +35,13 @@ settings as printed into ``calibration.json``. A TOML file may set any subset::
     trim_fraction = 0.1
     estimate_start_poses = true   # in Steps 3 and 5; false = the paper's held start
 
-    [joint]                   # --method joint
+    [joint]                   # --method joint and whole
+    theta_prior_sigmas = [0.1, 0.01, 0.2, 0.01]     # SI; what "not observable" leaves
     wheel_noise = 0.0005      # rev, sigma of the corrections' prior
     smoothness_weight = 0.0   # R on Δu; 0 = off
     chunk_steps = 50
     max_iterations = 30
+    max_sigma_ratio = 0.1     # calibrated = data shrink the prior sigma to at most this
 """
 
 from __future__ import annotations

@@ -121,9 +121,19 @@ def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
         "3",
     ]
     assert main(args) == 0
-    assert "joint rmse" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "joint rmse" in printed and "95 % interval" in printed
     doc = json.loads((out / "calibration.json").read_text())
-    assert doc["method"] == "joint" and set(doc["steps"]) == {"joint"}
+    assert doc["method"] == "joint" and set(doc["steps"]) == {"step1", "joint"}
+    for name, truth in zip(("c_e", "c_d", "t_r", "d"), drive.theta_true, strict=True):
+        entry = doc["parameters"][name]
+        assert entry["status"] == "calibrated" and entry["sigma"] > 0
+        low, high = entry["ci95"]
+        assert low < entry["value"] < high
+        # The truth lies within 4 sigma of the recommended value (the interval is honest).
+        assert abs(entry["value"] - truth) < 4 * entry["sigma"]
+        assert entry["cramer_rao_sigma"] == pytest.approx(entry["sigma"], rel=0.1)
+    assert (out / "batch_intervals.png").is_file()
     theta = np.array([doc["theta"][n] for n in ("c_e", "c_d", "t_r", "d")])
     assert np.all(np.abs(theta - drive.theta_true) < [1e-3, 0.3e-3, 15e-3, 0.3e-3])
     assert (out / "parameters.png").is_file() and (out / "batches.csv").is_file()

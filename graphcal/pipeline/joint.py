@@ -39,6 +39,11 @@ from graphcal.factors import (
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.pipeline.batch_calibration import THETA_KEY, check_plausible
 from graphcal.pipeline.input_estimation import chunk_bounds
+from graphcal.pipeline.observability import (
+    DEFAULT_MAX_SIGMA_RATIO,
+    Observability,
+    assess_observability,
+)
 from graphcal.pipeline.solve import marginal_covariance, solve_lm
 
 
@@ -56,6 +61,8 @@ class JointSettings:
         chunk_steps: steps per Python factor.
         continuity_sigmas: chunk-boundary continuity [m, m, rad].
         max_iterations: Levenberg–Marquardt iteration limit.
+        max_sigma_ratio: a parameter counts as calibrated when the data shrink its prior
+            sigma to at most this fraction (:mod:`graphcal.pipeline.observability`).
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
@@ -67,6 +74,7 @@ class JointSettings:
     chunk_steps: int = 50
     continuity_sigmas: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     max_iterations: int = 30
+    max_sigma_ratio: float = DEFAULT_MAX_SIGMA_RATIO
 
     def __post_init__(self) -> None:
         check_settings(
@@ -77,7 +85,11 @@ class JointSettings:
                 "continuity_sigmas": self.continuity_sigmas,
             },
             finite_vectors={"theta_initial": self.theta_initial},
-            positive={"position_sigma": self.position_sigma, "wheel_noise": self.wheel_noise},
+            positive={
+                "position_sigma": self.position_sigma,
+                "wheel_noise": self.wheel_noise,
+                "max_sigma_ratio": self.max_sigma_ratio,
+            },
             non_negative={"smoothness_weight": self.smoothness_weight},
             at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
         )
@@ -93,6 +105,7 @@ class JointCalibration:
             corrections marginalized), from the graph's information at the solution.
         start_states: ``(S, 3)`` estimated start states.
         iterations, initial_error, final_error: of the Levenberg–Marquardt run.
+        observability: which parameters the data determined (from ``covariance``).
     """
 
     theta: np.ndarray
@@ -101,6 +114,7 @@ class JointCalibration:
     iterations: int
     initial_error: float
     final_error: float
+    observability: Observability
 
     @property
     def theta_sigma(self) -> np.ndarray:
@@ -204,6 +218,59 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
             for p in (result.atPose2(_start_key(s)) for s in range(len(data)))
         ]
     )
-    return JointCalibration(
-        theta, covariance, starts, iterations, float(initial_error), float(graph.error(result))
+    observability = assess_observability(
+        covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
     )
+    return JointCalibration(
+        theta,
+        covariance,
+        starts,
+        iterations,
+        float(initial_error),
+        float(graph.error(result)),
+        observability,
+    )
+
+
+def values_at_truth(
+    data: SegmentData, truth: SegmentData, theta_true: np.ndarray, settings: JointSettings
+) -> gtsam.Values:
+    """Values of :func:`build_joint_graph`'s variables at the truth of a synthetic drive.
+
+    Start and boundary poses are the true poses, each chunk's corrections are the true minus
+    the measured wheel rotations, theta is ``theta_true``.
+    """
+    values = gtsam.Values()
+    values.insert(THETA_KEY, np.asarray(theta_true, float))
+    for s, n_steps in enumerate(data.n_steps):
+        true_poses = truth.poses[s, : n_steps + 1]
+        correction = truth.inputs[s, :n_steps, :2] - data.inputs[s, :n_steps, :2]
+        values.insert(_start_key(s), pose2_from_state(true_poses[0]))
+        bounds = chunk_bounds(int(n_steps), settings.chunk_steps)
+        for j in range(len(bounds) - 1):
+            a, b = int(bounds[j]), int(bounds[j + 1])
+            values.insert(_correction_key(s, j), correction[a:b].ravel())
+            if j < len(bounds) - 2:
+                values.insert(_boundary_key(s, j + 1), pose2_from_state(true_poses[b]))
+    return values
+
+
+def cramer_rao_bound(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    settings: JointSettings | None = None,
+    graph: gtsam.NonlinearFactorGraph | None = None,
+) -> np.ndarray:
+    """The Cramér–Rao bound of theta for ``data``: 4×4, SI.
+
+    The theta block of the inverse information matrix of the joint graph, linearized at the
+    true values of every variable (:func:`values_at_truth`). No unbiased estimate from these
+    measurements can have a smaller covariance. ``graph`` reuses an already built
+    :func:`build_joint_graph` of the same data and settings.
+    """
+    settings = settings or JointSettings()
+    if graph is None:
+        graph, _ = build_joint_graph(data, settings)
+    values = values_at_truth(data, truth, theta_true, settings)
+    return marginal_covariance(graph, values, THETA_KEY, "Cramér–Rao bound")

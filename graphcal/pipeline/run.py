@@ -5,9 +5,17 @@ Methods:
 * ``"staged"`` — the paper's five steps over batches (:mod:`graphcal.pipeline.staged`); the
   recommended theta is the median of Step 5 over the batches.
 * ``"joint"`` — one joint graph per batch (:mod:`graphcal.pipeline.joint`): start poses,
-  wheel-rotation corrections and theta solved together; the median over the batches.
-* ``"whole"`` — one batch solve over all selected segments at once, start poses estimated: a
-  quick calibration from a short log.
+  wheel-rotation corrections and theta solved together, each with its marginal covariance and
+  observability verdict; the recommended theta is the joint solve over *all* selected
+  segments at once (the maximum-likelihood estimate from all the data, with its covariance).
+  The batches show the spread and check the covariance; batches where a parameter is not
+  observable are left out of the batch statistics, with the reason.
+* ``"whole"`` — only the joint solve over all selected segments: quick, no batches.
+
+With the joint and whole methods, parameters the data do not determine
+(:mod:`graphcal.pipeline.observability`) stay at their prior (the nominal value) and are
+reported as not calibrated. If no segment passes the yaw-rate selection they use all
+segments: the observability check, not the selection, then decides what the drive determines.
 
 Validation (§5.2): every theta is judged by its position error E_p (eq. 16 / K, averaged over
 the 300 m validation segments), next to nominal theta and, on synthetic data, the reachable
@@ -16,9 +24,8 @@ limit (the true theta).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -34,10 +41,15 @@ from graphcal.data.segments import (
 )
 from graphcal.errors import GraphcalError
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.batch_calibration import calibrate_batch
-from graphcal.pipeline.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.joint import (
+    JointCalibration,
+    JointSettings,
+    calibrate_joint,
+    cramer_rao_bound,
+)
+from graphcal.pipeline.observability import Observability
 from graphcal.pipeline.parallel import map_tasks
-from graphcal.pipeline.staged import StagedResult, run_staged
+from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
 from graphcal.pipeline.validation import position_errors
 from graphcal.settings import Settings
 
@@ -65,6 +77,13 @@ class CalibrationRun:
             ``"whole"``), theta of each batch ``(B, 4)``; NaN rows for failed solves.
         batch_covariance: per method that reports one (``"joint"``), the marginal covariance
             of each batch's theta ``(B, 4, 4)``; NaN for failed solves.
+        batch_crb: per method, the Cramér–Rao bound of each batch ``(B, 4, 4)`` (synthetic
+            drives with known truth only).
+        batch_excluded: per method, why each batch is left out of the statistics (``""``
+            if it is not): a failed solve or parameters the batch does not determine.
+        covariance: covariance of the recommended theta (joint and whole methods), ``(4, 4)``.
+        observability: what the data determined about the recommended theta (joint, whole).
+        crb: the Cramér–Rao bound of the recommended theta (known truth only).
         staged: the five steps' results (``method == "staged"``).
         validation_segments, validation: the validation segments and their signals.
         segment_errors: per validation segment, mean position error [m] of odometry with
@@ -93,6 +112,19 @@ class CalibrationRun:
     batch_errors: dict[str, np.ndarray]
     theta_true: np.ndarray | None = None
     warnings: tuple[str, ...] = ()
+    batch_crb: dict[str, np.ndarray] = field(default_factory=dict)
+    batch_excluded: dict[str, np.ndarray] = field(default_factory=dict)
+    covariance: np.ndarray | None = None
+    observability: Observability | None = None
+    crb: np.ndarray | None = None
+
+    def batch_estimates(self, name: str) -> np.ndarray:
+        """Per-batch thetas ``(B, 4)`` of step or method ``name`` with failed and excluded
+        batches as NaN rows: what statistics and figures summarize."""
+        thetas = self.batch_theta[name].copy()
+        if name in self.batch_excluded:
+            thetas[self.batch_excluded[name] != ""] = np.nan
+        return thetas
 
     def validation_error(self, name: str) -> float:
         """E_p [m] of ``"nominal"``, ``"calibrated"`` or ``"true"`` theta."""
@@ -106,18 +138,40 @@ def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
     return float(np.mean(position_errors(validation, theta)))
 
 
-def _joint_task(data: SegmentData, settings: JointSettings) -> tuple[np.ndarray, np.ndarray] | None:
+def _joint_task(
+    data: SegmentData,
+    settings: JointSettings,
+    truth: SegmentData | None = None,
+    theta_true: np.ndarray | None = None,
+) -> tuple[JointCalibration, np.ndarray | None] | None:
+    """One joint solve and, given the truth, its Cramér–Rao bound; ``None`` if it failed."""
     try:
         result = calibrate_joint(data, settings)
+        crb = None
+        if truth is not None and theta_true is not None:
+            crb = cramer_rao_bound(data, truth, theta_true, settings)
     except GraphcalError:
         return None
-    return result.theta, result.covariance
+    return result, crb
+
+
+def exclusion_reason(result: JointCalibration | None) -> str:
+    """Why a batch's joint solve is left out of the batch statistics (``""``: it is not)."""
+    if result is None:
+        return "solve failed"
+    if result.observability.degenerate:
+        return "not observable: " + ", ".join(result.observability.not_calibrated)
+    return ""
 
 
 def select(
-    log: DriveLog, settings: Settings, progress: Progress
+    log: DriveLog, settings: Settings, progress: Progress, fall_back_to_all: bool = False
 ) -> tuple[Segments, np.ndarray, Segments, Segments]:
-    """Calibration segments, their yaw statistic, the selected ones, validation segments."""
+    """Calibration segments, their yaw statistic, the selected ones, validation segments.
+
+    With ``fall_back_to_all``, a log where no segment passes the yaw-rate selection uses all
+    its segments instead of failing (for methods that judge observability themselves).
+    """
     s = settings.segments
     segments = split_segments(log, s.length, s.stride)
     yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window)
@@ -126,11 +180,18 @@ def select(
         f"segments: {len(selected)} of {len(segments)} {s.length:g} m segments have "
         f"{s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s"
     )
+    if len(selected) == 0 and fall_back_to_all and len(segments) > 0:
+        progress(
+            f"no segment passes the yaw-rate selection: using all {len(segments)} segments; "
+            "the observability check decides what they determine"
+        )
+        selected = segments
     if len(selected) == 0:
         best = f"{yaw.max():.3f}" if len(yaw) else "n/a"
         raise NoUsableSegments(
             f"{log.source}: no {s.length:g} m segment has {s.yaw_statistic} |yaw rate| above "
-            f"{s.min_yaw_rate:g} rad/s (highest: {best} rad/s); lower --min-yaw-rate, use "
+            f"{s.min_yaw_rate:g} rad/s (highest: {best} rad/s); use --method joint "
+            "(it uses all segments and reports what they determine), lower --min-yaw-rate, use "
             "overlapping segments (--segment-stride) or a drive with more bends"
         )
     validation = split_segments(log, s.validation_length)
@@ -149,6 +210,7 @@ def run_calibration(
     theta_true: np.ndarray | None = None,
     progress: Progress | None = None,
     workers: int = 1,
+    truth: DriveLog | None = None,
 ) -> CalibrationRun:
     """Calibrate theta from ``log``.
 
@@ -156,10 +218,13 @@ def run_calibration(
         log: a validated drive log.
         settings: run settings (the paper's by default).
         method: ``"staged"`` (the paper's five steps over batches), ``"joint"`` (one joint
-            graph per batch) or ``"whole"`` (one solve over all selected segments).
+            graph per batch, then one over all selected segments) or ``"whole"`` (only the
+            joint solve over all selected segments).
         theta_true: the true theta if known (synthetic drives); adds the reachable limit.
         progress: called with one line per stage.
         workers: worker processes for batches and segments (results do not depend on it).
+        truth: the noise-free signals of a synthetic drive (with ``theta_true``): adds the
+            Cramér–Rao bound of every joint estimate.
 
     Raises:
         NoUsableSegments: no segment passes the selection, or the log is too short.
@@ -169,13 +234,20 @@ def run_calibration(
     say = progress or (lambda _line: None)
     if method not in METHODS:
         raise GraphcalError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
-    segments, yaw, selected, validation_segments = select(log, settings, say)
+    segments, yaw, selected, validation_segments = select(
+        log, settings, say, fall_back_to_all=method != "staged"
+    )
     data = gather_segments(log, selected)
     validation = gather_segments(log, validation_segments)
+    truth_data = None if truth is None else gather_segments(truth, selected)
     staged = None
     batches = None
     batch_theta: dict[str, np.ndarray] = {}
     batch_covariance: dict[str, np.ndarray] = {}
+    batch_crb: dict[str, np.ndarray] = {}
+    batch_excluded: dict[str, np.ndarray] = {}
+    covariance = observability = crb = None
+    warnings: list[str] = []
     if method in ("staged", "joint"):
         b = settings.batches
         size = min(b.size, len(selected))
@@ -187,30 +259,40 @@ def run_calibration(
         staged = run_staged(data, batches, settings, workers, say)
         theta = staged.final_theta
         batch_theta = dict(staged.theta)
-    elif method == "joint":
-        tasks = [(data.take(batch), settings.joint) for batch in batches]
-        results = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
-        batch_theta["joint"] = np.array(
-            [np.full(4, np.nan) if r is None else r[0] for r in results]
-        )
-        batch_covariance["joint"] = np.array(
-            [np.full((4, 4), np.nan) if r is None else r[1] for r in results]
-        )
-        good = batch_theta["joint"][np.all(np.isfinite(batch_theta["joint"]), axis=1)]
-        if len(good) == 0:
-            raise GraphcalError("every joint batch solve failed; no calibration to report")
-        if len(good) < len(batches):
-            say(f"warning: {len(batches) - len(good)} of {len(batches)} joint solves failed")
-        theta = np.median(good, axis=0)
+        warnings += staged.warnings
     else:
-        solve = dataclasses.replace(
-            settings.calibration,
-            estimate_start_poses=True,
-            max_iterations=max(settings.calibration.max_iterations, 20),
-        )
-        say(f"whole: one graph over {len(selected)} segments, start poses estimated")
-        theta = calibrate_batch(data, solve).theta
-        batch_theta["whole"] = theta[None]
+        if method == "joint":
+            tasks = [
+                (
+                    data.take(batch),
+                    settings.joint,
+                    None if truth_data is None else truth_data.take(batch),
+                    theta_true,
+                )
+                for batch in batches
+            ]
+            batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
+            results = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
+            solved = [None if r is None else r[0] for r in results]
+            nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
+            batch_theta["joint"] = np.array([nan_theta if r is None else r.theta for r in solved])
+            batch_covariance["joint"] = np.array(
+                [nan_matrix if r is None else r.covariance for r in solved]
+            )
+            if truth_data is not None:
+                batch_crb["joint"] = np.array(
+                    [nan_matrix if r is None or r[1] is None else r[1] for r in results]
+                )
+            reasons = np.array([exclusion_reason(r) for r in solved], dtype=object)
+            batch_excluded["joint"] = reasons
+            warnings += _exclusion_warnings(reasons)
+        final = _whole_log_solve(data, truth_data, theta_true, settings.joint, say)
+        theta, covariance, observability, crb = final
+        if observability.degenerate:
+            warnings.append(
+                f"{', '.join(observability.not_calibrated)} not calibrated: "
+                f"{observability.message()}; kept at the prior (nominal) value"
+            )
     batch_errors = {
         name: np.array([mean_validation_error(validation, t) for t in thetas])
         for name, thetas in batch_theta.items()
@@ -221,7 +303,6 @@ def run_calibration(
     }
     if theta_true is not None:
         segment_errors["true"] = position_errors(validation, theta_true)
-    warnings = list(staged.warnings) if staged is not None else []
     if method != "whole" and len(selected) < settings.batches.size:
         warnings.append(
             f"only {len(selected)} selected segments for batches of {settings.batches.size}: "
@@ -233,9 +314,9 @@ def run_calibration(
             f"the calibrated theta validates worse than the nominal one ({calibrated:.2f} m vs "
             f"{nominal:.2f} m): check the log (units, a faulty wheel sensor) before using it"
         )
-    solved = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
-    if staged is not None and len(solved["step1"]) and len(solved["step5"]):
-        first, last = np.median(solved["step1"]), np.median(solved["step5"])
+    solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
+    if staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
+        first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
         if last > first:
             warnings.append(
                 f"Step 5 validates worse than Step 1 (median {last:.2f} m vs {first:.2f} m): "
@@ -245,22 +326,61 @@ def run_calibration(
         say(f"warning: {line}")
     say(f"validated on {len(validation)} {settings.segments.validation_length:g} m segments")
     return CalibrationRun(
-        log,
-        settings,
-        method,
-        segments,
-        selected,
-        yaw,
-        data,
-        theta,
-        batches,
-        batch_theta,
-        batch_covariance,
-        staged,
-        validation_segments,
-        validation,
-        segment_errors,
-        batch_errors,
-        None if theta_true is None else np.asarray(theta_true, dtype=float),
-        tuple(warnings),
+        log=log,
+        settings=settings,
+        method=method,
+        segments=segments,
+        selected=selected,
+        yaw_rate=yaw,
+        data=data,
+        theta=theta,
+        batches=batches,
+        batch_theta=batch_theta,
+        batch_covariance=batch_covariance,
+        staged=staged,
+        validation_segments=validation_segments,
+        validation=validation,
+        segment_errors=segment_errors,
+        batch_errors=batch_errors,
+        theta_true=None if theta_true is None else np.asarray(theta_true, dtype=float),
+        warnings=tuple(warnings),
+        batch_crb=batch_crb,
+        batch_excluded=batch_excluded,
+        covariance=covariance,
+        observability=observability,
+        crb=crb,
     )
+
+
+def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
+    """One warning per distinct reason for leaving batches out of the statistics."""
+    out = []
+    for reason in sorted(set(reasons) - {""}):
+        count = int((reasons == reason).sum())
+        out.append(
+            f"{count} of {len(reasons)} joint batches left out of the batch statistics: {reason}"
+        )
+    if len(reasons) and all(reasons != ""):
+        out.append("no joint batch determines every parameter; see the recommended theta's verdict")
+    return out
+
+
+def _whole_log_solve(
+    data: SegmentData,
+    truth: SegmentData | None,
+    theta_true: np.ndarray | None,
+    settings: JointSettings,
+    say: Progress,
+) -> tuple[np.ndarray, np.ndarray, Observability, np.ndarray | None]:
+    """The joint solve over all ``data``: theta (unobservable parameters at their prior), its
+    covariance, observability and, given the truth, Cramér–Rao bound."""
+    say(f"joint solve over all {len(data)} selected segments")
+    result = calibrate_joint(data, settings)
+    say(f"  converged in {result.iterations} iterations")
+    crb = None
+    if truth is not None and theta_true is not None:
+        crb = cramer_rao_bound(data, truth, theta_true, settings)
+    theta = np.where(
+        result.observability.calibrated, result.theta, np.asarray(settings.theta_initial, float)
+    )
+    return theta, result.covariance, result.observability, crb

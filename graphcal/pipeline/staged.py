@@ -79,6 +79,25 @@ def _batch_task(
     return result.theta, result.start_states
 
 
+def step1_thetas(
+    data: SegmentData,
+    batches: np.ndarray,
+    settings: Settings,
+    workers: int = 1,
+    progress: Callable[[str], None] | None = None,
+) -> np.ndarray:
+    """Step 1 alone: theta ``(B, 4)`` of each batch from the measured signals with the start
+    poses held at their measurement; NaN rows for failed solves. The uncompensated baseline
+    that the joint method is shown against."""
+    say = progress or (lambda _line: None)
+    tasks = []
+    for batch in batches:
+        sub = data.take(batch)
+        tasks.append((sub.poses, sub.inputs, sub.n_steps, settings.calibration))
+    results = map_tasks(_batch_task, tasks, workers, say, "step1 batch solves")
+    return np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
+
+
 def _heading_task(
     poses: np.ndarray,
     inputs: np.ndarray,

@@ -45,28 +45,95 @@ def route_figure(run: CalibrationRun) -> Figure:
     return fig
 
 
-def parameters_figure(run: CalibrationRun) -> Figure:
-    """Box plots of each parameter over the batches per step or method (paper Fig. 5)."""
-    assert run.batches is not None
+def box_plots(
+    estimates: dict[str, np.ndarray],
+    title: str,
+    theta_true: np.ndarray | None = None,
+    recommended: np.ndarray | None = None,
+) -> Figure:
+    """Box plots of each parameter per step or method (paper Fig. 5).
+
+    Args:
+        estimates: per step or method (``"step1"``, ``"step5"``, ``"joint"``, ...), thetas
+            ``(B, 4)`` in SI; NaN rows are left out.
+        title: figure title.
+        theta_true, recommended: drawn as horizontal lines when given.
+    """
     fig = Figure(figsize=(11, 3.6), layout="constrained")
-    names = list(run.batch_theta)
+    names = list(estimates)
     for i, name in enumerate(PARAMETER_NAMES):
         ax = fig.add_subplot(1, 4, i + 1)
         data = []
         for step in names:
-            t = run.batch_theta[step][:, i]
+            t = estimates[step][:, i]
             data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
-        ax.boxplot(data, tick_labels=[_STEP_LABELS[s] for s in names])
-        if run.theta_true is not None:
+        ax.boxplot(data, tick_labels=[_STEP_LABELS.get(s, s) for s in names])
+        if theta_true is not None:
+            ax.axhline(theta_true[i] * DISPLAY_SCALE[i], color="tab:green", ls="--", label="true")
+        if recommended is not None:
             ax.axhline(
-                run.theta_true[i] * DISPLAY_SCALE[i], color="tab:green", ls="--", label="true"
+                recommended[i] * DISPLAY_SCALE[i], color="tab:blue", lw=0.8, label="recommended"
             )
-        ax.axhline(run.theta[i] * DISPLAY_SCALE[i], color="tab:blue", lw=0.8, label="recommended")
         ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]")
         ax.grid(axis="y", alpha=0.3)
         if i == 0:
             ax.legend(loc="best", fontsize="small")
-    fig.suptitle(f"Estimates over {len(run.batches)} batches")
+    fig.suptitle(title)
+    return fig
+
+
+def parameters_figure(run: CalibrationRun) -> Figure:
+    """Box plots of each parameter over the batches of a run (paper Fig. 5)."""
+    assert run.batches is not None
+    estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
+    return box_plots(
+        estimates, f"Estimates over {len(run.batches)} batches", run.theta_true, run.theta
+    )
+
+
+def batch_intervals_figure(run: CalibrationRun, name: str = "joint", limit: int = 60) -> Figure:
+    """Per-batch estimates of ``name`` with ±2σ bars, next to the recommended theta's band.
+
+    Shows the first ``limit`` batches; excluded batches are drawn hollow in grey.
+    """
+    thetas, covariances = run.batch_theta[name], run.batch_covariance[name]
+    excluded = run.batch_excluded.get(name, np.full(len(thetas), "", dtype=object))
+    shown = np.arange(min(limit, len(thetas)))
+    fig = Figure(figsize=(11, 6), layout="constrained")
+    for i, parameter in enumerate(PARAMETER_NAMES):
+        ax = fig.add_subplot(2, 2, i + 1)
+        scale = DISPLAY_SCALE[i]
+        value = thetas[shown, i] * scale
+        bar = 2.0 * np.sqrt(covariances[shown, i, i]) * scale
+        for mask, style in ((excluded[shown] == "", "o"), (excluded[shown] != "", "x")):
+            if mask.any():
+                ax.errorbar(
+                    shown[mask],
+                    value[mask],
+                    yerr=bar[mask],
+                    fmt=style,
+                    ms=3,
+                    lw=0.8,
+                    color="tab:blue" if style == "o" else "0.6",
+                    label="batch ±2σ" if style == "o" else "excluded batch",
+                )
+        if run.covariance is not None and run.observability is not None:
+            if run.observability.calibrated[i]:
+                centre = run.theta[i] * scale
+                half = 2.0 * np.sqrt(run.covariance[i, i]) * scale
+                ax.axhspan(centre - half, centre + half, color="tab:blue", alpha=0.15)
+                ax.axhline(centre, color="tab:blue", lw=0.8, label="recommended ±2σ")
+            else:
+                ax.set_title(f"{parameter} [{DISPLAY_UNITS[i]}]: not observable")
+        if run.theta_true is not None:
+            ax.axhline(run.theta_true[i] * scale, color="tab:green", ls="--", label="true")
+        if not ax.get_title():
+            ax.set_title(f"{parameter} [{DISPLAY_UNITS[i]}]")
+        ax.set_xlabel("batch")
+        ax.grid(alpha=0.3)
+        if i == 0:
+            ax.legend(loc="best", fontsize="small")
+    fig.suptitle(f"{_STEP_LABELS.get(name, name)} estimates per batch with ±2σ (95 %) bars")
     return fig
 
 
@@ -74,9 +141,13 @@ def validation_figure(run: CalibrationRun) -> Figure:
     """Validation errors E_p of the batches' theta per step (paper Fig. 6)."""
     fig = Figure(figsize=(7, 3.8), layout="constrained")
     ax = fig.add_subplot()
-    names = list(run.batch_errors)
-    data = [e[np.isfinite(e)] for e in run.batch_errors.values()]
-    ax.boxplot(data, orientation="horizontal", tick_labels=[_STEP_LABELS[n] for n in names])
+    if run.batch_errors:  # one E_p per batch and step
+        labels = [_STEP_LABELS.get(n, n) for n in run.batch_errors]
+        data = [e[np.isfinite(e)] for e in run.batch_errors.values()]
+    else:  # no batches: the spread over the validation segments of each theta
+        labels = [f"{n} θ, per segment" for n in run.segment_errors]
+        data = list(run.segment_errors.values())
+    ax.boxplot(data, orientation="horizontal", tick_labels=labels)
     top = max(float(np.max(d)) for d in data if len(d))
     for name, style in (("nominal", ":"), ("true", "--"), ("calibrated", "-")):
         if name == "nominal" and run.validation_error(name) > 1.5 * top:
@@ -188,6 +259,8 @@ def figures(run: CalibrationRun) -> dict[str, Figure]:
     }
     if run.batches is not None:
         out["parameters.png"] = parameters_figure(run)
+    if "joint" in run.batch_covariance:
+        out["batch_intervals.png"] = batch_intervals_figure(run)
     if run.staged is not None:
         out["wheel_rotations.png"] = wheel_rotations_figure(run)
     return out

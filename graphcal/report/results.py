@@ -22,7 +22,10 @@ from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.report.figures import figures
 from graphcal.report.tables import (
+    NOT_OBSERVABLE,
     PAPER_IQR_REDUCTION,
+    Z95,
+    interval_table,
     iqr_reduction,
     step_statistics,
     steps_table,
@@ -48,19 +51,63 @@ def _finite(obj: object) -> object:
 
 
 def run_statistics(run: CalibrationRun) -> dict[str, dict]:
-    """Per step or method: :func:`step_statistics` of its per-batch thetas."""
-    return {name: step_statistics(t, run.theta_true) for name, t in run.batch_theta.items()}
+    """Per step or method: :func:`step_statistics` of its per-batch thetas (batches left
+    out for a failed solve or an unobservable parameter excluded)."""
+    return {
+        name: step_statistics(run.batch_estimates(name), run.theta_true) for name in run.batch_theta
+    }
+
+
+THETA_UNITS = {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"}
+
+
+def parameter_summary(run: CalibrationRun) -> dict[str, dict]:
+    """Per parameter: value (SI), its standard deviation, 95 % interval and verdict.
+
+    A parameter the data did not determine keeps its prior (nominal) value, has no sigma or
+    interval and says so in ``status``. Staged runs have no covariance of the recommended
+    theta (a median over batches); their entries carry the value and the method.
+    """
+    out: dict[str, dict] = {}
+    for i, name in enumerate(PARAMETER_NAMES):
+        entry: dict = {"value": float(run.theta[i]), "unit": THETA_UNITS[name]}
+        if run.covariance is None or run.observability is None:
+            entry["status"] = "calibrated (staged: median of Step 5 over the batches)"
+            out[name] = entry
+            continue
+        sigma = float(np.sqrt(run.covariance[i, i]))
+        verdict = run.observability.verdicts()[name]
+        if run.observability.calibrated[i]:
+            entry["status"] = verdict
+            entry["sigma"] = sigma
+            entry["ci95"] = [entry["value"] - Z95 * sigma, entry["value"] + Z95 * sigma]
+        else:
+            entry["status"] = (
+                "not calibrated: not observable from this drive; the value is the prior"
+            )
+            entry["sigma"] = None
+            entry["prior_sigma"] = float(run.settings.joint.theta_prior_sigmas[i])
+        entry["sigma_over_prior_sigma"] = float(run.observability.sigma_ratio[i])
+        if run.crb is not None:
+            entry["cramer_rao_sigma"] = float(np.sqrt(run.crb[i, i]))
+        out[name] = entry
+    return out
 
 
 def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
-    """Per method with covariances: median per-batch sigma (SI) and, given the truth, NEES.
+    """Per method with covariances: median per-batch sigma (SI) and, given the truth, NEES and
+    the Cramér–Rao bound.
 
     NEES is the mean over batches of (theta − truth)ᵀ Σ⁻¹ (theta − truth); with 4 parameters
-    it is 4 when the reported covariance matches the actual errors.
+    it is 4 when the reported covariance matches the actual errors. ``crb_sigma`` is the root
+    mean Cramér–Rao variance over the batches, the RMSE an efficient method reaches;
+    ``rmse_over_crb`` compares the batches' RMSE with it. Excluded batches are left out.
     """
     out: dict[str, dict] = {}
     for name, covariances in run.batch_covariance.items():
         good = np.all(np.isfinite(covariances), axis=(1, 2))
+        if name in run.batch_excluded:
+            good &= run.batch_excluded[name] == ""
         if not good.any():
             continue
         sigmas = np.sqrt(np.diagonal(covariances[good], axis1=1, axis2=2))
@@ -74,6 +121,14 @@ def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
             nees = np.einsum("bi,bij,bj->b", errors, np.linalg.inv(covariances[good]), errors)
             entry["nees_mean"] = float(np.mean(nees))
             entry["nees_batches"] = len(nees)
+            crb = run.batch_crb.get(name)
+            if crb is not None and np.all(np.isfinite(crb[good])):
+                crb_sigma = np.sqrt(np.mean(np.diagonal(crb[good], axis1=1, axis2=2), axis=0))
+                rmse = np.sqrt(np.mean(errors**2, axis=0))
+                entry["crb_sigma"] = dict(zip(PARAMETER_NAMES, map(float, crb_sigma), strict=True))
+                entry["rmse_over_crb"] = dict(
+                    zip(PARAMETER_NAMES, map(float, rmse / crb_sigma), strict=True)
+                )
         out[name] = entry
     return out
 
@@ -94,12 +149,13 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
     stats = run_statistics(run)
     doc: dict = {
         "theta": _named(run.theta),
-        "theta_units": {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"},
+        "theta_units": THETA_UNITS,
         "theta_display": {
             f"{n} [{u}]": float(v)
             for n, u, v in zip(PARAMETER_NAMES, DISPLAY_UNITS, to_display(run.theta), strict=True)
         },
         "theta_nominal": _named(THETA_NOMINAL),
+        "parameters": parameter_summary(run),
         "method": run.method,
         "log": {
             "file": run.log.source,
@@ -130,6 +186,12 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             "failed": {
                 name: int((~np.all(np.isfinite(t), axis=1)).sum())
                 for name, t in run.batch_theta.items()
+            },
+            "excluded": {
+                name: {
+                    reason: int((reasons == reason).sum()) for reason in sorted(set(reasons) - {""})
+                }
+                for name, reasons in run.batch_excluded.items()
             },
         }
     if run.staged is not None:
@@ -163,6 +225,11 @@ def batches_frame(run: CalibrationRun) -> pd.DataFrame:
         if step in run.batch_covariance:
             for i, name in enumerate(PARAMETER_NAMES):
                 frame[f"{step}_sigma_{name}"] = np.sqrt(run.batch_covariance[step][:, i, i])
+        if step in run.batch_crb:
+            for i, name in enumerate(PARAMETER_NAMES):
+                frame[f"{step}_crb_sigma_{name}"] = np.sqrt(run.batch_crb[step][:, i, i])
+        if step in run.batch_excluded:
+            frame[f"{step}_excluded"] = run.batch_excluded[step]
         frame[f"{step}_validation_error_m"] = run.batch_errors[step]
     return frame
 
@@ -172,11 +239,31 @@ def summary_text(run: CalibrationRun) -> str:
     rows = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
     if run.theta_true is not None:
         rows["true"] = run.theta_true
-    parts = [theta_table(rows)]
+    hidden = set(run.observability.not_calibrated) if run.observability is not None else set()
+    parts = [theta_table(rows, {"calibrated": hidden})]
+    if hidden:
+        parts[0] += (
+            f"\n{NOT_OBSERVABLE}: not observable from this drive, not calibrated "
+            "(calibration.json keeps the nominal value and says so)"
+        )
+    if run.covariance is not None and run.observability is not None:
+        parts.append(
+            f"recommended θ: joint solve over all {len(run.selected)} selected segments\n"
+            + interval_table(
+                run.theta, run.covariance, run.observability.verdicts(), run.crb, run.theta_true
+            )
+        )
     if run.staged is not None:
         parts.append(steps_table(run_statistics(run), run.theta_true is not None))
     elif run.method == "joint":
-        parts.append(steps_table(run_statistics(run), run.theta_true is not None, steps=("joint",)))
+        parts.append(
+            steps_table(
+                run_statistics(run),
+                run.theta_true is not None,
+                steps=("step1", "joint"),
+                not_observable=hidden,
+            )
+        )
     for name, entry in uncertainty_summary(run).items():
         sigma = entry["sigma_per_batch_median"]
         line = (
@@ -190,6 +277,12 @@ def summary_text(run: CalibrationRun) -> str:
             line += (
                 f"; NEES {entry['nees_mean']:.2f} over {entry['nees_batches']} batches "
                 "(4 = consistent)"
+            )
+        if "crb_sigma" in entry:
+            line += "\n" + (
+                f"{name}: RMSE / Cramér–Rao bound "
+                + ", ".join(f"{p} {entry['rmse_over_crb'][p]:.2f}" for p in PARAMETER_NAMES)
+                + " (1 = efficient)"
             )
         parts.append(line)
     parts.append(validation_table(validation_summary(run)))

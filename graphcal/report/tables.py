@@ -48,11 +48,26 @@ def iqr_reduction(first: dict[str, dict], last: dict[str, dict]) -> dict[str, fl
     return out
 
 
-def theta_table(rows: dict[str, np.ndarray]) -> str:
-    """A table with one row per named theta (SI in, display units out, units in the header)."""
+NOT_OBSERVABLE = "n/o"
+
+
+def theta_table(
+    rows: dict[str, np.ndarray], not_observable: dict[str, set[str]] | None = None
+) -> str:
+    """A table with one row per named theta (SI in, display units out, units in the header).
+
+    ``not_observable`` maps a row name to parameters shown as ``n/o`` instead of a number.
+    """
+    hidden = not_observable or {}
     header = ["", *(f"{n} [{u}]" for n, u in zip(PARAMETER_NAMES, DISPLAY_UNITS, strict=True))]
     body = [
-        [name, *(f.format(v) for f, v in zip(_FORMATS, to_display(theta), strict=True))]
+        [
+            name,
+            *(
+                NOT_OBSERVABLE if p in hidden.get(name, ()) else f.format(v)
+                for p, f, v in zip(PARAMETER_NAMES, _FORMATS, to_display(theta), strict=True)
+            ),
+        ]
         for name, theta in rows.items()
     ]
     return _render([header, *body])
@@ -62,11 +77,13 @@ def steps_table(
     stats: dict[str, dict[str, dict]],
     has_truth: bool,
     steps: tuple[str, ...] = ("step1", "step5"),
+    not_observable: set[str] | None = None,
 ) -> str:
     """Per parameter and step: median, IQR and, given the truth, bias and RMSE.
 
     Medians in display units (m, mm, m, mm·s²/m); IQR, bias and RMSE in mm (mm·s²/m for d).
-    With Steps 1 and 5 the IQR reduction is shown next to the paper's.
+    With Steps 1 and 5 the IQR reduction is shown next to the paper's. Parameters in
+    ``not_observable`` show ``n/o`` instead of numbers; steps without a usable batch ``none``.
     """
     columns = ["median", "iqr"] + (["bias", "rmse"] if has_truth else [])
     header = ["parameter"]
@@ -82,14 +99,59 @@ def steps_table(
         row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]"]
         for step in steps:
             entry = stats[step][name]
+            if name in (not_observable or ()):
+                row += [NOT_OBSERVABLE] + ["-"] * (len(columns) - 1)
+                continue
             if entry["median"] is None:
-                row += ["failed"] + ["-"] * (len(columns) - 1)
+                row += ["none"] + ["-"] * (len(columns) - 1)
                 continue
             row.append(_FORMATS[i].format(entry["median"] * DISPLAY_SCALE[i]))
             row += [f"{entry[c] * DEVIATION_SCALE[i]:.3f}" for c in columns[1:]]
         if compare:
             cut = reduction[name]
             row += ["n/a" if cut is None else f"{cut:.0f}", f"{PAPER_IQR_REDUCTION[name]:.0f}"]
+        body.append(row)
+    return _render([header, *body])
+
+
+Z95 = 1.959964  # two-sided 95 % quantile of the standard normal
+
+
+def interval_table(
+    theta: np.ndarray,
+    covariance: np.ndarray,
+    verdicts: dict[str, str],
+    crb: np.ndarray | None = None,
+    truth: np.ndarray | None = None,
+) -> str:
+    """The recommended theta with 1σ, its 95 % interval and the observability verdict.
+
+    Values in display units; σ and interval half-widths in mm (mm·s²/m for d). A parameter
+    the data did not determine shows its prior value and no interval.
+    """
+    sigma = np.sqrt(np.diag(covariance))
+    header = ["parameter", "value", "1σ", "95 % interval"]
+    header += (["CRB 1σ"] if crb is not None else []) + (["error"] if truth is not None else [])
+    header.append("verdict")
+    body = []
+    for i, name in enumerate(PARAMETER_NAMES):
+        spread = "mm·s²/m" if name == "d" else "mm"
+        value = theta[i] * DISPLAY_SCALE[i]
+        row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]", _FORMATS[i].format(value)]
+        calibrated = verdicts[name].startswith("calibrated")
+        if calibrated:
+            half = Z95 * sigma[i] * DISPLAY_SCALE[i]
+            row += [
+                f"{sigma[i] * DEVIATION_SCALE[i]:.3f}",
+                f"{_FORMATS[i].format(value - half)} … {_FORMATS[i].format(value + half)}",
+            ]
+        else:
+            row += ["-", "prior value, not calibrated"]
+        if crb is not None:
+            row.append(f"{np.sqrt(crb[i, i]) * DEVIATION_SCALE[i]:.3f}")
+        if truth is not None:
+            row.append(f"{(theta[i] - truth[i]) * DEVIATION_SCALE[i]:+.3f}")
+        row.append(verdicts[name])
         body.append(row)
     return _render([header, *body])
 
