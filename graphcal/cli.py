@@ -394,10 +394,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--method",
         choices=list(METHODS),
-        default="staged",
-        help="staged: the paper's five steps over batches (default); joint: one graph per "
-        "batch for start poses, wheel-rotation corrections and theta together; whole: one "
-        "solve over all selected segments, quick",
+        default="joint",
+        help="joint (default): one graph per batch for start poses, wheel-rotation "
+        "corrections and theta together, then one over all selected segments for the "
+        "recommended theta with its covariance; staged: the paper's five steps over batches; "
+        "whole: only the solve over all selected segments, quick",
     )
     p.add_argument(
         "--batches",

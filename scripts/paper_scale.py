@@ -17,39 +17,74 @@ from pathlib import Path
 
 import numpy as np
 
+from graphcal.files import atomic_save_figure
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import run_calibration
-from graphcal.report.results import run_statistics, write_results
+from graphcal.report.figures import box_plots
+from graphcal.report.results import run_statistics, uncertainty_summary, write_results
 from graphcal.report.tables import PAPER_IQR_REDUCTION, iqr_reduction
 from graphcal.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
-from graphcal.units import DEVIATION_SCALE, DISPLAY_SCALE, DISPLAY_UNITS
+from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS, DISPLAY_SCALE, DISPLAY_UNITS
 
 
-def report_joint(run, stats: dict, args: argparse.Namespace, seconds: float) -> int:
-    """Print the joint method's per-parameter statistics against the truth."""
+def report_joint(run, stats: dict, args: argparse.Namespace, seconds: float, staged=None) -> int:
+    """Print the joint method against the truth, the Cramér–Rao bound and (if given) the
+    staged Step 5, with issue 6's acceptance checks."""
     truth = run.theta_true
+    uncertainty = uncertainty_summary(run)["joint"]
     print(
         f"\n{args.length_km:g} km, {len(run.batches)} batches of {run.batches.shape[1]}, "
         f"{len(run.selected)} selected segments, {args.workers} workers, joint: "
         f"{seconds / 60:.1f} min\n"
     )
-    print("| parameter | joint median | joint IQR | joint bias | joint RMSE | recommended − true |")
-    print("|---|---|---|---|---|---|")
+    header = ["parameter", "Step 1 IQR", "joint bias", "joint IQR", "joint RMSE"]
+    header += ["staged Step 5 RMSE"] if staged is not None else []
+    header += ["CRB (rms)", "RMSE / CRB", "final − true", "final 1σ", "final CRB 1σ"]
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---|" * len(header))
+    checks = []
     for i, name in enumerate(PARAMETER_NAMES):
-        e, s = stats["joint"][name], DEVIATION_SCALE[i]
-        print(
-            f"| {name} [{DISPLAY_UNITS[i]}] | {e['median'] * DISPLAY_SCALE[i]:.5g} "
-            f"| {e['iqr'] * s:.3f} | {e['bias'] * s:+.3f} | {e['rmse'] * s:.3f} "
-            f"| {(run.theta[i] - truth[i]) * s:+.3f} |"
+        s = DEVIATION_SCALE[i]
+        joint, first = stats["joint"][name], stats["step1"][name]
+        crb = uncertainty["crb_sigma"][name]
+        row = [
+            f"{name} [{DEVIATION_UNITS[i]}]",
+            f"{first['iqr'] * s:.3f}",
+            f"{joint['bias'] * s:+.3f}",
+            f"{joint['iqr'] * s:.3f}",
+            f"{joint['rmse'] * s:.3f}",
+        ]
+        if staged is not None:
+            step5 = staged["step5"][name]
+            row.append(f"{step5['rmse'] * s:.3f}")
+            checks.append(
+                (f"{name}: joint RMSE <= staged Step 5 RMSE", joint["rmse"] <= step5["rmse"])
+            )
+        row += [
+            f"{crb * s:.3f}",
+            f"{joint['rmse'] / crb:.2f}",
+            f"{(run.theta[i] - truth[i]) * s:+.3f}",
+            f"{np.sqrt(run.covariance[i, i]) * s:.3f}",
+            f"{np.sqrt(run.crb[i, i]) * s:.3f}",
+        ]
+        print("| " + " | ".join(row) + " |")
+        checks.append((f"{name}: joint RMSE <= 1.5 x CRB", joint["rmse"] <= 1.5 * crb))
+        checks.append(
+            (f"{name}: |joint bias| <= 1/4 Step 1 IQR", abs(joint["bias"]) <= first["iqr"] / 4)
         )
+    nees = uncertainty["nees_mean"]
+    print(f"\nNEES over {uncertainty['nees_batches']} batches: {nees:.2f} (4 = consistent)")
+    checks.append(("NEES between 2 and 8", 2.0 <= nees <= 8.0))
     print(
-        f"\nvalidation error E_p: nominal {run.validation_error('nominal'):.3f} m, median "
-        f"joint {np.nanmedian(run.batch_errors['joint']):.3f} m, recommended theta "
+        f"validation error E_p: nominal {run.validation_error('nominal'):.3f} m, median "
+        f"joint batch {np.nanmedian(run.batch_errors['joint']):.3f} m, recommended theta "
         f"{run.validation_error('calibrated'):.3f} m, reachable "
-        f"{run.validation_error('true'):.3f} m"
+        f"{run.validation_error('true'):.3f} m\n"
     )
-    return 0
+    for label, ok in checks:
+        print(f"- [{'x' if ok else ' '}] {label}")
+    return 0 if all(ok for _, ok in checks) else 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -59,27 +94,48 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=Path("results/paper_scale"))
-    parser.add_argument("--method", choices=["staged", "joint"], default="staged")
+    parser.add_argument(
+        "--method",
+        choices=["staged", "joint", "both"],
+        default="staged",
+        help="both: staged then joint on the same drive, compared (writes methods.png)",
+    )
     args = parser.parse_args(argv)
 
     drive = simulate_drive(args.length_km, seed=args.seed)
     write_synthetic_drive(drive, args.out / "drive.csv")
     settings = Settings(batches=BatchingSettings(count=args.batches, seed=args.seed))
-    start = time.perf_counter()
-    run = run_calibration(
-        drive.measured,
-        settings,
-        args.method,
-        drive.theta_true,
-        lambda line: print(line, file=sys.stderr, flush=True),
-        args.workers,
-    )
-    seconds = time.perf_counter() - start
-    write_results(run, args.out, args.workers)
-
-    stats = run_statistics(run)
-    if args.method == "joint":
-        return report_joint(run, stats, args, seconds)
+    runs, stats, seconds = {}, {}, {}
+    methods = ("staged", "joint") if args.method == "both" else (args.method,)
+    for method in methods:
+        start = time.perf_counter()
+        runs[method] = run_calibration(
+            drive.measured,
+            settings,
+            method,
+            drive.theta_true,
+            lambda line: print(line, file=sys.stderr, flush=True),
+            args.workers,
+            drive.truth,
+        )
+        seconds[method] = time.perf_counter() - start
+        out = args.out / method if args.method == "both" else args.out
+        write_results(runs[method], out, args.workers)
+        stats[method] = run_statistics(runs[method])
+    if args.method == "both":
+        estimates = {
+            "step1": runs["staged"].batch_estimates("step1"),
+            "step5": runs["staged"].batch_estimates("step5"),
+            "joint": runs["joint"].batch_estimates("joint"),
+        }
+        title = f"Estimates over {args.batches} batches: Step 1, staged Step 5, joint"
+        atomic_save_figure(box_plots(estimates, title, drive.theta_true), args.out / "methods.png")
+        print(f"staged: {seconds['staged'] / 60:.1f} min")
+    if "joint" in runs:
+        return report_joint(
+            runs["joint"], stats["joint"], args, seconds["joint"], stats.get("staged")
+        )
+    run, stats, seconds = runs["staged"], stats["staged"], seconds["staged"]
     first, last = stats["step1"], stats["step5"]
     cut = iqr_reduction(first, last)
     truth = drive.theta_true

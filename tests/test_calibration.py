@@ -50,18 +50,19 @@ def test_holding_the_start_pose_is_worse_than_estimating_it(drive):
     assert abs(free[0] - truth[0]) < abs(held[0] - truth[0])
 
 
-def test_straight_drive_has_nothing_to_calibrate(straight_log, tmp_path, capsys):
+def test_staged_method_refuses_a_straight_drive(straight_log, tmp_path, capsys):
     from graphcal.data.drive_log import write_drive_log
 
     log = straight_log
     with pytest.raises(NoUsableSegments, match=r"highest: 0\.000 rad/s"):
-        run_calibration(log)
+        run_calibration(log, method="staged")
     path = tmp_path / "straight.csv"
     write_drive_log(log, path)
     out = tmp_path / "out"
-    assert main(["calibrate", str(path), "--out", str(out)]) == 2
+    assert main(["calibrate", str(path), "--out", str(out), "--method", "staged"]) == 2
     err = capsys.readouterr().err
     assert "no 150 m segment has mean |yaw rate| above 0.15 rad/s" in err
+    assert "use --method joint" in err
     assert "Traceback" not in err and not out.exists()
 
 

@@ -152,6 +152,8 @@ def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, 
             "4",
             "--workers",
             str(workers),
+            "--method",
+            "staged",
         ]
         assert main(args) == 0
         outs[workers] = out

@@ -206,7 +206,7 @@ def select(
 def run_calibration(
     log: DriveLog,
     settings: Settings | None = None,
-    method: Method = "staged",
+    method: Method = "joint",
     theta_true: np.ndarray | None = None,
     progress: Progress | None = None,
     workers: int = 1,
