@@ -124,7 +124,7 @@ def generate_straight_route(length: float, rng: np.random.Generator, spacing: fl
     b = _RouteBuilder()
     while b.length < length:
         b.limit(rng.choice([60.0, 80.0, 90.0, 110.0]) * KMH)
-        b.straight(rng.uniform(300.0, 1500.0))
+        b.straight(min(rng.uniform(300.0, 1500.0), length - b.length + 1.0))
     return b.sample(spacing)
 
 
