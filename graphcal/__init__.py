@@ -1,3 +1,82 @@
-"""graphcal: wheel-odometry calibration with noise compensation, as GTSAM factor graphs."""
+"""graphcal: wheel-odometry calibration with noise compensation, as GTSAM factor graphs.
+
+The public surface is ``graphcal.__all__``; each name is importable from ``graphcal``
+directly (loaded on first use, so ``import graphcal`` stays light)::
+
+    import graphcal
+
+    log = graphcal.load_drive_log("drive.csv")
+    run = graphcal.run_calibration(log)            # joint method: theta, covariance, verdicts
+    factor = graphcal.keyframe_odometry_factor(x0, x1, theta_key, inputs, heading)
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 __version__ = "0.1.0"
+
+_PUBLIC = {
+    # Drive logs, synthetic drives and trajectory files.
+    "DriveLog": "graphcal.data.drive_log",
+    "load_drive_log": "graphcal.data.drive_log",
+    "write_drive_log": "graphcal.data.drive_log",
+    "simulate_drive": "graphcal.simulate.drive",
+    "NoiseLevels": "graphcal.simulate.drive",
+    "ThetaChange": "graphcal.simulate.drive",
+    "write_tum": "graphcal.data.tum",
+    "read_tum": "graphcal.data.tum",
+    # The odometry model (eqs. 1-3).
+    "THETA_NOMINAL": "graphcal.model",
+    "PARAMETER_NAMES": "graphcal.model",
+    "integrate": "graphcal.model",
+    # Calibration of a drive log.
+    "Settings": "graphcal.settings",
+    "load_settings": "graphcal.settings",
+    "run_calibration": "graphcal.pipeline.run",
+    "CalibrationRun": "graphcal.pipeline.run",
+    "write_results": "graphcal.report.results",
+    "calibrate_joint": "graphcal.pipeline.joint",
+    "JointSettings": "graphcal.pipeline.joint",
+    "cramer_rao_bound": "graphcal.pipeline.joint",
+    "assess_observability": "graphcal.pipeline.observability",
+    "Observability": "graphcal.pipeline.observability",
+    # Factors and values for your own GTSAM graphs.
+    "keyframe_odometry_factor": "graphcal.localization.keyframe_odometry",
+    "keyframe_odometry_factors": "graphcal.localization.keyframe_odometry",
+    "odometry_covariance": "graphcal.localization.keyframe_odometry",
+    "wheel_odometry_factor": "graphcal.factors",
+    "segment_odometry_factor": "graphcal.factors",
+    "pose_measurement_factor": "graphcal.factors",
+    "theta_prior_factor": "graphcal.factors",
+    "insert_theta": "graphcal.localization.values",
+    "theta_from_values": "graphcal.localization.values",
+    "insert_states": "graphcal.localization.values",
+    "states_from_values": "graphcal.localization.values",
+    # Localization with calibration.
+    "smooth_drive": "graphcal.localization.smoothing",
+    "SmoothingSettings": "graphcal.localization.smoothing",
+    "run_online": "graphcal.localization.online",
+    "OnlineSettings": "graphcal.localization.online",
+    "outage_errors": "graphcal.localization.dead_reckoning",
+    "OutageSettings": "graphcal.localization.dead_reckoning",
+    # Errors.
+    "GraphcalError": "graphcal.errors",
+}
+
+__all__ = sorted(_PUBLIC)
+
+
+def __getattr__(name: str) -> Any:
+    """Load a public name from its module on first use (PEP 562)."""
+    module = _PUBLIC.get(name)
+    if module is None:
+        raise AttributeError(f"module 'graphcal' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *__all__])
