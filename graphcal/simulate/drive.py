@@ -68,6 +68,25 @@ class SyntheticDrive:
     length_km: float
     motion: VehicleMotion = field(default_factory=VehicleMotion)
     route: str = "city"
+    theta_change: ThetaChange | None = None
+
+
+@dataclass(frozen=True)
+class ThetaChange:
+    """A sudden change of the true parameters during a drive (e.g. a tyre-pressure drop).
+
+    Attributes:
+        at_km: travelled distance [km] where ``theta_after`` replaces ``theta_true``.
+        theta_after: the parameters from then on (SI).
+    """
+
+    at_km: float
+    theta_after: np.ndarray
+
+    def theta_at(self, theta_true: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
+        """True theta ``(N, 4)`` at travelled distances ``distance_m`` ``(N,)`` [m]."""
+        after = np.asarray(distance_m)[:, None] >= 1000.0 * self.at_km
+        return np.where(after, np.asarray(self.theta_after, float), np.asarray(theta_true, float))
 
 
 def _speed_profile(
@@ -97,6 +116,7 @@ def simulate_drive(
     dt: float = 0.025,
     motion: VehicleMotion | None = None,
     route: str = "city",
+    theta_change: ThetaChange | None = None,
 ) -> SyntheticDrive:
     """Simulate a city/suburban drive of ``length_km`` km sampled every ``dt`` seconds.
 
@@ -109,6 +129,7 @@ def simulate_drive(
         motion: driving-style constants.
         route: ``"city"`` (bends, turns, roundabouts; the paper's kind of drive) or
             ``"straight"`` (a straight road, where t_r and d are not observable).
+        theta_change: optional change of the true theta part-way (``theta_true`` before it).
     """
     if not length_km > 0:
         raise ValueError(f"drive length must be positive, got {length_km} km")
@@ -142,10 +163,20 @@ def simulate_drive(
     n_rl, n_rr = wheel_rotations_for_motion(
         distance, yaw_increment, lateral_acceleration[:-1], theta_true
     )
+    change = len(distance)  # first step driven with theta_change.theta_after
+    if theta_change is not None:
+        change = int(np.searchsorted(s_t[:-1], 1000.0 * theta_change.at_km))
+        after_rl, after_rr = wheel_rotations_for_motion(
+            distance, yaw_increment, lateral_acceleration[:-1], theta_change.theta_after
+        )
+        n_rl[change:], n_rr[change:] = after_rl[change:], after_rr[change:]
     # The last sample's inputs drive no step; repeat the previous ones.
     n_rl, n_rr = np.append(n_rl, n_rl[-1]), np.append(n_rr, n_rr[-1])
     inputs = np.column_stack([n_rl, n_rr, sideslip, lateral_acceleration])
-    poses = integrate(np.array([0.0, 0.0, heading0]), inputs[:-1], theta_true)
+    poses = integrate(np.array([0.0, 0.0, heading0]), inputs[:change], theta_true)
+    if theta_change is not None:  # both thetas reproduce the same motion; continue with the new
+        rest = integrate(poses[-1], inputs[change:-1], theta_change.theta_after)
+        poses = np.concatenate([poses, rest[1:]])
 
     truth = DriveLog(
         t=t,
@@ -172,7 +203,7 @@ def simulate_drive(
         source="<synthetic>",
     )
     return SyntheticDrive(
-        measured, truth, theta_true, noise, int(seed), float(length_km), motion, route
+        measured, truth, theta_true, noise, int(seed), float(length_km), motion, route, theta_change
     )
 
 
@@ -218,6 +249,13 @@ def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str
         "motion": asdict(drive.motion),
         "truth_file": truth_csv.name,
     }
+    if drive.theta_change is not None:
+        meta["theta_change"] = {
+            "at_km": drive.theta_change.at_km,
+            "theta_after": dict(
+                zip(PARAMETER_NAMES, map(float, drive.theta_change.theta_after), strict=True)
+            ),
+        }
     atomic_write_text(sidecar, json.dumps(meta, indent=2) + "\n")
     return [csv_path, truth_csv, sidecar]
 
