@@ -1,0 +1,135 @@
+"""graphcal inside a GTSAM localization: keyframe odometry, smoothing, online, outages, TUM."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+import pytest
+from numerical import retract_jacobian
+
+import graphcal
+from graphcal.data.tum import read_tum, write_tum
+from graphcal.errors import GraphcalError
+from graphcal.localization.dead_reckoning import OutageSettings, outage_errors, outage_table
+from graphcal.localization.keyframe_odometry import (
+    keyframe_odometry_factor,
+    keyframe_odometry_factors,
+    odometry_covariance,
+)
+from graphcal.localization.online import OnlineSettings, run_online
+from graphcal.localization.smoothing import SmoothingSettings, smooth_drive
+from graphcal.localization.values import insert_states, insert_theta, states_from_values
+from graphcal.model import THETA_NOMINAL, integrate
+from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaChange, simulate_drive
+
+
+def test_public_names_all_resolve():
+    for name in graphcal.__all__:
+        assert getattr(graphcal, name) is not None, name
+    with pytest.raises(AttributeError):
+        graphcal.no_such_name  # noqa: B018
+
+
+def test_keyframe_factor_jacobians_match_numerical_derivatives(drive):
+    log = drive.measured
+    a, b = 1000, 1008  # one 5 Hz interval of 40 Hz wheel data
+    x0, x1, th = gtsam.symbol("x", 0), gtsam.symbol("x", 1), gtsam.symbol("t", 0)
+    factor = keyframe_odometry_factor(x0, x1, th, log.inputs[a:b], float(log.psi[a]))
+    values = gtsam.Values()
+    # Off the solution, so the error is not zero and all Jacobian blocks matter.
+    insert_states(values, [x0, x1], log.poses[[a, b]] + [0.3, -0.2, 0.05])
+    insert_theta(values, th, THETA_TRUE_DEFAULT)
+    linear = factor.linearize(values)
+    numerical, columns = retract_jacobian(lambda v: factor.whitenedError(v), values, [x0, x1, th])
+    analytic = linear.jacobian()[0]
+    order = np.concatenate([columns[k] for k in (x0, x1, th)])
+    np.testing.assert_allclose(analytic, numerical[:, order], rtol=1e-5, atol=1e-6)
+
+
+def test_odometry_covariance_matches_monte_carlo(drive, rng):
+    """The propagated wheel-noise covariance of one interval equals the spread of the end
+    state when the rotations are perturbed by that noise."""
+    inputs = drive.measured.inputs[2000:2040]  # one second, in a bend or not
+    start = np.array([0.0, 0.0, 0.3])
+    noise = 0.0005
+    samples = np.repeat(inputs[None], 4000, axis=0)
+    samples[..., :2] += noise * rng.standard_normal(samples[..., :2].shape)
+    ends = integrate(np.tile(start, (4000, 1)), samples, THETA_NOMINAL)[:, -1]
+    covariance = odometry_covariance(start, inputs, THETA_NOMINAL, noise, floor_sigmas=(0, 0, 0))
+    np.testing.assert_allclose(np.cov(ends.T), covariance, rtol=0.1, atol=1e-12)
+
+
+def test_keyframe_factors_reject_bad_keyframes(drive):
+    log = drive.measured
+    keys = [gtsam.symbol("x", i) for i in range(3)]
+    with pytest.raises(GraphcalError, match="strictly increasing"):
+        keyframe_odometry_factors(log, np.array([0, 8, 8]), keys, None)
+    with pytest.raises(GraphcalError, match="3 keyframes but 2 pose keys"):
+        keyframe_odometry_factors(log, np.array([0, 8, 16]), keys[:2], None)
+    with pytest.raises(GraphcalError, match="within the log"):
+        keyframe_odometry_factors(log, np.array([0, 8, len(log)]), keys, None)
+
+
+@pytest.fixture(scope="module")
+def short_drive():
+    return simulate_drive(length_km=1.5, seed=7)
+
+
+def test_smoothing_with_5hz_gnss_recovers_theta_and_the_trajectory(short_drive):
+    result = smooth_drive(short_drive.measured, SmoothingSettings(gnss_rate_hz=5.0))
+    truth = short_drive.theta_true
+    sigma = np.sqrt(np.diag(result.covariance))
+    assert not result.observability.degenerate
+    # Honest: the truth lies within 3σ; useful: σ well below the nominal-to-truth distance.
+    assert np.all(np.abs(result.theta - truth) < 3 * sigma), (result.theta - truth) / sigma
+    assert np.all(sigma < [0.5e-3, 0.3e-3, 15e-3, 0.2e-3])
+    true_positions = short_drive.truth.poses[result.keyframes, :2]
+    smoothed = np.hypot(*(result.states[:, :2] - true_positions).T)
+    gnss = np.hypot(*(short_drive.measured.poses[result.keyframes, :2] - true_positions).T)
+    assert np.sqrt(np.mean(smoothed**2)) < 0.4 * np.sqrt(np.mean(gnss**2))
+    assert np.median(result.t[1:] - result.t[:-1]) == pytest.approx(0.2)
+
+
+def test_states_round_trip_through_values_with_unwrapped_heading():
+    states = np.array([[0.0, 0.0, 3.0], [1.0, 0.5, 3.3], [2.0, 1.5, 3.6]])  # crosses +π
+    keys = [gtsam.symbol("x", i) for i in range(3)]
+    values = gtsam.Values()
+    insert_states(values, keys, states)
+    np.testing.assert_allclose(states_from_values(values, keys, 3.0), states, atol=1e-12)
+
+
+def test_online_estimate_follows_a_tyre_pressure_drop():
+    after = THETA_TRUE_DEFAULT + [-0.003, 0.0, 0.0, 0.0]
+    drive = simulate_drive(length_km=3.5, seed=11, theta_change=ThetaChange(1.5, after))
+    result = run_online(drive.measured, OnlineSettings())
+    last_km = result.distance_m > result.distance_m[-1] - 1000.0
+    assert np.all(np.abs(result.theta[last_km, 0] - after[0]) < 1e-3)
+    before = (result.distance_m > 700.0) & (result.distance_m < 1400.0)
+    assert np.all(np.abs(result.theta[before, 0] - THETA_TRUE_DEFAULT[0]) < 1e-3)
+    settled = result.distance_m > 700.0
+    assert np.all(np.isfinite(result.sigma)) and np.all(result.sigma[settled, 0] < 1e-3)
+
+
+def test_calibrated_theta_cuts_the_dead_reckoning_error_of_an_outage(short_drive):
+    thetas = {"nominal": THETA_NOMINAL, "true": short_drive.theta_true}
+    settings = OutageSettings(durations_s=(30.0,), spacing_s=30.0)
+    errors = outage_errors(short_drive.measured, short_drive.truth, thetas, settings)
+    table = outage_table(errors)
+    final = table.loc[30.0, "final_error_m"]
+    assert final["true"] < final["nominal"] / 3
+    assert set(errors.columns) >= {"theta", "duration_s", "final_error_m", "mean_error_m"}
+
+
+def test_tum_round_trip(tmp_path):
+    t = np.array([0.0, 0.2, 0.4])
+    states = np.array([[0.0, 0.0, 3.1], [1.0, 0.5, -3.1], [2.0, 1.0, 0.2]])
+    path = write_tum(tmp_path / "x.tum", t, states, "a comment")
+    lines = path.read_text().splitlines()
+    assert lines[0] == "# timestamp tx ty tz qx qy qz qw" and len(lines) == 5
+    assert len(lines[-1].split()) == 8
+    t2, states2 = read_tum(path)
+    np.testing.assert_allclose(t2, t)
+    np.testing.assert_allclose(states2, states, atol=1e-9)
+    with pytest.raises(GraphcalError, match="NaN"):
+        write_tum(tmp_path / "bad.tum", t, states * np.nan)
+    assert not (tmp_path / "bad.tum").exists()
