@@ -60,8 +60,12 @@ def main(argv: list[str] | None = None) -> int:
     print("|---|---|---|" + ("---|" if truth is not None else "") + "---|")
     verdicts = result.observability.verdicts()
     for i, name in enumerate(PARAMETER_NAMES):
-        row = [
-            f"{name} [{DISPLAY_UNITS[i]}; ± {DEVIATION_UNITS[i]}]",
+        row = [f"{name} [{DISPLAY_UNITS[i]}; ± {DEVIATION_UNITS[i]}]"]
+        if not result.observability.calibrated[i]:  # no number for what the data left open
+            row += ["n/o", "-"] + (["-"] if theta_true is not None else [])
+            print("| " + " | ".join([*row, verdicts[name]]) + " |")
+            continue
+        row += [
             f"{result.theta[i] * DISPLAY_SCALE[i]:.5g}",
             f"{Z95 * sigma[i] * DEVIATION_SCALE[i]:.3f}",
         ]

@@ -110,3 +110,26 @@ def test_cli_straight_drive_names_what_it_cannot_calibrate(tmp_path, capsys):
         low, high = entry["ci95"]
         assert low < entry["value"] < high and high - low < 2 * tolerance
         assert abs(entry["value"] - truth[name]) < tolerance
+
+
+def test_holding_an_unobservable_parameter_at_its_prior_conditions_the_others(rng):
+    """Gaussian conditioning: the calibrated block's covariance is the inverse of its
+    information block, and the estimate moves along the correlation."""
+    from graphcal.pipeline.observability import condition_on_prior
+
+    root = rng.standard_normal((4, 4))
+    covariance = root @ root.T * 1e-6 + np.diag(PRIOR**2) * [0, 0, 0.9, 0]
+    theta = THETA_NOMINAL + [1e-3, 2e-4, 0.05, 1e-4]
+    calibrated = np.array([True, True, False, True])
+    held, conditioned = condition_on_prior(theta, covariance, calibrated, THETA_NOMINAL, PRIOR)
+    c = np.flatnonzero(calibrated)
+    information = np.linalg.inv(covariance)
+    np.testing.assert_allclose(
+        conditioned[np.ix_(c, c)], np.linalg.inv(information[np.ix_(c, c)]), rtol=1e-9
+    )
+    assert held[2] == THETA_NOMINAL[2] and conditioned[2, 2] == PRIOR[2] ** 2
+    # The shift is what the information form gives: x_c = θ_c − I_cc⁻¹ I_cu (μ_u − θ_u).
+    shift = -np.linalg.solve(information[np.ix_(c, c)], information[c, 2]) * (
+        THETA_NOMINAL[2] - theta[2]
+    )
+    np.testing.assert_allclose(held[c], theta[c] + shift, rtol=1e-9)

@@ -48,7 +48,8 @@ def write_tum(
 def read_tum(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     """Times ``(N,)`` [s] and planar states ``(N, 3)`` [m, m, rad] of a TUM file.
 
-    The heading is the rotation about z of each quaternion; tz and any tilt are dropped.
+    The heading is the rotation about z of each quaternion, unwrapped along the file (as
+    graphcal's states are); tz and any tilt are dropped.
     """
     try:
         table = np.loadtxt(path, comments="#", ndmin=2)
@@ -58,4 +59,4 @@ def read_tum(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
         raise GraphcalError(f"{path}: TUM lines need 8 numbers, found {table.shape[1]}")
     qx, qy, qz, qw = table[:, 4:].T
     heading = np.arctan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy**2 + qz**2))
-    return table[:, 0], np.column_stack([table[:, 1], table[:, 2], heading])
+    return table[:, 0], np.column_stack([table[:, 1], table[:, 2], np.unwrap(heading)])

@@ -135,9 +135,10 @@ def _correction_key(segment: int, chunk: int) -> int:
 
 
 def build_joint_graph(
-    data: SegmentData, settings: JointSettings
+    data: SegmentData, settings: JointSettings, theta_prior: bool = True
 ) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
-    """The joint graph over ``data``'s segments and its initial values."""
+    """The joint graph over ``data``'s segments and its initial values (``theta_prior=False``
+    leaves out the weak prior on theta: the measurements' information alone)."""
     sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
     position_noise = gtsam.noiseModel.Isotropic.Sigma(2, float(sigmas[0]))
     heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(sigmas[2]))
@@ -148,7 +149,8 @@ def build_joint_graph(
     graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
     values.insert(THETA_KEY, theta0)
-    graph.add(theta_prior_factor(THETA_KEY, np.asarray(settings.theta_prior_sigmas), theta0))
+    if theta_prior:
+        graph.add(theta_prior_factor(THETA_KEY, np.asarray(settings.theta_prior_sigmas), theta0))
     for s, n_steps in enumerate(data.n_steps):
         poses, inputs = data.poses[s, : n_steps + 1], data.inputs[s, :n_steps]
         nominal = integrate(poses[0], inputs, theta0)
@@ -264,13 +266,18 @@ def cramer_rao_bound(
 ) -> np.ndarray:
     """The Cramér–Rao bound of theta for ``data``: 4×4, SI.
 
-    The theta block of the inverse information matrix of the joint graph, linearized at the
-    true values of every variable (:func:`values_at_truth`). No unbiased estimate from these
-    measurements can have a smaller covariance. ``graph`` reuses an already built
-    :func:`build_joint_graph` of the same data and settings.
+    The theta block of the inverse Fisher information of the measurements — the joint graph
+    without the weak prior on theta, linearized at the true values of every variable
+    (:func:`values_at_truth`). No unbiased estimate from these measurements can have a
+    smaller covariance. ``graph`` reuses an already built
+    ``build_joint_graph(data, settings, theta_prior=False)``.
+
+    Raises:
+        GraphcalError: if theta is not identifiable from ``data`` (a straight drive): the
+            information matrix is singular and there is no finite bound.
     """
     settings = settings or JointSettings()
     if graph is None:
-        graph, _ = build_joint_graph(data, settings)
+        graph, _ = build_joint_graph(data, settings, theta_prior=False)
     values = values_at_truth(data, truth, theta_true, settings)
     return marginal_covariance(graph, values, THETA_KEY, "Cramér–Rao bound")

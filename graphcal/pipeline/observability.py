@@ -128,3 +128,34 @@ def assess_observability(
     eigenvalues, eigenvectors = np.linalg.eigh(scaled)
     weak = eigenvectors[:, np.sqrt(np.maximum(eigenvalues, 0.0)) > max_sigma_ratio].T
     return Observability(ratio <= max_sigma_ratio, ratio, correlation, weak, max_sigma_ratio)
+
+
+def condition_on_prior(
+    theta: np.ndarray,
+    covariance: np.ndarray,
+    calibrated: np.ndarray,
+    prior_mean: np.ndarray,
+    prior_sigmas: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Theta and covariance with the unobservable parameters held at their prior.
+
+    The calibrated parameters were estimated jointly with the unobservable ones; holding
+    those at the prior mean moves the calibrated ones along their correlation (Gaussian
+    conditioning): ``θ_c + Σ_cu Σ_uu⁻¹ (μ_u − θ_u)`` with covariance
+    ``Σ_cc − Σ_cu Σ_uu⁻¹ Σ_uc``. The unobservable entries become the prior mean with the
+    prior's variance and no correlation.
+    """
+    theta = np.asarray(theta, float).copy()
+    covariance = np.asarray(covariance, float).copy()
+    c = np.flatnonzero(calibrated)
+    u = np.flatnonzero(~np.asarray(calibrated, bool))
+    if len(u) == 0:
+        return theta, covariance
+    gain = covariance[np.ix_(c, u)] @ np.linalg.inv(covariance[np.ix_(u, u)])
+    theta[c] += gain @ (np.asarray(prior_mean, float)[u] - theta[u])
+    conditioned = covariance[np.ix_(c, c)] - gain @ covariance[np.ix_(u, c)]
+    theta[u] = np.asarray(prior_mean, float)[u]
+    out = np.zeros_like(covariance)
+    out[np.ix_(c, c)] = 0.5 * (conditioned + conditioned.T)
+    out[u, u] = np.asarray(prior_sigmas, float)[u] ** 2
+    return theta, out

@@ -47,7 +47,7 @@ from graphcal.pipeline.joint import (
     calibrate_joint,
     cramer_rao_bound,
 )
-from graphcal.pipeline.observability import Observability
+from graphcal.pipeline.observability import Observability, condition_on_prior
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
 from graphcal.pipeline.validation import position_errors
@@ -121,14 +121,19 @@ class CalibrationRun:
     def batch_estimates(self, name: str) -> np.ndarray:
         """Per-batch thetas ``(B, 4)`` of step or method ``name`` with failed and excluded
         batches as NaN rows: what statistics and figures summarize."""
-        thetas = self.batch_theta[name].copy()
-        if name in self.batch_excluded:
-            thetas[self.batch_excluded[name] != ""] = np.nan
-        return thetas
+        return without_excluded(self.batch_theta[name], self.batch_excluded.get(name))
 
     def validation_error(self, name: str) -> float:
         """E_p [m] of ``"nominal"``, ``"calibrated"`` or ``"true"`` theta."""
         return float(np.mean(self.segment_errors[name]))
+
+
+def without_excluded(thetas: np.ndarray, reasons: np.ndarray | None) -> np.ndarray:
+    """``thetas`` ``(B, 4)`` with the rows of excluded batches (a non-empty reason) as NaN."""
+    out = np.array(thetas, dtype=float)
+    if reasons is not None:
+        out[np.asarray(reasons) != ""] = np.nan
+    return out
 
 
 def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
@@ -147,11 +152,11 @@ def _joint_task(
     """One joint solve and, given the truth, its Cramér–Rao bound; ``None`` if it failed."""
     try:
         result = calibrate_joint(data, settings)
-        crb = None
-        if truth is not None and theta_true is not None:
-            crb = cramer_rao_bound(data, truth, theta_true, settings)
     except GraphcalError:
         return None
+    crb = None
+    if truth is not None and theta_true is not None:
+        crb = _bound_or_none(data, truth, theta_true, settings)
     return result, crb
 
 
@@ -190,9 +195,14 @@ def select(
         best = f"{yaw.max():.3f}" if len(yaw) else "n/a"
         raise NoUsableSegments(
             f"{log.source}: no {s.length:g} m segment has {s.yaw_statistic} |yaw rate| above "
-            f"{s.min_yaw_rate:g} rad/s (highest: {best} rad/s); use --method joint "
-            "(it uses all segments and reports what they determine), lower --min-yaw-rate, use "
-            "overlapping segments (--segment-stride) or a drive with more bends"
+            f"{s.min_yaw_rate:g} rad/s (highest: {best} rad/s); "
+            + (
+                ""
+                if fall_back_to_all
+                else "use --method joint (it uses all segments and reports what they determine), "
+            )
+            + "lower --min-yaw-rate, use overlapping segments (--segment-stride) or a drive "
+            "with more bends"
         )
     validation = split_segments(log, s.validation_length)
     if len(validation) == 0:
@@ -284,7 +294,8 @@ def run_calibration(
                     [nan_matrix if r is None or r[1] is None else r[1] for r in results]
                 )
             reasons = np.array([exclusion_reason(r) for r in solved], dtype=object)
-            batch_excluded["joint"] = reasons
+            # Step 1 is the baseline of the same batches: compare both on the batches kept.
+            batch_excluded["joint"] = batch_excluded["step1"] = reasons
             warnings += _exclusion_warnings(reasons)
         final = _whole_log_solve(data, truth_data, theta_true, settings.joint, say)
         theta, covariance, observability, crb = final
@@ -294,7 +305,12 @@ def run_calibration(
                 f"{observability.message()}; kept at the prior (nominal) value"
             )
     batch_errors = {
-        name: np.array([mean_validation_error(validation, t) for t in thetas])
+        name: np.array(
+            [
+                mean_validation_error(validation, t)
+                for t in without_excluded(thetas, batch_excluded.get(name))
+            ]
+        )
         for name, thetas in batch_theta.items()
     }
     segment_errors = {
@@ -379,8 +395,28 @@ def _whole_log_solve(
     say(f"  converged in {result.iterations} iterations")
     crb = None
     if truth is not None and theta_true is not None:
-        crb = cramer_rao_bound(data, truth, theta_true, settings)
-    theta = np.where(
-        result.observability.calibrated, result.theta, np.asarray(settings.theta_initial, float)
+        crb = _bound_or_none(data, truth, theta_true, settings, say)
+    theta, covariance = condition_on_prior(
+        result.theta,
+        result.covariance,
+        result.observability.calibrated,
+        settings.theta_initial,
+        settings.theta_prior_sigmas,
     )
-    return theta, result.covariance, result.observability, crb
+    return theta, covariance, result.observability, crb
+
+
+def _bound_or_none(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    settings: JointSettings,
+    say: Progress | None = None,
+) -> np.ndarray | None:
+    """The Cramér–Rao bound, or ``None`` (with a note) where theta is not identifiable."""
+    try:
+        return cramer_rao_bound(data, truth, theta_true, settings)
+    except GraphcalError as exc:
+        if say is not None:
+            say(f"no Cramér–Rao bound: {exc}")
+        return None

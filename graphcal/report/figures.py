@@ -50,6 +50,7 @@ def box_plots(
     title: str,
     theta_true: np.ndarray | None = None,
     recommended: np.ndarray | None = None,
+    not_observable: tuple[str, ...] = (),
 ) -> Figure:
     """Box plots of each parameter per step or method (paper Fig. 5).
 
@@ -58,6 +59,8 @@ def box_plots(
             ``(B, 4)`` in SI; NaN rows are left out.
         title: figure title.
         theta_true, recommended: drawn as horizontal lines when given.
+        not_observable: parameters the data did not determine: no recommended line, and the
+            panel says so.
     """
     fig = Figure(figsize=(11, 3.6), layout="constrained")
     names = list(estimates)
@@ -70,11 +73,12 @@ def box_plots(
         ax.boxplot(data, tick_labels=[_STEP_LABELS.get(s, s) for s in names])
         if theta_true is not None:
             ax.axhline(theta_true[i] * DISPLAY_SCALE[i], color="tab:green", ls="--", label="true")
-        if recommended is not None:
+        hidden = name in not_observable
+        if recommended is not None and not hidden:
             ax.axhline(
                 recommended[i] * DISPLAY_SCALE[i], color="tab:blue", lw=0.8, label="recommended"
             )
-        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]")
+        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + (": not observable" if hidden else ""))
         ax.grid(axis="y", alpha=0.3)
         if i == 0:
             ax.legend(loc="best", fontsize="small")
@@ -86,9 +90,9 @@ def parameters_figure(run: CalibrationRun) -> Figure:
     """Box plots of each parameter over the batches of a run (paper Fig. 5)."""
     assert run.batches is not None
     estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
-    return box_plots(
-        estimates, f"Estimates over {len(run.batches)} batches", run.theta_true, run.theta
-    )
+    hidden = tuple(run.observability.not_calibrated) if run.observability is not None else ()
+    title = f"Estimates over {len(run.batches)} batches"
+    return box_plots(estimates, title, run.theta_true, run.theta, hidden)
 
 
 def batch_intervals_figure(run: CalibrationRun, name: str = "joint", limit: int = 60) -> Figure:
@@ -141,7 +145,7 @@ def validation_figure(run: CalibrationRun) -> Figure:
     """Validation errors E_p of the batches' theta per step (paper Fig. 6)."""
     fig = Figure(figsize=(7, 3.8), layout="constrained")
     ax = fig.add_subplot()
-    if run.batch_errors:  # one E_p per batch and step
+    if any(np.isfinite(e).any() for e in run.batch_errors.values()):  # E_p per batch, step
         labels = [_STEP_LABELS.get(n, n) for n in run.batch_errors]
         data = [e[np.isfinite(e)] for e in run.batch_errors.values()]
     else:  # no batches: the spread over the validation segments of each theta

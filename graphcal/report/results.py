@@ -88,7 +88,7 @@ def parameter_summary(run: CalibrationRun) -> dict[str, dict]:
             entry["sigma"] = None
             entry["prior_sigma"] = float(run.settings.joint.theta_prior_sigmas[i])
         entry["sigma_over_prior_sigma"] = float(run.observability.sigma_ratio[i])
-        if run.crb is not None:
+        if run.crb is not None and run.observability.calibrated[i]:
             entry["cramer_rao_sigma"] = float(np.sqrt(run.crb[i, i]))
         out[name] = entry
     return out
@@ -203,6 +203,14 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
     if run.theta_true is not None:
         doc["theta_true"] = _named(run.theta_true)
         doc["theta_error"] = _named(run.theta - run.theta_true)
+    if run.observability is not None and run.observability.degenerate:
+        # Only parameters the data determined carry a number outside ``parameters``.
+        doc["not_calibrated"] = run.observability.not_calibrated
+        for name in run.observability.not_calibrated:
+            i = PARAMETER_NAMES.index(name)
+            doc["theta_display"][f"{name} [{DISPLAY_UNITS[i]}]"] = None
+            if "theta_error" in doc:
+                doc["theta_error"][name] = None
     doc["warnings"] = list(run.warnings)
     doc["settings"] = run.settings.to_dict()
     doc["workers"] = workers

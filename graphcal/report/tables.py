@@ -148,9 +148,9 @@ def interval_table(
         else:
             row += ["-", "prior value, not calibrated"]
         if crb is not None:
-            row.append(f"{np.sqrt(crb[i, i]) * DEVIATION_SCALE[i]:.3f}")
+            row.append(f"{np.sqrt(crb[i, i]) * DEVIATION_SCALE[i]:.3f}" if calibrated else "-")
         if truth is not None:
-            row.append(f"{(theta[i] - truth[i]) * DEVIATION_SCALE[i]:+.3f}")
+            row.append(f"{(theta[i] - truth[i]) * DEVIATION_SCALE[i]:+.3f}" if calibrated else "-")
         row.append(verdicts[name])
         body.append(row)
     return _render([header, *body])

@@ -280,5 +280,7 @@ def read_sidecar(csv_path: str | os.PathLike[str], n_samples: int | None = None)
         return None
     if n_samples is not None and meta.get("samples") != n_samples:
         return None
+    if "theta_change" in meta:  # no single true theta to compare a calibration with
+        return None
     meta["theta_true"] = theta
     return meta
