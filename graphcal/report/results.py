@@ -100,7 +100,8 @@ def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
 
     NEES is the mean over batches of (theta − truth)ᵀ Σ⁻¹ (theta − truth); with 4 parameters
     it is 4 when the reported covariance matches the actual errors. ``crb_sigma`` is the root
-    mean Cramér–Rao variance over the batches, the RMSE an efficient method reaches;
+    mean Cramér–Rao variance over the batches that have it (``crb_batches``), the RMSE an
+    efficient method reaches;
     ``rmse_over_crb`` compares the batches' RMSE with it. Excluded batches are left out.
     """
     out: dict[str, dict] = {}
@@ -122,8 +123,11 @@ def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
             entry["nees_mean"] = float(np.mean(nees))
             entry["nees_batches"] = len(nees)
             crb = run.batch_crb.get(name)
-            if crb is not None and np.all(np.isfinite(crb[good])):
-                crb_sigma = np.sqrt(np.mean(np.diagonal(crb[good], axis1=1, axis2=2), axis=0))
+            bounded = good & np.all(np.isfinite(crb), axis=(1, 2)) if crb is not None else None
+            if bounded is not None and bounded.any():
+                variances = np.diagonal(crb[bounded], axis1=1, axis2=2)
+                crb_sigma = np.sqrt(np.mean(variances, axis=0))
+                entry["crb_batches"] = int(bounded.sum())
                 rmse = np.sqrt(np.mean(errors**2, axis=0))
                 entry["crb_sigma"] = dict(zip(PARAMETER_NAMES, map(float, crb_sigma), strict=True))
                 entry["rmse_over_crb"] = dict(
