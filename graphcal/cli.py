@@ -165,6 +165,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from graphcal.report.results import summary_text, write_results
     from graphcal.simulate.drive import read_sidecar
 
+    method = args.method
+    if args.batches == 0:
+        if method == "staged":
+            raise GraphcalError(
+                "--batches 0 (one solve over the whole log) needs --method joint or whole; "
+                "the staged method works on batches"
+            )
+        method = "whole"
     settings = settings_from_args(args)
     workers = args.workers or default_workers()
     say = _timed_progress()
@@ -176,14 +184,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if theta_true is not None:
         say("synthetic drive: comparing with theta_true from its sidecar")
         truth = _load_truth(args.log, len(log), say)
-    method = args.method
-    if args.batches == 0:
-        if method == "staged":
-            raise GraphcalError(
-                "--batches 0 (one solve over the whole log) needs --method joint or whole; "
-                "the staged method works on batches"
-            )
-        method = "whole"
     run = run_calibration(log, settings, method, theta_true, say, workers, truth)
     try:
         written = write_results(run, args.out, workers)

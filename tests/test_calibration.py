@@ -175,3 +175,12 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
     covariance = np.linalg.inv(jacobian.T @ jacobian)[np.ix_(theta, theta)]
     marginal = gtsam.Marginals(graph, solved).marginalCovariance(THETA_KEY)
     np.testing.assert_allclose(marginal, covariance, rtol=1e-3, atol=1e-14)
+
+
+def test_whole_log_request_with_the_staged_method_is_a_one_line_error(drive_csv, tmp_path, capsys):
+    out = tmp_path / "out"
+    args = ["calibrate", str(drive_csv), "--out", str(out), "--batches", "0", "--method", "staged"]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert "--batches 0 (one solve over the whole log) needs --method joint or whole" in err
+    assert err.count("\n") == 1 and not out.exists()

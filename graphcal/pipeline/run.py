@@ -422,7 +422,10 @@ def _bound_or_none(
     """The Cramér–Rao bound, or ``None`` (with a note) where theta is not identifiable."""
     try:
         return cramer_rao_bound(data, truth, theta_true, settings)
-    except GraphcalError as exc:
+    except GraphcalError:
         if say is not None:
-            say(f"no Cramér–Rao bound: {exc}")
+            say(
+                "no Cramér–Rao bound: the measurements' information matrix of theta is "
+                "singular (a parameter is not identifiable from this drive)"
+            )
         return None
