@@ -32,6 +32,7 @@ from graphcal.factors.corrections import theta_prior_factor
 from graphcal.factors.poses import pose2_from_state, state_from_pose2
 from graphcal.localization.keyframe_odometry import DEFAULT_WHEEL_NOISE, keyframe_odometry_factor
 from graphcal.localization.smoothing import gnss_keyframes
+from graphcal.localization.smoothing import pose_key as _pose_key
 from graphcal.model import THETA_NOMINAL, integrate
 
 
@@ -103,10 +104,6 @@ class OnlineResult:
         """Total update time per second of driving."""
         span = float(self.update_t[-1] - self.update_t[0]) if len(self.update_t) > 1 else 1.0
         return float(self.update_seconds.sum() / span)
-
-
-def _pose_key(i: int) -> int:
-    return gtsam.symbol("x", i)
 
 
 def _theta_key(j: int) -> int:

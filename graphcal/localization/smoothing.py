@@ -20,10 +20,9 @@ from graphcal.factors.corrections import theta_prior_factor
 from graphcal.localization.keyframe_odometry import DEFAULT_WHEEL_NOISE, keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.model import THETA_NOMINAL
+from graphcal.pipeline.batch_calibration import THETA_KEY
 from graphcal.pipeline.observability import Observability, assess_observability
 from graphcal.pipeline.solve import marginal_covariance, solve_lm
-
-THETA_KEY = gtsam.symbol("t", 0)
 
 
 def pose_key(i: int) -> int:

@@ -34,6 +34,7 @@ from graphcal.factors import (
     odometry_chunk_factor,
     pose2_from_state,
     pose_sigmas,
+    state_from_pose2,
     theta_prior_factor,
 )
 from graphcal.model import THETA_NOMINAL, integrate
@@ -216,8 +217,8 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
     covariance = marginal_covariance(graph, result, THETA_KEY, "joint solve")
     starts = np.array(
         [
-            [p.x(), p.y(), p.theta()]
-            for p in (result.atPose2(_start_key(s)) for s in range(len(data)))
+            state_from_pose2(result.atPose2(_start_key(s)), data.poses[s, 0, 2])
+            for s in range(len(data))
         ]
     )
     observability = assess_observability(
