@@ -287,3 +287,32 @@ def wheel_rotations_for_motion(
     n_rl = (2.0 * distance - yaw_increment * t_r) / (2.0 * c_rl)
     n_rr = (2.0 * distance + yaw_increment * t_r) / (2.0 * c_rr)
     return n_rl, n_rr
+
+
+def end_wheel_rotation_jacobian(
+    states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """d (final state) / d wheel rotations: the last row of :func:`wheel_rotation_jacobian`.
+
+    Args:
+        states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
+        inputs: ``(..., K, 4)``.
+        theta: ``(4,)`` or ``(..., 4)``.
+
+    Returns:
+        ``(..., 3, K, 2)``: entry ``[:, j, :]`` is d x_K / d [n_rl, n_rr]_j [m/rev, m/rev,
+        rad/rev], in O(K) memory (no ``(K+1, K)`` lever table).
+    """
+    states = np.asarray(states, dtype=float)
+    inputs = np.asarray(inputs, dtype=float)
+    v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
+    course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
+    c, s = np.cos(course)[..., None], np.sin(course)[..., None]
+    vv = v[..., None]
+    # lever_j = p_K - p_{j+1}: the rest of the path turns about p_{j+1} by d omega_j.
+    lever_x = (states[..., -1:, 0] - states[..., 1:, 0])[..., None]  # (..., K, 1)
+    lever_y = (states[..., -1:, 1] - states[..., 1:, 1])[..., None]
+    jx = dv_dn * c - vv * s * 0.5 * domega_dn - domega_dn * lever_y
+    jy = dv_dn * s + vv * c * 0.5 * domega_dn + domega_dn * lever_x
+    jx, jy, jpsi = np.broadcast_arrays(jx, jy, domega_dn)
+    return np.stack([jx, jy, jpsi], axis=-3)
