@@ -7,7 +7,8 @@ directly (loaded on first use, so ``import graphcal`` stays light)::
 
     log = graphcal.load_drive_log("drive.csv")
     run = graphcal.run_calibration(log)            # joint method: theta, covariance, verdicts
-    factor = graphcal.keyframe_odometry_factor(x0, x1, theta_key, inputs, heading)
+    pim = graphcal.preintegrate(inputs, theta)     # wheel steps between two keyframes
+    factor = graphcal.WheelOdometryFactor(x0, x1, theta_key, pim).factor()
 """
 
 from __future__ import annotations
@@ -32,21 +33,28 @@ _PUBLIC = {
     "PARAMETER_NAMES": "graphcal.model",
     "integrate": "graphcal.model",
     # Calibration of a drive log.
-    "Settings": "graphcal.settings",
-    "load_settings": "graphcal.settings",
+    "Settings": "graphcal.pipeline.settings",
+    "load_settings": "graphcal.pipeline.settings",
     "run_calibration": "graphcal.pipeline.run",
     "CalibrationRun": "graphcal.pipeline.run",
     "write_results": "graphcal.report.results",
     "calibrate_joint": "graphcal.pipeline.joint",
     "JointSettings": "graphcal.pipeline.joint",
-    "cramer_rao_bound": "graphcal.pipeline.joint",
-    "assess_observability": "graphcal.pipeline.observability",
-    "Observability": "graphcal.pipeline.observability",
+    "assess_observability": "graphcal.graph.observability",
+    "Observability": "graphcal.graph.observability",
+    # Evaluation against a known truth (synthetic drives).
+    "evaluate": "graphcal.evaluation",
+    "Evaluation": "graphcal.evaluation",
+    "Truth": "graphcal.evaluation",
+    "cramer_rao_bound": "graphcal.evaluation",
     # Factors and values for your own GTSAM graphs.
+    "PreintegratedWheelOdometry": "graphcal.factors",
+    "WheelOdometryFactor": "graphcal.factors",
+    "wheel_odometry_between_factor": "graphcal.factors",
+    "preintegrate": "graphcal.factors",
     "keyframe_odometry_factor": "graphcal.localization.keyframe_odometry",
     "keyframe_odometry_factors": "graphcal.localization.keyframe_odometry",
     "odometry_covariance": "graphcal.localization.keyframe_odometry",
-    "wheel_odometry_factor": "graphcal.factors",
     "segment_odometry_factor": "graphcal.factors",
     "pose_measurement_factor": "graphcal.factors",
     "theta_prior_factor": "graphcal.factors",

@@ -19,7 +19,7 @@ from graphcal import __version__
 from graphcal.errors import GraphcalError
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
-from graphcal.settings import Settings, load_settings
+from graphcal.pipeline.settings import Settings, load_settings
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 EXIT_BAD_INPUT = 2
@@ -163,7 +163,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from graphcal.data.drive_log import load_drive_log
     from graphcal.pipeline.run import run_calibration
     from graphcal.report.results import summary_text, write_results
-    from graphcal.simulate.drive import read_sidecar
 
     method = args.method
     if args.batches == 0:
@@ -178,37 +177,39 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     say = _timed_progress()
     log = load_drive_log(args.log, min_distance=settings.segments.length)
     say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
-    sidecar = read_sidecar(args.log, len(log))
-    theta_true = None if sidecar is None else sidecar["theta_true"]
-    truth = None
-    if theta_true is not None:
-        say("synthetic drive: comparing with theta_true from its sidecar")
-        truth = _load_truth(args.log, len(log), say)
-    run = run_calibration(log, settings, method, theta_true, say, workers, truth)
+    run = run_calibration(log, settings, method, say, workers)
+    evaluation = _evaluate_synthetic(run, args.log, say, workers)
     try:
-        written = write_results(run, args.out, workers)
+        written = write_results(run, args.out, evaluation)
     except OSError as exc:
         raise GraphcalError(f"cannot write results to {args.out}: {exc.strerror or exc}") from exc
     say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")
-    print(summary_text(run))
+    print(summary_text(run, evaluation))
     return 0
 
 
-def _load_truth(log_path: Path, n_samples: int, say: Callable[[str], None]):
-    """The noise-free signals next to a synthetic drive, or ``None`` (with a note) if unusable."""
+def _evaluate_synthetic(run, log_path: Path, say: Callable[[str], None], workers: int):
+    """The run against the truth in a synthetic drive's sidecar, or ``None`` for a real log."""
     from graphcal.data.drive_log import load_drive_log
-    from graphcal.simulate.drive import truth_path
+    from graphcal.evaluation import Truth, evaluate
+    from graphcal.simulate.drive import read_sidecar, truth_path
 
+    sidecar = read_sidecar(log_path, len(run.log))
+    if sidecar is None:
+        return None
+    say("synthetic drive: comparing with theta_true from its sidecar")
     path = truth_path(log_path)
+    truth_log = None
     try:
-        truth = load_drive_log(path)
+        truth_log = load_drive_log(path)
     except GraphcalError as exc:
         say(f"no Cramér–Rao bound: cannot use {path.name}: {exc}")
-        return None
-    if len(truth) != n_samples:
-        say(f"no Cramér–Rao bound: {path.name} has {len(truth)} samples, the log {n_samples}")
-        return None
-    return truth
+    if truth_log is not None and len(truth_log) != len(run.log):
+        say(
+            f"no Cramér–Rao bound: {path.name} has {len(truth_log)} samples, the log {len(run.log)}"
+        )
+        truth_log = None
+    return evaluate(run, Truth(sidecar["theta_true"], truth_log), say, workers)
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -416,7 +417,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=Path,
         default=None,
         metavar="FILE",
-        help="TOML settings file (see graphcal/settings.py); options override it",
+        help="TOML settings file (see graphcal/pipeline/settings.py); options override it",
     )
     p.add_argument(
         "--workers",

@@ -10,6 +10,10 @@ class GraphcalError(Exception):
     """Base of every error caused by the user's input or settings."""
 
 
+class CalibrationFailed(GraphcalError, RuntimeError):
+    """A solve that did not produce a usable estimate (diverged, singular or implausible)."""
+
+
 def first_line(message: str) -> str:
     """The first non-empty line of a message (GTSAM's often start with a newline)."""
     return next((line.strip() for line in message.splitlines() if line.strip()), "")

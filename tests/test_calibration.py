@@ -9,9 +9,10 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.data.segments import gather_segments, select_segments, split_segments
+from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.run import NoUsableSegments, run_calibration
-from graphcal.settings import SegmentSettings, Settings
+from graphcal.pipeline.settings import SegmentSettings, Settings
 from graphcal.simulate.drive import write_synthetic_drive
 
 
@@ -27,21 +28,19 @@ def test_noise_free_drive_gives_the_true_theta(clean_drive):
 
 def test_noisy_drive_calibrates_close_to_truth(drive):
     run = run_calibration(
-        drive.measured,
-        Settings(segments=SegmentSettings(stride=50.0)),
-        method="whole",
-        theta_true=drive.theta_true,
+        drive.measured, Settings(segments=SegmentSettings(stride=50.0)), method="whole"
     )
-    error = np.abs(run.theta - drive.theta_true)
+    evaluation = evaluate(run, Truth(drive.theta_true))
+    error = np.abs(evaluation.theta_error)
     # Well inside the nominal-to-truth distance (15 mm, 1.2 mm, 35 mm, 1.5 mm·s²/m).
     assert np.all(error < [2e-3, 0.3e-3, 25e-3, 0.4e-3])
-    e = {name: np.mean(v) for name, v in run.segment_errors.items()}
-    assert e["calibrated"] < 0.5 * e["nominal"]
-    assert e["calibrated"] < e["true"] + 0.3  # close to the reachable limit
+    assert run.validation_error("calibrated") < 0.5 * run.validation_error("nominal")
+    # Close to the reachable limit.
+    assert run.validation_error("calibrated") < evaluation.reachable_error + 0.3
 
 
 def test_holding_the_start_pose_is_worse_than_estimating_it(drive):
-    # NOTES.md: freeing the start pose removes most of the c_e and d error of Step 1.
+    # docs/method.md: freeing the start pose removes most of the c_e and d error of Step 1.
     log = drive.measured
     data = gather_segments(log, select_segments(log, split_segments(log, 150.0, stride=25.0)))
     held = calibrate_batch(data, BatchSettings(estimate_start_poses=False)).theta
@@ -150,15 +149,17 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
     import gtsam
     from numerical import retract_jacobian
 
-    from graphcal.bench.run import reduced
-    from graphcal.pipeline.batch_calibration import THETA_KEY
-    from graphcal.pipeline.joint import JointSettings, build_joint_graph, calibrate_joint
+    from graphcal.graph.keys import THETA as THETA_KEY
+    from graphcal.graph.segment_graph import build_segment_graph
+    from graphcal.pipeline.joint import JointSettings, calibrate_joint
 
     log = drive.measured
-    data = reduced(gather_segments(log, select_segments(log, split_segments(log, 150.0))), 2, 60)
+    selected = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+    data = selected.take([0, 1]).truncated(60)
     settings = JointSettings(chunk_steps=30)
     result = calibrate_joint(data, settings)
-    graph, values = build_joint_graph(data, settings)
+    built = build_segment_graph(data, settings.graph_spec())
+    graph, values = built.graph, built.values
     # Linearize at the solution; the numerical Jacobian perturbs each tangent direction.
     optimum = gtsam.Values(values)
     optimum.update(THETA_KEY, result.theta)

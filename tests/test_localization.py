@@ -34,7 +34,7 @@ def test_keyframe_factor_jacobians_match_numerical_derivatives(drive):
     log = drive.measured
     a, b = 1000, 1008  # one 5 Hz interval of 40 Hz wheel data
     x0, x1, th = gtsam.symbol("x", 0), gtsam.symbol("x", 1), gtsam.symbol("t", 0)
-    factor = keyframe_odometry_factor(x0, x1, th, log.inputs[a:b], float(log.psi[a]))
+    factor = keyframe_odometry_factor(x0, x1, th, log.inputs[a:b])
     values = gtsam.Values()
     # Off the solution, so the error is not zero and all Jacobian blocks matter.
     insert_states(values, [x0, x1], log.poses[[a, b]] + [0.3, -0.2, 0.05])

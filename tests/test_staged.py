@@ -10,11 +10,10 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.data.segments import gather_segments, make_batches, select_segments, split_segments
-from graphcal.errors import GraphcalError
 from graphcal.pipeline import staged as staged_module
 from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
+from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import apply_heading_correction, run_staged, trimmed_mean
-from graphcal.settings import Settings, load_settings
 from graphcal.simulate.drive import write_synthetic_drive
 
 
@@ -80,7 +79,7 @@ def test_failed_batch_solves_are_reported_and_left_out(drive, monkeypatch):
     def flaky(segment_data, settings):
         calls["n"] += 1
         if calls["n"] == 2:
-            from graphcal.pipeline.batch_calibration import CalibrationFailed
+            from graphcal.errors import CalibrationFailed
 
             raise CalibrationFailed("batch solve failed: test")
         return real(segment_data, settings)
@@ -91,37 +90,6 @@ def test_failed_batch_solves_are_reported_and_left_out(drive, monkeypatch):
     assert np.isnan(result.theta["step1"][1]).all()
     assert any("step1: 1 of 3 batch solves failed" in w for w in result.warnings)
     assert np.all(np.isfinite(result.final_theta))
-
-
-def test_settings_file_overrides_defaults_and_rejects_unknown_keys(tmp_path):
-    path = tmp_path / "settings.toml"
-    path.write_text(
-        "[segments]\nlength = 120.0\n[batches]\ncount = 7\n"
-        "[input_estimation]\nestimations = 5\nstep4_tracking_weights = [1.0, 1.0, 20.0]\n"
-    )
-    settings = load_settings(path)
-    assert settings.segments.length == 120.0 and settings.segments.min_yaw_rate == 0.15
-    assert settings.batches.count == 7 and settings.staged.estimations == 5
-    assert settings.staged.step4.tracking_weights == (1.0, 1.0, 20.0)
-    assert settings.staged.step2.tracking_weights == (1.0, 1.0, 1.0)
-    assert settings.to_dict()["input_estimation"]["estimations"] == 5
-    path.write_text("[segments]\nlenght = 120.0\n")
-    with pytest.raises(GraphcalError, match=r"unknown key\(s\) \['lenght'\] in \[segments\]"):
-        load_settings(path)
-
-
-def test_paper_defaults_are_the_settings_defaults():
-    d = Settings().to_dict()
-    assert d["batches"] == {"size": 9, "count": 1000, "seed": 0}
-    assert d["calibration"]["pose_weights"] == [1.0, 1.0, 50.0]
-    assert d["calibration"]["theta_initial"] == [2.0, 0.0, 1.55, 0.0]
-    assert d["calibration"]["max_iterations"] == 5
-    ie = d["input_estimation"]
-    assert ie["step2_tracking_weights"] == [1.0, 1.0, 1.0]
-    assert ie["step4_tracking_weights"] == [1.0, 1.0, 10.0]
-    assert ie["smoothness_weight"] == 1000.0 and ie["max_iterations"] == 10
-    assert ie["heading_correction_step"] == 10 and ie["estimations"] == 12
-    assert ie["trim_fraction"] == 0.1 and ie["input_bound"] == 0.05
 
 
 def test_bad_settings_file_exits_2(drive_csv, tmp_path, capsys):
@@ -172,10 +140,9 @@ def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, 
     }
     assert {p.name for p in one.iterdir()} == names
     assert (one / "batches.csv").read_text() == (two / "batches.csv").read_text()
+    # Byte-identical results whatever the number of workers.
+    assert (one / "calibration.json").read_bytes() == (two / "calibration.json").read_bytes()
     doc1 = json.loads((one / "calibration.json").read_text())
-    doc2 = json.loads((two / "calibration.json").read_text())
-    assert doc1.pop("workers") == 1 and doc2.pop("workers") == 2
-    assert doc1 == doc2
     text = (one / "calibration.json").read_text()
     assert "NaN" not in text and "Infinity" not in text
     theta = np.array([doc1["theta"][n] for n in ("c_e", "c_d", "t_r", "d")])
@@ -195,32 +162,11 @@ def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, 
     assert validation["calibrated"] < 0.5 * validation["nominal"]
 
 
-@pytest.mark.parametrize(
-    ("toml", "message"),
-    [
-        ("[joint]\nchunk_steps = -5\n", "joint.chunk_steps must be a whole number >= 1"),
-        ("[calibration]\nmax_iterations = 0\n", "calibration.max_iterations must be a whole"),
-        ('[batches]\nseed = "x"\n', "[batches] seed must be a whole number"),
-        ("[input_estimation]\nestimations = 2.5\n", "estimations must be a whole number"),
-        ('[input_estimation]\nestimate_start_poses = "no"\n', "must be true or false"),
-        ("[joint]\npose_weights = [1, 0, 50]\n", "joint.pose_weights must be positive"),
-        ("[segments]\nlength = 5\n", "segments.length must be at least 10 m"),
-    ],
-)
-def test_bad_setting_values_are_one_line_errors(drive_csv, tmp_path, capsys, toml, message):
-    config = tmp_path / "c.toml"
-    config.write_text(toml)
-    out = tmp_path / "o"
-    assert main(["calibrate", str(drive_csv), "--config", str(config), "--out", str(out)]) == 2
-    err = capsys.readouterr().err
-    assert message in err and err.count("\n") == 1 and not out.exists()
-
-
 def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monkeypatch):
-    from graphcal.pipeline.batch_calibration import CalibrationFailed
+    from graphcal.errors import CalibrationFailed
     from graphcal.pipeline.run import run_calibration
+    from graphcal.pipeline.settings import BatchingSettings, SegmentSettings
     from graphcal.report.results import write_results
-    from graphcal.settings import BatchingSettings, SegmentSettings
 
     real = staged_module.calibrate_batch
     calls = {"n": 0}
@@ -233,7 +179,7 @@ def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monk
 
     monkeypatch.setattr(staged_module, "calibrate_batch", fail_step1)
     settings = Settings(segments=SegmentSettings(stride=25.0), batches=BatchingSettings(count=3))
-    run = run_calibration(drive.measured, settings, "staged", drive.theta_true)
+    run = run_calibration(drive.measured, settings, "staged")
     write_results(run, tmp_path / "out")
     doc = json.loads((tmp_path / "out" / "calibration.json").read_text())
     assert doc["steps"]["step1"]["c_e"]["median"] is None
@@ -244,12 +190,12 @@ def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monk
 
 def test_too_little_data_is_flagged(drive):
     from graphcal.pipeline.run import run_calibration
-    from graphcal.settings import BatchingSettings, SegmentSettings
+    from graphcal.pipeline.settings import BatchingSettings, SegmentSettings
 
     settings = Settings(
         segments=SegmentSettings(min_yaw_rate=0.25), batches=BatchingSettings(count=5)
     )
-    run = run_calibration(drive.measured, settings, "staged", drive.theta_true)
+    run = run_calibration(drive.measured, settings, "staged")
     assert len(run.selected) < 9
     assert any("selected segments for batches of 9" in w for w in run.warnings)
     assert any("step4: only" in w for w in run.warnings)

@@ -46,7 +46,7 @@ from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.input_estimation import estimate_inputs
 from graphcal.pipeline.joint import calibrate_joint
 from graphcal.pipeline.run import run_calibration
-from graphcal.settings import BatchingSettings, Settings
+from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 
 

@@ -65,6 +65,19 @@ class SegmentData:
     def __len__(self) -> int:
         return len(self.n_steps)
 
+    @classmethod
+    def single(cls, poses: np.ndarray, inputs: np.ndarray) -> SegmentData:
+        """One segment from its poses ``(K+1, 3)`` and inputs ``(K, 4)``."""
+        poses, inputs = np.asarray(poses, float), np.asarray(inputs, float)
+        return cls(
+            poses[None], inputs[None], np.array([len(inputs)]), np.ones((1, len(poses)), bool)
+        )
+
+    def segment(self, index: int) -> tuple[np.ndarray, np.ndarray]:
+        """Segment ``index`` without padding: measured poses ``(k+1, 3)`` and inputs ``(k, 4)``."""
+        k = int(self.n_steps[index])
+        return self.poses[index, : k + 1], self.inputs[index, :k]
+
     def take(self, index: np.ndarray) -> SegmentData:
         """The segments at ``index`` (trimmed to their own longest length)."""
         k = int(self.n_steps[index].max())
@@ -74,6 +87,14 @@ class SegmentData:
             self.n_steps[index],
             self.valid[index, : k + 1],
         )
+
+    def truncated(self, max_steps: int) -> SegmentData:
+        """Every segment cut to at most ``max_steps`` steps."""
+        n = np.minimum(self.n_steps, max_steps)
+        k = int(n.max())
+        valid = np.arange(k + 1)[None, :] <= n[:, None]
+        inputs = np.where(valid[:, 1:, None], self.inputs[:, :k], 0.0)
+        return SegmentData(self.poses[:, : k + 1], inputs, n, valid)
 
 
 def split_segments(

@@ -1,26 +1,30 @@
 """GTSAM factors of the odometry model, usable in any ``gtsam.NonlinearFactorGraph``.
 
-* :func:`wheel_odometry_factor` — one step between two Pose2 variables with theta (and an
-  optional wheel-rotation correction) as variables;
-* :func:`segment_odometry_factor`, :func:`odometry_chunk_factor` — many steps in one factor;
+Written the way GTSAM writes its own: a measurement object that accumulates the signals and
+a small factor class that consumes it, its error with the Jacobians beside it.
+
+* :class:`PreintegratedWheelOdometry` + :class:`WheelOdometryFactor` — wheel steps between
+  two Pose2 keyframes, theta a variable (as ``PreintegratedImuMeasurements`` + ``ImuFactor``);
+  with theta fixed, :func:`wheel_odometry_between_factor` gives a built-in
+  ``BetweenFactorPose2``;
+* :class:`OdometryChunk` + :class:`ChunkOdometryFactor` — a chunk of steps tracking measured
+  poses, for the calibration graphs; :func:`segment_odometry_factor` for a whole segment;
 * :func:`pose_measurement_factor` — a measured pose with the paper's weights;
-* :func:`correction_smoothness_factor`, :func:`correction_size_factor` — priors on corrections;
+* :func:`chunk_correction_prior`, :func:`chunk_boundary_smoothness` — priors on corrections;
 * :func:`theta_prior_factor` — a prior on theta.
 """
 
+from graphcal.factors.chunk import (
+    CONTINUITY_SIGMAS,
+    ChunkError,
+    ChunkOdometryFactor,
+    OdometryChunk,
+    segment_odometry_factor,
+)
 from graphcal.factors.corrections import (
     chunk_boundary_smoothness,
     chunk_correction_prior,
-    correction_size_factor,
-    correction_smoothness_factor,
-    size_sigmas,
     theta_prior_factor,
-)
-from graphcal.factors.odometry import (
-    OdometryChunkError,
-    odometry_chunk_factor,
-    segment_odometry_factor,
-    wheel_odometry_factor,
 )
 from graphcal.factors.poses import (
     PAPER_POSE_WEIGHTS,
@@ -30,22 +34,30 @@ from graphcal.factors.poses import (
     pose_sigmas,
     state_from_pose2,
 )
+from graphcal.factors.preintegration import PreintegratedWheelOdometry
+from graphcal.factors.wheel_odometry import (
+    WheelOdometryFactor,
+    preintegrate,
+    wheel_odometry_between_factor,
+)
 
 __all__ = [
+    "CONTINUITY_SIGMAS",
     "PAPER_POSE_WEIGHTS",
-    "OdometryChunkError",
+    "ChunkError",
+    "ChunkOdometryFactor",
+    "OdometryChunk",
+    "PreintegratedWheelOdometry",
+    "WheelOdometryFactor",
     "body_to_world",
     "chunk_boundary_smoothness",
     "chunk_correction_prior",
-    "correction_size_factor",
-    "correction_smoothness_factor",
-    "odometry_chunk_factor",
     "pose2_from_state",
     "pose_measurement_factor",
     "pose_sigmas",
+    "preintegrate",
     "segment_odometry_factor",
-    "size_sigmas",
     "state_from_pose2",
     "theta_prior_factor",
-    "wheel_odometry_factor",
+    "wheel_odometry_between_factor",
 ]

@@ -1,19 +1,17 @@
-"""Factors on wheel-rotation corrections and on theta (built-in C++ GTSAM factors).
+"""Priors on wheel-rotation corrections and on theta (C++ GTSAM factors).
 
 A correction ``c_k = [dn_rl, dn_rr]`` [rev] is added to the measured rotations of step k, so
-the corrected input is ``u_k = u~_k + c_k``.
+the corrected input is ``u_k = u~_k + c_k``. A chunk's corrections are one ``2L``-vector
+variable ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``.
 
+* Size (the paper bounds inputs to measured × [0.95, 1.05], §4.4; or the wheel noise): a
+  zero-mean prior on each ``c_k``, a soft version of the box constraint.
 * Smoothness (the paper's R on Δu, §4.2): penalizes the change of the *corrected* rotation
-  between consecutive steps, ``u_{k+1} - u_k``. As a ``BetweenFactorVector`` on
-  ``(c_k, c_{k+1})`` with measurement ``-(u~_{k+1} - u~_k)``, its error is exactly that change.
-* Size (the paper bounds inputs to measured × [0.95, 1.05], §4.4): a zero-mean prior on
-  ``c_k`` whose sigma is the bound, a soft version of the box constraint.
+  between consecutive steps, ``u_{k+1} - u_k = (u~_{k+1} - u~_k) + (c_{k+1} - c_k)``.
 * Theta prior: the nominal theta with broad sigmas.
 
-For a chunk whose corrections are one ``2L``-vector variable, :func:`chunk_correction_prior`
-and :func:`chunk_boundary_smoothness` express the same size and smoothness terms as linear
-factors (``gtsam.LinearContainerFactor``, evaluated in C++): the terms are linear in the
-corrections, so linearizing them once is exact.
+The size and smoothness terms are linear in the corrections, so they are linear factors
+(``gtsam.LinearContainerFactor``, evaluated in C++) linearized once, exactly.
 """
 
 from __future__ import annotations
@@ -22,34 +20,6 @@ import gtsam
 import numpy as np
 
 from graphcal.model import THETA_NOMINAL
-
-
-def correction_smoothness_factor(
-    key: int, next_key: int, measured: np.ndarray, next_measured: np.ndarray, sigma: float
-) -> gtsam.BetweenFactorVector:
-    """Penalize the change of the corrected wheel rotations from step k to k+1.
-
-    Args:
-        key, next_key: the 2-vector corrections of steps k and k+1.
-        measured, next_measured: measured ``[n_rl, n_rr]`` of steps k and k+1 [rev].
-        sigma: standard deviation of the change [rev] (the paper's R = 1000 is sigma ≈ 0.032).
-    """
-    change = np.asarray(next_measured, float) - np.asarray(measured, float)
-    return gtsam.BetweenFactorVector(
-        key, next_key, -change, gtsam.noiseModel.Isotropic.Sigma(2, sigma)
-    )
-
-
-def correction_size_factor(key: int, sigmas: np.ndarray) -> gtsam.PriorFactorVector:
-    """Keep a correction small: zero-mean prior with per-wheel ``sigmas`` [rev]."""
-    return gtsam.PriorFactorVector(
-        key, np.zeros(2), gtsam.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
-    )
-
-
-def size_sigmas(measured: np.ndarray, bound: float = 0.05, floor: float = 1e-4) -> np.ndarray:
-    """Sigmas ``(..., 2)`` [rev] for the size prior: ``bound`` × |measured|, at least ``floor``."""
-    return np.maximum(bound * np.abs(np.asarray(measured, float)), floor)
 
 
 def _linear(jacobian_factor: gtsam.JacobianFactor, keys_and_dims: list[tuple[int, int]]):
@@ -67,7 +37,7 @@ def chunk_correction_prior(
     Args:
         key: the chunk's correction vector ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``.
         measured: measured ``[n_rl, n_rr]`` of its ``L`` steps, ``(L, 2)`` [rev].
-        size: size-prior sigmas ``(L, 2)`` [rev] (see :func:`size_sigmas`).
+        size: size-prior sigmas ``(L, 2)`` [rev].
         smooth_sigma: sigma of the change of a corrected rotation between steps [rev], or
             ``None`` for no smoothness term.
     """

@@ -7,13 +7,14 @@ parameter shrink its sigma far below that. graphcal calls a parameter **calibrat
 posterior sigma is at most ``max_sigma_ratio`` (default 0.1) times its prior sigma, i.e. the
 data carry at least 99 times the prior's information about it.
 
-Typical degeneracies (``NOTES.md``):
+Typical degeneracies (``docs/method.md``):
 
 * straight-only driving: t_r and d are not observable, c_d is known only relative to t_r
   (the yaw drift shows c_d / t_r) — c_d is then calibrated *given t_r's prior*;
 * too little lateral acceleration: d is not observable.
 
-Pure numpy; the covariance comes from :func:`graphcal.pipeline.joint.calibrate_joint`.
+Pure numpy; the covariance comes from a solve such as
+:func:`graphcal.pipeline.joint.calibrate_joint` or :func:`graphcal.localization.smooth_drive`.
 """
 
 from __future__ import annotations

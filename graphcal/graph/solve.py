@@ -19,7 +19,7 @@ def solve_lm(
     """Optimize ``graph`` from ``values``; return the result and the iterations used.
 
     Diagonal damping is on: odometry residuals are tight, so the Hessian's diagonal spans many
-    orders of magnitude (``NOTES.md``). GTSAM's exceptions (e.g. an indeterminate linear
+    orders of magnitude (``docs/performance.md``). GTSAM's exceptions (e.g. an indeterminate linear
     system) become ``error_type`` with the message ``"<label> failed: <reason>"``.
     """
     params = gtsam.LevenbergMarquardtParams()

@@ -19,11 +19,12 @@ import pandas as pd
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
+from graphcal.graph.keys import keyframe
+from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
-from graphcal.localization.smoothing import gnss_keyframes, pose_key
+from graphcal.localization.smoothing import gnss_keyframes
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.model import integrate
-from graphcal.pipeline.solve import solve_lm
 
 
 @dataclass(frozen=True)
@@ -54,7 +55,7 @@ def pose_before_outage(
     keyframes = np.arange(start, first - 1, -stride)[::-1]
     if len(keyframes) < 2:
         raise GraphcalError(f"outage at sample {start}: no GNSS window before it")
-    keys = [pose_key(i) for i in range(len(keyframes))]
+    keys = [keyframe(i) for i in range(len(keyframes))]
     graph = gtsam.NonlinearFactorGraph()
     noise = gtsam.noiseModel.Isotropic.Sigma(2, settings.gnss_sigma)
     for key, k in zip(keys, keyframes, strict=True):

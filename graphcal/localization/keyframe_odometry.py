@@ -1,16 +1,15 @@
 """Wheel odometry between keyframes of a user's Pose2 graph: one factor per interval.
 
 A localization graph has Pose2 variables at keyframes (e.g. at every GNSS fix, 5 Hz) while
-the wheel encoders run faster (40 Hz). :func:`keyframe_odometry_factor` integrates eq. (1)
-over all wheel steps between two keyframes inside one factor — like IMU preintegration — and
-compares the predicted end pose with the next keyframe's Pose2:
+the wheel encoders run faster (40 Hz). Each interval's wheel steps are preintegrated once
+(:class:`~graphcal.factors.PreintegratedWheelOdometry`, the wheel noise propagated into the
+increment's covariance), and the interval becomes
 
-    error = integrate(start pose, wheel inputs, theta)[end] − end pose      (world frame)
-
-Its noise is the wheel-rotation noise propagated through the model (``J Σ_u Jᵀ`` with the
-analytic Jacobian of eq. 1, plus a small floor for model error), so the factor weighs a
-short, straight interval tightly and a long, turning one loosely, as it should. Theta is a
-4-vector variable ``[c_e, c_d, t_r, d]`` (SI) shared by all factors, or a fixed value.
+* with theta a variable: a :class:`~graphcal.factors.WheelOdometryFactor` (a Python factor:
+  first-order theta correction, re-integration only when theta moves far);
+* with theta fixed (a calibrated vehicle): a built-in ``gtsam.BetweenFactorPose2`` with the
+  preintegrated increment and covariance — no Python in the optimizer loop
+  (``docs/localization.md`` has the cost of both).
 """
 
 from __future__ import annotations
@@ -23,13 +22,14 @@ import numpy as np
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
-from graphcal.factors.odometry import OdometryChunkError
-from graphcal.model import THETA_NOMINAL, integrate, wheel_rotation_jacobian
-
-#: Standard deviation [rev] of a measured wheel rotation per sample (the paper's, §3.3).
-DEFAULT_WHEEL_NOISE = 0.0005
-#: Model-error floor [m, m, rad] added to every interval's propagated covariance.
-DEFAULT_FLOOR_SIGMAS = (1e-3, 1e-3, 1e-4)
+from graphcal.factors import (
+    PreintegratedWheelOdometry,
+    WheelOdometryFactor,
+    preintegrate,
+    wheel_odometry_between_factor,
+)
+from graphcal.factors.preintegration import DEFAULT_FLOOR_SIGMAS, DEFAULT_WHEEL_NOISE
+from graphcal.model import THETA_NOMINAL
 
 
 def odometry_covariance(
@@ -39,15 +39,13 @@ def odometry_covariance(
     wheel_noise: float = DEFAULT_WHEEL_NOISE,
     floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
 ) -> np.ndarray:
-    """Covariance ``(3, 3)`` [m², m², rad²] of the predicted end state of an interval.
-
-    The wheel-rotation noise ``wheel_noise`` [rev] of every step, propagated by the
-    Jacobian of eq. (1) at ``theta``, plus ``diag(floor_sigmas²)``.
-    """
-    states = integrate(np.asarray(start_state, float), inputs, theta)
-    jacobian = wheel_rotation_jacobian(states, inputs, theta)[-1].reshape(3, -1)
-    floor = np.asarray(floor_sigmas, float) ** 2
-    return wheel_noise**2 * jacobian @ jacobian.T + np.diag(floor)
+    """World-frame covariance ``(3, 3)`` [m², m², rad²] of the predicted end state of an
+    interval started at ``start_state``: the wheel-rotation noise ``wheel_noise`` [rev] of
+    every step propagated by eq. (1)'s Jacobian at ``theta``, plus ``diag(floor_sigmas²)``."""
+    body = preintegrate(inputs, theta, wheel_noise).covariance
+    c, s = np.cos(start_state[2]), np.sin(start_state[2])
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return rotation @ body @ rotation.T + np.diag(np.asarray(floor_sigmas, float) ** 2)
 
 
 def keyframe_odometry_factor(
@@ -55,39 +53,41 @@ def keyframe_odometry_factor(
     end_key: int,
     theta_key: int | None,
     inputs: np.ndarray,
-    reference_heading: float,
     theta: np.ndarray = THETA_NOMINAL,
     wheel_noise: float = DEFAULT_WHEEL_NOISE,
     floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
-) -> gtsam.CustomFactor:
+) -> gtsam.NonlinearFactor:
     """Wheel odometry over ``len(inputs)`` steps between two Pose2 keyframes.
 
     Args:
         start_key, end_key: the user's Pose2 variables at the interval's ends.
-        theta_key: the shared 4-vector theta variable, or ``None`` to use ``theta`` fixed.
+        theta_key: the shared 4-vector theta variable, or ``None`` to use ``theta`` fixed
+            (the factor is then a C++ ``BetweenFactorPose2``).
         inputs: measured ``[n_rl, n_rr, beta, ay]`` of the steps, ``(L, 4)``.
-        reference_heading: approximate start heading [rad] (unwraps the Pose2 angle; any
-            value within ±π of the truth gives the same factor).
-        theta: the fixed theta (``theta_key=None``), and where the noise is propagated.
-        wheel_noise, floor_sigmas: see :func:`odometry_covariance`.
+        theta: the fixed theta (``theta_key=None``), or where the interval is preintegrated.
+        wheel_noise: standard deviation [rev] of one measured wheel rotation.
+        floor_sigmas: model-error floor [m, m, rad] added to the propagated covariance.
     """
     inputs = np.asarray(inputs, float)
     if inputs.ndim != 2 or inputs.shape[1] != 4 or len(inputs) == 0:
         raise GraphcalError(
             f"keyframe odometry needs inputs (L, 4) with L >= 1, got {inputs.shape}"
         )
-    theta = np.asarray(theta, float)
-    error = OdometryChunkError(
-        inputs,
-        reference_heading=reference_heading,
-        has_end=True,
-        theta=None if theta_key is not None else theta,
-    )
-    start = np.array([0.0, 0.0, reference_heading])
-    covariance = odometry_covariance(start, inputs, theta, wheel_noise, floor_sigmas)
-    noise = gtsam.noiseModel.Gaussian.Covariance(covariance)
-    keys = [start_key, end_key] + ([] if theta_key is None else [theta_key])
-    return gtsam.CustomFactor(noise, keys, error)
+    preintegrated = preintegrate(inputs, theta, wheel_noise)
+    return _factor(start_key, end_key, theta_key, preintegrated, theta, floor_sigmas)
+
+
+def _factor(
+    start_key: int,
+    end_key: int,
+    theta_key: int | None,
+    preintegrated: PreintegratedWheelOdometry,
+    theta: np.ndarray,
+    floor_sigmas: Sequence[float],
+) -> gtsam.NonlinearFactor:
+    if theta_key is None:
+        return wheel_odometry_between_factor(start_key, end_key, preintegrated, theta, floor_sigmas)
+    return WheelOdometryFactor(start_key, end_key, theta_key, preintegrated, floor_sigmas).factor()
 
 
 def keyframe_odometry_factors(
@@ -98,12 +98,11 @@ def keyframe_odometry_factors(
     theta: np.ndarray = THETA_NOMINAL,
     wheel_noise: float = DEFAULT_WHEEL_NOISE,
     floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
-) -> list[gtsam.CustomFactor]:
+) -> list[gtsam.NonlinearFactor]:
     """Odometry factors between consecutive keyframes of a slice of a drive log.
 
     Args:
-        log: the drive log (its wheel rotations, sideslip and lateral acceleration are used;
-            its measured heading only to unwrap angles).
+        log: the drive log (its wheel rotations, sideslip and lateral acceleration are used).
         keyframes: increasing sample indices of the keyframes, ``(M,)``.
         pose_keys: the Pose2 keys of the keyframes, ``(M,)``.
         theta_key, theta, wheel_noise, floor_sigmas: as :func:`keyframe_odometry_factor`.
@@ -123,14 +122,7 @@ def keyframe_odometry_factors(
     inputs = log.inputs
     return [
         keyframe_odometry_factor(
-            pose_keys[i],
-            pose_keys[i + 1],
-            theta_key,
-            inputs[a:b],
-            float(log.psi[a]),
-            theta,
-            wheel_noise,
-            floor_sigmas,
+            pose_keys[i], pose_keys[i + 1], theta_key, inputs[a:b], theta, wheel_noise, floor_sigmas
         )
         for i, (a, b) in enumerate(itertools.pairwise(keyframes))
     ]

@@ -28,11 +28,12 @@ import numpy as np
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
-from graphcal.factors.corrections import theta_prior_factor
-from graphcal.factors.poses import pose2_from_state, state_from_pose2
-from graphcal.localization.keyframe_odometry import DEFAULT_WHEEL_NOISE, keyframe_odometry_factor
+from graphcal.factors import pose2_from_state, state_from_pose2, theta_prior_factor
+from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
+from graphcal.graph.keys import keyframe as _pose_key
+from graphcal.graph.keys import theta as _theta_key
+from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
 from graphcal.localization.smoothing import gnss_keyframes
-from graphcal.localization.smoothing import pose_key as _pose_key
 from graphcal.model import THETA_NOMINAL, integrate
 
 
@@ -104,10 +105,6 @@ class OnlineResult:
         """Total update time per second of driving."""
         span = float(self.update_t[-1] - self.update_t[0]) if len(self.update_t) > 1 else 1.0
         return float(self.update_seconds.sum() / span)
-
-
-def _theta_key(j: int) -> int:
-    return gtsam.symbol("t", j)
 
 
 def run_online(
@@ -198,7 +195,6 @@ def run_online(
                 _pose_key(i),
                 _theta_key(slice_index),
                 inputs[a:b],
-                float(state[2]),
                 theta,
                 settings.wheel_noise,
             )

@@ -16,18 +16,14 @@ import numpy as np
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
-from graphcal.factors.corrections import theta_prior_factor
-from graphcal.localization.keyframe_odometry import DEFAULT_WHEEL_NOISE, keyframe_odometry_factors
+from graphcal.factors import theta_prior_factor
+from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
+from graphcal.graph.keys import THETA, keyframe
+from graphcal.graph.observability import Observability, assess_observability
+from graphcal.graph.solve import marginal_covariance, solve_lm
+from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.batch_calibration import THETA_KEY
-from graphcal.pipeline.observability import Observability, assess_observability
-from graphcal.pipeline.solve import marginal_covariance, solve_lm
-
-
-def pose_key(i: int) -> int:
-    """Key of keyframe ``i``'s Pose2."""
-    return gtsam.symbol("x", i)
 
 
 @dataclass(frozen=True)
@@ -91,10 +87,10 @@ def build_smoothing_graph(
     the keyframes' sample indices."""
     if keyframes is None:
         keyframes = gnss_keyframes(log, settings.gnss_rate_hz)
-    keys = [pose_key(i) for i in range(len(keyframes))]
+    keys = [keyframe(i) for i in range(len(keyframes))]
     theta0 = np.asarray(settings.theta_initial, float)
     graph = gtsam.NonlinearFactorGraph()
-    graph.add(theta_prior_factor(THETA_KEY, np.asarray(settings.theta_prior_sigmas), theta0))
+    graph.add(theta_prior_factor(THETA, np.asarray(settings.theta_prior_sigmas), theta0))
     position_noise = gtsam.noiseModel.Isotropic.Sigma(2, settings.gnss_sigma)
     for key, k in zip(keys, keyframes, strict=True):
         graph.add(
@@ -105,11 +101,11 @@ def build_smoothing_graph(
         for key, k in zip(keys, keyframes, strict=True):
             graph.add(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
     for factor in keyframe_odometry_factors(
-        log, keyframes, keys, THETA_KEY, theta0, settings.wheel_noise
+        log, keyframes, keys, THETA, theta0, settings.wheel_noise
     ):
         graph.add(factor)
     values = gtsam.Values()
-    insert_theta(values, THETA_KEY, theta0)
+    insert_theta(values, THETA, theta0)
     insert_states(values, keys, log.poses[keyframes])
     return graph, values, keyframes
 
@@ -124,13 +120,13 @@ def smooth_drive(log: DriveLog, settings: SmoothingSettings | None = None) -> Sm
     settings = settings or SmoothingSettings()
     graph, values, keyframes = build_smoothing_graph(log, settings)
     result, iterations = solve_lm(graph, values, settings.max_iterations, 1e-8, "smoothing")
-    keys = [pose_key(i) for i in range(len(keyframes))]
-    covariance = marginal_covariance(graph, result, THETA_KEY, "smoothing")
+    keys = [keyframe(i) for i in range(len(keyframes))]
+    covariance = marginal_covariance(graph, result, THETA, "smoothing")
     return SmoothingResult(
         keyframes,
         log.t[keyframes],
         states_from_values(result, keys, float(log.psi[keyframes[0]])),
-        np.asarray(result.atVector(THETA_KEY)),
+        np.asarray(result.atVector(THETA)),
         covariance,
         assess_observability(covariance, settings.theta_prior_sigmas),
         iterations,

@@ -1,36 +1,22 @@
-"""Batch calibration (paper §4.1, eqs. 10–11) as one GTSAM graph solved by Levenberg–Marquardt.
+"""Batch calibration (paper §4.1, eqs. 10–11): theta from a batch of measured segments.
 
-The graph holds the shared theta, one :func:`~graphcal.factors.segment_odometry_factor` per
-segment and, when start poses are estimated, a Pose2 variable per segment under a prior at its
-measured pose. A weak prior on theta at the nominal values keeps elimination well posed when a
-batch does not excite every parameter (e.g. d needs lateral acceleration).
+The segment graph (:mod:`graphcal.graph.segment_graph`) with one chunk per segment and no
+correction variables: the shared theta under a weak prior at the nominal values (it keeps
+elimination well posed when a batch does not excite every parameter, e.g. d needs lateral
+acceleration) and, when start poses are estimated, a Pose2 per segment under its measurement.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, check_settings
-from graphcal.factors import (
-    PAPER_POSE_WEIGHTS,
-    pose2_from_state,
-    pose_sigmas,
-    segment_odometry_factor,
-    state_from_pose2,
-)
+from graphcal.errors import check_settings
+from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
+from graphcal.graph.segment_graph import SegmentGraphSpec, solve_segment_graph
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.solve import marginal_covariance, solve_lm
-
-THETA_KEY = gtsam.symbol("t", 0)
-
-
-def start_key(segment: int) -> int:
-    """Key of segment ``segment``'s start Pose2."""
-    return gtsam.symbol("x", segment)
 
 
 @dataclass(frozen=True)
@@ -66,6 +52,16 @@ class BatchSettings:
             at_least_one={"max_iterations": self.max_iterations},
         )
 
+    def graph_spec(self) -> SegmentGraphSpec:
+        """The segment graph of a batch solve."""
+        sigmas = pose_sigmas(self.pose_weights, self.position_sigma)
+        return SegmentGraphSpec(
+            theta=np.asarray(self.theta_initial, float),
+            tracking_sigmas=sigmas,
+            theta_prior_sigmas=np.asarray(self.theta_prior_sigmas, float),
+            start_prior_sigmas=sigmas if self.estimate_start_poses else None,
+        )
+
 
 @dataclass(frozen=True)
 class BatchCalibration:
@@ -93,85 +89,21 @@ class BatchCalibration:
         return np.sqrt(np.diag(self.covariance))
 
 
-class CalibrationFailed(GraphcalError, RuntimeError):
-    """A batch solve that did not produce a finite estimate."""
-
-
-#: Plausible ranges of theta (SI) for a road vehicle; outside them the data is almost surely in
-#: wrong units (e.g. sideslip in degrees) rather than the vehicle unusual.
-PLAUSIBLE_THETA = np.array([[0.5, 5.0], [-0.1, 0.1], [0.5, 3.0], [-0.05, 0.05]])
-
-
-def check_plausible(theta: np.ndarray) -> None:
-    """Raise :class:`CalibrationFailed` if theta lies outside :data:`PLAUSIBLE_THETA`."""
-    outside = (theta < PLAUSIBLE_THETA[:, 0]) | (theta > PLAUSIBLE_THETA[:, 1])
-    if outside.any():
-        names = ("c_e", "c_d", "t_r", "d")
-        bad = ", ".join(f"{names[i]} = {theta[i]:.4g}" for i in np.flatnonzero(outside))
-        raise CalibrationFailed(
-            f"the solve gave an implausible theta ({bad}, SI units); check the units of the "
-            "wheel rotations (rev per sample), sideslip (rad) and lateral acceleration (m/s²)"
-        )
-
-
-def build_batch_graph(
-    data: SegmentData, settings: BatchSettings
-) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values]:
-    """The batch graph over ``data``'s segments and its initial values."""
-    sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
-    graph = gtsam.NonlinearFactorGraph()
-    values = gtsam.Values()
-    theta0 = np.asarray(settings.theta_initial, dtype=float)
-    values.insert(THETA_KEY, theta0)
-    graph.add(
-        gtsam.PriorFactorVector(
-            THETA_KEY, theta0, gtsam.noiseModel.Diagonal.Sigmas(settings.theta_prior_sigmas)
-        )
-    )
-    start_noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
-    for i, k in enumerate(data.n_steps):
-        poses, inputs = data.poses[i, : k + 1], data.inputs[i, :k]
-        if settings.estimate_start_poses:
-            pose0 = pose2_from_state(poses[0])
-            values.insert(start_key(i), pose0)
-            graph.add(gtsam.PriorFactorPose2(start_key(i), pose0, start_noise))
-            graph.add(segment_odometry_factor(THETA_KEY, poses, inputs, sigmas, start_key(i)))
-        else:
-            graph.add(segment_odometry_factor(THETA_KEY, poses, inputs, sigmas))
-    return graph, values
-
-
 def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) -> BatchCalibration:
     """Estimate theta from the segments in ``data`` (one batch, eq. 11) with Levenberg–Marquardt.
 
     Raises:
-        CalibrationFailed: if the solve diverges or the system is singular.
+        CalibrationFailed: if the solve diverges, the system is singular or theta implausible.
     """
     settings = settings or BatchSettings()
-    graph, values = build_batch_graph(data, settings)
-    initial_error = graph.error(values)
-    result, iterations = solve_lm(
-        graph, values, settings.max_iterations, 1e-10, "batch solve", CalibrationFailed
+    solved = solve_segment_graph(
+        data, settings.graph_spec(), settings.max_iterations, 1e-10, "batch solve"
     )
-    covariance = marginal_covariance(graph, result, THETA_KEY, "batch solve", CalibrationFailed)
-    theta = result.atVector(THETA_KEY)
-    if not np.all(np.isfinite(theta)):
-        raise CalibrationFailed("batch solve produced a non-finite theta")
-    check_plausible(theta)
-    if settings.estimate_start_poses:
-        starts = np.array(
-            [
-                state_from_pose2(result.atPose2(start_key(i)), data.poses[i, 0, 2])
-                for i in range(len(data))
-            ]
-        )
-    else:
-        starts = data.poses[:, 0].copy()
     return BatchCalibration(
-        theta=theta,
-        covariance=covariance,
-        start_states=starts,
-        iterations=iterations,
-        initial_error=float(initial_error),
-        final_error=float(graph.error(result)),
+        theta=solved.theta,
+        covariance=solved.covariance,
+        start_states=solved.start_states,
+        iterations=solved.iterations,
+        initial_error=solved.initial_error,
+        final_error=solved.final_error,
     )

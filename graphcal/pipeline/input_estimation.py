@@ -2,17 +2,9 @@
 
 The paper's optimal-control problem — find wheel rotations that make the model, started from
 the measured first pose with theta fixed, track the measured poses (weight Q) with smooth
-inputs (weight R on Δu) inside ±5 % of the measurement — becomes a least-squares graph:
-
-* the segment cut into chunks of ``chunk_steps`` steps; one Python factor per chunk
-  integrates the model from the chunk's start pose and tracks the measured poses (Q); Pose2
-  variables at the chunk boundaries are tied to the prediction by a near-hard continuity
-  residual (multiple shooting), so elimination works on a chain and stays linear in K;
-* the wheel-rotation corrections of a chunk are one vector variable, under a smoothness
-  prior on consecutive steps (R) and a size prior (the ±5 % bound, softened), both linear
-  C++ factors. One variable per chunk rather than per step keeps the elimination and the
-  optimizer's per-call copies of the values small (``NOTES.md``).
-
+inputs (weight R on Δu) inside ±5 % of the measurement — is the segment graph
+(:mod:`graphcal.graph.segment_graph`) with the start held, theta fixed and a correction
+vector per chunk under the smoothness prior (R) and a size prior (the ±5 % bound, softened).
 Levenberg–Marquardt starts from zero corrections (the measured inputs), as the paper's QP
 solver does.
 """
@@ -21,30 +13,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import gtsam
 import numpy as np
 
-from graphcal.errors import GraphcalError, check_settings
-from graphcal.factors import (
-    OdometryChunkError,
-    chunk_boundary_smoothness,
-    chunk_correction_prior,
-    odometry_chunk_factor,
-    pose2_from_state,
-    size_sigmas,
-)
+from graphcal.data.segments import SegmentData
+from graphcal.errors import CalibrationFailed, check_settings
+from graphcal.graph.segment_graph import CorrectionPrior, SegmentGraphSpec, solve_segment_graph
 from graphcal.model import integrate
-from graphcal.pipeline.solve import solve_lm
 
-
-def correction_key(chunk: int) -> int:
-    """Key of the ``2L``-vector of wheel-rotation corrections of ``chunk``."""
-    return gtsam.symbol("c", chunk)
-
-
-def boundary_key(chunk: int) -> int:
-    """Key of the Pose2 at the start of ``chunk`` (chunk 0 starts at the held first pose)."""
-    return gtsam.symbol("b", chunk)
+#: Smallest size-prior sigma [rev] of a correction (a step at standstill still may move).
+SIZE_FLOOR = 1e-4
 
 
 @dataclass(frozen=True)
@@ -84,6 +61,21 @@ class InputEstimationSettings:
             at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
         )
 
+    def graph_spec(self, theta: np.ndarray) -> SegmentGraphSpec:
+        """The segment graph of an input estimation with ``theta`` fixed."""
+        return SegmentGraphSpec(
+            theta=np.asarray(theta, float),
+            estimate_theta=False,
+            tracking_sigmas=1.0 / np.sqrt(np.asarray(self.tracking_weights, float)),
+            chunk_steps=self.chunk_steps,
+            continuity_sigmas=np.asarray(self.continuity_sigmas, float),
+            corrections=CorrectionPrior(
+                sigma=SIZE_FLOOR,
+                relative=self.input_bound,
+                smoothness_sigma=1.0 / np.sqrt(self.smoothness_weight),
+            ),
+        )
+
 
 @dataclass(frozen=True)
 class InputEstimate:
@@ -98,74 +90,6 @@ class InputEstimate:
     corrections: np.ndarray
     states: np.ndarray
     iterations: int
-
-
-def chunk_bounds(n_steps: int, chunk_steps: int) -> np.ndarray:
-    """Chunk boundaries ``[0, ..., n_steps]``; the last chunk absorbs a short remainder."""
-    bounds = [*range(0, n_steps, chunk_steps), n_steps]
-    if len(bounds) > 2 and bounds[-1] - bounds[-2] < chunk_steps // 2:
-        bounds.pop(-2)
-    return np.asarray(bounds)
-
-
-def build_input_estimation_graph(
-    poses: np.ndarray,
-    inputs: np.ndarray,
-    theta: np.ndarray,
-    settings: InputEstimationSettings,
-) -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, np.ndarray]:
-    """The graph of :func:`estimate_inputs`, its initial values and the chunk bounds."""
-    n_steps = len(inputs)
-    tracking_sigmas = 1.0 / np.sqrt(np.asarray(settings.tracking_weights, float))
-    graph = gtsam.NonlinearFactorGraph()
-    values = gtsam.Values()
-    measured = inputs[:, :2]
-    smooth_sigma = 1.0 / np.sqrt(settings.smoothness_weight)
-    sizes = size_sigmas(measured, settings.input_bound)
-    nominal = integrate(poses[0], inputs, theta)  # the paper's nominal trajectory
-    bounds = chunk_bounds(n_steps, settings.chunk_steps)
-    n_chunks = len(bounds) - 1
-    for j in range(n_chunks):
-        a, b = int(bounds[j]), int(bounds[j + 1])
-        last = j == n_chunks - 1
-        values.insert(correction_key(j), np.zeros(2 * (b - a)))
-        graph.add(
-            chunk_correction_prior(correction_key(j), measured[a:b], sizes[a:b], smooth_sigma)
-        )
-        if not last:
-            c = int(bounds[j + 2])
-            graph.add(
-                chunk_boundary_smoothness(
-                    correction_key(j),
-                    b - a,
-                    measured[b - 1],
-                    correction_key(j + 1),
-                    c - b,
-                    measured[b],
-                    smooth_sigma,
-                )
-            )
-        if j > 0:
-            values.insert(boundary_key(j), pose2_from_state(nominal[a]))
-        error = OdometryChunkError(
-            inputs[a:b],
-            poses[a : b + 1],
-            start_state=poses[0] if j == 0 else None,
-            reference_heading=float(nominal[a, 2]),
-            has_end=not last,
-            has_corrections=True,
-            theta=theta,
-            corrections_as_vector=True,
-        )
-        keys = [] if j == 0 else [boundary_key(j)]
-        keys += [] if last else [boundary_key(j + 1)]
-        keys.append(correction_key(j))
-        graph.add(
-            odometry_chunk_factor(
-                error, keys, tracking_sigmas, np.asarray(settings.continuity_sigmas, float)
-            )
-        )
-    return graph, values, bounds
 
 
 def estimate_inputs(
@@ -183,18 +107,18 @@ def estimate_inputs(
         settings: weights and limits.
 
     Raises:
-        GraphcalError: if the solve fails numerically.
+        CalibrationFailed: if the solve fails numerically.
     """
     settings = settings or InputEstimationSettings()
     poses, inputs = np.asarray(poses, float), np.asarray(inputs, float)
-    graph, values, bounds = build_input_estimation_graph(poses, inputs, theta, settings)
-    result, iterations = solve_lm(graph, values, settings.max_iterations, 1e-6, "input estimation")
-    corrections = np.concatenate(
-        [result.atVector(correction_key(j)) for j in range(len(bounds) - 1)]
-    ).reshape(-1, 2)
+    data = SegmentData.single(poses, inputs)
+    solved = solve_segment_graph(
+        data, settings.graph_spec(theta), settings.max_iterations, 1e-6, "input estimation"
+    )
+    corrections = solved.built.corrections(solved.result, 0)
     if not np.all(np.isfinite(corrections)):
-        raise GraphcalError("input estimation produced non-finite corrections")
+        raise CalibrationFailed("input estimation produced non-finite corrections")
     corrected = inputs.copy()
     corrected[:, :2] += corrections
     states = integrate(poses[0], corrected, theta)
-    return InputEstimate(corrections, states, iterations)
+    return InputEstimate(corrections, states, solved.iterations)

@@ -18,14 +18,14 @@ reported as not calibrated. If no segment passes the yaw-rate selection they use
 segments: the observability check, not the selection, then decides what the drive determines.
 
 Validation (§5.2): every theta is judged by its position error E_p (eq. 16 / K, averaged over
-the 300 m validation segments), next to nominal theta and, on synthetic data, the reachable
-limit (the true theta).
+the 300 m validation segments), next to nominal theta. Comparison with a known truth
+(synthetic drives) is :func:`graphcal.evaluation.evaluate`, apart from calibration.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -40,22 +40,15 @@ from graphcal.data.segments import (
     yaw_rate_statistic,
 )
 from graphcal.errors import GraphcalError
+from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.joint import (
-    JointCalibration,
-    JointSettings,
-    calibrate_joint,
-    cramer_rao_bound,
-)
-from graphcal.pipeline.observability import Observability, condition_on_prior
+from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
+from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
 from graphcal.pipeline.validation import position_errors
-from graphcal.settings import Settings
 
 Progress = Callable[[str], None]
-#: At most this many batches of a joint run get their Cramér–Rao bound (synthetic drives).
-CRB_BATCHES = 100
 Method = Literal["staged", "joint", "whole"]
 METHODS = ("staged", "joint", "whole")
 
@@ -79,21 +72,16 @@ class CalibrationRun:
             ``"whole"``), theta of each batch ``(B, 4)``; NaN rows for failed solves.
         batch_covariance: per method that reports one (``"joint"``), the marginal covariance
             of each batch's theta ``(B, 4, 4)``; NaN for failed solves.
-        batch_crb: per method, the Cramér–Rao bound of each batch ``(B, 4, 4)`` (synthetic
-            drives with known truth only; computed for up to ``CRB_BATCHES`` evenly spaced
-            batches, NaN for the others).
         batch_excluded: per method, why each batch is left out of the statistics (``""``
             if it is not): a failed solve or parameters the batch does not determine.
         covariance: covariance of the recommended theta (joint and whole methods), ``(4, 4)``.
         observability: what the data determined about the recommended theta (joint, whole).
-        crb: the Cramér–Rao bound of the recommended theta (known truth only).
         staged: the five steps' results (``method == "staged"``).
         validation_segments, validation: the validation segments and their signals.
         segment_errors: per validation segment, mean position error [m] of odometry with
-            ``"nominal"``, ``"calibrated"`` and, when known, ``"true"`` theta.
+            ``"nominal"`` and ``"calibrated"`` theta.
         batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
             failed (never written to a file).
-        theta_true: the truth of a synthetic drive, else ``None``.
         warnings: what a user must know before trusting the result.
     """
 
@@ -113,13 +101,10 @@ class CalibrationRun:
     validation: SegmentData
     segment_errors: dict[str, np.ndarray]
     batch_errors: dict[str, np.ndarray]
-    theta_true: np.ndarray | None = None
+    batch_excluded: dict[str, np.ndarray]
     warnings: tuple[str, ...] = ()
-    batch_crb: dict[str, np.ndarray] = field(default_factory=dict)
-    batch_excluded: dict[str, np.ndarray] = field(default_factory=dict)
     covariance: np.ndarray | None = None
     observability: Observability | None = None
-    crb: np.ndarray | None = None
 
     def batch_estimates(self, name: str) -> np.ndarray:
         """Per-batch thetas ``(B, 4)`` of step or method ``name`` with failed and excluded
@@ -127,7 +112,7 @@ class CalibrationRun:
         return without_excluded(self.batch_theta[name], self.batch_excluded.get(name))
 
     def validation_error(self, name: str) -> float:
-        """E_p [m] of ``"nominal"``, ``"calibrated"`` or ``"true"`` theta."""
+        """E_p [m] of ``"nominal"`` or ``"calibrated"`` theta."""
         return float(np.mean(self.segment_errors[name]))
 
 
@@ -146,21 +131,12 @@ def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
     return float(np.mean(position_errors(validation, theta)))
 
 
-def _joint_task(
-    data: SegmentData,
-    settings: JointSettings,
-    truth: SegmentData | None = None,
-    theta_true: np.ndarray | None = None,
-) -> tuple[JointCalibration, np.ndarray | None] | None:
-    """One joint solve and, given the truth, its Cramér–Rao bound; ``None`` if it failed."""
+def _joint_task(data: SegmentData, settings: JointSettings) -> JointCalibration | None:
+    """One joint solve; ``None`` if it failed."""
     try:
-        result = calibrate_joint(data, settings)
+        return calibrate_joint(data, settings)
     except GraphcalError:
         return None
-    crb = None
-    if truth is not None and theta_true is not None:
-        crb = _bound_or_none(data, truth, theta_true, settings)
-    return result, crb
 
 
 def exclusion_reason(result: JointCalibration | None) -> str:
@@ -220,10 +196,8 @@ def run_calibration(
     log: DriveLog,
     settings: Settings | None = None,
     method: Method = "joint",
-    theta_true: np.ndarray | None = None,
     progress: Progress | None = None,
     workers: int = 1,
-    truth: DriveLog | None = None,
 ) -> CalibrationRun:
     """Calibrate theta from ``log``.
 
@@ -233,11 +207,8 @@ def run_calibration(
         method: ``"staged"`` (the paper's five steps over batches), ``"joint"`` (one joint
             graph per batch, then one over all selected segments) or ``"whole"`` (only the
             joint solve over all selected segments).
-        theta_true: the true theta if known (synthetic drives); adds the reachable limit.
         progress: called with one line per stage.
         workers: worker processes for batches and segments (results do not depend on it).
-        truth: the noise-free signals of a synthetic drive (with ``theta_true``): adds the
-            Cramér–Rao bound of every joint estimate.
 
     Raises:
         NoUsableSegments: no segment passes the selection, or the log is too short.
@@ -252,14 +223,12 @@ def run_calibration(
     )
     data = gather_segments(log, selected)
     validation = gather_segments(log, validation_segments)
-    truth_data = None if truth is None else gather_segments(truth, selected)
     staged = None
     batches = None
     batch_theta: dict[str, np.ndarray] = {}
     batch_covariance: dict[str, np.ndarray] = {}
-    batch_crb: dict[str, np.ndarray] = {}
     batch_excluded: dict[str, np.ndarray] = {}
-    covariance = observability = crb = None
+    covariance = observability = None
     warnings: list[str] = []
     if method in ("staged", "joint"):
         b = settings.batches
@@ -275,36 +244,19 @@ def run_calibration(
         warnings += staged.warnings
     else:
         if method == "joint":
-            # The bound is a diagnostic of synthetic runs: up to CRB_BATCHES evenly spaced
-            # batches estimate its mean over the batches and keep paper-scale runs fast.
-            bounded = np.arange(len(batches)) % -(-len(batches) // CRB_BATCHES) == 0
-            tasks = [
-                (
-                    data.take(batch),
-                    settings.joint,
-                    None if truth_data is None or not bound else truth_data.take(batch),
-                    theta_true,
-                )
-                for batch, bound in zip(batches, bounded, strict=True)
-            ]
+            tasks = [(data.take(batch), settings.joint) for batch in batches]
             batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
-            results = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
-            solved = [None if r is None else r[0] for r in results]
+            solved = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
             nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
             batch_theta["joint"] = np.array([nan_theta if r is None else r.theta for r in solved])
             batch_covariance["joint"] = np.array(
                 [nan_matrix if r is None else r.covariance for r in solved]
             )
-            if truth_data is not None:
-                batch_crb["joint"] = np.array(
-                    [nan_matrix if r is None or r[1] is None else r[1] for r in results]
-                )
             reasons = np.array([exclusion_reason(r) for r in solved], dtype=object)
             # Step 1 is the baseline of the same batches: compare both on the batches kept.
             batch_excluded["joint"] = batch_excluded["step1"] = reasons
             warnings += _exclusion_warnings(reasons)
-        final = _whole_log_solve(data, truth_data, theta_true, settings.joint, say)
-        theta, covariance, observability, crb = final
+        theta, covariance, observability = _whole_log_solve(data, settings.joint, say)
         if observability.degenerate:
             warnings.append(
                 f"{', '.join(observability.not_calibrated)} not calibrated: "
@@ -323,8 +275,6 @@ def run_calibration(
         "nominal": position_errors(validation, THETA_NOMINAL),
         "calibrated": position_errors(validation, theta),
     }
-    if theta_true is not None:
-        segment_errors["true"] = position_errors(validation, theta_true)
     if method != "whole" and len(selected) < settings.batches.size:
         warnings.append(
             f"only {len(selected)} selected segments for batches of {settings.batches.size}: "
@@ -364,13 +314,10 @@ def run_calibration(
         validation=validation,
         segment_errors=segment_errors,
         batch_errors=batch_errors,
-        theta_true=None if theta_true is None else np.asarray(theta_true, dtype=float),
-        warnings=tuple(warnings),
-        batch_crb=batch_crb,
         batch_excluded=batch_excluded,
+        warnings=tuple(warnings),
         covariance=covariance,
         observability=observability,
-        crb=crb,
     )
 
 
@@ -388,20 +335,13 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
 
 
 def _whole_log_solve(
-    data: SegmentData,
-    truth: SegmentData | None,
-    theta_true: np.ndarray | None,
-    settings: JointSettings,
-    say: Progress,
-) -> tuple[np.ndarray, np.ndarray, Observability, np.ndarray | None]:
+    data: SegmentData, settings: JointSettings, say: Progress
+) -> tuple[np.ndarray, np.ndarray, Observability]:
     """The joint solve over all ``data``: theta (unobservable parameters at their prior), its
-    covariance, observability and, given the truth, Cramér–Rao bound."""
+    covariance and observability."""
     say(f"joint solve over all {len(data)} selected segments")
     result = calibrate_joint(data, settings)
     say(f"  converged in {result.iterations} iterations")
-    crb = None
-    if truth is not None and theta_true is not None:
-        crb = _bound_or_none(data, truth, theta_true, settings, say)
     theta, covariance = condition_on_prior(
         result.theta,
         result.covariance,
@@ -409,23 +349,4 @@ def _whole_log_solve(
         settings.theta_initial,
         settings.theta_prior_sigmas,
     )
-    return theta, covariance, result.observability, crb
-
-
-def _bound_or_none(
-    data: SegmentData,
-    truth: SegmentData,
-    theta_true: np.ndarray,
-    settings: JointSettings,
-    say: Progress | None = None,
-) -> np.ndarray | None:
-    """The Cramér–Rao bound, or ``None`` (with a note) where theta is not identifiable."""
-    try:
-        return cramer_rao_bound(data, truth, theta_true, settings)
-    except GraphcalError:
-        if say is not None:
-            say(
-                "no Cramér–Rao bound: the measurements' information matrix of theta is "
-                "singular (a parameter is not identifiable from this drive)"
-            )
-        return None
+    return theta, covariance, result.observability

@@ -28,9 +28,7 @@ from graphcal.model import integrate
 from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
 from graphcal.pipeline.parallel import map_tasks
-from graphcal.settings import Settings
-
-STEPS = ("step1", "step3", "step5")
+from graphcal.pipeline.settings import Settings
 
 
 @dataclass(frozen=True)
@@ -68,10 +66,7 @@ class StagedResult:
         return np.median(good, axis=0)
 
 
-def _batch_task(
-    poses: np.ndarray, inputs: np.ndarray, n_steps: np.ndarray, settings: BatchSettings
-) -> tuple[np.ndarray, np.ndarray] | None:
-    data = SegmentData(poses, inputs, n_steps, np.ones(poses.shape[:2], bool))
+def _batch_task(data: SegmentData, settings: BatchSettings) -> tuple[np.ndarray, np.ndarray] | None:
     try:
         result = calibrate_batch(data, settings)
     except GraphcalError:
@@ -90,10 +85,7 @@ def step1_thetas(
     poses held at their measurement; NaN rows for failed solves. The uncompensated baseline
     that the joint method is shown against."""
     say = progress or (lambda _line: None)
-    tasks = []
-    for batch in batches:
-        sub = data.take(batch)
-        tasks.append((sub.poses, sub.inputs, sub.n_steps, settings.calibration))
+    tasks = [(data.take(batch), settings.calibration) for batch in batches]
     results = map_tasks(_batch_task, tasks, workers, say, "step1 batch solves")
     return np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
 
@@ -152,11 +144,6 @@ def trimmed_mean(values: np.ndarray, trim_fraction: float, axis: int = 0) -> np.
     return kept.mean(axis=axis)
 
 
-def _segment_arrays(data: SegmentData, s: int) -> tuple[np.ndarray, np.ndarray]:
-    k = int(data.n_steps[s])
-    return data.poses[s, : k + 1], data.inputs[s, :k]
-
-
 def run_staged(
     data: SegmentData,
     batches: np.ndarray,
@@ -177,14 +164,16 @@ def run_staged(
         tasks = []
         for b, batch in enumerate(batches):
             sub = data.take(batch)
-            poses = apply_heading_correction(sub.poses, heading[b], form)
             inputs = sub.inputs.copy()
             if rotations is not None:
                 inputs[..., :2] = rotations[batch][:, : inputs.shape[1]]
+            sub = dataclasses.replace(
+                sub, poses=apply_heading_correction(sub.poses, heading[b], form), inputs=inputs
+            )
             solve = settings.calibration
             if step != "step1" and settings.staged.estimate_start_poses:
                 solve = dataclasses.replace(solve, estimate_start_poses=True)
-            tasks.append((poses, inputs, sub.n_steps, solve))
+            tasks.append((sub, solve))
         results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
         failed[step] = np.array([r is None for r in results])
         theta[step] = np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
@@ -202,7 +191,7 @@ def run_staged(
     tasks = []
     for b, batch in enumerate(batches):
         for s in batch:
-            poses, inputs = _segment_arrays(data, s)
+            poses, inputs = data.segment(s)
             tasks.append(
                 (
                     poses,
@@ -245,7 +234,7 @@ def run_staged(
         # The held start of each estimation: the start Step 3 estimated in that batch when it
         # estimates starts, else the Step 2 heading correction; batches without the segment
         # use the median over the batches with it.
-        poses, inputs = _segment_arrays(data, s)
+        poses, inputs = data.segment(s)
         own = {}
         for b in containing:
             i = list(batches[b]).index(s)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from graphcal.evaluation import Evaluation
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, integrate
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
@@ -17,6 +18,18 @@ _STEP_LABELS = {
     "joint": "joint",
     "whole": "whole log",
 }
+
+
+def _theta_true(evaluation: Evaluation | None) -> np.ndarray | None:
+    return None if evaluation is None else evaluation.theta_true
+
+
+def _segment_errors(run: CalibrationRun, evaluation: Evaluation | None) -> dict[str, np.ndarray]:
+    """Per validation segment errors [m] of nominal, calibrated and (if known) true theta."""
+    errors = dict(run.segment_errors)
+    if evaluation is not None:
+        errors["true"] = evaluation.validation_errors
+    return errors
 
 
 def route_figure(run: CalibrationRun) -> Figure:
@@ -86,16 +99,21 @@ def box_plots(
     return fig
 
 
-def parameters_figure(run: CalibrationRun) -> Figure:
+def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
     """Box plots of each parameter over the batches of a run (paper Fig. 5)."""
     assert run.batches is not None
     estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
     hidden = tuple(run.observability.not_calibrated) if run.observability is not None else ()
     title = f"Estimates over {len(run.batches)} batches"
-    return box_plots(estimates, title, run.theta_true, run.theta, hidden)
+    return box_plots(estimates, title, _theta_true(evaluation), run.theta, hidden)
 
 
-def batch_intervals_figure(run: CalibrationRun, name: str = "joint", limit: int = 60) -> Figure:
+def batch_intervals_figure(
+    run: CalibrationRun,
+    evaluation: Evaluation | None = None,
+    name: str = "joint",
+    limit: int = 60,
+) -> Figure:
     """Per-batch estimates of ``name`` with ±2σ bars, next to the recommended theta's band.
 
     Shows the first ``limit`` batches; excluded batches are drawn hollow in grey.
@@ -129,8 +147,8 @@ def batch_intervals_figure(run: CalibrationRun, name: str = "joint", limit: int 
                 ax.axhline(centre, color="tab:blue", lw=0.8, label="recommended ±2σ")
             else:
                 ax.set_title(f"{parameter} [{DISPLAY_UNITS[i]}]: not observable")
-        if run.theta_true is not None:
-            ax.axhline(run.theta_true[i] * scale, color="tab:green", ls="--", label="true")
+        if evaluation is not None:
+            ax.axhline(evaluation.theta_true[i] * scale, color="tab:green", ls="--", label="true")
         if not ax.get_title():
             ax.set_title(f"{parameter} [{DISPLAY_UNITS[i]}]")
         ax.set_xlabel("batch")
@@ -141,35 +159,37 @@ def batch_intervals_figure(run: CalibrationRun, name: str = "joint", limit: int 
     return fig
 
 
-def validation_figure(run: CalibrationRun) -> Figure:
+def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
     """Validation errors E_p of the batches' theta per step (paper Fig. 6)."""
+    segment_errors = _segment_errors(run, evaluation)
+    mean_error = {name: float(np.mean(e)) for name, e in segment_errors.items()}
     fig = Figure(figsize=(7, 3.8), layout="constrained")
     ax = fig.add_subplot()
     if any(np.isfinite(e).any() for e in run.batch_errors.values()):  # E_p per batch, step
         labels = [_STEP_LABELS.get(n, n) for n in run.batch_errors]
         data = [e[np.isfinite(e)] for e in run.batch_errors.values()]
     else:  # no batches: the spread over the validation segments of each theta
-        labels = [f"{n} θ, per segment" for n in run.segment_errors]
-        data = list(run.segment_errors.values())
+        labels = [f"{n} θ, per segment" for n in segment_errors]
+        data = list(segment_errors.values())
     ax.boxplot(data, orientation="horizontal", tick_labels=labels)
     top = max(float(np.max(d)) for d in data if len(d))
     for name, style in (("nominal", ":"), ("true", "--"), ("calibrated", "-")):
-        if name == "nominal" and run.validation_error(name) > 1.5 * top:
+        if name == "nominal" and mean_error[name] > 1.5 * top:
             ax.plot(
                 [],
                 [],
                 color=_COLOURS[name],
                 ls=style,
-                label=f"nominal: {run.validation_error(name):.2f} m (off scale)",
+                label=f"nominal: {mean_error[name]:.2f} m (off scale)",
             )
             continue
-        if name in run.segment_errors:
+        if name in mean_error:
             label = {"true": "reachable (true θ)", "calibrated": "recommended θ"}.get(name, name)
             ax.axvline(
-                run.validation_error(name),
+                mean_error[name],
                 color=_COLOURS[name],
                 ls=style,
-                label=f"{label}: {run.validation_error(name):.2f} m",
+                label=f"{label}: {mean_error[name]:.2f} m",
             )
     ax.set_xlabel("validation error E_p [m] (mean position error, eq. 16 / K)")
     ax.set_title(
@@ -225,15 +245,15 @@ def wheel_rotations_figure(run: CalibrationRun) -> Figure:
     return fig
 
 
-def trajectory_figure(run: CalibrationRun) -> Figure:
+def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
     """The validation segment with the median nominal error: measured vs odometry paths."""
-    errors = run.segment_errors["nominal"]
+    segment_errors = _segment_errors(run, evaluation)
+    errors = segment_errors["nominal"]
     i = int(np.argsort(errors)[len(errors) // 2])
-    k = int(run.validation.n_steps[i])
-    poses, inputs = run.validation.poses[i, : k + 1], run.validation.inputs[i, :k]
+    poses, inputs = run.validation.segment(i)
     thetas = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
-    if run.theta_true is not None:
-        thetas["true"] = run.theta_true
+    if evaluation is not None:
+        thetas["true"] = evaluation.theta_true
     fig = Figure(figsize=(7, 6), layout="constrained")
     ax = fig.add_subplot()
     ax.plot(poses[:, 0], poses[:, 1], ".", ms=1.5, color="0.5", label="measured")
@@ -244,7 +264,7 @@ def trajectory_figure(run: CalibrationRun) -> Figure:
             path[:, 1],
             color=_COLOURS[name],
             ls="--" if name == "true" else "-",
-            label=f"odometry, {name} θ ({run.segment_errors[name][i]:.2f} m)",
+            label=f"odometry, {name} θ ({segment_errors[name][i]:.2f} m)",
         )
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("px [m]")
@@ -254,17 +274,17 @@ def trajectory_figure(run: CalibrationRun) -> Figure:
     return fig
 
 
-def figures(run: CalibrationRun) -> dict[str, Figure]:
-    """All figures of a run, by file name."""
+def figures(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict[str, Figure]:
+    """All figures of a run, by file name (with the truth drawn in, given an evaluation)."""
     out = {
         "route.png": route_figure(run),
-        "validation.png": validation_figure(run),
-        "trajectory.png": trajectory_figure(run),
+        "validation.png": validation_figure(run, evaluation),
+        "trajectory.png": trajectory_figure(run, evaluation),
     }
     if run.batches is not None:
-        out["parameters.png"] = parameters_figure(run)
+        out["parameters.png"] = parameters_figure(run, evaluation)
     if "joint" in run.batch_covariance:
-        out["batch_intervals.png"] = batch_intervals_figure(run)
+        out["batch_intervals.png"] = batch_intervals_figure(run, evaluation)
     if run.staged is not None:
         out["wheel_rotations.png"] = wheel_rotations_figure(run)
     return out

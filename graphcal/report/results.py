@@ -12,11 +12,11 @@ import math
 import os
 from pathlib import Path
 
-import gtsam
 import numpy as np
 import pandas as pd
 
 from graphcal import __version__
+from graphcal.evaluation import Evaluation
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.run import CalibrationRun
@@ -50,18 +50,22 @@ def _finite(obj: object) -> object:
     return obj
 
 
-def run_statistics(run: CalibrationRun) -> dict[str, dict]:
+def _theta_true(evaluation: Evaluation | None) -> np.ndarray | None:
+    return None if evaluation is None else evaluation.theta_true
+
+
+def run_statistics(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict[str, dict]:
     """Per step or method: :func:`step_statistics` of its per-batch thetas (batches left
-    out for a failed solve or an unobservable parameter excluded)."""
-    return {
-        name: step_statistics(run.batch_estimates(name), run.theta_true) for name in run.batch_theta
-    }
+    out for a failed solve or an unobservable parameter excluded); with an evaluation, also
+    bias and RMSE to the truth."""
+    truth = _theta_true(evaluation)
+    return {name: step_statistics(run.batch_estimates(name), truth) for name in run.batch_theta}
 
 
 THETA_UNITS = {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"}
 
 
-def parameter_summary(run: CalibrationRun) -> dict[str, dict]:
+def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict[str, dict]:
     """Per parameter: value (SI), its standard deviation, 95 % interval and verdict.
 
     A parameter the data did not determine keeps its prior (nominal) value, has no sigma or
@@ -88,21 +92,24 @@ def parameter_summary(run: CalibrationRun) -> dict[str, dict]:
             entry["sigma"] = None
             entry["prior_sigma"] = float(run.settings.joint.theta_prior_sigmas[i])
         entry["sigma_over_prior_sigma"] = float(run.observability.sigma_ratio[i])
-        if run.crb is not None and run.observability.calibrated[i]:
-            entry["cramer_rao_sigma"] = float(np.sqrt(run.crb[i, i]))
+        crb = None if evaluation is None else evaluation.crb
+        if crb is not None and run.observability.calibrated[i]:
+            entry["cramer_rao_sigma"] = float(np.sqrt(crb[i, i]))
         out[name] = entry
     return out
 
 
-def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
-    """Per method with covariances: median per-batch sigma (SI) and, given the truth, NEES and
-    the Cramér–Rao bound.
+def uncertainty_summary(
+    run: CalibrationRun, evaluation: Evaluation | None = None
+) -> dict[str, dict]:
+    """Per method with covariances: median per-batch sigma (SI) and, given an evaluation, NEES
+    and the Cramér–Rao bound.
 
-    NEES is the mean over batches of (theta − truth)ᵀ Σ⁻¹ (theta − truth); with 4 parameters
-    it is 4 when the reported covariance matches the actual errors. ``crb_sigma`` is the root
-    mean Cramér–Rao variance over the batches that have it (``crb_batches``), the RMSE an
-    efficient method reaches;
-    ``rmse_over_crb`` compares the batches' RMSE with it. Excluded batches are left out.
+    ``nees_mean`` is the mean NEES over the batches (4 with 4 parameters when the reported
+    covariance matches the actual errors). ``crb_sigma`` is the root mean Cramér–Rao
+    variance over the batches that have it (``crb_batches``), the RMSE an efficient method
+    reaches; ``rmse_over_crb`` compares the batches' RMSE with it. Excluded batches are left
+    out.
     """
     out: dict[str, dict] = {}
     for name, covariances in run.batch_covariance.items():
@@ -117,12 +124,12 @@ def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
                 zip(PARAMETER_NAMES, map(float, np.median(sigmas, axis=0)), strict=True)
             )
         }
-        if run.theta_true is not None:
-            errors = run.batch_theta[name][good] - run.theta_true
-            nees = np.einsum("bi,bij,bj->b", errors, np.linalg.inv(covariances[good]), errors)
+        if evaluation is not None:
+            errors = run.batch_theta[name][good] - evaluation.theta_true
+            nees = evaluation.batch_nees[name][good]
             entry["nees_mean"] = float(np.mean(nees))
             entry["nees_batches"] = len(nees)
-            crb = run.batch_crb.get(name)
+            crb = evaluation.batch_crb.get(name)
             bounded = good & np.all(np.isfinite(crb), axis=(1, 2)) if crb is not None else None
             if bounded is not None and bounded.any():
                 variances = np.diagonal(crb[bounded], axis1=1, axis2=2)
@@ -137,20 +144,35 @@ def uncertainty_summary(run: CalibrationRun) -> dict[str, dict]:
     return out
 
 
-def validation_summary(run: CalibrationRun) -> dict[str, float]:
+def validation_summary(
+    run: CalibrationRun, evaluation: Evaluation | None = None
+) -> dict[str, float]:
     """E_p [m] of nominal, recommended and (when known) true theta."""
     out = {
         "nominal": run.validation_error("nominal"),
         "calibrated": run.validation_error("calibrated"),
     }
-    if "true" in run.segment_errors:
-        out["reachable (true theta)"] = run.validation_error("true")
+    if evaluation is not None:
+        out["reachable (true theta)"] = evaluation.reachable_error
     return out
 
 
-def results_document(run: CalibrationRun, workers: int = 1) -> dict:
-    """The content of ``calibration.json`` (SI values; display units in ``theta_display``)."""
-    stats = run_statistics(run)
+def _gtsam_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("gtsam")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def results_document(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict:
+    """The content of ``calibration.json`` (SI values; display units in ``theta_display``).
+
+    It depends only on the log, the settings and (for synthetic drives) the evaluation —
+    never on the number of workers — so the same inputs give a byte-identical file.
+    """
+    stats = run_statistics(run, evaluation)
     doc: dict = {
         "theta": _named(run.theta),
         "theta_units": THETA_UNITS,
@@ -159,7 +181,7 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             for n, u, v in zip(PARAMETER_NAMES, DISPLAY_UNITS, to_display(run.theta), strict=True)
         },
         "theta_nominal": _named(THETA_NOMINAL),
-        "parameters": parameter_summary(run),
+        "parameters": parameter_summary(run, evaluation),
         "method": run.method,
         "log": {
             "file": run.log.source,
@@ -174,9 +196,9 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             "validation": len(run.validation),
         },
         "steps": stats,
-        "uncertainty": uncertainty_summary(run),
+        "uncertainty": uncertainty_summary(run, evaluation),
         "validation_error_m": {
-            **validation_summary(run),
+            **validation_summary(run, evaluation),
             "per_step_median": {
                 step: float(np.nanmedian(e)) if np.isfinite(e).any() else None
                 for step, e in run.batch_errors.items()
@@ -204,9 +226,9 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
             "paper": PAPER_IQR_REDUCTION,
         }
 
-    if run.theta_true is not None:
-        doc["theta_true"] = _named(run.theta_true)
-        doc["theta_error"] = _named(run.theta - run.theta_true)
+    if evaluation is not None:
+        doc["theta_true"] = _named(evaluation.theta_true)
+        doc["theta_error"] = _named(evaluation.theta_error)
     if run.observability is not None and run.observability.degenerate:
         # Only parameters the data determined carry a number outside ``parameters``.
         doc["not_calibrated"] = run.observability.not_calibrated
@@ -217,12 +239,11 @@ def results_document(run: CalibrationRun, workers: int = 1) -> dict:
                 doc["theta_error"][name] = None
     doc["warnings"] = list(run.warnings)
     doc["settings"] = run.settings.to_dict()
-    doc["workers"] = workers
-    doc["versions"] = {"graphcal": __version__, "gtsam": getattr(gtsam, "__version__", "?")}
+    doc["versions"] = {"graphcal": __version__, "gtsam": _gtsam_version()}
     return _finite(doc)
 
 
-def batches_frame(run: CalibrationRun) -> pd.DataFrame:
+def batches_frame(run: CalibrationRun, evaluation: Evaluation | None = None) -> pd.DataFrame:
     """One row per batch: its segments and theta (SI) per step or method; empty if failed."""
     assert run.batches is not None
     frame = pd.DataFrame(
@@ -237,20 +258,22 @@ def batches_frame(run: CalibrationRun) -> pd.DataFrame:
         if step in run.batch_covariance:
             for i, name in enumerate(PARAMETER_NAMES):
                 frame[f"{step}_sigma_{name}"] = np.sqrt(run.batch_covariance[step][:, i, i])
-        if step in run.batch_crb:
+        if evaluation is not None and step in evaluation.batch_crb:
+            crb = evaluation.batch_crb[step]
             for i, name in enumerate(PARAMETER_NAMES):
-                frame[f"{step}_crb_sigma_{name}"] = np.sqrt(run.batch_crb[step][:, i, i])
+                frame[f"{step}_crb_sigma_{name}"] = np.sqrt(crb[:, i, i])
         if step in run.batch_excluded:
             frame[f"{step}_excluded"] = run.batch_excluded[step]
         frame[f"{step}_validation_error_m"] = run.batch_errors[step]
     return frame
 
 
-def summary_text(run: CalibrationRun) -> str:
+def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> str:
     """The human-readable summary printed by the CLI."""
+    truth = _theta_true(evaluation)
     rows = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
-    if run.theta_true is not None:
-        rows["true"] = run.theta_true
+    if truth is not None:
+        rows["true"] = truth
     hidden = set(run.observability.not_calibrated) if run.observability is not None else set()
     parts = [theta_table(rows, {"calibrated": hidden})]
     if hidden:
@@ -262,21 +285,25 @@ def summary_text(run: CalibrationRun) -> str:
         parts.append(
             f"recommended θ: joint solve over all {len(run.selected)} selected segments\n"
             + interval_table(
-                run.theta, run.covariance, run.observability.verdicts(), run.crb, run.theta_true
+                run.theta,
+                run.covariance,
+                run.observability.verdicts(),
+                None if evaluation is None else evaluation.crb,
+                truth,
             )
         )
     if run.staged is not None:
-        parts.append(steps_table(run_statistics(run), run.theta_true is not None))
+        parts.append(steps_table(run_statistics(run, evaluation), truth is not None))
     elif run.method == "joint":
         parts.append(
             steps_table(
-                run_statistics(run),
-                run.theta_true is not None,
+                run_statistics(run, evaluation),
+                truth is not None,
                 steps=("step1", "joint"),
                 not_observable=hidden,
             )
         )
-    for name, entry in uncertainty_summary(run).items():
+    for name, entry in uncertainty_summary(run, evaluation).items():
         sigma = entry["sigma_per_batch_median"]
         line = (
             f"{name}: per-batch 1σ (median) "
@@ -297,30 +324,39 @@ def summary_text(run: CalibrationRun) -> str:
                 + " (1 = efficient)"
             )
         parts.append(line)
-    parts.append(validation_table(validation_summary(run)))
+    parts.append(validation_table(validation_summary(run, evaluation)))
     if run.warnings:
         parts.append("\n".join(f"warning: {w}" for w in run.warnings))
     return "\n\n".join(parts)
 
 
 def write_results(
-    run: CalibrationRun, out_dir: str | os.PathLike[str], workers: int = 1
+    run: CalibrationRun,
+    out_dir: str | os.PathLike[str],
+    evaluation: Evaluation | None = None,
 ) -> list[Path]:
-    """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures."""
+    """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures.
+
+    With an evaluation (synthetic drives) the files carry the truth, errors to it and the
+    Cramér–Rao bound.
+    """
     out = Path(out_dir)
-    document = json.dumps(results_document(run, workers), indent=2, allow_nan=False) + "\n"
+    document = json.dumps(results_document(run, evaluation), indent=2, allow_nan=False) + "\n"
+    errors = dict(run.segment_errors)
+    if evaluation is not None:
+        errors["true"] = evaluation.validation_errors
     validation = pd.DataFrame(
         {
             "segment": np.arange(len(run.validation)),
             "start_t_s": run.log.t[run.validation_segments.start],
             "end_t_s": run.log.t[run.validation_segments.stop],
-            **{f"error_{name}_m": e for name, e in run.segment_errors.items()},
+            **{f"error_{name}_m": e for name, e in errors.items()},
         }
     )
     tables = {"validation.csv": validation}
     if run.batches is not None:
-        tables["batches.csv"] = batches_frame(run)
-    images = figures(run)
+        tables["batches.csv"] = batches_frame(run, evaluation)
+    images = figures(run, evaluation)
     written = [atomic_write_text(out / "calibration.json", document)]
     written += [atomic_write_csv(frame, out / name) for name, frame in tables.items()]
     written += [atomic_save_figure(fig, out / name) for name, fig in images.items()]

@@ -1,0 +1,189 @@
+"""Evaluation of a calibration against a known truth (synthetic drives), apart from calibration.
+
+:func:`graphcal.pipeline.run.run_calibration` never sees the truth. Given a run and the
+:class:`Truth` of its drive — the true theta and, optionally, the noise-free signals —
+:func:`evaluate` computes what a researcher checks an estimator by:
+
+* the error of the recommended theta and the reachable validation error (odometry with the
+  true theta, the limit of eq. 16);
+* the Cramér–Rao bound of the recommended theta and of up to :data:`CRB_BATCHES` evenly
+  spaced joint batches (needs the noise-free signals): the theta block of the inverse Fisher
+  information of the measurements, the joint graph without the weak prior on theta
+  linearized at the true values of every variable;
+* per batch, the normalized estimation error squared (NEES) ``eᵀ Σ⁻¹ e`` of each method that
+  reports a covariance: 4 on average when the reported covariance matches the actual errors.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.segments import SegmentData, gather_segments
+from graphcal.errors import GraphcalError
+from graphcal.graph import keys
+from graphcal.graph.segment_graph import build_segment_graph
+from graphcal.graph.solve import marginal_covariance
+from graphcal.pipeline.joint import JointSettings
+from graphcal.pipeline.parallel import map_tasks
+from graphcal.pipeline.run import CalibrationRun
+from graphcal.pipeline.validation import position_errors
+
+#: At most this many batches of a joint run get their Cramér–Rao bound.
+CRB_BATCHES = 100
+
+
+@dataclass(frozen=True)
+class Truth:
+    """What is known about a synthetic drive.
+
+    Attributes:
+        theta: the true ``[c_e, c_d, t_r, d]`` (SI).
+        log: the noise-free signals of the drive (same samples as the measured log), or
+            ``None``; needed for the Cramér–Rao bound.
+    """
+
+    theta: np.ndarray
+    log: DriveLog | None = None
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """A run compared with the truth (SI).
+
+    Attributes:
+        theta_true: the true theta.
+        theta_error: recommended minus true theta.
+        validation_errors: per validation segment, the mean position error [m] of odometry
+            with the true theta (the reachable limit).
+        crb: Cramér–Rao bound of the recommended theta ``(4, 4)``, or ``None`` (no noise-free
+            signals, or theta not identifiable from the drive).
+        batch_crb: per method, the bound of each batch ``(B, 4, 4)``; NaN where not computed.
+        batch_nees: per method with covariances, the NEES of each batch ``(B,)``; NaN for
+            failed or excluded batches.
+    """
+
+    theta_true: np.ndarray
+    theta_error: np.ndarray
+    validation_errors: np.ndarray
+    crb: np.ndarray | None
+    batch_crb: dict[str, np.ndarray]
+    batch_nees: dict[str, np.ndarray]
+
+    @property
+    def reachable_error(self) -> float:
+        """E_p [m] of the true theta: the validation error no calibration can beat."""
+        return float(np.mean(self.validation_errors))
+
+
+def cramer_rao_bound(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    settings: JointSettings | None = None,
+) -> np.ndarray:
+    """The Cramér–Rao bound of theta for the measured segments ``data``: 4×4, SI.
+
+    ``truth`` holds the same segments' noise-free signals. The joint graph without the prior
+    on theta is linearized at the true start and boundary poses, the true minus measured
+    wheel rotations as corrections, and ``theta_true``.
+
+    Raises:
+        GraphcalError: if theta is not identifiable from ``data`` (e.g. a straight drive):
+            the information matrix is singular and there is no finite bound.
+    """
+    settings = settings or JointSettings()
+    built = build_segment_graph(data, settings.graph_spec(theta_prior=False))
+    states, corrections = [], []
+    for s in range(len(data)):
+        true_poses, true_inputs = truth.segment(s)
+        states.append(true_poses)
+        corrections.append(true_inputs[:, :2] - data.segment(s)[1][:, :2])
+    values = built.values_at(states, corrections, theta_true)
+    return marginal_covariance(built.graph, values, keys.THETA, "Cramér–Rao bound")
+
+
+def _bound_task(
+    data: SegmentData, truth: SegmentData, theta_true: np.ndarray, settings: JointSettings
+) -> np.ndarray | None:
+    try:
+        return cramer_rao_bound(data, truth, theta_true, settings)
+    except GraphcalError:
+        return None
+
+
+def nees(theta: np.ndarray, covariance: np.ndarray, theta_true: np.ndarray) -> np.ndarray:
+    """Normalized estimation error squared of estimates ``(B, 4)`` with covariances
+    ``(B, 4, 4)``; NaN where an estimate or covariance is not finite."""
+    theta, covariance = np.asarray(theta, float), np.asarray(covariance, float)
+    out = np.full(len(theta), np.nan)
+    good = np.all(np.isfinite(theta), axis=1) & np.all(np.isfinite(covariance), axis=(1, 2))
+    errors = theta[good] - theta_true
+    out[good] = np.einsum("bi,bij,bj->b", errors, np.linalg.inv(covariance[good]), errors)
+    return out
+
+
+def evaluate(
+    run: CalibrationRun,
+    truth: Truth,
+    progress: Callable[[str], None] | None = None,
+    workers: int = 1,
+) -> Evaluation:
+    """Compare ``run`` with the ``truth`` of its drive (see the module docstring).
+
+    Raises:
+        GraphcalError: if the noise-free log does not match the measured one.
+    """
+    say = progress or (lambda _line: None)
+    theta_true = np.asarray(truth.theta, float)
+    if truth.log is not None and len(truth.log) != len(run.log):
+        raise GraphcalError(
+            f"the truth has {len(truth.log)} samples, the log {len(run.log)}; they must match"
+        )
+    crb = None
+    batch_crb: dict[str, np.ndarray] = {}
+    if truth.log is not None:
+        true_data = gather_segments(truth.log, run.selected)
+        settings = run.settings.joint
+        if run.covariance is not None:
+            crb = _bound_task(run.data, true_data, theta_true, settings)
+            if crb is None:
+                say(
+                    "no Cramér–Rao bound: the measurements' information matrix of theta is "
+                    "singular (a parameter is not identifiable from this drive)"
+                )
+        if run.batches is not None and "joint" in run.batch_theta:
+            # Up to CRB_BATCHES evenly spaced batches estimate the bound's mean over batches.
+            n = len(run.batches)
+            spaced = np.arange(n) % -(-n // CRB_BATCHES) == 0
+            solved = np.all(np.isfinite(run.batch_theta["joint"]), axis=1)
+            bounded = np.flatnonzero(spaced & solved)
+            tasks = [
+                (
+                    run.data.take(run.batches[b]),
+                    true_data.take(run.batches[b]),
+                    theta_true,
+                    settings,
+                )
+                for b in bounded
+            ]
+            bounds = map_tasks(_bound_task, tasks, workers, say, "Cramér–Rao bounds")
+            batch_crb["joint"] = np.full((n, 4, 4), np.nan)
+            for b, bound in zip(bounded, bounds, strict=True):
+                if bound is not None:
+                    batch_crb["joint"][b] = bound
+    batch_nees = {
+        name: nees(run.batch_estimates(name), covariances, theta_true)
+        for name, covariances in run.batch_covariance.items()
+    }
+    return Evaluation(
+        theta_true=theta_true,
+        theta_error=run.theta - theta_true,
+        validation_errors=position_errors(run.validation, theta_true),
+        crb=crb,
+        batch_crb=batch_crb,
+        batch_nees=batch_nees,
+    )

@@ -1,0 +1,61 @@
+"""GTSAM keys of every graph graphcal builds: one encoding, one place.
+
+A key is ``gtsam.symbol(letter, index)``. Variables that belong to a segment pack the segment
+and their position in it into the index, ``segment * SEGMENT_STRIDE + position``, so a key
+reads back as (letter, segment, position) with :func:`describe`.
+
+=========  ==================  =====================================================
+letter     variable            index
+=========  ==================  =====================================================
+``t``      theta (4-vector)    0, or the slice number of a time-varying theta
+``p``      segment Pose2       segment, chunk boundary (0 = the segment's start)
+``c``      wheel corrections   segment, chunk (one ``2L``-vector per chunk)
+``x``      keyframe Pose2      keyframe number (localization graphs)
+=========  ==================  =====================================================
+"""
+
+from __future__ import annotations
+
+import gtsam
+
+#: Positions per segment in a packed index (chunks or steps of one segment).
+SEGMENT_STRIDE = 1 << 24
+
+
+def theta(slice_index: int = 0) -> int:
+    """Key of theta ``[c_e, c_d, t_r, d]``; ``slice_index`` numbers the slices of an online run."""
+    return gtsam.symbol("t", slice_index)
+
+
+#: The key of the one shared theta of a calibration or smoothing graph.
+THETA = theta(0)
+
+
+def _packed(segment: int, position: int) -> int:
+    if not 0 <= position < SEGMENT_STRIDE:
+        raise ValueError(f"position {position} outside 0..{SEGMENT_STRIDE - 1}")
+    return segment * SEGMENT_STRIDE + position
+
+
+def segment_pose(segment: int, boundary: int = 0) -> int:
+    """Key of the Pose2 at chunk boundary ``boundary`` of ``segment`` (0: the segment's start)."""
+    return gtsam.symbol("p", _packed(segment, boundary))
+
+
+def segment_corrections(segment: int, chunk: int) -> int:
+    """Key of the ``2L``-vector of wheel-rotation corrections of ``chunk`` of ``segment``."""
+    return gtsam.symbol("c", _packed(segment, chunk))
+
+
+def keyframe(index: int) -> int:
+    """Key of keyframe ``index``'s Pose2 in a localization graph."""
+    return gtsam.symbol("x", index)
+
+
+def describe(key: int) -> str:
+    """A readable name of a key, e.g. ``"p(segment 3, 2)"`` or ``"t0"``, for messages."""
+    symbol = gtsam.Symbol(key)
+    letter, index = chr(symbol.chr()), symbol.index()
+    if letter in "pc":
+        return f"{letter}(segment {index // SEGMENT_STRIDE}, {index % SEGMENT_STRIDE})"
+    return f"{letter}{index}"

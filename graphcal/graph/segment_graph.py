@@ -1,0 +1,302 @@
+"""The one graph builder for segments of a drive: multiple shooting over chunks.
+
+Every calibration graph of graphcal is an instance of this shape, chosen by a
+:class:`SegmentGraphSpec`:
+
+* per segment, its start: held at the measured pose, or a Pose2 variable under world-frame
+  position and heading priors at the measured pose (the paper's W);
+* the segment cut into chunks (:func:`~graphcal.graph.chunking.chunk_bounds`); one
+  :class:`~graphcal.factors.ChunkOdometryFactor` per chunk integrates eq. (1) from the chunk's
+  start and tracks the measured poses; Pose2 variables at the chunk boundaries, initialized
+  on the nominal odometry, carry a near-hard continuity residual;
+* optionally per chunk one vector of wheel-rotation corrections under a size prior and the
+  paper's smoothness prior on Δu (linear C++ factors);
+* theta: a 4-vector variable (optionally under a prior) or a fixed value.
+
+Users: the batch solve (one chunk per segment, no corrections), input estimation (one
+segment, theta fixed, corrections), the joint solve (start poses, corrections and theta)
+and the naive per-step benchmark (chunks of one step).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphcal.data.segments import SegmentData
+from graphcal.errors import CalibrationFailed
+from graphcal.factors import (
+    ChunkOdometryFactor,
+    OdometryChunk,
+    chunk_boundary_smoothness,
+    chunk_correction_prior,
+    pose2_from_state,
+    state_from_pose2,
+    theta_prior_factor,
+)
+from graphcal.graph import keys
+from graphcal.graph.chunking import chunk_bounds
+from graphcal.graph.plausibility import check_plausible
+from graphcal.graph.solve import marginal_covariance, solve_lm
+from graphcal.model import integrate
+
+
+@dataclass(frozen=True)
+class CorrectionPrior:
+    """The prior on wheel-rotation corrections ``[dn_rl, dn_rr]`` [rev] of every step.
+
+    Attributes:
+        sigma: zero-mean size sigma [rev] (the wheel noise; or a floor with ``relative``).
+        relative: size sigma as a fraction of the measured rotation, at least ``sigma``
+            (the paper's ±5 % input bound, softened); 0 for an absolute sigma.
+        smoothness_sigma: sigma [rev] of the change of a corrected rotation from one step to
+            the next (the paper's R = 1000 is 0.032 rev), or ``None`` for no smoothness term.
+    """
+
+    sigma: float
+    relative: float = 0.0
+    smoothness_sigma: float | None = None
+
+    def size_sigmas(self, measured: np.ndarray) -> np.ndarray:
+        """Per step and wheel size sigmas ``(L, 2)`` [rev] for measured rotations ``(L, 2)``."""
+        return np.maximum(self.relative * np.abs(np.asarray(measured, float)), self.sigma)
+
+
+@dataclass(frozen=True)
+class SegmentGraphSpec:
+    """The shape of a segment graph (SI).
+
+    Attributes:
+        theta: theta's initial value, or its fixed value when ``estimate_theta`` is false.
+        estimate_theta: theta is a variable (key :data:`~graphcal.graph.keys.THETA`).
+        theta_prior_sigmas: sigmas of a prior on theta at ``theta``, or ``None``.
+        tracking_sigmas: ``[m, m, rad]`` of the tracking residuals.
+        start_prior_sigmas: ``[m, m, rad]`` of the priors on free start poses (x and y
+            equal), or ``None`` to hold each start at its measured pose.
+        chunk_steps: steps per chunk factor; ``None`` for one chunk per segment.
+        continuity_sigmas: ``[m, m, rad]`` of the chunk-boundary continuity.
+        corrections: the corrections' prior, or ``None`` for no correction variables.
+    """
+
+    theta: np.ndarray
+    tracking_sigmas: np.ndarray
+    estimate_theta: bool = True
+    theta_prior_sigmas: np.ndarray | None = None
+    start_prior_sigmas: np.ndarray | None = None
+    chunk_steps: int | None = None
+    continuity_sigmas: np.ndarray = (1e-3, 1e-3, 1e-4)
+    corrections: CorrectionPrior | None = None
+
+
+@dataclass(frozen=True)
+class SegmentGraph:
+    """A built segment graph: factors, initial values and the chunking of each segment."""
+
+    graph: gtsam.NonlinearFactorGraph
+    values: gtsam.Values
+    bounds: list[np.ndarray]
+    spec: SegmentGraphSpec
+    data: SegmentData
+
+    def start_states(self, result: gtsam.Values) -> np.ndarray:
+        """Estimated (or held) start state of each segment, ``(S, 3)``."""
+        starts = self.data.poses[:, 0].copy()
+        if self.spec.start_prior_sigmas is not None:
+            for s in range(len(self.data)):
+                pose = result.atPose2(keys.segment_pose(s))
+                starts[s] = state_from_pose2(pose, self.data.poses[s, 0, 2])
+        return starts
+
+    def corrections(self, result: gtsam.Values, segment: int) -> np.ndarray:
+        """Estimated wheel-rotation corrections ``(K, 2)`` [rev] of ``segment``."""
+        chunks = range(len(self.bounds[segment]) - 1)
+        parts = [result.atVector(keys.segment_corrections(segment, j)) for j in chunks]
+        return np.concatenate(parts).reshape(-1, 2)
+
+    def values_at(
+        self,
+        states: list[np.ndarray],
+        corrections: list[np.ndarray] | None,
+        theta: np.ndarray,
+    ) -> gtsam.Values:
+        """Values of every variable from per-segment states ``(K+1, 3)``, corrections
+        ``(K, 2)`` and theta (e.g. at the truth of a synthetic drive)."""
+        values = gtsam.Values()
+        if self.spec.estimate_theta:
+            values.insert(keys.THETA, np.asarray(theta, float))
+        for s, bounds in enumerate(self.bounds):
+            _insert_segment(values, s, bounds, states[s], self.spec)
+            if self.spec.corrections is not None and corrections is not None:
+                for j in range(len(bounds) - 1):
+                    a, b = int(bounds[j]), int(bounds[j + 1])
+                    values.insert(keys.segment_corrections(s, j), corrections[s][a:b].ravel())
+        return values
+
+
+def _insert_segment(
+    values: gtsam.Values, s: int, bounds: np.ndarray, states: np.ndarray, spec: SegmentGraphSpec
+) -> None:
+    """Insert the Pose2 variables of segment ``s`` (free start, chunk boundaries)."""
+    if spec.start_prior_sigmas is not None:
+        values.insert(keys.segment_pose(s), pose2_from_state(states[0]))
+    for j in range(1, len(bounds) - 1):
+        values.insert(keys.segment_pose(s, j), pose2_from_state(states[int(bounds[j])]))
+
+
+def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGraph:
+    """The graph of ``spec`` over ``data``'s segments and its initial values.
+
+    Boundary poses start on the nominal odometry (measured start, measured inputs, initial
+    theta), corrections at zero, theta at ``spec.theta``.
+    """
+    theta0 = np.asarray(spec.theta, float)
+    graph = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    theta_slot: int | np.ndarray = theta0
+    if spec.estimate_theta:
+        theta_slot = keys.THETA
+        values.insert(keys.THETA, theta0)
+        if spec.theta_prior_sigmas is not None:
+            graph.add(theta_prior_factor(keys.THETA, np.asarray(spec.theta_prior_sigmas), theta0))
+    free_start = spec.start_prior_sigmas is not None
+    if free_start:
+        prior = np.asarray(spec.start_prior_sigmas, float)
+        position_noise = gtsam.noiseModel.Isotropic.Sigma(2, float(prior[0]))
+        heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(prior[2]))
+    continuity = np.asarray(spec.continuity_sigmas, float)
+    tracking = np.asarray(spec.tracking_sigmas, float)
+    all_bounds = []
+    for s in range(len(data)):
+        poses, inputs = data.segment(s)
+        nominal = integrate(poses[0], inputs, theta0)
+        bounds = chunk_bounds(len(inputs), spec.chunk_steps)
+        all_bounds.append(bounds)
+        _insert_segment(values, s, bounds, nominal, spec)
+        if free_start:
+            start_key = keys.segment_pose(s)
+            graph.add(
+                gtsam.PoseTranslationPrior2D(start_key, gtsam.Point2(*poses[0, :2]), position_noise)
+            )
+            graph.add(gtsam.PoseRotationPrior2D(start_key, gtsam.Rot2(poses[0, 2]), heading_noise))
+        n_chunks = len(bounds) - 1
+        for j in range(n_chunks):
+            a, b = int(bounds[j]), int(bounds[j + 1])
+            last = j == n_chunks - 1
+            correction_key = None
+            if spec.corrections is not None:
+                correction_key = _add_corrections(graph, values, s, j, bounds, inputs, spec)
+            start: int | np.ndarray = keys.segment_pose(s, j)
+            if j == 0 and not free_start:
+                start = poses[0]
+            chunk = OdometryChunk(inputs[a:b], poses[a : b + 1], float(nominal[a, 2]))
+            factor = ChunkOdometryFactor(
+                chunk,
+                start,
+                theta_slot,
+                corrections=correction_key,
+                end=None if last else keys.segment_pose(s, j + 1),
+                tracking_sigmas=tracking,
+                continuity_sigmas=continuity,
+            )
+            graph.add(factor.factor())
+    return SegmentGraph(graph, values, all_bounds, spec, data)
+
+
+def _add_corrections(
+    graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    s: int,
+    j: int,
+    bounds: np.ndarray,
+    inputs: np.ndarray,
+    spec: SegmentGraphSpec,
+) -> int:
+    """Correction variable of chunk ``j`` of segment ``s`` with its priors; returns its key."""
+    prior = spec.corrections
+    a, b = int(bounds[j]), int(bounds[j + 1])
+    measured = inputs[:, :2]
+    key = keys.segment_corrections(s, j)
+    values.insert(key, np.zeros(2 * (b - a)))
+    sizes = prior.size_sigmas(measured[a:b])
+    graph.add(chunk_correction_prior(key, measured[a:b], sizes, prior.smoothness_sigma))
+    if prior.smoothness_sigma is not None and j < len(bounds) - 2:
+        c = int(bounds[j + 2])
+        graph.add(
+            chunk_boundary_smoothness(
+                key,
+                b - a,
+                measured[b - 1],
+                keys.segment_corrections(s, j + 1),
+                c - b,
+                measured[b],
+                prior.smoothness_sigma,
+            )
+        )
+    return key
+
+
+@dataclass(frozen=True)
+class SegmentSolution:
+    """A solved segment graph (SI).
+
+    Attributes:
+        theta: estimated theta (the fixed one if theta was not a variable).
+        covariance: 4×4 marginal covariance of theta, or ``None`` (theta fixed or not asked).
+        start_states: ``(S, 3)`` estimated (or held) start states.
+        iterations, initial_error, final_error: of the Levenberg–Marquardt run (graph error is
+            half the whitened squared residual).
+        result: the solution's values; ``built`` the graph that was solved.
+    """
+
+    theta: np.ndarray
+    covariance: np.ndarray | None
+    start_states: np.ndarray
+    iterations: int
+    initial_error: float
+    final_error: float
+    result: gtsam.Values
+    built: SegmentGraph
+
+
+def solve_segment_graph(
+    data: SegmentData,
+    spec: SegmentGraphSpec,
+    max_iterations: int,
+    relative_error_tol: float,
+    label: str,
+    covariance: bool = True,
+) -> SegmentSolution:
+    """Build the graph of ``spec`` over ``data`` and solve it with Levenberg–Marquardt.
+
+    An estimated theta is checked for plausibility and, with ``covariance``, gets its marginal
+    covariance.
+
+    Raises:
+        CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
+    """
+    built = build_segment_graph(data, spec)
+    initial_error = float(built.graph.error(built.values))
+    result, iterations = solve_lm(
+        built.graph, built.values, max_iterations, relative_error_tol, label, CalibrationFailed
+    )
+    theta = np.asarray(spec.theta, float)
+    marginal = None
+    if spec.estimate_theta:
+        theta = np.asarray(result.atVector(keys.THETA))
+        check_plausible(theta, label)
+        if covariance:
+            marginal = marginal_covariance(
+                built.graph, result, keys.THETA, label, CalibrationFailed
+            )
+    return SegmentSolution(
+        theta=theta,
+        covariance=marginal,
+        start_states=built.start_states(result),
+        iterations=iterations,
+        initial_error=initial_error,
+        final_error=float(built.graph.error(result)),
+        result=result,
+        built=built,
+    )
