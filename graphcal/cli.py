@@ -16,6 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from graphcal import __version__
+from graphcal.arguments import at_least as _at_least
+from graphcal.arguments import non_negative as _non_negative
+from graphcal.arguments import whole as _whole
 from graphcal.errors import GraphcalError
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
@@ -23,46 +26,6 @@ from graphcal.pipeline.settings import Settings, load_settings
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 EXIT_BAD_INPUT = 2
-
-
-def _at_least(minimum: float, unit: str) -> Callable[[str], float]:
-    """An argparse type: a finite number >= ``minimum``."""
-
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-        if not (np.isfinite(value) and value >= minimum):
-            raise argparse.ArgumentTypeError(f"must be at least {minimum:g} {unit}, got {text!r}")
-        return value
-
-    return parse
-
-
-def _whole(minimum: int) -> Callable[[str], int]:
-    """An argparse type: a whole number >= ``minimum``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {text!r}")
-        return value
-
-    return parse
-
-
-def _non_negative(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (np.isfinite(value) and value >= 0):
-        raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
-    return value
 
 
 def _log_line(message: str) -> None:
@@ -341,33 +304,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "bench", help="benchmark against the naive GTSAM formulation", description=cmd_bench.__doc__
     )
-    p.add_argument(
-        "--length-km",
-        type=_at_least(1.0, "km"),
-        default=24.0,
-        help="synthetic drive length [km] (24)",
-    )
-    p.add_argument("--repeats", type=_whole(1), default=3, help="repeats per item (median; 3)")
-    p.add_argument("--workers", type=_whole(1), default=2, help="workers for the pipeline item (2)")
-    p.add_argument(
-        "--naive-iterations",
-        type=_whole(1),
-        default=2,
-        help="LM iterations of the naive formulation to time (2)",
-    )
-    p.add_argument(
-        "--pipeline-batches",
-        type=_whole(1),
-        default=20,
-        help="batches of the staged pipeline item (20)",
-    )
-    p.add_argument(
-        "--agreement-segments",
-        type=_whole(1),
-        default=3,
-        help="whole segments of the (a)-vs-(b) agreement problem (3)",
-    )
-    p.add_argument("--out", type=Path, default=Path("bench.json"), help="JSON report path")
+    from graphcal.bench.options import add_bench_arguments
+
+    add_bench_arguments(p)
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser(

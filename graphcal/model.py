@@ -19,12 +19,8 @@ yaw increments, the position a sum of rotated distance increments), so it has no
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-STATE_NAMES = ("px", "py", "psi")
-INPUT_NAMES = ("n_rl", "n_rr", "beta", "ay")
 PARAMETER_NAMES = ("c_e", "c_d", "t_r", "d")
 
 N_RL, N_RR, BETA, AY = range(4)
@@ -81,24 +77,6 @@ def step_increments(
     return 0.5 * (left + right), (right - left) / t_r
 
 
-def step(state: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """One step of eq. (1): the state after applying ``inputs`` to ``state``.
-
-    ``state`` is ``(..., 3)``, ``inputs`` ``(..., 4)``, ``theta`` ``(4,)`` or ``(..., 4)``.
-    """
-    state = np.asarray(state, dtype=float)
-    v, omega = step_increments(inputs, theta)
-    course = state[..., 2] + 0.5 * omega + np.asarray(inputs)[..., BETA]
-    return np.stack(
-        [
-            state[..., 0] + v * np.cos(course),
-            state[..., 1] + v * np.sin(course),
-            state[..., 2] + omega,
-        ],
-        axis=-1,
-    )
-
-
 def _increment_jacobians(
     inputs: np.ndarray, theta: np.ndarray, per_step: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -125,49 +103,6 @@ def _increment_jacobians(
         axis=-1,
     )
     return v, omega, dv_dn, domega_dn, dv_dtheta, domega_dtheta
-
-
-@dataclass(frozen=True)
-class StepJacobians:
-    """Analytic Jacobians of one step of eq. (1).
-
-    Attributes:
-        state: d x_next / d x, shape ``(..., 3, 3)``.
-        wheel_rotations: d x_next / d [n_rl, n_rr], shape ``(..., 3, 2)`` [state unit per rev].
-        theta: d x_next / d theta, shape ``(..., 3, 4)``.
-    """
-
-    state: np.ndarray
-    wheel_rotations: np.ndarray
-    theta: np.ndarray
-
-
-def step_jacobians(state: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> StepJacobians:
-    """Analytic Jacobians of :func:`step` with respect to state, wheel rotations and theta."""
-    state = np.asarray(state, dtype=float)
-    v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, False)
-    course = state[..., 2] + 0.5 * omega + np.asarray(inputs)[..., BETA]
-    cos_c, sin_c = np.cos(course), np.sin(course)
-    shape = np.broadcast_shapes(state.shape[:-1], v.shape)
-
-    d_state = np.zeros((*shape, 3, 3))
-    d_state[..., 0, 0] = 1.0
-    d_state[..., 1, 1] = 1.0
-    d_state[..., 2, 2] = 1.0
-    d_state[..., 0, 2] = -v * sin_c
-    d_state[..., 1, 2] = v * cos_c
-
-    def rows(dv: np.ndarray, domega: np.ndarray) -> np.ndarray:
-        c, s, vv = cos_c[..., None], sin_c[..., None], v[..., None]
-        return np.stack(
-            [dv * c - vv * s * 0.5 * domega, dv * s + vv * c * 0.5 * domega, domega], axis=-2
-        )
-
-    return StepJacobians(
-        state=d_state,
-        wheel_rotations=np.broadcast_to(rows(dv_dn, domega_dn), (*shape, 3, 2)),
-        theta=np.broadcast_to(rows(dv_dth, domega_dth), (*shape, 3, 4)),
-    )
 
 
 def _prefix_sum(x: np.ndarray, axis: int) -> np.ndarray:

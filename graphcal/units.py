@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.model import PARAMETER_NAMES
-
 #: Factor from SI to the paper's display unit, per parameter [c_e, c_d, t_r, d].
 DISPLAY_SCALE = np.array([1.0, 1e3, 1.0, 1e3])
 DISPLAY_UNITS = ("m", "mm", "m", "mm·s²/m")
@@ -20,8 +18,3 @@ DEVIATION_UNITS = ("mm", "mm", "mm", "mm·s²/m")
 def to_display(theta: np.ndarray) -> np.ndarray:
     """theta (SI) in the paper's display units (m, mm, m, mm·s²/m)."""
     return np.asarray(theta, dtype=float) * DISPLAY_SCALE
-
-
-def labelled(name: str) -> str:
-    """``'c_d [mm]'``-style label of a parameter in display units."""
-    return f"{name} [{DISPLAY_UNITS[PARAMETER_NAMES.index(name)]}]"

@@ -1,4 +1,4 @@
-"""Benchmark graphcal against the naive GTSAM formulation (same as ``graphcal bench``).
+"""Benchmark graphcal's solves next to the naive GTSAM formulation (as ``graphcal bench``).
 
     python scripts/bench.py [--length-km 24] [--repeats 3] [--workers 2] [--out bench.json]
 
@@ -7,9 +7,30 @@ See :mod:`graphcal.bench.run` for the items. Prints a table and writes ``bench.j
 
 from __future__ import annotations
 
+import argparse
 import sys
 
-from graphcal.cli import main
+from graphcal.bench.options import add_bench_arguments
+from graphcal.bench.run import run_benchmarks, write_report
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    add_bench_arguments(parser)
+    args = parser.parse_args(argv)
+    report = run_benchmarks(
+        length_km=args.length_km,
+        repeats=args.repeats,
+        workers=args.workers,
+        naive_iterations=args.naive_iterations,
+        pipeline_batches=args.pipeline_batches,
+        agreement_segments=args.agreement_segments,
+        progress=print,
+    )
+    write_report(report, args.out)
+    print(f"wrote {args.out}")
+    return 0
+
 
 if __name__ == "__main__":
-    sys.exit(main(["bench", *sys.argv[1:]]))
+    sys.exit(main())

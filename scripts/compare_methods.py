@@ -16,10 +16,11 @@ import sys
 
 import numpy as np
 
+from graphcal.evaluation import Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.report.results import run_statistics, uncertainty_summary
-from graphcal.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive
 from graphcal.units import DEVIATION_SCALE
 
@@ -41,13 +42,14 @@ def main(argv: list[str] | None = None) -> int:
         drive = simulate_drive(args.length_km, seed=seed)
         settings = Settings(batches=BatchingSettings(count=args.batches, seed=seed))
         runs = {
-            method: run_calibration(
-                drive.measured, settings, method, drive.theta_true, say, args.workers, drive.truth
-            )
+            method: run_calibration(drive.measured, settings, method, say, args.workers)
             for method in ("staged", "joint")
         }
-        staged, joint = run_statistics(runs["staged"]), run_statistics(runs["joint"])
-        crb = uncertainty_summary(runs["joint"])["joint"]["crb_sigma"]
+        truth = Truth(drive.theta_true, drive.truth)
+        evaluations = {m: evaluate(run, truth, say, args.workers) for m, run in runs.items()}
+        staged = run_statistics(runs["staged"], evaluations["staged"])
+        joint = run_statistics(runs["joint"], evaluations["joint"])
+        crb = uncertainty_summary(runs["joint"], evaluations["joint"])["joint"]["crb_sigma"]
         for method, run in runs.items():
             final_errors[method].append(run.theta - drive.theta_true)
         for i, name in enumerate(PARAMETER_NAMES):

@@ -30,7 +30,7 @@ from graphcal.localization.dead_reckoning import (
 )
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.pipeline.run import run_calibration
-from graphcal.settings import Settings
+from graphcal.pipeline.settings import Settings
 from graphcal.simulate.drive import simulate_drive
 
 COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}

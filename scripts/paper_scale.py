@@ -17,22 +17,25 @@ from pathlib import Path
 
 import numpy as np
 
+from graphcal.evaluation import Truth, evaluate
 from graphcal.files import atomic_save_figure
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.report.figures import box_plots
 from graphcal.report.results import run_statistics, uncertainty_summary, write_results
 from graphcal.report.tables import PAPER_IQR_REDUCTION, iqr_reduction
-from graphcal.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS, DISPLAY_SCALE, DISPLAY_UNITS
 
 
-def report_joint(run, stats: dict, args: argparse.Namespace, seconds: float, staged=None) -> int:
+def report_joint(
+    run, evaluation, stats: dict, args: argparse.Namespace, seconds: float, staged=None
+) -> int:
     """Print the joint method against the truth, the Cramér–Rao bound and (if given) the
     staged Step 5, with issue 6's acceptance checks."""
-    truth = run.theta_true
-    uncertainty = uncertainty_summary(run)["joint"]
+    truth = evaluation.theta_true
+    uncertainty = uncertainty_summary(run, evaluation)["joint"]
     print(
         f"\n{args.length_km:g} km, {len(run.batches)} batches of {run.batches.shape[1]}, "
         f"{len(run.selected)} selected segments, {args.workers} workers, joint: "
@@ -66,7 +69,7 @@ def report_joint(run, stats: dict, args: argparse.Namespace, seconds: float, sta
             f"{joint['rmse'] / crb:.2f}",
             f"{(run.theta[i] - truth[i]) * s:+.3f}",
             f"{np.sqrt(run.covariance[i, i]) * s:.3f}",
-            f"{np.sqrt(run.crb[i, i]) * s:.3f}",
+            f"{np.sqrt(evaluation.crb[i, i]) * s:.3f}",
         ]
         print("| " + " | ".join(row) + " |")
         checks.append((f"{name}: joint RMSE <= 1.5 x CRB", joint["rmse"] <= 1.5 * crb))
@@ -80,7 +83,7 @@ def report_joint(run, stats: dict, args: argparse.Namespace, seconds: float, sta
         f"validation error E_p: nominal {run.validation_error('nominal'):.3f} m, median "
         f"joint batch {np.nanmedian(run.batch_errors['joint']):.3f} m, recommended theta "
         f"{run.validation_error('calibrated'):.3f} m, reachable "
-        f"{run.validation_error('true'):.3f} m\n"
+        f"{evaluation.reachable_error:.3f} m\n"
     )
     for label, ok in checks:
         print(f"- [{'x' if ok else ' '}] {label}")
@@ -105,23 +108,18 @@ def main(argv: list[str] | None = None) -> int:
     drive = simulate_drive(args.length_km, seed=args.seed)
     write_synthetic_drive(drive, args.out / "drive.csv")
     settings = Settings(batches=BatchingSettings(count=args.batches, seed=args.seed))
-    runs, stats, seconds = {}, {}, {}
+    runs, evaluations, stats, seconds = {}, {}, {}, {}
+    say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     methods = ("staged", "joint") if args.method == "both" else (args.method,)
     for method in methods:
         start = time.perf_counter()
-        runs[method] = run_calibration(
-            drive.measured,
-            settings,
-            method,
-            drive.theta_true,
-            lambda line: print(line, file=sys.stderr, flush=True),
-            args.workers,
-            drive.truth,
-        )
+        runs[method] = run_calibration(drive.measured, settings, method, say, args.workers)
         seconds[method] = time.perf_counter() - start
+        truth = Truth(drive.theta_true, drive.truth)
+        evaluations[method] = evaluate(runs[method], truth, say, args.workers)
         out = args.out / method if args.method == "both" else args.out
-        write_results(runs[method], out, args.workers)
-        stats[method] = run_statistics(runs[method])
+        write_results(runs[method], out, evaluations[method])
+        stats[method] = run_statistics(runs[method], evaluations[method])
     if args.method == "both":
         estimates = {
             "step1": runs["staged"].batch_estimates("step1"),
@@ -133,7 +131,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"staged: {seconds['staged'] / 60:.1f} min")
     if "joint" in runs:
         return report_joint(
-            runs["joint"], stats["joint"], args, seconds["joint"], stats.get("staged")
+            runs["joint"],
+            evaluations["joint"],
+            stats["joint"],
+            args,
+            seconds["joint"],
+            stats.get("staged"),
         )
     run, stats, seconds = runs["staged"], stats["staged"], seconds["staged"]
     first, last = stats["step1"], stats["step5"]
@@ -185,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
                     last[name]["iqr"] <= 0.5 * first[name]["iqr"],
                 )
             )
-    reachable = run.validation_error("true")
+    reachable = evaluations["staged"].reachable_error
     step5 = float(np.nanmedian(run.batch_errors["step5"]))
     print(
         f"\nvalidation error E_p: nominal {run.validation_error('nominal'):.3f} m, "

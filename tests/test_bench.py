@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from graphcal.bench.naive import build_naive_graph, solve_naive
 from graphcal.data.segments import gather_segments, select_segments, split_segments
@@ -11,6 +12,7 @@ from graphcal.pipeline.settings import Settings
 from graphcal.simulate.drive import NoiseLevels, simulate_drive
 
 
+@pytest.mark.slow
 def test_naive_per_step_graph_agrees_with_the_segment_formulation():
     # Low noise and a short segment keep the naive graph (365 Python factors) to seconds.
     noise = NoiseLevels(position=0.05, heading=np.deg2rad(0.3), wheel_rotation=0.0001)

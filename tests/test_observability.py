@@ -71,6 +71,7 @@ def straight_drive():
     return simulate_drive(length_km=2.0, seed=5, route="straight")
 
 
+@pytest.mark.slow
 def test_straight_drive_run_keeps_unobservable_parameters_at_the_prior(straight_drive):
     settings = Settings(batches=BatchingSettings(count=3))
     run = run_calibration(straight_drive.measured, settings, "joint", workers=1)
@@ -83,6 +84,7 @@ def test_straight_drive_run_keeps_unobservable_parameters_at_the_prior(straight_
     assert any("t_r, d not calibrated" in w for w in run.warnings)
 
 
+@pytest.mark.slow
 def test_cli_straight_drive_names_what_it_cannot_calibrate(tmp_path, capsys):
     log = tmp_path / "straight.csv"
     assert main(["simulate", "--route", "straight", "--length-km", "2", "--seed", "5",

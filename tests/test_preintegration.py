@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import gtsam
 import numpy as np
 import pytest
@@ -248,3 +250,20 @@ def test_reintegration_beyond_the_threshold(drive_inputs, turn_start):
         between.unwhitenedError(values_at(pose_i, pose_j, far)), exact, rtol=0, atol=1e-12
     )
     np.testing.assert_array_equal(preintegrated.theta_linearization, THETA_NOMINAL)
+
+
+def test_many_intervals_at_once_equal_one_at_a_time():
+    """The vectorized preintegration of unequal intervals equals preintegrating each."""
+    inputs = simulate_drive(length_km=1.0, seed=3).measured.inputs
+    bounds = [100, 108, 125, 126, 166]
+    intervals = [inputs[a:b] for a, b in itertools.pairwise(bounds)]
+    theta = np.array([1.99, 0.5e-3, 1.57, 1e-3])
+    many = PreintegratedWheelOdometry.from_intervals(intervals, theta)
+    for block, together in zip(intervals, many, strict=True):
+        alone = PreintegratedWheelOdometry(theta)
+        alone.integrate_measurements(block)
+        assert together.n_steps == len(block)
+        np.testing.assert_allclose(together.delta, alone.delta, atol=1e-12)
+        np.testing.assert_allclose(together.d_delta_d_theta, alone.d_delta_d_theta, atol=1e-12)
+        np.testing.assert_allclose(together.covariance, alone.covariance, rtol=1e-9, atol=1e-20)
+        np.testing.assert_array_equal(together.inputs, block)

@@ -69,6 +69,7 @@ def test_input_estimation_turns_away_a_start_heading_error(clean_segment):
     assert recovered(100) == pytest.approx(-2.0, abs=0.15)
 
 
+@pytest.mark.slow
 def test_failed_batch_solves_are_reported_and_left_out(drive, monkeypatch):
     log = drive.measured
     data = gather_segments(log, select_segments(log, split_segments(log, 150.0, stride=25.0)))
@@ -103,6 +104,7 @@ def test_bad_settings_file_exits_2(drive_csv, tmp_path, capsys):
     assert not (tmp_path / "o").exists()
 
 
+@pytest.mark.slow
 def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, capsys):
     log_path = tmp_path / "drive.csv"
     write_synthetic_drive(drive, log_path)
@@ -162,6 +164,7 @@ def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, 
     assert validation["calibrated"] < 0.5 * validation["nominal"]
 
 
+@pytest.mark.slow
 def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monkeypatch):
     from graphcal.errors import CalibrationFailed
     from graphcal.pipeline.run import run_calibration

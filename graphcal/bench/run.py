@@ -12,7 +12,12 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
 * (c) graphcal's input estimation (Steps 2 and 4) per segment;
 * (d) graphcal's joint batch solve of the same batch;
 * (e) the staged and joint pipelines end to end at a chosen number of batches, with
-  ``workers``.
+  ``workers``;
+* (f)–(i) the localization factors (:mod:`graphcal.bench.localization`): the smoothing
+  example on a 4 km drive with theta fixed (a re-integrating Python factor per interval vs a
+  built-in ``BetweenFactorPose2`` from the preintegration: time and trajectory difference)
+  and with theta a variable (re-integrating vs preintegrated Python factor), and the online
+  fixed-lag update.
 
 Ratios are taken within one run, never against figures from another machine.
 """
@@ -32,15 +37,16 @@ from typing import Any
 
 import numpy as np
 
+from graphcal.bench.localization import solve_smoothing
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
 from graphcal.data.drive_log import load_drive_log
 from graphcal.data.segments import (
-    SegmentData,
     gather_segments,
     make_batches,
     select_segments,
     split_segments,
 )
+from graphcal.localization.online import run_online
 from graphcal.model import integrate, integrate_with_jacobians
 from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.input_estimation import estimate_inputs
@@ -63,15 +69,6 @@ def timed(fn: Callable[[], Any], repeats: int) -> tuple[float, Any]:
         result = fn()
         times.append(time.perf_counter() - start)
     return statistics.median(times), result
-
-
-def reduced(data: SegmentData, segments: int, steps: int) -> SegmentData:
-    """The first ``segments`` segments cut to at most ``steps`` steps."""
-    index = np.arange(min(segments, len(data)))
-    sub = data.take(index)
-    n = np.minimum(sub.n_steps, steps)
-    k = int(n.max())
-    return SegmentData(sub.poses[:, : k + 1], sub.inputs[:, :k], n, sub.valid[:, : k + 1])
 
 
 def run_benchmarks(
@@ -132,14 +129,11 @@ def run_benchmarks(
         python_factors=len(one),
     )
 
-    k0 = int(one.n_steps[0])
+    poses0, inputs0 = one.segment(0)
     seconds, _ = timed(
-        lambda: estimate_inputs(
-            one.poses[0, : k0 + 1], one.inputs[0, :k0], theta, settings.staged.step2
-        ),
-        repeats,
+        lambda: estimate_inputs(poses0, inputs0, theta, settings.staged.step2), repeats
     )
-    record("(c) input estimation, one segment", seconds, steps=k0)
+    record("(c) input estimation, one segment", seconds, steps=len(inputs0))
 
     seconds, joint = timed(lambda: calibrate_joint(one, settings.joint), repeats)
     record("(d) graphcal joint batch solve", seconds, iterations=joint.iterations, steps=steps)
@@ -157,7 +151,7 @@ def run_benchmarks(
     record(
         "(a) naive per-step graph, LM, per iteration",
         naive_s,
-        python_factors=naive.python_factors,
+        python_factors=naive.graph.size() - 1,
         steps=steps,
     )
 
@@ -167,7 +161,7 @@ def run_benchmarks(
 
     # Agreement: both formulations to convergence on the first whole segments of the batch
     # (cut-down segments leave t_r unobservable with a held start).
-    small = reduced(one, agreement_segments, 10**9)
+    small = one.take(np.arange(min(agreement_segments, len(one))))
     exact = calibrate_batch(small, step1).theta
     approx, naive_iterations_used = solve_naive(small, step1)
     relative = float(np.linalg.norm(approx - exact) / np.linalg.norm(exact))
@@ -177,13 +171,15 @@ def run_benchmarks(
     pipeline = Settings(batches=BatchingSettings(count=pipeline_batches))
     for method in ("staged", "joint"):
         start = time.perf_counter()
-        run = run_calibration(log, pipeline, method, drive.theta_true, None, workers)
+        run = run_calibration(log, pipeline, method, None, workers)
         record(
             f"(e) {method} pipeline",
             time.perf_counter() - start,
             batches=len(run.batches),
             workers=workers,
         )
+
+    localization = localization_items(record, repeats)
 
     return {
         "config": {
@@ -196,6 +192,7 @@ def run_benchmarks(
         },
         "items": rows,
         "naive_over_graphcal_per_iteration": speedup,
+        "localization": localization,
         "agreement": {
             "segments": len(small),
             "steps": int(small.n_steps.sum()),
@@ -204,6 +201,56 @@ def run_benchmarks(
             "theta_segment_formulation": exact.tolist(),
             "theta_naive_formulation": approx.tolist(),
         },
+    }
+
+
+def localization_items(
+    record: Callable[..., None],
+    repeats: int,
+    length_km: float = 4.0,
+    seed: int = 7,
+) -> dict[str, Any]:
+    """Items (f)–(i): the smoothing example with each odometry factor kind, and the online
+    update; returns the ratios measured in this run."""
+    drive = simulate_drive(length_km, seed=seed)
+    log, theta = drive.measured, drive.theta_true
+    solves = {}
+    for kind, estimate in (
+        ("reintegrating", False),
+        ("between", False),
+        ("reintegrating", True),
+        ("preintegrated", True),
+    ):
+        label = f"{kind}, theta {'variable' if estimate else 'fixed'}"
+        seconds, solved = timed(
+            lambda k=kind, e=estimate: solve_smoothing(log, k, theta, e), repeats
+        )
+        solves[label] = solved
+        record(
+            f"(f) smoothing {length_km:g} km, {label}",
+            seconds,
+            iterations=solved.iterations,
+            keyframes=len(solved.states),
+        )
+    fixed_old, fixed_new = solves["reintegrating, theta fixed"], solves["between, theta fixed"]
+    var_old = solves["reintegrating, theta variable"]
+    var_new = solves["preintegrated, theta variable"]
+    difference = np.linalg.norm(fixed_old.states[:, :2] - fixed_new.states[:, :2], axis=1)
+    online = run_online(simulate_drive(3.5, seed=11).measured)
+    record(
+        "(i) online fixed-lag update (3.5 km)",
+        float(np.median(online.update_seconds)),
+        mean_update_ms=float(online.update_seconds.mean() * 1e3),
+        ms_per_drive_second=online.seconds_per_drive_second() * 1e3,
+    )
+    return {
+        "keyframes": len(fixed_new.states),
+        "theta_fixed_reintegrating_over_between": fixed_old.seconds / fixed_new.seconds,
+        "theta_fixed_max_position_difference_m": float(difference.max()),
+        "theta_variable_reintegrating_over_preintegrated": var_old.seconds / var_new.seconds,
+        "theta_variable_max_theta_difference": (var_old.theta - var_new.theta).tolist(),
+        "online_mean_update_ms": float(online.update_seconds.mean() * 1e3),
+        "online_ms_per_drive_second": online.seconds_per_drive_second() * 1e3,
     }
 
 

@@ -279,6 +279,45 @@ class PreintegratedWheelOdometry:
         """A new preintegration of ``first`` followed by ``second`` (see :meth:`merge`)."""
         return first.copy().merge(second)
 
+    @classmethod
+    def from_intervals(
+        cls,
+        intervals: Sequence[np.ndarray],
+        theta_linearization: np.ndarray,
+        wheel_noise: float = DEFAULT_WHEEL_NOISE,
+    ) -> list[PreintegratedWheelOdometry]:
+        """Preintegrate many intervals ``[(L_i, 4), ...]`` at once, vectorized over intervals
+        (padded to the longest with zero rotations, which leave the pose unchanged and are
+        masked out of the covariance). Equals one :meth:`integrate_measurements` per interval.
+        """
+        lengths = np.array([len(block) for block in intervals])
+        if len(lengths) == 0:
+            return []
+        if lengths.min() < 1:
+            raise ValueError("every interval needs at least one step")
+        theta = np.asarray(theta_linearization, dtype=float)
+        mask = np.arange(lengths.max())[None, :] < lengths[:, None]
+        padded = np.zeros((*mask.shape, 4))
+        padded[mask] = np.concatenate([np.asarray(b, dtype=float) for b in intervals])
+        if not np.all(np.isfinite(padded)):
+            raise ValueError("inputs must be finite")
+        states, _, d_theta = integrate_with_jacobians(np.zeros((len(lengths), 3)), padded, theta)
+        d_wheels = end_wheel_rotation_jacobian(states, padded, theta) * mask[:, None, :, None]
+        flat = d_wheels.reshape(len(lengths), 3, -1)
+        covariance = wheel_noise**2 * flat @ flat.transpose(0, 2, 1)
+        out = []
+        for i, n in enumerate(lengths):
+            preintegrated = cls(theta, wheel_noise)
+            block = padded[i, :n].copy()
+            block.setflags(write=False)
+            preintegrated._delta = states[i, -1].copy()
+            preintegrated._d_theta = d_theta[i, -1].copy()
+            preintegrated._covariance = covariance[i]
+            preintegrated._n_steps = int(n)
+            preintegrated._input_blocks = [block]
+            out.append(preintegrated)
+        return out
+
     # -------------------------------------------------------------------------- results
     def predict(self, theta: np.ndarray | None = None) -> np.ndarray:
         """``(3,)`` delta [m, m, rad] at ``theta`` to first order:

@@ -19,10 +19,10 @@ import pandas as pd
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
+from graphcal.graph.keyframes import gnss_keyframes
 from graphcal.graph.keys import keyframe
 from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
-from graphcal.localization.smoothing import gnss_keyframes
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.model import integrate
 

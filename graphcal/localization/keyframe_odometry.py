@@ -120,9 +120,9 @@ def keyframe_odometry_factors(
     if keyframes[0] < 0 or keyframes[-1] >= len(log):
         raise GraphcalError(f"keyframes must lie within the log's {len(log)} samples")
     inputs = log.inputs
+    intervals = [inputs[a:b] for a, b in itertools.pairwise(keyframes)]
+    preintegrated = PreintegratedWheelOdometry.from_intervals(intervals, theta, wheel_noise)
     return [
-        keyframe_odometry_factor(
-            pose_keys[i], pose_keys[i + 1], theta_key, inputs[a:b], theta, wheel_noise, floor_sigmas
-        )
-        for i, (a, b) in enumerate(itertools.pairwise(keyframes))
+        _factor(pose_keys[i], pose_keys[i + 1], theta_key, p, theta, floor_sigmas)
+        for i, p in enumerate(preintegrated)
     ]

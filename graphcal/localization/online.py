@@ -30,10 +30,10 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import pose2_from_state, state_from_pose2, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
+from graphcal.graph.keyframes import gnss_keyframes
 from graphcal.graph.keys import keyframe as _pose_key
 from graphcal.graph.keys import theta as _theta_key
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
-from graphcal.localization.smoothing import gnss_keyframes
 from graphcal.model import THETA_NOMINAL, integrate
 
 

@@ -34,6 +34,7 @@ from graphcal.graph.observability import (
 )
 from graphcal.graph.segment_graph import CorrectionPrior, SegmentGraphSpec, solve_segment_graph
 from graphcal.model import THETA_NOMINAL
+from graphcal.pipeline.batch_calibration import BatchCalibration
 
 
 @dataclass(frozen=True)
@@ -103,30 +104,15 @@ class JointSettings:
 
 
 @dataclass(frozen=True)
-class JointCalibration:
-    """Result of a joint solve (SI).
+class JointCalibration(BatchCalibration):
+    """Result of a joint solve (SI): a :class:`BatchCalibration` whose covariance has the
+    start poses and wheel-rotation corrections marginalized, and its verdict.
 
     Attributes:
-        theta: ``[c_e, c_d, t_r, d]``.
-        covariance: 4×4 marginal covariance of theta (start poses and wheel-rotation
-            corrections marginalized), from the graph's information at the solution.
-        start_states: ``(S, 3)`` estimated start states.
-        iterations, initial_error, final_error: of the Levenberg–Marquardt run.
         observability: which parameters the data determined (from ``covariance``).
     """
 
-    theta: np.ndarray
-    covariance: np.ndarray
-    start_states: np.ndarray
-    iterations: int
-    initial_error: float
-    final_error: float
     observability: Observability
-
-    @property
-    def theta_sigma(self) -> np.ndarray:
-        """Standard deviation of each parameter (SI)."""
-        return np.sqrt(np.diag(self.covariance))
 
 
 def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) -> JointCalibration:

@@ -1,0 +1,119 @@
+"""The layering of the package, as imports: model < factors < graph < pipeline | localization."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1] / "graphcal"
+STANDARD = {
+    "__future__", "argparse", "collections", "concurrent", "dataclasses", "gc", "importlib",
+    "itertools", "json", "math", "os", "pathlib", "resource", "statistics", "sys", "tempfile",
+    "time", "tomllib", "typing",
+}  # fmt: skip
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _imports(path: Path) -> set[str]:
+    """Absolute names of every module ``path`` imports, at top level or inside functions."""
+    tree = ast.parse(path.read_text())
+    package = (
+        _module_name(path) if path.name == "__init__.py" else _module_name(path).rsplit(".", 1)[0]
+    )
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+                out.add(f"{base}.{node.module}" if node.module else base)
+            else:
+                out.add(node.module)
+    return out
+
+
+MODULES = {_module_name(p): _imports(p) for p in sorted(ROOT.rglob("*.py"))}
+
+
+def _unit(module: str) -> str:
+    """The architectural unit of a graphcal module: its subpackage or top-level module."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "graphcal"
+
+
+def _graphcal_units(imports: set[str]) -> set[str]:
+    return {_unit(name) for name in imports if name == "graphcal" or name.startswith("graphcal.")}
+
+
+def _third_party(imports: set[str]) -> set[str]:
+    return {n.split(".")[0] for n in imports if not n.startswith("graphcal")} - STANDARD
+
+
+def test_the_architecture_is_discovered():
+    assert {"model", "factors", "graph", "pipeline", "localization", "data", "cli"} <= {
+        _unit(m) for m in MODULES
+    }
+
+
+def test_model_is_pure_numpy():
+    assert _third_party(MODULES["graphcal.model"]) == {"numpy"}
+    assert _graphcal_units(MODULES["graphcal.model"]) == set()
+
+
+@pytest.mark.parametrize("module", [m for m in MODULES if _unit(m) == "factors"])
+def test_factors_use_only_the_model_and_gtsam(module):
+    assert _third_party(MODULES[module]) <= {"numpy", "gtsam"}
+    assert _graphcal_units(MODULES[module]) <= {"model", "factors"}
+
+
+def test_nothing_imports_the_cli():
+    importers = [
+        m
+        for m, imports in MODULES.items()
+        if _unit(m) != "cli" and "cli" in _graphcal_units(imports)
+    ]
+    assert importers == []
+
+
+@pytest.mark.parametrize("module", [m for m in MODULES if _unit(m) == "data"])
+def test_data_imports_no_factors(module):
+    assert not {"factors", "graph", "pipeline", "localization"} & _graphcal_units(MODULES[module])
+
+
+def test_pipeline_and_localization_are_siblings_on_the_graph_layer():
+    for unit, sibling in (("pipeline", "localization"), ("localization", "pipeline")):
+        for module, imports in MODULES.items():
+            if _unit(module) == unit:
+                assert sibling not in _graphcal_units(imports), module
+    graph_units = set().union(
+        *(_graphcal_units(i) for m, i in MODULES.items() if _unit(m) == "graph")
+    )
+    assert not {"pipeline", "localization", "evaluation", "report", "cli"} & graph_units
+
+
+def test_no_import_cycle_between_packages():
+    edges: dict[str, set[str]] = {}
+    for module, imports in MODULES.items():
+        unit = _unit(module)
+        edges.setdefault(unit, set()).update(_graphcal_units(imports) - {unit, "graphcal"})
+    visiting, done = set(), set()
+
+    def visit(unit: str, path: list[str]) -> None:
+        if unit in done:
+            return
+        assert unit not in visiting, "import cycle: " + " -> ".join([*path, unit])
+        visiting.add(unit)
+        for other in sorted(edges.get(unit, ())):
+            visit(other, [*path, unit])
+        visiting.discard(unit)
+        done.add(unit)
+
+    for unit in sorted(edges):
+        visit(unit, [])
