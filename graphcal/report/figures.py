@@ -205,10 +205,9 @@ def wheel_rotations_figure(run: CalibrationRun) -> Figure:
     """Measured vs estimated wheel rotations of one segment and their difference (Fig. 4)."""
     assert run.staged is not None
     s = run.staged.example_segment
-    k = int(run.data.n_steps[s])
-    dt = run.log.dt
-    t = np.arange(k) * dt
-    measured = run.data.inputs[s, :k, :2]
+    measured = run.data.segment(s)[1][:, :2]
+    k = len(measured)
+    t = np.arange(k) * run.log.dt
     compensated = run.staged.compensated_rotations[s, :k]
     estimates = run.staged.step4_estimates
     fig = Figure(figsize=(11, 4.2), layout="constrained")
