@@ -8,6 +8,7 @@ again reproduces the committed files byte for byte.
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
@@ -15,7 +16,8 @@ from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 SAMPLE = Path(__file__).resolve().parent.parent / "data" / "sample_drive.csv"
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    argparse.ArgumentParser(description=__doc__.splitlines()[0]).parse_args(argv)
     drive = simulate_drive(length_km=4.0, seed=1)
     for path in write_synthetic_drive(drive, SAMPLE):
         print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB)")
