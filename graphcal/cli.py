@@ -177,22 +177,13 @@ def _evaluate_synthetic(run, log_path: Path, say: Callable[[str], None], workers
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Time graphcal's solves next to the naive per-step GTSAM formulation; write JSON."""
-    from graphcal.bench.run import run_benchmarks, write_report
+    from graphcal.bench.run import run_from_options
 
-    report = run_benchmarks(
-        length_km=args.length_km,
-        repeats=args.repeats,
-        workers=args.workers,
-        naive_iterations=args.naive_iterations,
-        pipeline_batches=args.pipeline_batches,
-        agreement_segments=args.agreement_segments,
-        progress=print,
-    )
-    print(f"(a)/(b) per iteration: {report['naive_over_graphcal_per_iteration']:.0f}x")
     try:
-        write_report(report, args.out)
+        report = run_from_options(args, progress=print)
     except OSError as exc:
         raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+    print(f"(a)/(b) per iteration: {report['naive_over_graphcal_per_iteration']:.0f}x")
     print(f"wrote {args.out}")
     return 0
 

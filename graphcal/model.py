@@ -167,6 +167,21 @@ def integrate_with_jacobians(
     return states, d_start, d_theta
 
 
+def _direct_rotation_effects(
+    states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """How a wheel rotation at step j moves the pose of step j+1 directly: d px, d py (each
+    ``(..., K, 2)``) and d omega ``(..., K, 2)`` per [n_rl, n_rr]_j."""
+    inputs = np.asarray(inputs, dtype=float)
+    v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
+    course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
+    c, s = np.cos(course)[..., None], np.sin(course)[..., None]
+    vv = v[..., None]
+    direct_x = dv_dn * c - vv * s * 0.5 * domega_dn
+    direct_y = dv_dn * s + vv * c * 0.5 * domega_dn
+    return direct_x, direct_y, domega_dn
+
+
 def wheel_rotation_jacobian(
     states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
 ) -> np.ndarray:
@@ -186,13 +201,7 @@ def wheel_rotation_jacobian(
             d p_k / d n_j = d v_j [cos, sin](course_j) + v_j [-sin, cos](course_j) d omega_j / 2
                             + d omega_j * J (p_k - p_{j+1}),  J = 90° rotation
     """
-    inputs = np.asarray(inputs, dtype=float)
-    v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
-    course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
-    c, s = np.cos(course)[..., None], np.sin(course)[..., None]
-    vv = v[..., None]
-    direct_x = dv_dn * c - vv * s * 0.5 * domega_dn  # (..., K, 2)
-    direct_y = dv_dn * s + vv * c * 0.5 * domega_dn
+    direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
     px, py = states[..., 0], states[..., 1]  # (..., K+1)
     # lever[k, j] = p_k - p_{j+1}, used for k > j only.
     lever_x = px[..., :, None] - px[..., None, 1:]
@@ -239,15 +248,11 @@ def end_wheel_rotation_jacobian(
         rad/rev], in O(K) memory (no ``(K+1, K)`` lever table).
     """
     states = np.asarray(states, dtype=float)
-    inputs = np.asarray(inputs, dtype=float)
-    v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
-    course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
-    c, s = np.cos(course)[..., None], np.sin(course)[..., None]
-    vv = v[..., None]
+    direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
     # lever_j = p_K - p_{j+1}: the rest of the path turns about p_{j+1} by d omega_j.
     lever_x = (states[..., -1:, 0] - states[..., 1:, 0])[..., None]  # (..., K, 1)
     lever_y = (states[..., -1:, 1] - states[..., 1:, 1])[..., None]
-    jx = dv_dn * c - vv * s * 0.5 * domega_dn - domega_dn * lever_y
-    jy = dv_dn * s + vv * c * 0.5 * domega_dn + domega_dn * lever_x
+    jx = direct_x - domega_dn * lever_y
+    jy = direct_y + domega_dn * lever_x
     jx, jy, jpsi = np.broadcast_arrays(jx, jy, domega_dn)
     return np.stack([jx, jy, jpsi], axis=-3)

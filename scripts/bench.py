@@ -11,23 +11,14 @@ import argparse
 import sys
 
 from graphcal.bench.options import add_bench_arguments
-from graphcal.bench.run import run_benchmarks, write_report
+from graphcal.bench.run import run_from_options
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_bench_arguments(parser)
     args = parser.parse_args(argv)
-    report = run_benchmarks(
-        length_km=args.length_km,
-        repeats=args.repeats,
-        workers=args.workers,
-        naive_iterations=args.naive_iterations,
-        pipeline_batches=args.pipeline_batches,
-        agreement_segments=args.agreement_segments,
-        progress=print,
-    )
-    write_report(report, args.out)
+    run_from_options(args, progress=print)
     print(f"wrote {args.out}")
     return 0
 

@@ -256,6 +256,22 @@ def localization_items(
     }
 
 
+def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+    """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`
+    and write its report to ``args.out``; returns the report."""
+    report = run_benchmarks(
+        length_km=args.length_km,
+        repeats=args.repeats,
+        workers=args.workers,
+        naive_iterations=args.naive_iterations,
+        pipeline_batches=args.pipeline_batches,
+        agreement_segments=args.agreement_segments,
+        progress=progress,
+    )
+    write_report(report, args.out)
+    return report
+
+
 def write_report(report: dict[str, Any], path: str | Path) -> None:
     """Write the benchmark report as JSON."""
     Path(path).write_text(json.dumps(report, indent=2) + "\n")
