@@ -39,6 +39,7 @@ def whole(minimum: int) -> Callable[[str], int]:
 
 
 def non_negative(text: str) -> float:
+    """An argparse type: a finite number >= 0."""
     try:
         value = float(text)
     except ValueError:

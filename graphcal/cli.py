@@ -12,6 +12,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,6 +25,10 @@ from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
 from graphcal.pipeline.settings import Settings, load_settings
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
+
+if TYPE_CHECKING:
+    from graphcal.evaluation import Evaluation
+    from graphcal.pipeline.run import CalibrationRun
 
 EXIT_BAD_INPUT = 2
 
@@ -140,10 +145,10 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     say = _timed_progress()
     log = load_drive_log(args.log, min_distance=settings.segments.length)
     say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
-    run = run_calibration(log, settings, method, say, workers)
+    run = run_calibration(log, settings, method, progress=say, workers=workers)
     evaluation = _evaluate_synthetic(run, args.log, say, workers)
     try:
-        written = write_results(run, args.out, evaluation)
+        written = write_results(run, args.out, evaluation=evaluation)
     except OSError as exc:
         raise GraphcalError(f"cannot write results to {args.out}: {exc.strerror or exc}") from exc
     say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")
@@ -151,7 +156,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _evaluate_synthetic(run, log_path: Path, say: Callable[[str], None], workers: int):
+def _evaluate_synthetic(
+    run: CalibrationRun, log_path: Path, say: Callable[[str], None], workers: int
+) -> Evaluation | None:
     """The run against the truth in a synthetic drive's sidecar, or ``None`` for a real log."""
     from graphcal.data.drive_log import load_drive_log
     from graphcal.evaluation import Truth, evaluate
@@ -177,13 +184,14 @@ def _evaluate_synthetic(run, log_path: Path, say: Callable[[str], None], workers
 
 def cmd_bench(args: argparse.Namespace) -> int:
     """Time graphcal's solves next to the naive per-step GTSAM formulation; write JSON."""
-    from graphcal.bench.run import run_from_options
+    from graphcal.bench.run import run_from_options, write_report
 
+    report = run_from_options(args, progress=print)
+    print(f"(a)/(b) per iteration: {report['naive_over_graphcal_per_iteration']:.0f}x")
     try:
-        report = run_from_options(args, progress=print)
+        write_report(report, args.out)
     except OSError as exc:
         raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
-    print(f"(a)/(b) per iteration: {report['naive_over_graphcal_per_iteration']:.0f}x")
     print(f"wrote {args.out}")
     return 0
 

@@ -29,6 +29,11 @@ C_E, C_D, T_R, D = range(4)
 #: Datasheet values the paper starts from (§3.3, §4.4): c_e = 2 m, c_d = 0, t_r = 1.55 m, d = 0.
 THETA_NOMINAL = np.array([2.0, 0.0, 1.55, 0.0])
 
+#: Standard deviations of the weak prior on theta at the nominal values (SI): what a datasheet
+#: leaves open (c_e ±10 cm, c_d ±1 cm, t_r ±20 cm, d ±0.01 s²). A parameter whose posterior
+#: sigma stays near these was not determined by the data.
+THETA_PRIOR_SIGMAS = np.array([0.1, 0.01, 0.2, 0.01])
+
 
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
     """Wrap angles [rad] to [-pi, pi)."""

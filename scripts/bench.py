@@ -11,14 +11,14 @@ import argparse
 import sys
 
 from graphcal.bench.options import add_bench_arguments
-from graphcal.bench.run import run_from_options
+from graphcal.bench.run import run_from_options, write_report
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_bench_arguments(parser)
     args = parser.parse_args(argv)
-    run_from_options(args, progress=print)
+    write_report(run_from_options(args, progress=print), args.out)
     print(f"wrote {args.out}")
     return 0
 

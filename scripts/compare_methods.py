@@ -42,7 +42,9 @@ def main(argv: list[str] | None = None) -> int:
         drive = simulate_drive(args.length_km, seed=seed)
         settings = Settings(batches=BatchingSettings(count=args.batches, seed=seed))
         runs = {
-            method: run_calibration(drive.measured, settings, method, say, args.workers)
+            method: run_calibration(
+                drive.measured, settings, method, progress=say, workers=args.workers
+            )
             for method in ("staged", "joint")
         }
         truth = Truth(drive.theta_true, drive.truth)

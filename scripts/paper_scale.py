@@ -113,12 +113,14 @@ def main(argv: list[str] | None = None) -> int:
     methods = ("staged", "joint") if args.method == "both" else (args.method,)
     for method in methods:
         start = time.perf_counter()
-        runs[method] = run_calibration(drive.measured, settings, method, say, args.workers)
+        runs[method] = run_calibration(
+            drive.measured, settings, method, progress=say, workers=args.workers
+        )
         seconds[method] = time.perf_counter() - start
         truth = Truth(drive.theta_true, drive.truth)
         evaluations[method] = evaluate(runs[method], truth, say, args.workers)
         out = args.out / method if args.method == "both" else args.out
-        write_results(runs[method], out, evaluations[method])
+        write_results(runs[method], out, evaluation=evaluations[method])
         stats[method] = run_statistics(runs[method], evaluations[method])
     if args.method == "both":
         estimates = {

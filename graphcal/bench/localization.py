@@ -29,6 +29,7 @@ from graphcal.graph.keys import THETA, keyframe
 from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors, odometry_covariance
 from graphcal.localization.values import insert_states, states_from_values
+from graphcal.model import THETA_PRIOR_SIGMAS
 
 FACTOR_KINDS = ("reintegrating", "preintegrated", "between")
 
@@ -86,14 +87,14 @@ def solve_smoothing(
     if kind == "reintegrating":
         factors = _reintegrating_factors(log, keyframes, keys, theta_key, theta)
     else:
-        factors = keyframe_odometry_factors(log, keyframes, keys, theta_key, theta)
+        factors = keyframe_odometry_factors(log, keyframes, keys, theta_key, theta=theta)
     for factor in factors:
         graph.add(factor)
     values = gtsam.Values()
     insert_states(values, keys, log.poses[keyframes])
     if estimate_theta:
         values.insert(THETA, theta)
-        graph.add(theta_prior_factor(THETA, np.array([0.1, 0.01, 0.2, 0.01]), theta))
+        graph.add(theta_prior_factor(THETA, THETA_PRIOR_SIGMAS, theta))
     result, iterations = solve_lm(graph, values, 50, 1e-8, f"smoothing ({kind})")
     seconds = time.perf_counter() - start
     states = states_from_values(result, keys, float(log.psi[keyframes[0]]))

@@ -13,7 +13,7 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
 * (d) graphcal's joint batch solve of the same batch;
 * (e) the staged and joint pipelines end to end at a chosen number of batches, with
   ``workers``;
-* (f)–(i) the localization factors (:mod:`graphcal.bench.localization`): the smoothing
+* (f)–(g) the localization factors (:mod:`graphcal.bench.localization`): the smoothing
   example on a 4 km drive with theta fixed (a re-integrating Python factor per interval vs a
   built-in ``BetweenFactorPose2`` from the preintegration: time and trajectory difference)
   and with theta a variable (re-integrating vs preintegrated Python factor), and the online
@@ -171,7 +171,7 @@ def run_benchmarks(
     pipeline = Settings(batches=BatchingSettings(count=pipeline_batches))
     for method in ("staged", "joint"):
         start = time.perf_counter()
-        run = run_calibration(log, pipeline, method, None, workers)
+        run = run_calibration(log, pipeline, method, workers=workers)
         record(
             f"(e) {method} pipeline",
             time.perf_counter() - start,
@@ -210,7 +210,7 @@ def localization_items(
     length_km: float = 4.0,
     seed: int = 7,
 ) -> dict[str, Any]:
-    """Items (f)–(i): the smoothing example with each odometry factor kind, and the online
+    """Items (f)–(g): the smoothing example with each odometry factor kind, and the online
     update; returns the ratios measured in this run."""
     drive = simulate_drive(length_km, seed=seed)
     log, theta = drive.measured, drive.theta_true
@@ -238,7 +238,7 @@ def localization_items(
     difference = np.linalg.norm(fixed_old.states[:, :2] - fixed_new.states[:, :2], axis=1)
     online = run_online(simulate_drive(3.5, seed=11).measured)
     record(
-        "(i) online fixed-lag update (3.5 km)",
+        "(g) online fixed-lag update (3.5 km)",
         float(np.median(online.update_seconds)),
         mean_update_ms=float(online.update_seconds.mean() * 1e3),
         ms_per_drive_second=online.seconds_per_drive_second() * 1e3,
@@ -257,9 +257,9 @@ def localization_items(
 
 
 def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
-    """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`
-    and write its report to ``args.out``; returns the report."""
-    report = run_benchmarks(
+    """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`;
+    returns the report (write it with :func:`write_report`)."""
+    return run_benchmarks(
         length_km=args.length_km,
         repeats=args.repeats,
         workers=args.workers,
@@ -268,8 +268,6 @@ def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -
         agreement_segments=args.agreement_segments,
         progress=progress,
     )
-    write_report(report, args.out)
-    return report
 
 
 def write_report(report: dict[str, Any], path: str | Path) -> None:

@@ -69,6 +69,11 @@ class SegmentData:
     def single(cls, poses: np.ndarray, inputs: np.ndarray) -> SegmentData:
         """One segment from its poses ``(K+1, 3)`` and inputs ``(K, 4)``."""
         poses, inputs = np.asarray(poses, float), np.asarray(inputs, float)
+        if poses.ndim != 2 or inputs.ndim != 2 or len(poses) != len(inputs) + 1:
+            raise ValueError(
+                f"a segment needs poses (K+1, 3) and inputs (K, 4), got {poses.shape} and "
+                f"{inputs.shape}"
+            )
         return cls(
             poses[None], inputs[None], np.array([len(inputs)]), np.ones((1, len(poses)), bool)
         )
@@ -87,14 +92,6 @@ class SegmentData:
             self.n_steps[index],
             self.valid[index, : k + 1],
         )
-
-    def truncated(self, max_steps: int) -> SegmentData:
-        """Every segment cut to at most ``max_steps`` steps."""
-        n = np.minimum(self.n_steps, max_steps)
-        k = int(n.max())
-        valid = np.arange(k + 1)[None, :] <= n[:, None]
-        inputs = np.where(valid[:, 1:, None], self.inputs[:, :k], 0.0)
-        return SegmentData(self.poses[:, : k + 1], inputs, n, valid)
 
 
 def split_segments(

@@ -286,37 +286,41 @@ class PreintegratedWheelOdometry:
         theta_linearization: np.ndarray,
         wheel_noise: float = DEFAULT_WHEEL_NOISE,
     ) -> list[PreintegratedWheelOdometry]:
-        """Preintegrate many intervals ``[(L_i, 4), ...]`` at once, vectorized over intervals
-        (padded to the longest with zero rotations, which leave the pose unchanged and are
-        masked out of the covariance). Equals one :meth:`integrate_measurements` per interval.
+        """Preintegrate many intervals ``[(L_i, 4), ...]`` at once: one vectorized integration
+        per distinct length (keyframe intervals mostly share one), so the cost is linear in
+        the steps whatever a GNSS gap does to one interval. Equals one
+        :meth:`integrate_measurements` per interval.
         """
-        lengths = np.array([len(block) for block in intervals])
-        if len(lengths) == 0:
-            return []
-        if lengths.min() < 1:
-            raise ValueError("every interval needs at least one step")
+        blocks = [np.asarray(block, dtype=float) for block in intervals]
+        for i, block in enumerate(blocks):
+            if block.ndim != 2 or block.shape[1] != 4 or len(block) == 0:
+                raise ValueError(
+                    f"interval {i}: inputs must be (L, 4) [n_rl, n_rr, beta, ay] with L >= 1, "
+                    f"got {block.shape}"
+                )
+            if not np.all(np.isfinite(block)):
+                raise ValueError(f"interval {i}: inputs must be finite")
         theta = np.asarray(theta_linearization, dtype=float)
-        mask = np.arange(lengths.max())[None, :] < lengths[:, None]
-        padded = np.zeros((*mask.shape, 4))
-        padded[mask] = np.concatenate([np.asarray(b, dtype=float) for b in intervals])
-        if not np.all(np.isfinite(padded)):
-            raise ValueError("inputs must be finite")
-        states, _, d_theta = integrate_with_jacobians(np.zeros((len(lengths), 3)), padded, theta)
-        d_wheels = end_wheel_rotation_jacobian(states, padded, theta) * mask[:, None, :, None]
-        flat = d_wheels.reshape(len(lengths), 3, -1)
-        covariance = wheel_noise**2 * flat @ flat.transpose(0, 2, 1)
-        out = []
-        for i, n in enumerate(lengths):
-            preintegrated = cls(theta, wheel_noise)
-            block = padded[i, :n].copy()
-            block.setflags(write=False)
-            preintegrated._delta = states[i, -1].copy()
-            preintegrated._d_theta = d_theta[i, -1].copy()
-            preintegrated._covariance = covariance[i]
-            preintegrated._n_steps = int(n)
-            preintegrated._input_blocks = [block]
-            out.append(preintegrated)
-        return out
+        lengths = np.array([len(block) for block in blocks])
+        out: list[PreintegratedWheelOdometry | None] = [None] * len(blocks)
+        for length in np.unique(lengths):
+            members = np.flatnonzero(lengths == length)
+            stacked = np.stack([blocks[i] for i in members])  # (G, L, 4)
+            start = np.zeros((len(members), 3))
+            states, _, d_theta = integrate_with_jacobians(start, stacked, theta)
+            flat = end_wheel_rotation_jacobian(states, stacked, theta).reshape(len(members), 3, -1)
+            covariance = wheel_noise**2 * flat @ flat.transpose(0, 2, 1)
+            for g, i in enumerate(members):
+                preintegrated = cls(theta, wheel_noise)
+                block = stacked[g].copy()
+                block.setflags(write=False)
+                preintegrated._delta = states[g, -1].copy()
+                preintegrated._d_theta = d_theta[g, -1].copy()
+                preintegrated._covariance = covariance[g]
+                preintegrated._n_steps = int(length)
+                preintegrated._input_blocks = [block]
+                out[i] = preintegrated
+        return out  # type: ignore[return-value]
 
     # -------------------------------------------------------------------------- results
     def predict(self, theta: np.ndarray | None = None) -> np.ndarray:

@@ -1,8 +1,8 @@
 """GTSAM keys of every graph graphcal builds: one encoding, one place.
 
 A key is ``gtsam.symbol(letter, index)``. Variables that belong to a segment pack the segment
-and their position in it into the index, ``segment * SEGMENT_STRIDE + position``, so a key
-reads back as (letter, segment, position) with :func:`describe`.
+and their position in it into the index, ``segment * SEGMENT_STRIDE + position``, so keys of
+different segments never collide.
 
 =========  ==================  =====================================================
 letter     variable            index
@@ -50,12 +50,3 @@ def segment_corrections(segment: int, chunk: int) -> int:
 def keyframe(index: int) -> int:
     """Key of keyframe ``index``'s Pose2 in a localization graph."""
     return gtsam.symbol("x", index)
-
-
-def describe(key: int) -> str:
-    """A readable name of a key, e.g. ``"p(segment 3, 2)"`` or ``"t0"``, for messages."""
-    symbol = gtsam.Symbol(key)
-    letter, index = chr(symbol.chr()), symbol.index()
-    if letter in "pc":
-        return f"{letter}(segment {index // SEGMENT_STRIDE}, {index % SEGMENT_STRIDE})"
-    return f"{letter}{index}"

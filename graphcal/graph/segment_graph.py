@@ -20,7 +20,7 @@ and the naive per-step benchmark (chunks of one step).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
@@ -28,6 +28,7 @@ import numpy as np
 from graphcal.data.segments import SegmentData
 from graphcal.errors import CalibrationFailed
 from graphcal.factors import (
+    CONTINUITY_SIGMAS,
     ChunkOdometryFactor,
     OdometryChunk,
     chunk_boundary_smoothness,
@@ -86,7 +87,7 @@ class SegmentGraphSpec:
     theta_prior_sigmas: np.ndarray | None = None
     start_prior_sigmas: np.ndarray | None = None
     chunk_steps: int | None = None
-    continuity_sigmas: np.ndarray = (1e-3, 1e-3, 1e-4)
+    continuity_sigmas: np.ndarray = field(default_factory=lambda: CONTINUITY_SIGMAS.copy())
     corrections: CorrectionPrior | None = None
 
 
@@ -111,6 +112,8 @@ class SegmentGraph:
 
     def corrections(self, result: gtsam.Values, segment: int) -> np.ndarray:
         """Estimated wheel-rotation corrections ``(K, 2)`` [rev] of ``segment``."""
+        if self.spec.corrections is None:
+            raise ValueError("this segment graph has no correction variables")
         chunks = range(len(self.bounds[segment]) - 1)
         parts = [result.atVector(keys.segment_corrections(segment, j)) for j in chunks]
         return np.concatenate(parts).reshape(-1, 2)
@@ -238,16 +241,16 @@ def _add_corrections(
 
 
 @dataclass(frozen=True)
-class SegmentSolution:
-    """A solved segment graph (SI).
+class ThetaEstimate:
+    """Theta estimated from segments (SI).
 
     Attributes:
-        theta: estimated theta (the fixed one if theta was not a variable).
-        covariance: 4×4 marginal covariance of theta, or ``None`` (theta fixed or not asked).
+        theta: ``[c_e, c_d, t_r, d]`` (the fixed one if theta was not a variable).
+        covariance: 4×4 marginal covariance of theta (every other variable marginalized),
+            from the graph's information at the solution; ``None`` if not computed.
         start_states: ``(S, 3)`` estimated (or held) start states.
         iterations, initial_error, final_error: of the Levenberg–Marquardt run (graph error is
             half the whitened squared residual).
-        result: the solution's values; ``built`` the graph that was solved.
     """
 
     theta: np.ndarray
@@ -256,8 +259,31 @@ class SegmentSolution:
     iterations: int
     initial_error: float
     final_error: float
+
+    @property
+    def theta_sigma(self) -> np.ndarray:
+        """Standard deviation of each parameter (SI)."""
+        return np.sqrt(np.diag(self.covariance))
+
+
+@dataclass(frozen=True)
+class SegmentSolution(ThetaEstimate):
+    """A solved segment graph: the estimate with the solution's values (``result``) and the
+    graph that was solved (``built``)."""
+
     result: gtsam.Values
     built: SegmentGraph
+
+    def estimate(self) -> ThetaEstimate:
+        """The estimate alone (picklable: no GTSAM objects)."""
+        return ThetaEstimate(
+            self.theta,
+            self.covariance,
+            self.start_states,
+            self.iterations,
+            self.initial_error,
+            self.final_error,
+        )
 
 
 def solve_segment_graph(

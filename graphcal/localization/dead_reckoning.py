@@ -60,7 +60,7 @@ def pose_before_outage(
     noise = gtsam.noiseModel.Isotropic.Sigma(2, settings.gnss_sigma)
     for key, k in zip(keys, keyframes, strict=True):
         graph.add(gtsam.PoseTranslationPrior2D(key, gtsam.Point2(log.px[k], log.py[k]), noise))
-    for factor in keyframe_odometry_factors(log, keyframes, keys, None, theta):
+    for factor in keyframe_odometry_factors(log, keyframes, keys, None, theta=theta):
         graph.add(factor)
     values = gtsam.Values()
     insert_states(values, keys, log.poses[keyframes])

@@ -34,7 +34,7 @@ from graphcal.graph.keyframes import gnss_keyframes
 from graphcal.graph.keys import keyframe as _pose_key
 from graphcal.graph.keys import theta as _theta_key
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
-from graphcal.model import THETA_NOMINAL, integrate
+from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate
 
 
 @dataclass(frozen=True)
@@ -62,7 +62,7 @@ class OnlineSettings:
         default_factory=lambda: np.array([4e-5, 1e-6, 1e-4, 1e-6])
     )
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
-    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.01, 0.2, 0.01]))
+    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: THETA_PRIOR_SIGMAS.copy())
     initial_heading_sigma: float = 0.1
     wheel_noise: float = DEFAULT_WHEEL_NOISE
     relinearize_threshold: float = 1e-5
@@ -195,8 +195,8 @@ def run_online(
                 _pose_key(i),
                 _theta_key(slice_index),
                 inputs[a:b],
-                theta,
-                settings.wheel_noise,
+                theta=theta,
+                wheel_noise=settings.wheel_noise,
             )
         )
         stamps[_pose_key(i)] = t

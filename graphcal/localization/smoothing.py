@@ -23,7 +23,7 @@ from graphcal.graph.observability import Observability, assess_observability
 from graphcal.graph.solve import marginal_covariance, solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
-from graphcal.model import THETA_NOMINAL
+from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ class SmoothingSettings:
     gnss_sigma: float = 0.2
     heading_sigma: float | None = None
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
-    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.01, 0.2, 0.01]))
+    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: THETA_PRIOR_SIGMAS.copy())
     wheel_noise: float = DEFAULT_WHEEL_NOISE
     max_iterations: int = 50
 
@@ -90,7 +90,7 @@ def build_smoothing_graph(
         for key, k in zip(keys, keyframes, strict=True):
             graph.add(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
     for factor in keyframe_odometry_factors(
-        log, keyframes, keys, THETA, theta0, settings.wheel_noise
+        log, keyframes, keys, THETA, theta=theta0, wheel_noise=settings.wheel_noise
     ):
         graph.add(factor)
     values = gtsam.Values()

@@ -15,8 +15,8 @@ import numpy as np
 from graphcal.data.segments import SegmentData
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
-from graphcal.graph.segment_graph import SegmentGraphSpec, solve_segment_graph
-from graphcal.model import THETA_NOMINAL
+from graphcal.graph.segment_graph import SegmentGraphSpec, ThetaEstimate, solve_segment_graph
+from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class BatchSettings:
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
-    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.01, 0.2, 0.01]))
+    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: THETA_PRIOR_SIGMAS.copy())
     pose_weights: tuple[float, float, float] = PAPER_POSE_WEIGHTS
     position_sigma: float = 0.2
     estimate_start_poses: bool = True
@@ -63,30 +63,8 @@ class BatchSettings:
         )
 
 
-@dataclass(frozen=True)
-class BatchCalibration:
-    """Result of one batch solve.
-
-    Attributes:
-        theta: estimated ``[c_e, c_d, t_r, d]`` (SI).
-        covariance: 4×4 marginal covariance of theta (SI), from the graph's information at the
-            solution (assumes the pose weights are true inverse variances).
-        start_states: estimated (or held) start state of each segment, ``(S, 3)``.
-        iterations: Levenberg–Marquardt iterations used.
-        initial_error, final_error: graph error (half the weighted squared residual).
-    """
-
-    theta: np.ndarray
-    covariance: np.ndarray
-    start_states: np.ndarray
-    iterations: int
-    initial_error: float
-    final_error: float
-
-    @property
-    def theta_sigma(self) -> np.ndarray:
-        """Standard deviation of each parameter (SI)."""
-        return np.sqrt(np.diag(self.covariance))
+#: Result of one batch solve: theta, its covariance, the start states and LM statistics.
+BatchCalibration = ThetaEstimate
 
 
 def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) -> BatchCalibration:
@@ -99,11 +77,4 @@ def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) ->
     solved = solve_segment_graph(
         data, settings.graph_spec(), settings.max_iterations, 1e-10, "batch solve"
     )
-    return BatchCalibration(
-        theta=solved.theta,
-        covariance=solved.covariance,
-        start_states=solved.start_states,
-        iterations=solved.iterations,
-        initial_error=solved.initial_error,
-        final_error=solved.final_error,
-    )
+    return solved.estimate()

@@ -32,9 +32,13 @@ from graphcal.graph.observability import (
     Observability,
     assess_observability,
 )
-from graphcal.graph.segment_graph import CorrectionPrior, SegmentGraphSpec, solve_segment_graph
-from graphcal.model import THETA_NOMINAL
-from graphcal.pipeline.batch_calibration import BatchCalibration
+from graphcal.graph.segment_graph import (
+    CorrectionPrior,
+    SegmentGraphSpec,
+    ThetaEstimate,
+    solve_segment_graph,
+)
+from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 
 @dataclass(frozen=True)
@@ -52,11 +56,11 @@ class JointSettings:
         continuity_sigmas: chunk-boundary continuity [m, m, rad].
         max_iterations: Levenberg–Marquardt iteration limit.
         max_sigma_ratio: a parameter counts as calibrated when the data shrink its prior
-            sigma to at most this fraction (:mod:`graphcal.pipeline.observability`).
+            sigma to at most this fraction (:mod:`graphcal.graph.observability`).
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
-    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: np.array([0.1, 0.01, 0.2, 0.01]))
+    theta_prior_sigmas: np.ndarray = field(default_factory=lambda: THETA_PRIOR_SIGMAS.copy())
     pose_weights: tuple[float, float, float] = PAPER_POSE_WEIGHTS
     position_sigma: float = 0.2
     wheel_noise: float = 0.0005
@@ -104,8 +108,8 @@ class JointSettings:
 
 
 @dataclass(frozen=True)
-class JointCalibration(BatchCalibration):
-    """Result of a joint solve (SI): a :class:`BatchCalibration` whose covariance has the
+class JointCalibration(ThetaEstimate):
+    """Result of a joint solve (SI): a theta estimate whose covariance has the
     start poses and wheel-rotation corrections marginalized, and its verdict.
 
     Attributes:

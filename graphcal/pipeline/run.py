@@ -13,7 +13,7 @@ Methods:
 * ``"whole"`` — only the joint solve over all selected segments: quick, no batches.
 
 With the joint and whole methods, parameters the data do not determine
-(:mod:`graphcal.pipeline.observability`) stay at their prior (the nominal value) and are
+(:mod:`graphcal.graph.observability`) stay at their prior (the nominal value) and are
 reported as not calibrated. If no segment passes the yaw-rate selection they use all
 segments: the observability check, not the selection, then decides what the drive determines.
 
@@ -196,6 +196,7 @@ def run_calibration(
     log: DriveLog,
     settings: Settings | None = None,
     method: Method = "joint",
+    *,
     progress: Progress | None = None,
     workers: int = 1,
 ) -> CalibrationRun:

@@ -111,6 +111,7 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
 def batch_intervals_figure(
     run: CalibrationRun,
     evaluation: Evaluation | None = None,
+    *,
     name: str = "joint",
     limit: int = 60,
 ) -> Figure:

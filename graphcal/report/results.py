@@ -166,7 +166,7 @@ def _gtsam_version() -> str:
         return "unknown"
 
 
-def results_document(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict:
+def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = None) -> dict:
     """The content of ``calibration.json`` (SI values; display units in ``theta_display``).
 
     It depends only on the log, the settings and (for synthetic drives) the evaluation —
@@ -333,6 +333,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
 def write_results(
     run: CalibrationRun,
     out_dir: str | os.PathLike[str],
+    *,
     evaluation: Evaluation | None = None,
 ) -> list[Path]:
     """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures.
@@ -341,7 +342,8 @@ def write_results(
     Cramér–Rao bound.
     """
     out = Path(out_dir)
-    document = json.dumps(results_document(run, evaluation), indent=2, allow_nan=False) + "\n"
+    document = results_document(run, evaluation=evaluation)
+    text = json.dumps(document, indent=2, allow_nan=False) + "\n"
     errors = dict(run.segment_errors)
     if evaluation is not None:
         errors["true"] = evaluation.validation_errors
@@ -357,7 +359,7 @@ def write_results(
     if run.batches is not None:
         tables["batches.csv"] = batches_frame(run, evaluation)
     images = figures(run, evaluation)
-    written = [atomic_write_text(out / "calibration.json", document)]
+    written = [atomic_write_text(out / "calibration.json", text)]
     written += [atomic_write_csv(frame, out / name) for name, frame in tables.items()]
     written += [atomic_save_figure(fig, out / name) for name, fig in images.items()]
     return written
