@@ -130,6 +130,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate theta from a drive log and write results, figures and a summary."""
     from graphcal.data.drive_log import load_drive_log
     from graphcal.pipeline.run import run_calibration
+    from graphcal.report.result_set import check_output_directory
     from graphcal.report.results import summary_text, write_results
 
     method = args.method
@@ -141,6 +142,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             )
         method = "whole"
     settings = settings_from_args(args)
+    check_output_directory(args.out)  # before minutes of computation, not after
     workers = args.workers or default_workers()
     say = _timed_progress()
     log = load_drive_log(args.log, min_distance=settings.segments.length)

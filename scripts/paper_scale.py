@@ -3,9 +3,10 @@
     python scripts/paper_scale.py --length-km 24 --batches 1000 --workers 2 --out results/paper
 
 Simulates a drive (seed 0, the paper's noise levels, theta_true away from nominal), runs the
-five steps, writes the usual result files into ``--out`` and prints a Markdown table of the
-results next to the acceptance bounds (Step 5 vs Step 1 RMSE and IQR, final theta vs half of
-Step 1's IQR, validation error vs the reachable limit).
+five steps, writes the usual result files into ``--out/staged`` (``--out/joint`` for the
+joint method) and prints a Markdown table of the results next to the acceptance bounds
+(Step 5 vs Step 1 RMSE and IQR, final theta vs half of Step 1's IQR, validation error vs the
+reachable limit).
 """
 
 from __future__ import annotations
@@ -119,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
         seconds[method] = time.perf_counter() - start
         truth = Truth(drive.theta_true, drive.truth)
         evaluations[method] = evaluate(runs[method], truth, say, args.workers)
-        out = args.out / method if args.method == "both" else args.out
+        out = args.out / method  # a result set of its own, beside the drive files
         write_results(runs[method], out, evaluation=evaluations[method])
         stats[method] = run_statistics(runs[method], evaluations[method])
     if args.method == "both":

@@ -21,6 +21,7 @@ from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_te
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.report.figures import figures
+from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
     NOT_OBSERVABLE,
     PAPER_IQR_REDUCTION,
@@ -336,7 +337,10 @@ def write_results(
     *,
     evaluation: Evaluation | None = None,
 ) -> list[Path]:
-    """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures.
+    """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures into
+    ``out_dir`` as one set (:mod:`graphcal.report.result_set`): an earlier result set there is
+    replaced whole, an interrupted write leaves it as it was, and a directory holding other
+    files is refused (:class:`~graphcal.errors.GraphcalError`).
 
     With an evaluation (synthetic drives) the files carry the truth, errors to it and the
     Cramér–Rao bound.
@@ -359,7 +363,11 @@ def write_results(
     if run.batches is not None:
         tables["batches.csv"] = batches_frame(run, evaluation)
     images = figures(run, evaluation)
-    written = [atomic_write_text(out / "calibration.json", text)]
-    written += [atomic_write_csv(frame, out / name) for name, frame in tables.items()]
-    written += [atomic_save_figure(fig, out / name) for name, fig in images.items()]
-    return written
+
+    def write(directory: Path) -> list[Path]:
+        written = [atomic_write_text(directory / "calibration.json", text)]
+        written += [atomic_write_csv(frame, directory / name) for name, frame in tables.items()]
+        written += [atomic_save_figure(fig, directory / name) for name, fig in images.items()]
+        return written
+
+    return replace_result_set(out, write)

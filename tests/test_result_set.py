@@ -1,0 +1,89 @@
+"""Results are a set: the output place is checked before the run and replaced whole at its end."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import graphcal.pipeline.run
+import graphcal.report.results
+from graphcal.cli import main
+from graphcal.pipeline.run import run_calibration
+
+
+@pytest.fixture()
+def no_calibration(monkeypatch):
+    """Fail the test if a calibration starts: the error must come before it."""
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the calibration ran before the output place was checked")
+
+    monkeypatch.setattr(graphcal.pipeline.run, "run_calibration", refuse)
+
+
+def _bad_out(drive_csv, out, capsys) -> str:
+    assert main(["calibrate", str(drive_csv), "--out", str(out), "--batches", "0"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    return err
+
+
+def test_an_existing_file_as_out_is_refused_before_the_run(
+    drive_csv, tmp_path, capsys, no_calibration
+):
+    out = tmp_path / "results"
+    out.write_text("my notes\n")
+    assert "exists and is not a directory" in _bad_out(drive_csv, out, capsys)
+    assert out.read_text() == "my notes\n"
+
+
+def test_an_unwritable_place_is_refused_before_the_run(drive_csv, tmp_path, capsys, no_calibration):
+    blocker = tmp_path / "file.txt"
+    blocker.write_text("x")
+    assert "is not a directory" in _bad_out(drive_csv, blocker / "results", capsys)
+
+
+def test_a_directory_with_other_files_is_refused_and_left_alone(
+    drive_csv, tmp_path, capsys, no_calibration
+):
+    out = tmp_path / "home"
+    out.mkdir()
+    (out / "thesis.tex").write_text("precious")
+    err = _bad_out(drive_csv, out, capsys)
+    assert "thesis.tex" in err and "graphcal did not write" in err
+    assert [p.name for p in out.iterdir()] == ["thesis.tex"]
+
+
+def test_an_earlier_result_set_is_replaced_whole(drive_csv, tmp_path, capsys):
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "calibration.json").write_text('{"method": "staged"}')
+    (out / "wheel_rotations.png").write_bytes(b"staged figure")
+    (out / "batches.csv").write_text("batch\n0\n")
+    assert main(["calibrate", str(drive_csv), "--out", str(out), "--batches", "0"]) == 0
+    names = {p.name for p in out.iterdir()}
+    assert "wheel_rotations.png" not in names and "batches.csv" not in names  # not this run's
+    assert json.loads((out / "calibration.json").read_text())["method"] == "whole"
+    assert [p.name for p in tmp_path.iterdir()] == ["results"]  # no staging left behind
+
+
+def test_an_interrupted_write_leaves_the_earlier_set(drive, tmp_path, monkeypatch):
+    out = tmp_path / "results"
+    run = run_calibration(drive.measured, method="whole")
+    graphcal.report.results.write_results(run, out)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    real = graphcal.report.results.atomic_save_figure
+    calls = {"n": 0}
+
+    def interrupted(figure, path, *args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(figure, path, *args, **kwargs)
+
+    monkeypatch.setattr(graphcal.report.results, "atomic_save_figure", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        graphcal.report.results.write_results(run, out)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert [p.name for p in tmp_path.iterdir()] == ["results"]
