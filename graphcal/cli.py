@@ -93,6 +93,13 @@ def cmd_check(args: argparse.Namespace) -> int:
         f"{int((yaw > seg.min_yaw_rate).sum())} with {seg.yaw_statistic} |yaw rate| > "
         f"{seg.min_yaw_rate:g} rad/s"
     )
+    if log.masked is not None:
+        print(
+            f"  masked           {log.masked.sum() * log.dt:.1f} s where the positions disagree "
+            "with the wheels (no segment spans them):"
+        )
+        for note in log.mask_notes:
+            print(f"    {note}")
     return 0
 
 

@@ -200,7 +200,7 @@ def test_too_little_data_is_flagged(drive):
     )
     run = run_calibration(drive.measured, settings, "staged")
     assert len(run.selected) < 9
-    assert any("selected segments for batches of 9" in w for w in run.warnings)
+    assert any("selected segments:" in w and "instead of 9" in w for w in run.warnings)
     assert any("step4: only" in w for w in run.warnings)
 
 

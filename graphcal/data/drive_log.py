@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from graphcal.data.consistency import MAX_MASKED_SHARE, position_problem, screen
 from graphcal.errors import GraphcalError, first_line
 from graphcal.files import atomic_write_csv
 from graphcal.model import THETA_NOMINAL
@@ -49,6 +50,9 @@ class DriveLog:
     """A validated drive log: equally long float arrays, SI units, heading unwrapped.
 
     Use :func:`load_drive_log` to read one from CSV, :meth:`to_dataframe` for a pandas view.
+    ``masked`` marks samples whose position disagrees with the wheels (spikes, frozen fixes;
+    :mod:`graphcal.data.consistency`), ``mask_notes`` says where and why; no segment spans a
+    masked sample.
     """
 
     t: np.ndarray
@@ -60,11 +64,15 @@ class DriveLog:
     beta: np.ndarray
     ay: np.ndarray
     source: str = field(default="<memory>", compare=False)
+    masked: np.ndarray | None = field(default=None, compare=False)
+    mask_notes: tuple[str, ...] = field(default=(), compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
         if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:
             raise ValueError(f"DriveLog columns must be equally long 1-D arrays, got {lengths}")
+        if self.masked is not None and np.shape(self.masked) != lengths["t"]:
+            raise ValueError("DriveLog.masked must have one entry per sample")
 
     def __len__(self) -> int:
         return len(self.t)
@@ -279,6 +287,19 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
     arrays["psi"] = np.unwrap(psi)
     log = DriveLog(**arrays, source=source)
     _check_heading_units(log)
+    problem = position_problem(log)
+    if problem is not None:
+        raise DriveLogError(f"{source}: {problem}")
+    log = screen(log)
+    if log.masked is not None and log.masked.mean() > MAX_MASKED_SHARE:
+        raise _fail(
+            source,
+            None,
+            None,
+            f"{log.masked.mean():.0%} of the samples have positions that disagree with the "
+            f"wheels (first: {log.mask_notes[0]})",
+            "check the position columns (units, frame) against the wheel rotations",
+        )
 
     if min_distance > 0:
         distance = log.travelled_distance()[-1]
@@ -320,8 +341,39 @@ def _check_heading_units(log: DriveLog, window_s: float = 2.0) -> None:
         )
 
 
+#: Leading bytes of compressed files, and the pandas name of each compression.
+_COMPRESSED = {
+    b"\x1f\x8b": "gzip",
+    b"BZh": "bz2",
+    b"\xfd7zXZ\x00": "xz",
+    b"PK\x03\x04": "zip",
+    b"\x28\xb5\x2f\xfd": "zstd",
+}
+
+
+def _compression(path: Path) -> str | None:
+    """The compression of ``path`` by its leading bytes (whatever its name), or ``None``."""
+    with open(path, "rb") as handle:
+        head = handle.read(6)
+    return next((kind for magic, kind in _COMPRESSED.items() if head.startswith(magic)), None)
+
+
+def _header(path: Path, compression: str | None) -> list[str]:
+    """The raw column names of the first line, before pandas renames repeated ones."""
+    frame = pd.read_csv(path, nrows=0, compression=compression, skipinitialspace=True)
+    names = [str(c).strip() for c in frame.columns]
+    # pandas has already renamed repeats to "name.1"; read the line itself for the truth.
+    first = pd.read_csv(
+        path, nrows=1, header=None, compression=compression, dtype=str, skipinitialspace=True
+    )
+    raw = [str(c).strip() for c in first.iloc[0].tolist()]
+    return raw if len(raw) == len(names) else names
+
+
 def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> DriveLog:
     """Read and validate a drive-log CSV (see the module docstring for the format).
+
+    The file may be compressed (gzip, bz2, xz, zip, zstd), whatever its name.
 
     Args:
         path: CSV file with a header row.
@@ -331,20 +383,59 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
         DriveLogError: with one line naming the file, the column and the first bad line.
     """
     source = str(path)
-    if not Path(path).is_file():
+    path = Path(path)
+    if path.is_dir():
+        inside = sorted(p.name for p in path.glob("*.csv"))[:3]
+        hint = f" (it holds {', '.join(inside)})" if inside else ""
+        raise DriveLogError(
+            f"{source}: is a directory, not a drive-log CSV{hint}; give the CSV file's path"
+        )
+    if not path.is_file():
         raise DriveLogError(f"{source}: no such file; check the path")
     try:
+        compression = _compression(path)
+        names = _header(path, compression)
         # index_col=False: a trailing comma on data rows must not shift the columns.
-        frame = pd.read_csv(path, engine="c", skipinitialspace=True, index_col=False)
+        frame = pd.read_csv(
+            path, engine="c", skipinitialspace=True, index_col=False, compression=compression
+        )
     except OSError as exc:
         raise DriveLogError(
             f"{source}: cannot read ({exc.strerror or exc}); check the file"
         ) from exc
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+    except (
+        pd.errors.ParserError,
+        pd.errors.EmptyDataError,
+        UnicodeDecodeError,
+        EOFError,
+        ValueError,
+    ) as exc:
         first = first_line(str(exc)) or type(exc).__name__
         raise DriveLogError(
             f"{source}: not a readable CSV ({first}); export the log as CSV"
         ) from exc
+    repeated = sorted({c for c in names if c in COLUMNS and names.count(c) > 1})
+    if repeated:
+        raise _fail(
+            source,
+            repeated[0],
+            None,
+            f"column appears more than once in the header ({names.count(repeated[0])} times)",
+            "keep one column of each name",
+        )
+    if len(names) == 1:
+        for separator, label in (
+            (";", "semicolons"),
+            ("\t", "tabs"),
+            ("|", "bars"),
+            (" ", "spaces"),
+        ):
+            if separator in names[0] and "," not in names[0]:
+                raise DriveLogError(
+                    f"{source}: the header '{names[0][:60]}' is one column: the file is "
+                    f"separated by {label}, not commas; export it with ',' between columns "
+                    "and '.' as the decimal point"
+                )
     frame.columns = [str(c).strip() for c in frame.columns]
     return validate_frame(frame, source, min_distance)
 

@@ -123,6 +123,10 @@ def split_segments(
     start, first = np.unique(start, return_index=True)  # standstill can repeat a start
     stop = stop[first]
     keep = (stop < len(distance)) & (stop > start)
+    if log.masked is not None:  # no segment spans a sample the consistency screen masked
+        masked = np.concatenate([[0], np.cumsum(log.masked)])
+        clipped = np.minimum(stop, len(distance) - 1)
+        keep &= masked[clipped + 1] - masked[start] == 0
     return Segments(start[keep].astype(np.int64), stop[keep].astype(np.int64), float(length))
 
 

@@ -157,6 +157,8 @@ def select(
     its segments instead of failing (for methods that judge observability themselves).
     """
     s = settings.segments
+    for note in log.mask_notes:
+        progress(f"masked: {note}")
     segments = split_segments(log, s.length, s.stride)
     yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window)
     selected = segments.subset(yaw > s.min_yaw_rate)
@@ -231,13 +233,22 @@ def run_calibration(
     batch_excluded: dict[str, np.ndarray] = {}
     covariance = observability = None
     warnings: list[str] = []
+    if log.masked is not None:
+        seconds = float(log.masked.sum() * log.dt)
+        warnings.append(
+            f"{seconds:.1f} s of the log masked where the positions disagree with the wheels "
+            f"({len(log.mask_notes)} span(s); first: {log.mask_notes[0]}); no segment spans them"
+        )
     if method in ("staged", "joint"):
         b = settings.batches
         size = min(b.size, len(selected))
         if size < b.size:
             say(f"only {len(selected)} segments: batches of {size} instead of {b.size}")
         batches = make_batches(len(selected), size, b.count, b.seed)
-        say(f"{method}: {len(batches)} batches of {size} segments, {workers} worker(s)")
+        say(
+            f"{method}: {_plural(len(batches), 'batch', 'batches')} of {size} segments, "
+            f"{_plural(workers, 'worker', 'workers')}"
+        )
     if method == "staged":
         staged = run_staged(data, batches, settings, workers, say)
         theta = staged.final_theta
@@ -247,6 +258,12 @@ def run_calibration(
         if method == "joint":
             tasks = [(data.take(batch), settings.joint) for batch in batches]
             batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
+            step1_failed = int((~np.all(np.isfinite(batch_theta["step1"]), axis=1)).sum())
+            if step1_failed:
+                warnings.append(
+                    f"step1: {step1_failed} of {len(batches)} batch solves of the Step 1 "
+                    "baseline failed and are left out of its statistics"
+                )
             solved = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
             nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
             batch_theta["joint"] = np.array([nan_theta if r is None else r.theta for r in solved])
@@ -276,10 +293,16 @@ def run_calibration(
         "nominal": position_errors(validation, THETA_NOMINAL),
         "calibrated": position_errors(validation, theta),
     }
-    if method != "whole" and len(selected) < settings.batches.size:
+    if batches is not None and len(selected) < settings.batches.size:
+        count, size = batches.shape
         warnings.append(
-            f"only {len(selected)} selected segments for batches of {settings.batches.size}: "
-            "every batch shares most segments, so spreads understate the uncertainty"
+            f"only {len(selected)} selected segments: {_plural(count, 'batch', 'batches')} of "
+            f"{size} instead of {settings.batches.size}"
+            + (
+                "; every batch shares most segments, so spreads understate the uncertainty"
+                if count > 1
+                else "; one batch has no spread to report"
+            )
         )
     calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
     if calibrated > nominal:
@@ -351,3 +374,8 @@ def _whole_log_solve(
         settings.theta_prior_sigmas,
     )
     return theta, covariance, result.observability
+
+
+def _plural(count: int, one: str, many: str) -> str:
+    """``"1 batch"``, ``"3 batches"``."""
+    return f"{count} {one if count == 1 else many}"

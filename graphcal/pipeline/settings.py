@@ -81,6 +81,10 @@ from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.input_estimation import InputEstimationSettings
 from graphcal.pipeline.joint import JointSettings
 
+#: Upper limit [rad/s] of the yaw-rate selection threshold: no road vehicle keeps a mean yaw
+#: rate near it over a calibration segment, so a larger value is a unit or typing mistake.
+MAX_MIN_YAW_RATE = 1.0
+
 
 @dataclass(frozen=True)
 class SegmentSettings:
@@ -101,8 +105,12 @@ class SegmentSettings:
             raise ValueError("segments.yaw_window must be positive")
         if self.stride is not None and not self.stride >= 1.0:
             raise ValueError("segments.stride must be at least 1 m")
-        if not self.min_yaw_rate >= 0:
-            raise ValueError("segments.min_yaw_rate must be >= 0")
+        if not 0 <= self.min_yaw_rate < MAX_MIN_YAW_RATE:
+            raise ValueError(
+                f"segments.min_yaw_rate must be >= 0 and below {MAX_MIN_YAW_RATE:g} rad/s "
+                f"({np.degrees(MAX_MIN_YAW_RATE):.0f}°/s; a car's mean yaw rate over a segment "
+                f"stays far below it), got {self.min_yaw_rate:g}"
+            )
         if self.yaw_statistic not in ("mean", "median", "rms"):
             raise ValueError("segments.yaw_statistic must be mean, median or rms")
 

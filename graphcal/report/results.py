@@ -315,8 +315,9 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
         )
         if "nees_mean" in entry:
             line += (
-                f"; NEES {entry['nees_mean']:.2f} over {entry['nees_batches']} batches "
-                "(4 = consistent)"
+                f"; NEES {entry['nees_mean']:.2f} over {entry['nees_batches']} "
+                + ("batch " if entry["nees_batches"] == 1 else "batches ")
+                + "(4 = consistent)"
             )
         if "crb_sigma" in entry:
             line += "\n" + (

@@ -1,0 +1,139 @@
+"""Positions checked against the wheels: unit mistakes, absurd values, spikes, frozen fixes.
+
+The pose and the wheel rotations of a drive log measure the same motion, so each can check
+the other (with the nominal theta; calibration changes distances by far less than the
+factors checked here):
+
+* **absurd positions** (beyond :data:`MAX_POSITION` from the origin) and **unit mistakes**
+  (GNSS distance over the whole log far from the wheels' distance: positions in km, cm or
+  degrees, rotations per second instead of per sample) reject the log with one line;
+* **spikes** (a position step far longer than the wheels allow, e.g. a multipath fix) and
+  **frozen fixes** (a receiver repeating its last fix during an outage while the wheels roll)
+  are masked: :func:`screen` returns the log with a per-sample mask and a note per span, and
+  no calibration or validation segment spans a masked sample
+  (:func:`graphcal.data.segments.split_segments`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from graphcal.model import THETA_NOMINAL
+
+#: Largest plausible distance [m] of a position from the local frame's origin (1000 km).
+MAX_POSITION = 1e6
+#: Accepted range of GNSS distance / wheel distance over the whole log, and the window [s]
+#: over which both are compared.
+DISTANCE_RATIO_RANGE = (0.5, 2.0)
+RATIO_WINDOW_S = 2.0
+#: A position step longer than the wheels' step by more than this [m], or by ten times the
+#: log's own step noise if that is larger, is a spike.
+SPIKE_EXCESS = 3.0
+#: Samples masked on each side of a spike [s] (the fix before and after a multipath jump).
+SPIKE_MARGIN_S = 0.5
+#: A fix repeated for at least this long [s] while the wheels travel ...
+FROZEN_MIN_S = 1.0
+#: ... at least this far [m] is frozen.
+FROZEN_MIN_DISTANCE = 2.0
+#: A log with more than this share of its samples masked is rejected.
+MAX_MASKED_SHARE = 0.5
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``[(first, last), ...]`` inclusive index ranges of the True runs of ``mask``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def wheel_steps(log) -> np.ndarray:
+    """Distance [m] of each step ``k -> k+1`` from the wheel rotations (nominal c_e), ``(N-1,)``."""
+    return 0.5 * (log.n_rl[:-1] + log.n_rr[:-1]) * THETA_NOMINAL[0]
+
+
+def position_problem(log) -> str | None:
+    """One line (what, where, how to fix) if the positions cannot be in metres of a local
+    frame or disagree with the wheels over the whole log; else ``None``."""
+    radius = np.hypot(log.px, log.py)
+    if (radius > MAX_POSITION).any():
+        k = int(np.argmax(radius > MAX_POSITION))
+        return (
+            f"line {k + 2}: position ({log.px[k]:.6g}, {log.py[k]:.6g}) m is more than "
+            f"{MAX_POSITION / 1e3:.0f} km from the origin; give px, py in metres of a local frame "
+            "(e.g. ENU around the drive's start), not latitude/longitude or ECEF"
+        )
+    # Chords over 2 s windows: long enough that position noise is small next to them, short
+    # enough that a chord in a bend is nearly the arc.
+    window = max(1, round(RATIO_WINDOW_S / log.dt))
+    ends = np.arange(0, len(log), window)
+    travelled = np.concatenate([[0.0], np.cumsum(wheel_steps(log))])
+    wheels = np.diff(travelled[ends])
+    chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
+    masked, _ = inconsistent_samples(log)
+    clean = np.add.reduceat(masked.astype(int), ends)[: len(wheels)] == 0
+    usable = clean & (wheels >= 5.0)
+    if wheels[usable].sum() < 50.0:
+        return None
+    ratio = chords[usable].sum() / wheels[usable].sum()
+    low, high = DISTANCE_RATIO_RANGE
+    if not low <= ratio <= high:
+        return (
+            f"the positions travel {ratio:.3g}x the distance the wheel rotations imply "
+            f"({chords[usable].sum():.0f} m vs {wheels[usable].sum():.0f} m with c_e = 2 m); "
+            "give px, py in metres and n_rl, n_rr in revolutions per sample interval"
+        )
+    return None
+
+
+def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
+    """Samples whose position disagrees with the wheels, ``(N,)`` bool, and one note per span.
+
+    Spikes: a position step longer than the wheels' step by :data:`SPIKE_EXCESS`, masked with
+    :data:`SPIKE_MARGIN_S` on each side. Frozen fixes: the same position for at least
+    :data:`FROZEN_MIN_S` while the wheels travel :data:`FROZEN_MIN_DISTANCE`.
+    """
+    n = len(log)
+    mask = np.zeros(n, dtype=bool)
+    notes: list[str] = []
+    if n < 3:
+        return mask, notes
+    wheels = wheel_steps(log)
+    steps = np.hypot(np.diff(log.px), np.diff(log.py))
+    excess = steps - wheels
+    noise = 1.4826 * np.median(np.abs(excess - np.median(excess)))
+    margin = max(1, round(SPIKE_MARGIN_S / log.dt))
+    same = np.concatenate([[False], steps == 0.0])  # sample k repeats sample k-1
+    travelled = np.concatenate([[0.0], np.cumsum(wheels)])
+    frozen = np.zeros(n, dtype=bool)
+    for a, b in _runs(same):
+        first = a - 1  # the fix that is repeated
+        if log.t[b] - log.t[first] >= FROZEN_MIN_S and travelled[b] - travelled[first] >= (
+            FROZEN_MIN_DISTANCE
+        ):
+            frozen[first : b + 1] = True
+            notes.append(
+                f"position frozen at t = {log.t[first]:.1f}–{log.t[b]:.1f} s while the wheels "
+                f"travelled {travelled[b] - travelled[first]:.0f} m: a held fix"
+            )
+    spikes = np.zeros(n, dtype=bool)
+    for k in np.flatnonzero(excess > max(SPIKE_EXCESS, 10.0 * noise)):
+        spikes[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
+    for a, b in _runs(spikes):
+        if frozen[max(0, a - 1) : b + 2].any():
+            continue  # the jump where a held fix resumes belongs to that span's note
+        notes.append(
+            f"position jumps at t = {log.t[a]:.1f}–{log.t[b]:.1f} s (a step up to "
+            f"{steps[a : max(a + 1, b)].max():.1f} m where the wheels moved "
+            f"{wheels[a : max(a + 1, b)].max():.2f} m): spike"
+        )
+    mask = frozen | spikes
+    return mask, notes
+
+
+def screen(log):
+    """``log`` with its inconsistent samples masked (:func:`inconsistent_samples`)."""
+    mask, notes = inconsistent_samples(log)
+    if not mask.any():
+        return log
+    return dataclasses.replace(log, masked=mask, mask_notes=tuple(notes))
