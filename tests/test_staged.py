@@ -188,6 +188,8 @@ def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monk
     assert doc["steps"]["step1"]["c_e"]["median"] is None
     assert doc["iqr_reduction_percent"]["step1_to_step5"]["c_e"] is None
     assert any("step1: 3 of 3 batch solves failed" in w for w in doc["warnings"])
+    assert doc["batches"]["failed"]["step1"] == 3
+    assert doc["batches"]["failed_batches"]["step1"] == [0, 1, 2]  # named, not only counted
     assert all(np.isfinite(list(doc["theta"].values())))
 
 

@@ -214,6 +214,12 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
                 name: int((~np.all(np.isfinite(t), axis=1)).sum())
                 for name, t in run.batch_theta.items()
             },
+            # Which batches (rows of batches.csv) failed, per step or method.
+            "failed_batches": {
+                name: np.flatnonzero(~np.all(np.isfinite(t), axis=1)).tolist()
+                for name, t in run.batch_theta.items()
+                if not np.all(np.isfinite(t))
+            },
             "excluded": {
                 name: {
                     reason: int((reasons == reason).sum()) for reason in sorted(set(reasons) - {""})
