@@ -68,6 +68,7 @@ def valid(drive) -> pd.DataFrame:
     return drive.measured.to_dataframe().iloc[:3600].reset_index(drop=True)
 
 
+@pytest.mark.slow  # a sweep of hundreds of runs; the README's test command and CI run it
 def test_the_loader_never_fails_with_a_traceback(valid, tmp_path, capsys):
     rng = np.random.default_rng(FUZZ_SEED)
     text = valid.to_csv(index=False, float_format="%.17g")

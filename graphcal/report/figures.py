@@ -1,9 +1,17 @@
-"""Figures of a calibration run (matplotlib ``Figure`` objects, no global pyplot state)."""
+"""Figures of a calibration run (matplotlib ``Figure`` objects, no global pyplot state).
+
+Every figure says what it shows: numbers carry their meaning and unit, a figure that shows
+part of the data says how much, and legends sit outside the plots, never over data.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
-from matplotlib.figure import Figure
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure, SubFigure
+from matplotlib.ticker import MaxNLocator
 
 from graphcal.evaluation import Evaluation
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, integrate
@@ -18,6 +26,39 @@ _STEP_LABELS = {
     "joint": "joint",
     "whole": "whole log",
 }
+_THETA_NAMES = {"nominal": "nominal θ", "calibrated": "recommended θ", "true": "true θ"}
+#: Up to this many values per box, the values themselves are drawn over the box plot.
+_MAX_POINTS = 30
+#: Reachable (true θ) lines: wide and pale beneath the thin recommended line, so both show
+#: when they (nearly) coincide.
+_TRUE_LINE = {"color": _COLOURS["true"], "lw": 5.0, "alpha": 0.35, "zorder": 1}
+#: Side padding [in] of equal-aspect maps: room for a tick label centred on the axes' edge,
+#: which the layout does not foresee when the aspect widens the limits.
+_EDGE_PAD = 0.25
+_RECOMMENDED_LINE = {"color": _COLOURS["calibrated"], "lw": 1.2, "zorder": 3}
+
+
+def _count(n: int, singular: str, plural: str) -> str:
+    """``"1 batch"``, ``"2 batches"``."""
+    return f"{n} {singular if n == 1 else plural}"
+
+
+def _legend_below(
+    fig: Figure | SubFigure, axes: Iterable[Axes], ncols: int, fontsize: str = "small"
+) -> None:
+    """One legend of the entries of ``axes`` (first of each label) below the plots."""
+    entries: dict[str, object] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    if entries:
+        fig.legend(
+            list(entries.values()),
+            list(entries),
+            loc="outside lower center",
+            ncols=min(ncols, len(entries)),
+            fontsize=fontsize,
+        )
 
 
 def _theta_true(evaluation: Evaluation | None) -> np.ndarray | None:
@@ -34,7 +75,7 @@ def _segment_errors(run: CalibrationRun, evaluation: Evaluation | None) -> dict[
 
 def route_figure(run: CalibrationRun) -> Figure:
     """The measured route with the selected calibration segments highlighted."""
-    fig = Figure(figsize=(7, 6), layout="constrained")
+    fig = Figure(figsize=(7, 6.6), layout="constrained")
     ax = fig.add_subplot()
     log = run.log
     ax.plot(log.px, log.py, color="0.75", lw=0.8, label="measured route")
@@ -46,16 +87,49 @@ def route_figure(run: CalibrationRun) -> Figure:
             lw=1.6,
             label="selected calibration segments" if i == 0 else None,
         )
+    ax.plot(log.px[0], log.py[0], "o", color="k", ms=5, label="start", zorder=4)
     ax.set_aspect("equal", adjustable="datalim")
+    fig.get_layout_engine().set(w_pad=_EDGE_PAD)
     ax.set_xlabel("px [m]")
     ax.set_ylabel("py [m]")
     s = run.settings.segments
-    ax.set_title(
-        f"{len(run.selected)} of {len(run.segments)} segments selected "
-        f"({s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s)"
-    )
-    ax.legend(loc="best")
+    rule = f"{s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s"
+    passing = int(np.sum(run.yaw_rate > s.min_yaw_rate))
+    if len(run.selected) == passing:
+        title = (
+            f"Route: {len(run.selected)} of {len(run.segments)} calibration segments "
+            f"of {s.length:g} m selected\n(those with {rule})"
+        )
+    else:  # no segment passed: the method fell back to all of them
+        title = (
+            f"Route: all {len(run.segments)} calibration segments of {s.length:g} m used\n"
+            f"(none has {rule})"
+        )
+    ax.set_title(title)
+    _legend_below(fig, [ax], ncols=3, fontsize="medium")
     return fig
+
+
+def _boxes(ax: Axes, data: list[np.ndarray], labels: list[str], vertical: bool, label: str) -> None:
+    """Box plots of ``data``; with few values per box, the values themselves over the boxes
+    (instead of outlier circles: a box of one value is just a line)."""
+    few = all(len(d) <= _MAX_POINTS for d in data)
+    ax.boxplot(
+        data,
+        orientation="vertical" if vertical else "horizontal",
+        tick_labels=labels,
+        showfliers=not few,
+    )
+    if not few:
+        return
+    drawn = False
+    for position, v in enumerate(data, start=1):
+        if len(v):
+            at = np.full(len(v), float(position))
+            x, y = (at, v) if vertical else (v, at)
+            style = {"ms": 3.5, "mfc": "none", "color": "0.25", "zorder": 4}
+            ax.plot(x, y, "o", **style, label=None if drawn else label)
+            drawn = True
 
 
 def box_plots(
@@ -69,33 +143,39 @@ def box_plots(
 
     Args:
         estimates: per step or method (``"step1"``, ``"step5"``, ``"joint"``, ...), thetas
-            ``(B, 4)`` in SI; NaN rows are left out.
+            ``(B, 4)`` in SI; NaN rows are left out (a tick label says how many are left).
         title: figure title.
         theta_true, recommended: drawn as horizontal lines when given.
         not_observable: parameters the data did not determine: no recommended line, and the
             panel says so.
     """
-    fig = Figure(figsize=(11, 3.6), layout="constrained")
+    fig = Figure(figsize=(11, 4.4), layout="constrained")
     names = list(estimates)
+    axes = []
     for i, name in enumerate(PARAMETER_NAMES):
         ax = fig.add_subplot(1, 4, i + 1)
-        data = []
+        axes.append(ax)
+        data, labels = [], []
         for step in names:
             t = estimates[step][:, i]
             data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
-        ax.boxplot(data, tick_labels=[_STEP_LABELS.get(s, s) for s in names])
+            label = _STEP_LABELS.get(step, step)
+            if len(data[-1]) < len(t):
+                label += f"\n({len(data[-1])} of {len(t)})"
+            labels.append(label)
+        _boxes(ax, data, labels, vertical=True, label="one batch's estimate")
         if theta_true is not None:
-            ax.axhline(theta_true[i] * DISPLAY_SCALE[i], color="tab:green", ls="--", label="true")
+            ax.axhline(theta_true[i] * DISPLAY_SCALE[i], **_TRUE_LINE, label="true θ")
         hidden = name in not_observable
         if recommended is not None and not hidden:
             ax.axhline(
-                recommended[i] * DISPLAY_SCALE[i], color="tab:blue", lw=0.8, label="recommended"
+                recommended[i] * DISPLAY_SCALE[i], **_RECOMMENDED_LINE, label="recommended θ"
             )
         ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + (": not observable" if hidden else ""))
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(axis="y", alpha=0.3)
-        if i == 0:
-            ax.legend(loc="best", fontsize="small")
     fig.suptitle(title)
+    _legend_below(fig, axes, ncols=4)
     return fig
 
 
@@ -104,7 +184,10 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     assert run.batches is not None
     estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
     hidden = tuple(run.observability.not_calibrated) if run.observability is not None else ()
-    title = f"Estimates over {len(run.batches)} batches"
+    title = (
+        f"Estimates of θ over {_count(len(run.batches), 'batch', 'batches')}, by step "
+        "(box: quartiles, whiskers: data within 1.5 IQR)"
+    )
     return box_plots(estimates, title, _theta_true(evaluation), run.theta, hidden)
 
 
@@ -115,48 +198,83 @@ def batch_intervals_figure(
     name: str = "joint",
     limit: int = 60,
 ) -> Figure:
-    """Per-batch estimates of ``name`` with ±2σ bars, next to the recommended theta's band.
+    """Every batch's estimate of ``name`` next to the recommended theta's ±2σ band.
 
-    Shows the first ``limit`` batches; excluded batches are drawn hollow in grey.
+    Up to ``limit`` batches get ±2σ bars; more are drawn as points, and the title says so.
+    Excluded batches are grey crosses; failed solves (no estimate) are counted in the title.
     """
     thetas, covariances = run.batch_theta[name], run.batch_covariance[name]
-    excluded = run.batch_excluded.get(name, np.full(len(thetas), "", dtype=object))
-    shown = np.arange(min(limit, len(thetas)))
-    fig = Figure(figsize=(11, 6), layout="constrained")
+    count = len(thetas)
+    excluded = run.batch_excluded.get(name, np.full(count, "", dtype=object))
+    batch = np.arange(count)
+    finite = np.all(np.isfinite(thetas), axis=1)
+    bars = count <= limit
+    kinds = (
+        (finite & (excluded == ""), "o", "tab:blue", "batch ±2σ" if bars else "batch estimate"),
+        (finite & (excluded != ""), "x", "0.55", "excluded batch"),
+    )
+    fig = Figure(figsize=(11, 6.6), layout="constrained")
+    axes = []
     for i, parameter in enumerate(PARAMETER_NAMES):
         ax = fig.add_subplot(2, 2, i + 1)
+        axes.append(ax)
         scale = DISPLAY_SCALE[i]
-        value = thetas[shown, i] * scale
-        bar = 2.0 * np.sqrt(covariances[shown, i, i]) * scale
-        for mask, style in ((excluded[shown] == "", "o"), (excluded[shown] != "", "x")):
-            if mask.any():
+        value = thetas[:, i] * scale
+        for mask, marker, colour, label in kinds:
+            if not mask.any():
+                continue
+            if bars:
+                bar = 2.0 * np.sqrt(covariances[mask, i, i]) * scale
                 ax.errorbar(
-                    shown[mask],
+                    batch[mask],
                     value[mask],
-                    yerr=bar[mask],
-                    fmt=style,
+                    yerr=bar,
+                    fmt=marker,
                     ms=3,
                     lw=0.8,
-                    color="tab:blue" if style == "o" else "0.6",
-                    label="batch ±2σ" if style == "o" else "excluded batch",
+                    color=colour,
+                    label=label,
                 )
+            else:
+                size = 2.0 if marker == "o" else 4.0
+                ax.plot(
+                    batch[mask], value[mask], marker, ms=size, alpha=0.7, color=colour, label=label
+                )
+        title = f"{parameter} [{DISPLAY_UNITS[i]}]"
         if run.covariance is not None and run.observability is not None:
             if run.observability.calibrated[i]:
                 centre = run.theta[i] * scale
                 half = 2.0 * np.sqrt(run.covariance[i, i]) * scale
-                ax.axhspan(centre - half, centre + half, color="tab:blue", alpha=0.15)
-                ax.axhline(centre, color="tab:blue", lw=0.8, label="recommended ±2σ")
+                ax.axhspan(
+                    centre - half,
+                    centre + half,
+                    color="tab:blue",
+                    alpha=0.15,
+                    lw=0,
+                    label="recommended θ ±2σ",
+                )
+                ax.axhline(centre, **_RECOMMENDED_LINE, label="recommended θ")
             else:
-                ax.set_title(f"{parameter} [{DISPLAY_UNITS[i]}]: not observable")
+                title += ": not observable"
+        sigmas = np.sqrt(covariances[kinds[0][0], i, i]) * scale
+        if not bars and np.isfinite(sigmas).any():  # the bars' size, in words
+            title += f"; median batch 2σ: ±{2.0 * np.nanmedian(sigmas):#.2g}"
         if evaluation is not None:
-            ax.axhline(evaluation.theta_true[i] * scale, color="tab:green", ls="--", label="true")
-        if not ax.get_title():
-            ax.set_title(f"{parameter} [{DISPLAY_UNITS[i]}]")
-        ax.set_xlabel("batch")
+            ax.axhline(evaluation.theta_true[i] * scale, **_TRUE_LINE, label="true θ")
+        ax.set_title(title)
+        ax.set_xlabel("batch number")
+        ax.set_xlim(-0.5, max(count, 1) - 0.5)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
+        ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(alpha=0.3)
-        if i == 0:
-            ax.legend(loc="best", fontsize="small")
-    fig.suptitle(f"{_STEP_LABELS.get(name, name)} estimates per batch with ±2σ (95 %) bars")
+    failed = int(np.sum(~finite))
+    if failed:
+        shown = f"{count - failed} of {count} batches ({failed} failed, no estimate)"
+    else:
+        shown = f"all {count} batches" if count > 1 else "the only batch"
+    detail = " with ±2σ (95 %) bars" if bars else f"; ±2σ bars drawn only up to {limit} batches"
+    fig.suptitle(f"{_STEP_LABELS.get(name, name).capitalize()} estimates of {shown}{detail}")
+    _legend_below(fig, axes, ncols=5)
     return fig
 
 
@@ -164,41 +282,59 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     """Validation errors E_p of the batches' theta per step (paper Fig. 6)."""
     segment_errors = _segment_errors(run, evaluation)
     mean_error = {name: float(np.mean(e)) for name, e in segment_errors.items()}
-    fig = Figure(figsize=(7, 3.8), layout="constrained")
+    fig = Figure(figsize=(7.5, 4.6), layout="constrained")
     ax = fig.add_subplot()
     if any(np.isfinite(e).any() for e in run.batch_errors.values()):  # E_p per batch, step
-        labels = [_STEP_LABELS.get(n, n) for n in run.batch_errors]
-        data = [e[np.isfinite(e)] for e in run.batch_errors.values()]
+        data, labels = [], []
+        for name, e in run.batch_errors.items():
+            data.append(e[np.isfinite(e)])
+            counted = (
+                _count(len(e), "batch", "batches")
+                if len(data[-1]) == len(e)
+                else f"{len(data[-1])} of {len(e)} batches"
+            )
+            labels.append(f"{_STEP_LABELS.get(name, name)}\n({counted})")
+        ax.set_ylabel("θ of each batch, by step")
+        ax.set_xlabel("validation error E_p [m] (mean position error, eq. 16 / K)")
+        points = "E_p of a batch's θ"
     else:  # no batches: the spread over the validation segments of each theta
-        labels = [f"{n} θ, per segment" for n in segment_errors]
+        labels = [_THETA_NAMES[n] for n in segment_errors]
         data = list(segment_errors.values())
-    ax.boxplot(data, orientation="horizontal", tick_labels=labels)
-    top = max(float(np.max(d)) for d in data if len(d))
-    for name, style in (("nominal", ":"), ("true", "--"), ("calibrated", "-")):
-        if name == "nominal" and mean_error[name] > 1.5 * top:
-            ax.plot(
-                [],
-                [],
-                color=_COLOURS[name],
-                ls=style,
-                label=f"nominal: {mean_error[name]:.2f} m (off scale)",
-            )
+        ax.set_ylabel("θ of the odometry")
+        ax.set_xlabel("mean position error of a validation segment [m] (lines: E_p, their mean)")
+        points = "a segment's error"
+    _boxes(ax, data, labels, vertical=False, label=points)
+    values = np.concatenate([np.ravel(d) for d in data])
+    shown = [float(v) for v in values[np.isfinite(values)]]
+    top = max(shown, default=np.nan)
+    names = {**_THETA_NAMES, "true": "reachable (true θ)"}
+    # enough digits to tell the recommended from the reachable error apart
+    close = abs(mean_error["calibrated"] - mean_error.get("true", np.inf)) < 0.01
+    digits = 3 if close else 2
+    for name, style in (
+        ("nominal", {"color": _COLOURS["nominal"], "ls": ":", "lw": 1.5, "zorder": 2}),
+        ("true", _TRUE_LINE),
+        ("calibrated", _RECOMMENDED_LINE),
+    ):
+        if name not in mean_error:
             continue
-        if name in mean_error:
-            label = {"true": "reachable (true θ)", "calibrated": "recommended θ"}.get(name, name)
-            ax.axvline(
-                mean_error[name],
-                color=_COLOURS[name],
-                ls=style,
-                label=f"{label}: {mean_error[name]:.2f} m",
-            )
-    ax.set_xlabel("validation error E_p [m] (mean position error, eq. 16 / K)")
+        label = f"{names[name]}: E_p {mean_error[name]:.{digits}f} m"
+        if name == "nominal" and mean_error[name] > 1.5 * top:
+            ax.plot([], [], **style, label=label + " (off scale)")
+            continue
+        ax.axvline(mean_error[name], **style, label=label)
+        if np.isfinite(mean_error[name]):
+            shown.append(mean_error[name])
+    if shown:  # everything drawn, with a margin (a box of one value is not at the edge)
+        low, high = min(shown), max(shown)
+        pad = 0.05 * (high - low) if high > low else 0.05 * max(abs(high), 1.0)
+        ax.set_xlim(low - pad, high + pad)
     ax.set_title(
-        f"Validation on {len(run.validation)} segments of "
+        f"Validation on {_count(len(run.validation), 'segment', 'segments')} of "
         f"{run.settings.segments.validation_length:g} m"
     )
     ax.grid(axis="x", alpha=0.3)
-    ax.legend(loc="best", fontsize="small")
+    _legend_below(fig, [ax], ncols=2)
     return fig
 
 
@@ -211,8 +347,9 @@ def wheel_rotations_figure(run: CalibrationRun) -> Figure:
     t = np.arange(k) * run.log.dt
     compensated = run.staged.compensated_rotations[s, :k]
     estimates = run.staged.step4_estimates
-    fig = Figure(figsize=(11, 4.2), layout="constrained")
-    left, right = fig.add_subplot(1, 2, 1), fig.add_subplot(1, 2, 2)
+    fig = Figure(figsize=(11, 5.0), layout="constrained")
+    left_fig, right_fig = fig.subfigures(1, 2)
+    left, right = left_fig.add_subplot(), right_fig.add_subplot()
     for e in estimates:
         left.plot(t, (e - measured)[:, 0] * 1e3, color="tab:blue", lw=0.5, alpha=0.4)
         left.plot(t, (e - measured)[:, 1] * 1e3, color="tab:orange", lw=0.5, alpha=0.4)
@@ -231,17 +368,24 @@ def wheel_rotations_figure(run: CalibrationRun) -> Figure:
         lw=1.4,
         label="compensated − measured, rear right",
     )
-    left.plot([], [], color="0.4", lw=0.5, label=f"thin: the {len(estimates)} Step 4 estimates")
+    estimated = _count(len(estimates), "Step 4 estimate", "Step 4 estimates")
+    left.plot([], [], color="0.4", lw=0.5, label=f"thin, same colours: {estimated}")
     right.plot(t, measured[:, 1] - measured[:, 0], ".", ms=1.5, color="0.5", label="measured")
     right.plot(t, compensated[:, 1] - compensated[:, 0], color="k", lw=1.2, label="compensated")
-    right.plot([], [], color="tab:blue", lw=0.5, label="Step 4 estimates")
+    right.plot([], [], color="tab:blue", lw=0.5, label=estimated)
+    left.set_title("Correction of each rear wheel")
     left.set_ylabel("wheel-rotation correction [10⁻³ rev per sample]")
-    right.set_ylabel("n_rr − n_rl [rev]")
-    for ax in (left, right):
+    right.set_title("Right minus left wheel rotation (turning)")
+    right.set_ylabel("n_rr − n_rl [rev per sample]")
+    for sub, ax in ((left_fig, left), (right_fig, right)):
         ax.set_xlabel("time in segment [s]")
         ax.grid(alpha=0.3)
-        ax.legend(loc="best", fontsize="small")
-    fig.suptitle(f"Wheel rotations of selected segment {s}")
+        _legend_below(sub, [ax], ncols=2)
+    start = run.log.t[run.selected.start[s]] - run.log.t[0]
+    fig.suptitle(
+        f"Wheel rotations of selected calibration segment {s} "
+        f"(from {start:.0f} s into the log, {t[-1]:.1f} s long)"
+    )
     return fig
 
 
@@ -254,23 +398,30 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     thetas = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
     if evaluation is not None:
         thetas["true"] = evaluation.theta_true
-    fig = Figure(figsize=(7, 6), layout="constrained")
+    fig = Figure(figsize=(7, 7), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(poses[:, 0], poses[:, 1], ".", ms=1.5, color="0.5", label="measured")
+    ax.plot(poses[:, 0], poses[:, 1], ".", ms=1.5, color="0.5", label="measured positions")
     for name, theta in thetas.items():
         path = integrate(poses[0], inputs, theta)
+        error = segment_errors[name][i]
         ax.plot(
             path[:, 0],
             path[:, 1],
             color=_COLOURS[name],
             ls="--" if name == "true" else "-",
-            label=f"odometry, {name} θ ({segment_errors[name][i]:.2f} m)",
+            label=f"odometry, {_THETA_NAMES[name]}: mean position error {error:.2f} m",
         )
+    ax.plot(poses[0, 0], poses[0, 1], "o", color="k", ms=5, label="start", zorder=4)
     ax.set_aspect("equal", adjustable="datalim")
+    fig.get_layout_engine().set(w_pad=_EDGE_PAD)
     ax.set_xlabel("px [m]")
     ax.set_ylabel("py [m]")
-    ax.set_title(f"Validation segment {i}: odometry from the measured start pose")
-    ax.legend(loc="best")
+    ax.set_title(
+        f"Validation segment {i} ({run.settings.segments.validation_length:g} m): "
+        f"the median of {len(errors)} by nominal-θ error\n"
+        "odometry integrated from the measured start pose"
+    )
+    _legend_below(fig, [ax], ncols=1)
     return fig
 
 

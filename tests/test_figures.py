@@ -1,0 +1,200 @@
+"""Figures a user can trust: all batches shown or counted, numbers labelled, legends off data."""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure, SubFigure
+from matplotlib.legend import Legend
+from matplotlib.lines import Line2D
+
+from graphcal.evaluation import Evaluation, Truth, evaluate
+from graphcal.pipeline.run import CalibrationRun, run_calibration
+from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.report.figures import (
+    batch_intervals_figure,
+    figures,
+    parameters_figure,
+    route_figure,
+    trajectory_figure,
+    validation_figure,
+    wheel_rotations_figure,
+)
+from graphcal.simulate.drive import SyntheticDrive, simulate_drive
+
+
+@pytest.fixture(scope="module")
+def small_drive() -> SyntheticDrive:
+    return simulate_drive(length_km=3.0, seed=11)
+
+
+@pytest.fixture(scope="module")
+def joint(small_drive: SyntheticDrive) -> tuple[CalibrationRun, Evaluation]:
+    """A joint run with two batches, and its evaluation against the truth."""
+    settings = Settings(batches=BatchingSettings(count=2, size=4))
+    run = run_calibration(small_drive.measured, settings, "joint", workers=1)
+    return run, evaluate(run, Truth(small_drive.theta_true))
+
+
+@pytest.fixture(scope="module")
+def staged(small_drive: SyntheticDrive) -> CalibrationRun:
+    """A staged run with one batch: one Step 4 estimate per segment."""
+    settings = Settings(batches=BatchingSettings(count=1, size=3))
+    return run_calibration(small_drive.measured, settings, "staged", workers=1)
+
+
+def _drawn(fig: Figure) -> Figure:
+    FigureCanvasAgg(fig)
+    fig.canvas.draw()
+    return fig
+
+
+def _legends(fig: Figure | SubFigure) -> list[Legend]:
+    """Every legend of a figure: its own, its subfigures' and its axes'."""
+    found = list(fig.legends)
+    for sub in fig.subfigs:
+        found += _legends(sub)
+    if isinstance(fig, Figure):
+        found += [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    return found
+
+
+def _legend_texts(fig: Figure) -> list[str]:
+    return [text.get_text() for legend in _legends(fig) for text in legend.get_texts()]
+
+
+def _batch_points(ax) -> set[float]:
+    """x of the markers (no connecting line) drawn in ``ax``: the batches it shows."""
+    xs: set[float] = set()
+    for line in ax.lines:
+        if line.get_marker() not in (None, "", "None", " ") and line.get_linestyle() == "None":
+            xs.update(float(x) for x in np.asarray(line.get_xdata(), dtype=float))
+    return xs
+
+
+def _many_batches(run: CalibrationRun, count: int) -> CalibrationRun:
+    """``run`` with ``count`` made-up joint batches: #5 failed, #7 excluded."""
+    rng = np.random.default_rng(0)
+    sigma = np.sqrt(np.diag(run.covariance))
+    thetas = run.theta + rng.normal(size=(count, 4)) * 3.0 * sigma
+    thetas[5] = np.nan
+    covariances = np.repeat(run.covariance[None] * 9.0, count, axis=0)
+    excluded = np.full(count, "", dtype=object)
+    excluded[5] = "solve failed"
+    excluded[7] = "not observable: t_r"
+    return dataclasses.replace(
+        run,
+        batches=np.zeros((count, 4), dtype=int),
+        batch_theta={"joint": thetas},
+        batch_covariance={"joint": covariances},
+        batch_excluded={"joint": excluded},
+    )
+
+
+def test_batch_intervals_show_every_batch_of_a_long_run(joint):
+    run, evaluation = joint
+    many = _many_batches(run, 1000)
+    fig = batch_intervals_figure(many, evaluation)
+    expected = set(float(b) for b in range(1000)) - {5.0}  # batch 5 has no estimate
+    for ax in fig.axes:
+        assert _batch_points(ax) == expected, ax.get_title()
+    title = fig.get_suptitle()
+    assert "999 of 1000 batches" in title
+    assert "1 failed" in title
+    assert "excluded batch" in _legend_texts(fig)
+
+
+def test_batch_intervals_ticks_are_whole_batch_numbers(joint):
+    run, evaluation = joint
+    one = dataclasses.replace(
+        run,
+        batches=run.batches[:1],
+        batch_theta={k: v[:1] for k, v in run.batch_theta.items()},
+        batch_covariance={k: v[:1] for k, v in run.batch_covariance.items()},
+        batch_excluded={k: v[:1] for k, v in run.batch_excluded.items()},
+    )
+    fig = _drawn(batch_intervals_figure(one, evaluation))
+    for ax in fig.axes:
+        low, high = ax.get_xlim()
+        ticks = [t for t in ax.get_xticks() if low <= t <= high]
+        assert ticks and all(float(t).is_integer() for t in ticks)
+    assert "1 batches" not in fig.get_suptitle()
+
+
+def test_no_legend_covers_an_axes(joint, staged):
+    run, evaluation = joint
+    every = {**figures(run, evaluation), **figures(staged)}
+    every["batch_intervals_many.png"] = batch_intervals_figure(_many_batches(run, 1000))
+    assert "wheel_rotations.png" in every and "batch_intervals.png" in every
+    for name, fig in every.items():
+        _drawn(fig)
+        legends = _legends(fig)
+        assert legends, f"{name} has no legend"
+        for legend in legends:
+            box = legend.get_window_extent()
+            for ax in fig.axes:
+                assert not box.overlaps(ax.get_window_extent()), (name, ax.get_title())
+
+
+def test_trajectory_legend_says_what_its_numbers_are(joint):
+    run, evaluation = joint
+    entries = [t for t in _legend_texts(trajectory_figure(run, evaluation)) if "θ" in t]
+    assert len(entries) == 3  # nominal, calibrated, true
+    for entry in entries:
+        assert "mean position error" in entry and entry.endswith(" m")
+
+
+def _line(fig: Figure, start: str) -> Line2D:
+    (line,) = [ln for ax in fig.axes for ln in ax.lines if ln.get_label().startswith(start)]
+    return line
+
+
+@pytest.mark.parametrize("ratio", [1.0, 1.005, 0.995, 3.16 / 2.94])  # last: sample drive
+def test_validation_shows_reachable_and_recommended_when_close(joint, ratio):
+    run, evaluation = joint
+    close = dataclasses.replace(
+        evaluation, validation_errors=run.segment_errors["calibrated"] * ratio
+    )
+    fig = validation_figure(run, close)
+    reachable, recommended = _line(fig, "reachable"), _line(fig, "recommended")
+    lines = [reachable, recommended]
+    lower, upper = sorted(lines, key=lambda ln: (ln.get_zorder(), lines.index(ln)))
+    wider = lower.get_linewidth() >= 1.5 * upper.get_linewidth()
+    assert wider or upper.get_linestyle() not in ("-", "solid"), "the lower line is hidden"
+    for line, errors in ((reachable, close.validation_errors), (recommended, None)):
+        value = np.mean(run.segment_errors["calibrated"] if errors is None else errors)
+        shown = re.search(r"(\d+\.\d+) m", line.get_label())
+        assert shown is not None and abs(float(shown[1]) - value) <= 0.005, line.get_label()
+
+
+def test_wheel_rotations_count_estimates_in_good_english(staged):
+    assert len(staged.staged.step4_estimates) == 1
+    texts = _legend_texts(wheel_rotations_figure(staged))
+    assert any("1 Step 4 estimate" in t for t in texts)
+    assert not any("estimates" in t for t in texts), texts
+    estimates = staged.staged.step4_estimates
+    two = dataclasses.replace(
+        staged,
+        staged=dataclasses.replace(staged.staged, step4_estimates=np.concatenate([estimates] * 2)),
+    )
+    assert any("2 Step 4 estimates" in t for t in _legend_texts(wheel_rotations_figure(two)))
+
+
+def test_parameters_title_counts_one_batch_in_singular(staged):
+    assert len(staged.batches) == 1
+    title = parameters_figure(staged).get_suptitle()
+    assert "1 batch," in title and "1 batches" not in title
+
+
+def test_route_title_does_not_claim_a_selection_that_did_not_happen(joint):
+    run, _ = joint
+    s = run.settings.segments
+    passing = int(np.sum(run.yaw_rate > s.min_yaw_rate))
+    assert f"{passing} of {len(run.segments)}" in route_figure(run).axes[0].get_title()
+    fallback = dataclasses.replace(run, yaw_rate=np.zeros_like(run.yaw_rate), selected=run.segments)
+    title = route_figure(fallback).axes[0].get_title()
+    assert f"all {len(run.segments)}" in title and "selected" not in title
