@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import DriveLog, load_drive_log
+from graphcal.data.drive_log import DriveLog, load_drive_log, validate_frame
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.run import run_calibration
 from graphcal.simulate.drive import simulate_drive
@@ -123,6 +123,19 @@ def test_position_spikes_are_masked(table, tmp_path, capsys):
     assert "spike" in log.mask_notes[0]
     assert main(["check", str(path)]) == 0
     assert "masked" in capsys.readouterr().out
+
+
+def test_heading_spikes_are_masked(table, tmp_path):
+    table.loc[4000:4003, "psi"] += 0.6  # the fused heading jumps by 34° for 0.1 s
+    log = load_drive_log(_write(table, tmp_path / "log.csv"))
+    assert log.masked[4000:4004].all() and len(log.mask_notes) == 1
+    assert "heading jumps" in log.mask_notes[0]
+
+
+def test_clean_drives_are_not_masked():
+    for length, seed in ((4.0, 7), (2.0, 3), (6.0, 11)):
+        log = simulate_drive(length_km=length, seed=seed).measured
+        assert validate_frame(log.to_dataframe(), "clean").masked is None
 
 
 def test_a_short_drive_says_what_batches_it_used(tmp_path):

@@ -7,9 +7,10 @@ factors checked here):
 * **absurd positions** (beyond :data:`MAX_POSITION` from the origin) and **unit mistakes**
   (GNSS distance over the whole log far from the wheels' distance: positions in km, cm or
   degrees, rotations per second instead of per sample) reject the log with one line;
-* **spikes** (a position step far longer than the wheels allow, e.g. a multipath fix) and
-  **frozen fixes** (a receiver repeating its last fix during an outage while the wheels roll)
-  are masked: :func:`screen` returns the log with a per-sample mask and a note per span, and
+* **spikes** (a position step far longer than the wheels allow, e.g. a multipath fix; a
+  heading step far from the yaw the wheels imply) and **frozen fixes** (a receiver repeating
+  its last fix during an outage while the wheels roll) are masked: :func:`screen` returns
+  the log with a per-sample mask and a note per span, and
   no calibration or validation segment spans a masked sample
   (:func:`graphcal.data.segments.split_segments`).
 """
@@ -31,6 +32,9 @@ RATIO_WINDOW_S = 2.0
 #: A position step longer than the wheels' step by more than this [m], or by ten times the
 #: log's own step noise if that is larger, is a spike.
 SPIKE_EXCESS = 3.0
+#: A heading step that differs from the wheels' yaw by more than this [rad], or by ten times
+#: the log's own heading-step noise if that is larger, is a heading spike.
+HEADING_EXCESS = 0.25
 #: Samples masked on each side of a spike [s] (the fix before and after a multipath jump).
 SPIKE_MARGIN_S = 0.5
 #: A fix repeated for at least this long [s] while the wheels travel ...
@@ -127,7 +131,19 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
             f"{steps[a : max(a + 1, b)].max():.1f} m where the wheels moved "
             f"{wheels[a : max(a + 1, b)].max():.2f} m): spike"
         )
-    mask = frozen | spikes
+    # Heading against the yaw the wheels imply, per step (nominal theta).
+    wheel_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * THETA_NOMINAL[0] / THETA_NOMINAL[2]
+    yaw_excess = np.abs(np.diff(log.psi) - wheel_yaw)
+    yaw_noise = 1.4826 * np.median(np.abs(yaw_excess - np.median(yaw_excess)))
+    turns = np.zeros(n, dtype=bool)
+    for k in np.flatnonzero(yaw_excess > max(HEADING_EXCESS, 10.0 * yaw_noise)):
+        turns[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
+    for a, b in _runs(turns & ~frozen & ~spikes):
+        notes.append(
+            f"heading jumps at t = {log.t[a]:.1f}–{log.t[b]:.1f} s (by up to "
+            f"{np.degrees(yaw_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
+        )
+    mask = frozen | spikes | turns
     return mask, notes
 
 
