@@ -128,6 +128,19 @@ def _first(mask: np.ndarray) -> int:
     return int(np.flatnonzero(mask)[0])
 
 
+def _check_repeated(names: list[str], source: str) -> None:
+    """One line naming a format column that the header repeats."""
+    repeated = sorted({c for c in names if c in COLUMNS and names.count(c) > 1})
+    if repeated:
+        raise _fail(
+            source,
+            repeated[0],
+            None,
+            f"column appears more than once in the header ({names.count(repeated[0])} times)",
+            "keep one column of each name",
+        )
+
+
 def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) -> DriveLog:
     """Validate a raw table in the drive-log format and return the :class:`DriveLog`.
 
@@ -136,16 +149,7 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
     sideslip or lateral acceleration, negative or implausible wheel rotations and, when
     ``min_distance`` [m] is given, a log too short for one segment.
     """
-    names = [str(c) for c in frame.columns]
-    repeated = sorted({c for c in names if c in COLUMNS and names.count(c) > 1})
-    if repeated:
-        raise _fail(
-            source,
-            repeated[0],
-            None,
-            "column appears more than once in the header",
-            "keep one column of each name",
-        )
+    _check_repeated([str(c) for c in frame.columns], source)
     missing = [c for c in COLUMNS if c not in frame.columns]
     if missing:
         raise _fail(
@@ -414,15 +418,7 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
         raise DriveLogError(
             f"{source}: not a readable CSV ({first}); export the log as CSV"
         ) from exc
-    repeated = sorted({c for c in names if c in COLUMNS and names.count(c) > 1})
-    if repeated:
-        raise _fail(
-            source,
-            repeated[0],
-            None,
-            f"column appears more than once in the header ({names.count(repeated[0])} times)",
-            "keep one column of each name",
-        )
+    _check_repeated(names, source)
     if len(names) == 1:
         for separator, label in (
             (";", "semicolons"),
