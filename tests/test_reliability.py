@@ -15,6 +15,7 @@ from graphcal.cli import main
 from graphcal.data.drive_log import DriveLog, load_drive_log, validate_frame
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.settings import BatchingSettings, SegmentSettings, Settings
 from graphcal.simulate.drive import simulate_drive
 
 
@@ -142,9 +143,21 @@ def test_a_short_drive_says_what_batches_it_used(tmp_path):
     log = simulate_drive(length_km=2.0, seed=3).measured
     run = run_calibration(log)
     count, size = run.batches.shape
-    if size < 9:
-        batch_words = f"{count} batch of {size}" if count == 1 else f"{count} batches of {size}"
-        assert any(batch_words in w for w in run.warnings), run.warnings
+    assert (count, size) == (1, len(run.selected)) and size < 9  # too few for batches of 9
+    assert any(f"1 batch of {size} instead of 9" in w for w in run.warnings), run.warnings
+
+
+def test_failed_step1_baseline_solves_of_the_joint_method_are_reported(drive, monkeypatch):
+    import graphcal.pipeline.staged as staged_module
+    from graphcal.errors import CalibrationFailed
+
+    def fail(*args, **kwargs):
+        raise CalibrationFailed("batch solve failed: test")
+
+    monkeypatch.setattr(staged_module, "calibrate_batch", fail)
+    settings = Settings(segments=SegmentSettings(stride=25.0), batches=BatchingSettings(count=3))
+    run = run_calibration(drive.measured, settings)
+    assert any("step1: 3 of 3 batch solves" in w for w in run.warnings), run.warnings
 
 
 def test_calibration_json_names_the_gtsam_version(drive_csv, tmp_path):

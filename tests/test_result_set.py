@@ -10,6 +10,7 @@ import graphcal.pipeline.run
 import graphcal.report.results
 from graphcal.cli import main
 from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.settings import BatchingSettings, Settings
 
 
 @pytest.fixture()
@@ -58,7 +59,7 @@ def test_a_directory_with_other_files_is_refused_and_left_alone(
 def test_an_earlier_result_set_is_replaced_whole(drive_csv, tmp_path, capsys):
     out = tmp_path / "results"
     out.mkdir()
-    (out / "calibration.json").write_text('{"method": "staged"}')
+    (out / "calibration.json").write_text('{"method": "staged", "versions": {"graphcal": "0.1.0"}}')
     (out / "wheel_rotations.png").write_bytes(b"staged figure")
     (out / "batches.csv").write_text("batch\n0\n")
     assert main(["calibrate", str(drive_csv), "--out", str(out), "--batches", "0"]) == 0
@@ -70,20 +71,41 @@ def test_an_earlier_result_set_is_replaced_whole(drive_csv, tmp_path, capsys):
 
 def test_an_interrupted_write_leaves_the_earlier_set(drive, tmp_path, monkeypatch):
     out = tmp_path / "results"
-    run = run_calibration(drive.measured, method="whole")
-    graphcal.report.results.write_results(run, out)
+    whole = run_calibration(drive.measured, method="whole")
+    graphcal.report.results.write_results(whole, out)
     before = {p.name: p.read_bytes() for p in out.iterdir()}
+    # A different run (with batches: more files) is interrupted while it writes its figures.
+    joint = run_calibration(drive.measured, Settings(batches=BatchingSettings(count=2)))
     real = graphcal.report.results.atomic_save_figure
     calls = {"n": 0}
 
     def interrupted(figure, path, *args, **kwargs):
         calls["n"] += 1
-        if calls["n"] == 2:
+        if calls["n"] == 4:
             raise KeyboardInterrupt
         return real(figure, path, *args, **kwargs)
 
     monkeypatch.setattr(graphcal.report.results, "atomic_save_figure", interrupted)
     with pytest.raises(KeyboardInterrupt):
-        graphcal.report.results.write_results(run, out)
-    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+        graphcal.report.results.write_results(joint, out)
+    assert calls["n"] == 4  # it was interrupted mid-set, after some new files existed
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before  # no mix
     assert [p.name for p in tmp_path.iterdir()] == ["results"]
+
+
+def test_a_foreign_calibration_json_is_not_taken_for_a_result_set(
+    drive_csv, tmp_path, capsys, no_calibration
+):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "calibration.json").write_text('{"my_vehicle": "van 7"}')
+    (out / "validation.csv").write_text("my notes\n")
+    assert "did not write" in _bad_out(drive_csv, out, capsys)
+    assert (out / "calibration.json").read_text() == '{"my_vehicle": "van 7"}'
+
+
+def test_the_working_directory_is_not_replaced(
+    drive_csv, tmp_path, capsys, monkeypatch, no_calibration
+):
+    monkeypatch.chdir(tmp_path)
+    assert "working directory" in _bad_out(drive_csv, ".", capsys)

@@ -93,9 +93,11 @@ def position_problem(log) -> str | None:
 def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
     """Samples whose position disagrees with the wheels, ``(N,)`` bool, and one note per span.
 
-    Spikes: a position step longer than the wheels' step by :data:`SPIKE_EXCESS`, masked with
+    Spikes: a distinct fix farther from the previous one than the wheels travelled between
+    them by :data:`SPIKE_EXCESS` (or ten times the log's own noise), masked with
     :data:`SPIKE_MARGIN_S` on each side. Frozen fixes: the same position for at least
-    :data:`FROZEN_MIN_S` while the wheels travel :data:`FROZEN_MIN_DISTANCE`.
+    :data:`FROZEN_MIN_S` (or five of the receiver's fix intervals, for a receiver slower than
+    the log whose fixes are held) while the wheels travel :data:`FROZEN_MIN_DISTANCE`.
     """
     n = len(log)
     mask = np.zeros(n, dtype=bool)
@@ -103,16 +105,19 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
     if n < 3:
         return mask, notes
     wheels = wheel_steps(log)
-    steps = np.hypot(np.diff(log.px), np.diff(log.py))
-    excess = steps - wheels
-    noise = 1.4826 * np.median(np.abs(excess - np.median(excess)))
-    margin = max(1, round(SPIKE_MARGIN_S / log.dt))
-    same = np.concatenate([[False], steps == 0.0])  # sample k repeats sample k-1
     travelled = np.concatenate([[0.0], np.cumsum(wheels)])
+    margin = max(1, round(SPIKE_MARGIN_S / log.dt))
+    steps = np.hypot(np.diff(log.px), np.diff(log.py))
+    same = np.concatenate([[False], steps == 0.0])  # sample k repeats sample k-1
+    # A receiver at a lower rate than the log repeats each fix (sample-and-hold): only a hold
+    # much longer than the log's usual one is a frozen fix.
+    fixes = np.flatnonzero(~same)
+    fix_interval = float(np.median(np.diff(log.t[fixes]))) if len(fixes) > 1 else log.dt
+    frozen_min_s = max(FROZEN_MIN_S, 5.0 * fix_interval)
     frozen = np.zeros(n, dtype=bool)
     for a, b in _runs(same):
         first = a - 1  # the fix that is repeated
-        if log.t[b] - log.t[first] >= FROZEN_MIN_S and travelled[b] - travelled[first] >= (
+        if log.t[b] - log.t[first] >= frozen_min_s and travelled[b] - travelled[first] >= (
             FROZEN_MIN_DISTANCE
         ):
             frozen[first : b + 1] = True
@@ -120,9 +125,15 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
                 f"position frozen at t = {log.t[first]:.1f}–{log.t[b]:.1f} s while the wheels "
                 f"travelled {travelled[b] - travelled[first]:.0f} m: a held fix"
             )
+    # Spikes: each distinct fix against the previous one, over the wheels' travel between them.
+    jump = np.hypot(np.diff(log.px[fixes]), np.diff(log.py[fixes]))
+    rolled = np.diff(travelled[fixes])
+    excess = jump - rolled
+    noise = 1.4826 * np.median(np.abs(excess - np.median(excess))) if len(excess) else 0.0
     spikes = np.zeros(n, dtype=bool)
-    for k in np.flatnonzero(excess > max(SPIKE_EXCESS, 10.0 * noise)):
-        spikes[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
+    for i in np.flatnonzero(excess > max(SPIKE_EXCESS, 10.0 * noise)):
+        a, b = fixes[i], fixes[i + 1]
+        spikes[max(0, a - margin + 1) : min(n, b + margin)] = True
     for a, b in _runs(spikes):
         if frozen[max(0, a - 1) : b + 2].any():
             continue  # the jump where a held fix resumes belongs to that span's note

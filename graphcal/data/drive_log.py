@@ -396,30 +396,27 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
         )
     if not path.is_file():
         raise DriveLogError(f"{source}: no such file; check the path")
-    try:
-        compression = _compression(path)
-        names = _header(path, compression)
-        # index_col=False: a trailing comma on data rows must not shift the columns.
-        frame = pd.read_csv(
-            path, engine="c", skipinitialspace=True, index_col=False, compression=compression
-        )
-    except OSError as exc:
-        raise DriveLogError(
-            f"{source}: cannot read ({exc.strerror or exc}); check the file"
-        ) from exc
-    except (
+    unreadable = (
         pd.errors.ParserError,
         pd.errors.EmptyDataError,
         UnicodeDecodeError,
         EOFError,
         ValueError,
-    ) as exc:
+    )
+    try:
+        compression = _compression(path)
+        names = _header(path, compression)
+    except OSError as exc:
+        raise DriveLogError(
+            f"{source}: cannot read ({exc.strerror or exc}); check the file"
+        ) from exc
+    except unreadable as exc:
         first = first_line(str(exc)) or type(exc).__name__
         raise DriveLogError(
             f"{source}: not a readable CSV ({first}); export the log as CSV"
         ) from exc
     _check_repeated(names, source)
-    if len(names) == 1:
+    if len(names) == 1:  # before the full read, which would warn about ragged rows
         for separator, label in (
             (";", "semicolons"),
             ("\t", "tabs"),
@@ -432,6 +429,20 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
                     f"separated by {label}, not commas; export it with ',' between columns "
                     "and '.' as the decimal point"
                 )
+    try:
+        # index_col=False: a trailing comma on data rows must not shift the columns.
+        frame = pd.read_csv(
+            path, engine="c", skipinitialspace=True, index_col=False, compression=compression
+        )
+    except OSError as exc:
+        raise DriveLogError(
+            f"{source}: cannot read ({exc.strerror or exc}); check the file"
+        ) from exc
+    except unreadable as exc:
+        first = first_line(str(exc)) or type(exc).__name__
+        raise DriveLogError(
+            f"{source}: not a readable CSV ({first}); export the log as CSV"
+        ) from exc
     frame.columns = [str(c).strip() for c in frame.columns]
     return validate_frame(frame, source, min_distance)
 

@@ -17,6 +17,7 @@ file it did not write.
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import tempfile
@@ -42,38 +43,62 @@ RESULT_FILES = frozenset(
 
 
 def is_result_set(path: Path) -> bool:
-    """True if ``path`` is a directory holding an earlier graphcal result set and nothing else."""
+    """True if ``path`` holds an earlier graphcal result set and nothing else: only result
+    file names, and a ``calibration.json`` that graphcal wrote (it names graphcal's version)."""
     names = {entry.name for entry in path.iterdir()}
-    return "calibration.json" in names and names <= RESULT_FILES
+    if "calibration.json" not in names or not names <= RESULT_FILES:
+        return False
+    try:
+        document = json.loads((path / "calibration.json").read_text())
+        return isinstance(document["versions"]["graphcal"], str)
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+
+
+def _resolved(path: str | os.PathLike[str]) -> Path:
+    """The absolute, symlink-free path of ``path`` (a symlinked directory means its target)."""
+    return Path(os.path.realpath(path))
 
 
 def check_output_directory(path: str | os.PathLike[str]) -> Path:
     """Check that results can be written to ``path``; return it as a ``Path``.
 
     Raises:
-        GraphcalError: one line, if ``path`` is a file, a directory with other content, or in
-            a place that cannot be written.
+        GraphcalError: one line, if ``path`` is a file, a directory with other content, the
+            working directory or one of its parents, a mount point, or in a place that
+            cannot be written.
     """
-    out = Path(path)
+    shown = Path(path)
+    out = _resolved(path)
     if out.exists() and not out.is_dir():
-        raise GraphcalError(f"--out {out}: exists and is not a directory; name a directory")
+        raise GraphcalError(f"--out {shown}: exists and is not a directory; name a directory")
+    if out == Path(os.getcwd()) or out in Path(os.getcwd()).parents or os.path.ismount(out):
+        raise GraphcalError(
+            f"--out {shown}: the working directory, one of its parents or a mount point cannot "
+            "be replaced as a result set; name a subdirectory (e.g. results/)"
+        )
     if out.is_dir() and any(out.iterdir()) and not is_result_set(out):
         foreign = sorted(e.name for e in out.iterdir() if e.name not in RESULT_FILES)
-        shown = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+        listed = ", ".join(foreign[:3]) + (" …" if len(foreign) > 3 else "")
+        what = (
+            f"files graphcal did not write ({listed})"
+            if foreign
+            else "a set graphcal did not write"
+        )
         raise GraphcalError(
-            f"--out {out}: the directory holds files graphcal did not write ({shown}); "
-            "name a new or empty directory (an earlier graphcal result directory is replaced)"
+            f"--out {shown}: the directory holds {what}; name a new or empty directory (an "
+            "earlier graphcal result directory is replaced)"
         )
     existing = out.parent
     while not existing.exists():
         existing = existing.parent
     if not existing.is_dir():
-        raise GraphcalError(f"--out {out}: {existing} is not a directory; name another place")
+        raise GraphcalError(f"--out {shown}: {existing} is not a directory; name another place")
     try:
         probe = tempfile.mkdtemp(prefix=".graphcal-probe-", dir=existing)
     except OSError as exc:
         raise GraphcalError(
-            f"--out {out}: cannot write in {existing} ({exc.strerror or exc}); "
+            f"--out {shown}: cannot write in {existing} ({exc.strerror or exc}); "
             "name a writable place"
         ) from exc
     os.rmdir(probe)
@@ -89,24 +114,24 @@ def replace_result_set(
     If anything fails or the run is interrupted, the earlier set stays as it was and the
     temporary directory is removed.
     """
-    out = Path(path)
-    check_output_directory(out)
+    out = check_output_directory(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
-    retired: Path | None = None
+    # The earlier set is renamed beside itself (same parent: no write access to the set
+    # itself needed) and removed only once the new set is in place.
+    retired = out.parent / f"{staging.name.replace('.new-', '.old-', 1)}"
+    moved = False
     try:
         written = write(staging)
         if out.exists():
-            retired = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=out.parent))
-            os.rename(out, retired / out.name)
+            os.rename(out, retired)
+            moved = True
         os.rename(staging, out)
     except BaseException:
-        if retired is not None and not out.exists():
-            os.rename(retired / out.name, out)  # put the earlier set back
+        if moved and not out.exists():
+            os.rename(retired, out)  # put the earlier set back
         shutil.rmtree(staging, ignore_errors=True)
-        if retired is not None:
-            shutil.rmtree(retired, ignore_errors=True)
         raise
-    if retired is not None:
+    if moved:
         shutil.rmtree(retired, ignore_errors=True)
     return [out / p.relative_to(staging) for p in written]
