@@ -14,8 +14,10 @@ raises :class:`DriveLogError` with one line naming the file, the column and the 
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TypeVar
 
 import numpy as np
 import pandas as pd
@@ -39,6 +41,9 @@ MAX_LATERAL_ACCELERATION = 15.0
 NEGATIVE_ROTATION_TOLERANCE = 0.005
 #: Highest plausible speed [m/s] implied by one wheel's rotation with the nominal circumference.
 MAX_PLAUSIBLE_SPEED = 100.0
+
+
+T = TypeVar("T")
 
 
 class DriveLogError(GraphcalError, ValueError):
@@ -374,6 +379,32 @@ def _header(path: Path, compression: str | None) -> list[str]:
     return raw if len(raw) == len(names) else names
 
 
+def _header_of(path: Path) -> tuple[str | None, list[str]]:
+    compression = _compression(path)
+    return compression, _header(path, compression)
+
+
+def _readable(source: str, read: Callable[[], T]) -> T:
+    """``read()``, with a file that cannot be read or parsed as CSV as one-line errors."""
+    try:
+        return read()
+    except OSError as exc:
+        raise DriveLogError(
+            f"{source}: cannot read ({exc.strerror or exc}); check the file"
+        ) from exc
+    except (
+        pd.errors.ParserError,
+        pd.errors.EmptyDataError,
+        UnicodeDecodeError,
+        EOFError,
+        ValueError,
+    ) as exc:
+        first = first_line(str(exc)) or type(exc).__name__
+        raise DriveLogError(
+            f"{source}: not a readable CSV ({first}); export the log as CSV"
+        ) from exc
+
+
 def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> DriveLog:
     """Read and validate a drive-log CSV (see the module docstring for the format).
 
@@ -396,25 +427,7 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
         )
     if not path.is_file():
         raise DriveLogError(f"{source}: no such file; check the path")
-    unreadable = (
-        pd.errors.ParserError,
-        pd.errors.EmptyDataError,
-        UnicodeDecodeError,
-        EOFError,
-        ValueError,
-    )
-    try:
-        compression = _compression(path)
-        names = _header(path, compression)
-    except OSError as exc:
-        raise DriveLogError(
-            f"{source}: cannot read ({exc.strerror or exc}); check the file"
-        ) from exc
-    except unreadable as exc:
-        first = first_line(str(exc)) or type(exc).__name__
-        raise DriveLogError(
-            f"{source}: not a readable CSV ({first}); export the log as CSV"
-        ) from exc
+    compression, names = _readable(source, lambda: _header_of(path))
     _check_repeated(names, source)
     if len(names) == 1:  # before the full read, which would warn about ragged rows
         for separator, label in (
@@ -429,20 +442,13 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
                     f"separated by {label}, not commas; export it with ',' between columns "
                     "and '.' as the decimal point"
                 )
-    try:
-        # index_col=False: a trailing comma on data rows must not shift the columns.
-        frame = pd.read_csv(
+    # index_col=False: a trailing comma on data rows must not shift the columns.
+    frame = _readable(
+        source,
+        lambda: pd.read_csv(
             path, engine="c", skipinitialspace=True, index_col=False, compression=compression
-        )
-    except OSError as exc:
-        raise DriveLogError(
-            f"{source}: cannot read ({exc.strerror or exc}); check the file"
-        ) from exc
-    except unreadable as exc:
-        first = first_line(str(exc)) or type(exc).__name__
-        raise DriveLogError(
-            f"{source}: not a readable CSV ({first}); export the log as CSV"
-        ) from exc
+        ),
+    )
     frame.columns = [str(c).strip() for c in frame.columns]
     return validate_frame(frame, source, min_distance)
 
