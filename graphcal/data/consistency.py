@@ -56,9 +56,10 @@ def wheel_steps(log) -> np.ndarray:
     return 0.5 * (log.n_rl[:-1] + log.n_rr[:-1]) * THETA_NOMINAL[0]
 
 
-def position_problem(log) -> str | None:
+def position_problem(log, masked: np.ndarray | None = None) -> str | None:
     """One line (what, where, how to fix) if the positions cannot be in metres of a local
-    frame or disagree with the wheels over the whole log; else ``None``."""
+    frame or disagree with the wheels over the whole log; else ``None``. ``masked``: the
+    samples :func:`inconsistent_samples` found (computed if not given), left out."""
     radius = np.hypot(log.px, log.py)
     if (radius > MAX_POSITION).any():
         k = int(np.argmax(radius > MAX_POSITION))
@@ -74,7 +75,8 @@ def position_problem(log) -> str | None:
     travelled = np.concatenate([[0.0], np.cumsum(wheel_steps(log))])
     wheels = np.diff(travelled[ends])
     chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
-    masked, _ = inconsistent_samples(log)
+    if masked is None:
+        masked, _ = inconsistent_samples(log)
     clean = np.add.reduceat(masked.astype(int), ends)[: len(wheels)] == 0
     usable = clean & (wheels >= 5.0)
     if wheels[usable].sum() < 50.0:
@@ -159,8 +161,13 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
 
 
 def screen(log):
-    """``log`` with its inconsistent samples masked (:func:`inconsistent_samples`)."""
+    """``log`` with its inconsistent samples masked (:func:`inconsistent_samples`), after
+    :func:`position_problem` found nothing to refuse it for (else ``ValueError`` with that
+    line). The samples are screened once for both."""
     mask, notes = inconsistent_samples(log)
+    problem = position_problem(log, mask)
+    if problem is not None:
+        raise ValueError(problem)
     if not mask.any():
         return log
     return dataclasses.replace(log, masked=mask, mask_notes=tuple(notes))

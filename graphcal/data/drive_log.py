@@ -22,7 +22,7 @@ from typing import TypeVar
 import numpy as np
 import pandas as pd
 
-from graphcal.data.consistency import MAX_MASKED_SHARE, position_problem, screen
+from graphcal.data.consistency import MAX_MASKED_SHARE, screen
 from graphcal.errors import GraphcalError, first_line
 from graphcal.files import atomic_write_csv
 from graphcal.model import THETA_NOMINAL
@@ -296,10 +296,10 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
     arrays["psi"] = np.unwrap(psi)
     log = DriveLog(**arrays, source=source)
     _check_heading_units(log)
-    problem = position_problem(log)
-    if problem is not None:
-        raise DriveLogError(f"{source}: {problem}")
-    log = screen(log)
+    try:
+        log = screen(log)  # positions checked against the wheels: refused, masked or clean
+    except ValueError as exc:
+        raise DriveLogError(f"{source}: {exc}") from None
     if log.masked is not None and log.masked.mean() > MAX_MASKED_SHARE:
         raise _fail(
             source,
