@@ -1,8 +1,8 @@
 """Positions checked against the wheels: unit mistakes, absurd values, spikes, frozen fixes.
 
 The pose and the wheel rotations of a drive log measure the same motion, so each can check
-the other (with the nominal theta; calibration changes distances by far less than the
-factors checked here):
+the other (with the vehicle's nominal theta, ``nominal``: the paper's car unless given;
+calibration changes distances by far less than the factors checked here):
 
 * **absurd positions** (beyond :data:`MAX_POSITION` from the origin) and **unit mistakes**
   (GNSS distance over the whole log far from the wheels' distance: positions in km, cm or
@@ -45,21 +45,24 @@ FROZEN_MIN_DISTANCE = 2.0
 MAX_MASKED_SHARE = 0.5
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     """``[(first, last), ...]`` inclusive index ranges of the True runs of ``mask``."""
     edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
     return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def wheel_steps(log) -> np.ndarray:
+def wheel_steps(log, *, nominal: np.ndarray = THETA_NOMINAL) -> np.ndarray:
     """Distance [m] of each step ``k -> k+1`` from the wheel rotations (nominal c_e), ``(N-1,)``."""
-    return 0.5 * (log.n_rl[:-1] + log.n_rr[:-1]) * THETA_NOMINAL[0]
+    return 0.5 * (log.n_rl[:-1] + log.n_rr[:-1]) * nominal[0]
 
 
-def position_problem(log, masked: np.ndarray | None = None) -> str | None:
+def position_problem(
+    log, masked: np.ndarray | None = None, *, nominal: np.ndarray = THETA_NOMINAL
+) -> str | None:
     """One line (what, where, how to fix) if the positions cannot be in metres of a local
     frame or disagree with the wheels over the whole log; else ``None``. ``masked``: the
-    samples :func:`inconsistent_samples` found (computed if not given), left out."""
+    samples :func:`inconsistent_samples` found (computed if not given), left out;
+    ``nominal``: the vehicle's nominal theta."""
     radius = np.hypot(log.px, log.py)
     if (radius > MAX_POSITION).any():
         k = int(np.argmax(radius > MAX_POSITION))
@@ -72,11 +75,11 @@ def position_problem(log, masked: np.ndarray | None = None) -> str | None:
     # enough that a chord in a bend is nearly the arc.
     window = max(1, round(RATIO_WINDOW_S / log.dt))
     ends = np.arange(0, len(log), window)
-    travelled = np.concatenate([[0.0], np.cumsum(wheel_steps(log))])
+    travelled = np.concatenate([[0.0], np.cumsum(wheel_steps(log, nominal=nominal))])
     wheels = np.diff(travelled[ends])
     chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
     if masked is None:
-        masked, _ = inconsistent_samples(log)
+        masked, _ = inconsistent_samples(log, nominal=nominal)
     clean = np.add.reduceat(masked.astype(int), ends)[: len(wheels)] == 0
     usable = clean & (wheels >= 5.0)
     if wheels[usable].sum() < 50.0:
@@ -86,14 +89,19 @@ def position_problem(log, masked: np.ndarray | None = None) -> str | None:
     if not low <= ratio <= high:
         return (
             f"the positions travel {ratio:.3g}x the distance the wheel rotations imply "
-            f"({chords[usable].sum():.0f} m vs {wheels[usable].sum():.0f} m with c_e = 2 m); "
+            f"({chords[usable].sum():.0f} m vs {wheels[usable].sum():.0f} m with c_e = "
+            f"{nominal[0]:g} m); "
             "give px, py in metres and n_rl, n_rr in revolutions per sample interval"
         )
     return None
 
 
-def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
+def inconsistent_samples(
+    log, *, nominal: np.ndarray = THETA_NOMINAL
+) -> tuple[np.ndarray, list[str]]:
     """Samples whose position disagrees with the wheels, ``(N,)`` bool, and one note per span.
+
+    The wheel rotations become distance and yaw with ``nominal``, the vehicle's nominal theta.
 
     Spikes: a distinct fix farther from the previous one than the wheels travelled between
     them by :data:`SPIKE_EXCESS` (or ten times the log's own noise), masked with
@@ -106,7 +114,7 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
     notes: list[str] = []
     if n < 3:
         return mask, notes
-    wheels = wheel_steps(log)
+    wheels = wheel_steps(log, nominal=nominal)
     travelled = np.concatenate([[0.0], np.cumsum(wheels)])
     margin = max(1, round(SPIKE_MARGIN_S / log.dt))
     steps = np.hypot(np.diff(log.px), np.diff(log.py))
@@ -117,7 +125,7 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
     fix_interval = float(np.median(np.diff(log.t[fixes]))) if len(fixes) > 1 else log.dt
     frozen_min_s = max(FROZEN_MIN_S, 5.0 * fix_interval)
     frozen = np.zeros(n, dtype=bool)
-    for a, b in _runs(same):
+    for a, b in runs(same):
         first = a - 1  # the fix that is repeated
         if log.t[b] - log.t[first] >= frozen_min_s and travelled[b] - travelled[first] >= (
             FROZEN_MIN_DISTANCE
@@ -136,7 +144,7 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
     for i in np.flatnonzero(excess > max(SPIKE_EXCESS, 10.0 * noise)):
         a, b = fixes[i], fixes[i + 1]
         spikes[max(0, a - margin + 1) : min(n, b + margin)] = True
-    for a, b in _runs(spikes):
+    for a, b in runs(spikes):
         if frozen[max(0, a - 1) : b + 2].any():
             continue  # the jump where a held fix resumes belongs to that span's note
         notes.append(
@@ -145,13 +153,13 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
             f"{wheels[a : max(a + 1, b)].max():.2f} m): spike"
         )
     # Heading against the yaw the wheels imply, per step (nominal theta).
-    wheel_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * THETA_NOMINAL[0] / THETA_NOMINAL[2]
+    wheel_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * nominal[0] / nominal[2]
     yaw_excess = np.abs(np.diff(log.psi) - wheel_yaw)
     yaw_noise = 1.4826 * np.median(np.abs(yaw_excess - np.median(yaw_excess)))
     turns = np.zeros(n, dtype=bool)
     for k in np.flatnonzero(yaw_excess > max(HEADING_EXCESS, 10.0 * yaw_noise)):
         turns[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
-    for a, b in _runs(turns & ~frozen & ~spikes):
+    for a, b in runs(turns & ~frozen & ~spikes):
         notes.append(
             f"heading jumps at t = {log.t[a]:.1f}–{log.t[b]:.1f} s (by up to "
             f"{np.degrees(yaw_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
@@ -160,12 +168,17 @@ def inconsistent_samples(log) -> tuple[np.ndarray, list[str]]:
     return mask, notes
 
 
-def screen(log):
+def screen(log, *, nominal: np.ndarray = THETA_NOMINAL):
     """``log`` with its inconsistent samples masked (:func:`inconsistent_samples`), after
     :func:`position_problem` found nothing to refuse it for (else ``ValueError`` with that
-    line). The samples are screened once for both."""
-    mask, notes = inconsistent_samples(log)
-    problem = position_problem(log, mask)
+    line). The samples are screened once for both, with the vehicle's nominal theta
+    ``nominal``. Samples already masked in ``log`` (gaps an import marked) stay masked, their
+    notes first."""
+    mask, notes = inconsistent_samples(log, nominal=nominal)
+    if log.masked is not None:
+        mask = mask | log.masked
+        notes = [*log.mask_notes, *notes]
+    problem = position_problem(log, mask, nominal=nominal)
     if problem is not None:
         raise ValueError(problem)
     if not mask.any():

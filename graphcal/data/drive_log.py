@@ -22,12 +22,14 @@ from typing import TypeVar
 import numpy as np
 import pandas as pd
 
-from graphcal.data.consistency import MAX_MASKED_SHARE, screen
+from graphcal.data.consistency import MAX_MASKED_SHARE, runs, screen
 from graphcal.errors import GraphcalError, first_line
 from graphcal.files import atomic_write_csv
 from graphcal.model import THETA_NOMINAL
 
 COLUMNS = ("t", "px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
+#: Optional column: 1 marks a sample no segment may span (e.g. a gap an import carried over).
+MASK_COLUMN = "masked"
 
 #: Relative tolerance on the sampling interval before a log counts as non-uniform: 25 % lets
 #: timestamp jitter through (±3 ms per sample at 40 Hz) but stops at a dropped sample.
@@ -98,13 +100,17 @@ class DriveLog:
         return np.column_stack([self.n_rl, self.n_rr, self.beta, self.ay])
 
     def travelled_distance(self, wheel_circumference: float = THETA_NOMINAL[0]) -> np.ndarray:
-        """Distance [m] travelled up to each sample, from the mean wheel rotation, ``(N,)``."""
+        """Distance [m] travelled up to each sample, from the mean wheel rotation, ``(N,)``,
+        with ``wheel_circumference`` (the vehicle's nominal c_e; default: the paper's car)."""
         per_step = 0.5 * (self.n_rl[:-1] + self.n_rr[:-1]) * wheel_circumference
         return np.concatenate([[0.0], np.cumsum(per_step)])
 
     def to_dataframe(self) -> pd.DataFrame:
-        """The log as a DataFrame with the format's columns."""
-        return pd.DataFrame({name: getattr(self, name) for name in COLUMNS})
+        """The log as a DataFrame with the format's columns (and ``masked`` if any is)."""
+        frame = pd.DataFrame({name: getattr(self, name) for name in COLUMNS})
+        if self.masked is not None:
+            frame[MASK_COLUMN] = self.masked.astype(np.int8)
+        return frame
 
     @classmethod
     def from_arrays(cls, source: str = "<memory>", **columns: np.ndarray) -> DriveLog:
@@ -146,14 +152,31 @@ def _check_repeated(names: list[str], source: str) -> None:
         )
 
 
-def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) -> DriveLog:
+def validate_frame(
+    frame: pd.DataFrame,
+    source: str,
+    min_distance: float = 0.0,
+    *,
+    marked: np.ndarray | None = None,
+    marked_notes: tuple[str, ...] = (),
+    nominal: np.ndarray = THETA_NOMINAL,
+) -> DriveLog:
     """Validate a raw table in the drive-log format and return the :class:`DriveLog`.
 
     Checks, in order: repeated or missing columns, non-numeric values, NaN/inf, time
     non-increasing, not in seconds or non-uniform, heading apparently in degrees, implausible
     sideslip or lateral acceleration, negative or implausible wheel rotations and, when
     ``min_distance`` [m] is given, a log too short for one segment.
+
+    Samples to leave out come from the optional ``masked`` column (non-zero = masked, e.g.
+    gaps an import carried over), from ``marked`` with one note per span in
+    ``marked_notes``, and from the consistency screen; no segment spans any of them.
+
+    The checks that turn wheel rotations into speed, distance or yaw (implausible rotations,
+    heading units, positions against the wheels, ``min_distance``) use ``nominal``, the
+    vehicle's nominal theta ``[c_e, c_d, t_r, d]`` (default: the paper's car).
     """
+    nominal = _checked_nominal(nominal)
     _check_repeated([str(c) for c in frame.columns], source)
     missing = [c for c in COLUMNS if c not in frame.columns]
     if missing:
@@ -279,7 +302,7 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
                 f"negative wheel rotation {n[row]:.6g} rev",
                 "the model covers forward driving only: cut reversing manoeuvres from the log",
             )
-        limit = MAX_PLAUSIBLE_SPEED * dt_nominal / THETA_NOMINAL[0]
+        limit = MAX_PLAUSIBLE_SPEED * dt_nominal / nominal[0]
         too_big = n > limit
         if too_big.any():
             row = _first(too_big)
@@ -294,10 +317,12 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
             )
 
     arrays["psi"] = np.unwrap(psi)
-    log = DriveLog(**arrays, source=source)
-    _check_heading_units(log)
+    marked, marked_notes = _marked_samples(frame, source, marked, marked_notes, t)
+    log = DriveLog(**arrays, source=source, masked=marked, mask_notes=marked_notes)
+    _check_heading_units(log, nominal=nominal)
     try:
-        log = screen(log)  # positions checked against the wheels: refused, masked or clean
+        # positions checked against the wheels: refused, masked or clean
+        log = screen(log, nominal=nominal)
     except ValueError as exc:
         raise DriveLogError(f"{source}: {exc}") from None
     if log.masked is not None and log.masked.mean() > MAX_MASKED_SHARE:
@@ -311,7 +336,7 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
         )
 
     if min_distance > 0:
-        distance = log.travelled_distance()[-1]
+        distance = log.travelled_distance(nominal[0])[-1]
         if distance < min_distance:
             raise _fail(
                 source,
@@ -323,20 +348,70 @@ def validate_frame(frame: pd.DataFrame, source: str, min_distance: float = 0.0) 
     return log
 
 
-def _check_heading_units(log: DriveLog, window_s: float = 2.0) -> None:
+def _marked_samples(
+    frame: pd.DataFrame,
+    source: str,
+    marked: np.ndarray | None,
+    notes: tuple[str, ...],
+    t: np.ndarray,
+) -> tuple[np.ndarray | None, tuple[str, ...]]:
+    """Samples marked as not to be used: ``marked`` and the file's ``masked`` column."""
+    if marked is not None:
+        marked = np.asarray(marked, dtype=bool)
+        if marked.shape != t.shape:
+            raise ValueError(
+                f"marked must have one entry per sample ({len(t)}), got {marked.shape}"
+            )
+    if MASK_COLUMN in frame.columns:
+        raw = pd.to_numeric(frame[MASK_COLUMN], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isin(raw, (0.0, 1.0))
+        if bad.any():
+            row = _first(bad)
+            raise _fail(
+                source,
+                MASK_COLUMN,
+                row,
+                f"value {frame[MASK_COLUMN].iloc[row]!r} is not 0 or 1",
+                "mark samples to leave out with 1, all others with 0",
+            )
+        in_file = raw == 1.0
+        new_notes = [
+            f"t = {t[a]:.1f}–{t[b]:.1f} s marked masked in the file"
+            for a, b in runs(in_file)
+            if marked is None or not marked[a : b + 1].all()
+        ]
+        marked = in_file if marked is None else marked | in_file
+        notes = (*notes, *new_notes)
+    if marked is None or not marked.any():
+        return None, ()
+    return marked, tuple(notes)
+
+
+def _checked_nominal(nominal: np.ndarray) -> np.ndarray:
+    """``nominal`` as a float array, after checking it is a usable ``[c_e, c_d, t_r, d]``."""
+    nominal = np.asarray(nominal, dtype=float)
+    usable = nominal.shape == (4,) and np.isfinite(nominal).all()
+    if not (usable and nominal[0] > 0 and nominal[2] > 0):
+        raise ValueError(
+            f"nominal must be a finite [c_e, c_d, t_r, d] with c_e, t_r > 0, got {nominal}"
+        )
+    return nominal
+
+
+def _check_heading_units(
+    log: DriveLog, window_s: float = 2.0, *, nominal: np.ndarray = THETA_NOMINAL
+) -> None:
     """Catch a heading given in degrees without wrap-arounds.
 
     Compares heading changes over ``window_s`` windows (the heading is already unwrapped in
-    radians) with the yaw the wheel rotations imply (nominal theta). In radians the ratio is
-    near 1; in degrees it is near 57.
+    radians) with the yaw the wheel rotations imply (nominal theta ``nominal``). In radians
+    the ratio is near 1; in degrees it is near 57.
     """
     window = max(1, round(window_s / log.dt))
     if len(log) <= 2 * window:
         return
     n_rl, n_rr = log.n_rl[:-1], log.n_rr[:-1]
-    wheel_yaw = np.concatenate(
-        [[0.0], np.cumsum((n_rr - n_rl) * THETA_NOMINAL[0] / THETA_NOMINAL[2])]
-    )
+    wheel_yaw = np.concatenate([[0.0], np.cumsum((n_rr - n_rl) * nominal[0] / nominal[2])])
     wheel_turn = np.abs(wheel_yaw[window::window] - wheel_yaw[:-window:window]).sum()
     heading_turn = np.abs(log.psi[window::window] - log.psi[:-window:window]).sum()
     if wheel_turn > 1.0 and heading_turn > 15.0 * wheel_turn:
@@ -405,7 +480,12 @@ def _readable(source: str, read: Callable[[], T]) -> T:
         ) from exc
 
 
-def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> DriveLog:
+def load_drive_log(
+    path: str | os.PathLike[str],
+    min_distance: float = 0.0,
+    *,
+    nominal: np.ndarray = THETA_NOMINAL,
+) -> DriveLog:
     """Read and validate a drive-log CSV (see the module docstring for the format).
 
     The file may be compressed (gzip, bz2, xz, zip, zstd), whatever its name.
@@ -413,6 +493,9 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
     Args:
         path: CSV file with a header row.
         min_distance: shortest acceptable travelled distance [m] (e.g. one segment length).
+        nominal: the vehicle's nominal theta ``[c_e, c_d, t_r, d]`` (SI; default: the
+            paper's car), which turns wheel rotations into distance and yaw for the checks
+            (``VehicleProfile.theta_nominal``).
 
     Raises:
         DriveLogError: with one line naming the file, the column and the first bad line.
@@ -450,7 +533,7 @@ def load_drive_log(path: str | os.PathLike[str], min_distance: float = 0.0) -> D
         ),
     )
     frame.columns = [str(c).strip() for c in frame.columns]
-    return validate_frame(frame, source, min_distance)
+    return validate_frame(frame, source, min_distance, nominal=nominal)
 
 
 def write_drive_log(log: DriveLog, path: str | os.PathLike[str]) -> None:

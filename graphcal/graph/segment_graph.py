@@ -296,8 +296,8 @@ def solve_segment_graph(
 ) -> SegmentSolution:
     """Build the graph of ``spec`` over ``data`` and solve it with Levenberg–Marquardt.
 
-    An estimated theta is checked for plausibility and, with ``covariance``, gets its marginal
-    covariance.
+    An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
+    initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
 
     Raises:
         CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
@@ -311,7 +311,7 @@ def solve_segment_graph(
     marginal = None
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
-        check_plausible(theta, label)
+        check_plausible(theta, label, reference=spec.theta)
         if covariance:
             marginal = marginal_covariance(
                 built.graph, result, keys.THETA, label, CalibrationFailed

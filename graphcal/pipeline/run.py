@@ -18,7 +18,8 @@ reported as not calibrated. If no segment passes the yaw-rate selection they use
 segments: the observability check, not the selection, then decides what the drive determines.
 
 Validation (§5.2): every theta is judged by its position error E_p (eq. 16 / K, averaged over
-the 300 m validation segments), next to nominal theta. Comparison with a known truth
+the 300 m validation segments), next to the nominal theta of ``settings.vehicle``, whose c_e
+also turns wheel rotations into the distances segments are cut by. Comparison with a known truth
 (synthetic drives) is :func:`graphcal.evaluation.evaluate`, apart from calibration.
 """
 
@@ -41,7 +42,6 @@ from graphcal.data.segments import (
 )
 from graphcal.errors import GraphcalError
 from graphcal.graph.observability import Observability, condition_on_prior
-from graphcal.model import THETA_NOMINAL
 from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.settings import Settings
@@ -157,9 +157,10 @@ def select(
     its segments instead of failing (for methods that judge observability themselves).
     """
     s = settings.segments
+    circumference = float(settings.vehicle.theta_nominal[0])
     for note in log.mask_notes:
         progress(f"masked: {note}")
-    segments = split_segments(log, s.length, s.stride)
+    segments = split_segments(log, s.length, s.stride, circumference)
     yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window)
     selected = segments.subset(yaw > s.min_yaw_rate)
     progress(
@@ -185,7 +186,7 @@ def select(
             + "lower --min-yaw-rate, use overlapping segments (--segment-stride) or a drive "
             "with more bends"
         )
-    validation = split_segments(log, s.validation_length)
+    validation = split_segments(log, s.validation_length, None, circumference)
     if len(validation) == 0:
         raise NoUsableSegments(
             f"{log.source}: log is shorter than one {s.validation_length:g} m validation "
@@ -206,7 +207,9 @@ def run_calibration(
 
     Args:
         log: a validated drive log.
-        settings: run settings (the paper's by default).
+        settings: run settings (the paper's by default); ``settings.vehicle`` gives the
+            nominal theta for cutting segments and for the "nominal" validation errors
+            (apply a vehicle with :func:`graphcal.pipeline.settings.apply_vehicle`).
         method: ``"staged"`` (the paper's five steps over batches), ``"joint"`` (one joint
             graph per batch, then one over all selected segments) or ``"whole"`` (only the
             joint solve over all selected segments).
@@ -290,7 +293,7 @@ def run_calibration(
         for name, thetas in batch_theta.items()
     }
     segment_errors = {
-        "nominal": position_errors(validation, THETA_NOMINAL),
+        "nominal": position_errors(validation, settings.vehicle.theta_nominal),
         "calibrated": position_errors(validation, theta),
     }
     if batches is not None and len(selected) < settings.batches.size:

@@ -3,9 +3,23 @@
 One schema: TOML sections and keys are the dataclass field names, recursively. Load a file
 with :func:`load_settings`; :func:`settings_to_dict` (or :meth:`Settings.to_dict`) gives the
 plain-data view written into ``calibration.json``. A file may set any subset; a missing key
-keeps the default of the enclosing setting. Every section and key, with the defaults::
+keeps the default of the enclosing setting.
 
-    [segments]
+The ``[vehicle]`` section (:class:`graphcal.vehicle.VehicleProfile`; also a file of its own,
+:func:`load_vehicle`) describes the vehicle: its nominal theta, the poses' and wheels' noise.
+It supplies the defaults of the settings that depend on the vehicle — ``theta_initial``,
+``theta_prior_sigmas``, ``pose_weights`` and ``position_sigma`` of ``[calibration]`` and
+``[joint]``, and ``[joint] wheel_noise`` (:func:`apply_vehicle`); a key given in
+``[calibration]`` or ``[joint]`` of the same file overrides it. Without ``[vehicle]`` the
+vehicle is the paper's car.
+
+The segment lengths (150 m, 300 m) and the yaw-rate threshold (0.15 rad/s) are the paper's
+car defaults and do not follow the vehicle: for a small robot set shorter segments in
+``[segments]`` (:class:`SegmentSettings` suggests values).
+
+Every section and key, with the defaults::
+
+    [segments]                  # the paper's car defaults
     length = 150.0              # m
     # stride = 50.0             # m; omit for disjoint segments
     min_yaw_rate = 0.15         # rad/s
@@ -19,10 +33,10 @@ keeps the default of the enclosing setting. Every section and key, with the defa
     seed = 0
 
     [calibration]               # batch solves of Steps 1, 3 and 5
-    theta_initial = [2.0, 0.0, 1.55, 0.0]           # c_e m, c_d m, t_r m, d s²
-    theta_prior_sigmas = [0.1, 0.01, 0.2, 0.01]     # same units
-    pose_weights = [1.0, 1.0, 50.0]                 # the paper's W on x, y, heading
-    position_sigma = 0.2        # m
+    theta_initial = [2.0, 0.0, 1.55, 0.0]           # (v) c_e m, c_d m, t_r m, d s²
+    theta_prior_sigmas = [0.1, 0.01, 0.2, 0.01]     # (v) same units
+    pose_weights = [1.0, 1.0, 50.0]                 # (v) the paper's W on x, y, heading
+    position_sigma = 0.2        # (v) m
     estimate_start_poses = false  # Step 1 holds the start; [staged] frees it in Steps 3, 5
     max_iterations = 5
 
@@ -50,16 +64,25 @@ keeps the default of the enclosing setting. Every section and key, with the defa
     max_iterations = 10
 
     [joint]                     # --method joint and whole
-    theta_initial = [2.0, 0.0, 1.55, 0.0]           # c_e m, c_d m, t_r m, d s²
-    theta_prior_sigmas = [0.1, 0.01, 0.2, 0.01]     # what "not observable" leaves
-    pose_weights = [1.0, 1.0, 50.0]
-    position_sigma = 0.2        # m
-    wheel_noise = 0.0005        # rev, sigma of the corrections' prior
+    theta_initial = [2.0, 0.0, 1.55, 0.0]           # (v) c_e m, c_d m, t_r m, d s²
+    theta_prior_sigmas = [0.1, 0.01, 0.2, 0.01]     # (v) what "not observable" leaves
+    pose_weights = [1.0, 1.0, 50.0]                 # (v)
+    position_sigma = 0.2        # (v) m
+    wheel_noise = 0.0005        # (v) rev, sigma of the corrections' prior
     smoothness_weight = 0.0     # R on the change of the corrections; 0 = off
     chunk_steps = 50
     continuity_sigmas = [0.001, 0.001, 0.0001]      # m, m, rad
     max_iterations = 30
     max_sigma_ratio = 0.1       # calibrated = data shrink the prior sigma to at most this
+
+    [vehicle]                   # the paper's car; defaults of the keys marked (v) above
+    name = "paper car"
+    theta_nominal = [2.0, 0.0, 1.55, 0.0]           # c_e m, c_d m, t_r m, d s² -> theta_initial
+    theta_prior_sigmas = [0.1, 0.01, 0.2, 0.01]     # same units -> theta_prior_sigmas
+    position_sigma = 0.2        # m -> position_sigma
+    heading_sigma = 0.0282842712474619  # rad -> pose_weights [1, 1, (0.2 / it)²] = [1, 1, 50]
+    wheel_noise = 0.0005        # rev per sample interval -> [joint] wheel_noise
+    # ticks_per_revolution = 64 # encoder resolution; adds 1 / (6 ticks²) rev² to wheel_noise²
 """
 
 from __future__ import annotations
@@ -70,6 +93,7 @@ import re
 import tomllib
 import types
 import typing
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -80,6 +104,7 @@ from graphcal.errors import GraphcalError
 from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.input_estimation import InputEstimationSettings
 from graphcal.pipeline.joint import JointSettings
+from graphcal.vehicle import VehicleProfile
 
 #: Upper limit [rad/s] of the yaw-rate selection threshold: no road vehicle keeps a mean yaw
 #: rate near it over a calibration segment, so a larger value is a unit or typing mistake.
@@ -88,7 +113,14 @@ MAX_MIN_YAW_RATE = 1.0
 
 @dataclass(frozen=True)
 class SegmentSettings:
-    """How the log is cut and which segments calibrate (§5.1); lengths in m, rates in rad/s."""
+    """How the log is cut and which segments calibrate (§5.1); lengths in m, rates in rad/s.
+
+    The defaults are the paper's car (150 m calibration and 300 m validation segments, a mean
+    yaw rate above 0.15 rad/s) and do not follow :class:`~graphcal.vehicle.VehicleProfile`.
+    A segment should hold a few bends and last some tens of seconds; for a small, slow robot
+    (1–2 m/s) that is about 30–50 m (``length``) and 60–100 m (``validation_length``), and
+    since a robot turns tighter than a car the yaw-rate threshold may stay.
+    """
 
     length: float = 150.0
     stride: float | None = None
@@ -180,7 +212,7 @@ class StagedSettings:
 
 @dataclass(frozen=True)
 class Settings:
-    """Everything that shapes a calibration run. Defaults are the paper's."""
+    """Everything that shapes a calibration run. Defaults are the paper's (and its car)."""
 
     segments: SegmentSettings = field(default_factory=SegmentSettings)
     batches: BatchingSettings = field(default_factory=BatchingSettings)
@@ -189,6 +221,10 @@ class Settings:
     )
     staged: StagedSettings = field(default_factory=StagedSettings)
     joint: JointSettings = field(default_factory=JointSettings)
+    #: The vehicle: nominal theta for the log's checks, segment distances and the report.
+    #: Changing it alone leaves the other sections as they are; :func:`apply_vehicle` makes
+    #: the settings that depend on it follow.
+    vehicle: VehicleProfile = field(default_factory=VehicleProfile)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view (lists instead of arrays), as written into ``calibration.json``."""
@@ -219,21 +255,111 @@ def settings_to_dict(settings: Any) -> dict[str, Any]:
 
 
 def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Settings:
-    """Build :class:`Settings` from a nested dict like a TOML file's (unknown keys rejected)."""
-    return _load(Settings(), data, "", source)
+    """Build :class:`Settings` from a nested dict like a TOML file's (unknown keys rejected).
+
+    With a ``vehicle`` table, the settings that depend on the vehicle follow it
+    (:func:`apply_vehicle`) except those the dict gives itself.
+    """
+    settings = _load(Settings(), data, "", source)
+    if "vehicle" not in data:
+        return settings
+    given = {
+        f"{section}.{key}" for section in ("calibration", "joint") for key in data.get(section, {})
+    }
+    return _follow_vehicle(settings, VehicleProfile(), settings.vehicle, given)
 
 
 def load_settings(path: str | os.PathLike[str]) -> Settings:
     """Read :class:`Settings` from a TOML file (missing keys keep the paper's defaults)."""
+    return settings_from_dict(_read_toml(path, "settings"), str(path))
+
+
+def load_vehicle(path: str | os.PathLike[str]) -> VehicleProfile:
+    """Read a :class:`~graphcal.vehicle.VehicleProfile` from a TOML file.
+
+    The file's top level holds the vehicle's keys (``data/vehicles/car.toml``), or the file
+    has a ``[vehicle]`` table and nothing else. Missing keys keep the paper's car values.
+
+    Raises:
+        GraphcalError: one line naming the file and the key.
+    """
+    source = str(path)
+    data = _read_toml(path, "vehicle")
+    if isinstance(data.get("vehicle"), dict):
+        others = sorted(key for key in data if key != "vehicle")
+        if others:
+            raise GraphcalError(
+                f"{source}: a vehicle file holds only the vehicle's keys or a [vehicle] table, "
+                f"also found {others}; give a settings file with --config"
+            )
+        data = data["vehicle"]
+    return _load(VehicleProfile(), data, "vehicle", source)
+
+
+def apply_vehicle(
+    settings: Settings, vehicle: VehicleProfile, *, keep: Collection[str] = ()
+) -> Settings:
+    """``settings`` for ``vehicle``: the settings that depend on the vehicle follow it.
+
+    ``theta_initial`` and ``theta_prior_sigmas`` (from the vehicle's nominal theta and its
+    sigmas), ``pose_weights`` and ``position_sigma`` of ``calibration`` and ``joint``, and
+    ``joint.wheel_noise`` (the vehicle's effective wheel noise) take the vehicle's values,
+    unless set otherwise: named in ``keep`` (``"joint.wheel_noise"``) or holding another value
+    than the one ``settings.vehicle`` implies. A settings file's ``[vehicle]`` section is
+    applied so, keeping the keys the file gives in ``[calibration]`` and ``[joint]``.
+    """
+    known = {f"{s}.{k}" for s, d in _DERIVED_SECTIONS for k in d}
+    unknown = sorted(set(keep) - known)
+    if unknown:
+        raise ValueError(
+            f"keep names {unknown}, not settings that follow the vehicle: {sorted(known)}"
+        )
+    return _follow_vehicle(settings, settings.vehicle, vehicle, set(keep))
+
+
+#: The settings of a section that follow the vehicle, and how each derives from it.
+_FROM_VEHICLE: dict[str, Callable[[VehicleProfile], Any]] = {
+    "theta_initial": lambda v: v.theta_nominal.copy(),
+    "theta_prior_sigmas": lambda v: v.theta_prior_sigmas.copy(),
+    "pose_weights": lambda v: v.pose_weights(),
+    "position_sigma": lambda v: v.position_sigma,
+}
+_FROM_VEHICLE_JOINT = {**_FROM_VEHICLE, "wheel_noise": lambda v: v.effective_wheel_noise()}
+_DERIVED_SECTIONS = (("calibration", _FROM_VEHICLE), ("joint", _FROM_VEHICLE_JOINT))
+
+
+def _follow_vehicle(
+    settings: Settings, previous: VehicleProfile, vehicle: VehicleProfile, keep: set[str]
+) -> Settings:
+    """``settings`` with ``vehicle``; each vehicle-dependent setting not in ``keep`` that
+    still holds what ``previous`` implies takes what ``vehicle`` implies."""
+    changes: dict[str, Any] = {"vehicle": vehicle}
+    for section, derived in _DERIVED_SECTIONS:
+        current = getattr(settings, section)
+        follow = {
+            key: derive(vehicle)
+            for key, derive in derived.items()
+            if f"{section}.{key}" not in keep
+            and np.array_equal(
+                np.asarray(getattr(current, key), float), np.asarray(derive(previous), float)
+            )
+        }
+        changes[section] = dataclasses.replace(current, **follow)
+    return dataclasses.replace(settings, **changes)
+
+
+def _read_toml(path: str | os.PathLike[str], kind: str) -> dict[str, Any]:
+    """The table of TOML file ``path`` (a ``kind`` file), with one-line errors."""
     source = str(path)
     try:
         with open(path, "rb") as handle:
-            data = tomllib.load(handle)
+            return tomllib.load(handle)
     except FileNotFoundError:
-        raise GraphcalError(f"{source}: no such settings file; check the path") from None
+        raise GraphcalError(f"{source}: no such {kind} file; check the path") from None
+    except IsADirectoryError:
+        raise GraphcalError(f"{source}: is a directory, not a {kind} file") from None
     except tomllib.TOMLDecodeError as exc:
         raise GraphcalError(f"{source}: not valid TOML ({exc})") from exc
-    return settings_from_dict(data, source)
 
 
 def _plain(value: Any) -> Any:
@@ -322,3 +448,24 @@ def _convert(value: Any, hint: Any, current: Any, name: str, source: str) -> Any
 
 def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+#: Heading weight (of the paper's W = [1, 1, 50]) for a heading that was not measured but
+#: derived from the GNSS course: the positions carry the information, the heading nearly
+#: none. Measured on a 24 km recording without heading (docs/import.md): weighted like a
+#: measured heading, c_e was off by 6σ; at this weight all parameters were within 2.4σ.
+DERIVED_HEADING_WEIGHT = 0.01
+
+
+def for_derived_heading(settings: Settings) -> Settings:
+    """``settings`` for a log whose heading was derived from the positions (the GNSS course):
+    its errors follow the positions', so it is not weighted as a measurement of its own
+    (heading weight :data:`DERIVED_HEADING_WEIGHT` in ``[calibration]`` and ``[joint]``)."""
+
+    def weights(section: Any) -> Any:
+        x, y, _ = section.pose_weights
+        return dataclasses.replace(section, pose_weights=(x, y, DERIVED_HEADING_WEIGHT))
+
+    return dataclasses.replace(
+        settings, calibration=weights(settings.calibration), joint=weights(settings.joint)
+    )

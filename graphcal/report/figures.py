@@ -14,7 +14,7 @@ from matplotlib.figure import Figure, SubFigure
 from matplotlib.ticker import MaxNLocator
 
 from graphcal.evaluation import Evaluation
-from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, integrate
+from graphcal.model import PARAMETER_NAMES, integrate
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
@@ -395,7 +395,7 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     errors = segment_errors["nominal"]
     i = int(np.argsort(errors)[len(errors) // 2])
     poses, inputs = run.validation.segment(i)
-    thetas = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
+    thetas = {"nominal": run.settings.vehicle.theta_nominal, "calibrated": run.theta}
     if evaluation is not None:
         thetas["true"] = evaluation.theta_true
     fig = Figure(figsize=(7, 7), layout="constrained")

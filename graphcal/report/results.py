@@ -18,7 +18,7 @@ import pandas as pd
 from graphcal import __version__
 from graphcal.evaluation import Evaluation
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
-from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
+from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.report.figures import figures
 from graphcal.report.result_set import replace_result_set
@@ -181,7 +181,7 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
             f"{n} [{u}]": float(v)
             for n, u, v in zip(PARAMETER_NAMES, DISPLAY_UNITS, to_display(run.theta), strict=True)
         },
-        "theta_nominal": _named(THETA_NOMINAL),
+        "theta_nominal": _named(run.settings.vehicle.theta_nominal),
         "parameters": parameter_summary(run, evaluation),
         "method": run.method,
         "log": {
@@ -189,7 +189,9 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
             "samples": len(run.log),
             "dt_s": run.log.dt,
             "duration_s": float(run.log.t[-1] - run.log.t[0]),
-            "distance_m": float(run.log.travelled_distance()[-1]),
+            "distance_m": float(
+                run.log.travelled_distance(run.settings.vehicle.theta_nominal[0])[-1]
+            ),
         },
         "segments": {
             "calibration": len(run.segments),
@@ -278,7 +280,7 @@ def batches_frame(run: CalibrationRun, evaluation: Evaluation | None = None) -> 
 def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> str:
     """The human-readable summary printed by the CLI."""
     truth = _theta_true(evaluation)
-    rows = {"nominal": THETA_NOMINAL, "calibrated": run.theta}
+    rows = {"nominal": run.settings.vehicle.theta_nominal, "calibrated": run.theta}
     if truth is not None:
         rows["true"] = truth
     hidden = set(run.observability.not_calibrated) if run.observability is not None else set()
