@@ -23,7 +23,7 @@ from graphcal.arguments import whole as _whole
 from graphcal.errors import GraphcalError
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
-from graphcal.pipeline.settings import Settings, load_settings
+from graphcal.pipeline.settings import Settings, apply_vehicle, load_settings, load_vehicle
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 if TYPE_CHECKING:
@@ -64,6 +64,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         lateral_acceleration=args.ay_noise,
     )
     say = _timed_progress()
+    if args.streams is not None:
+        return _simulate_streams(args, theta_true, say)
+    if args.out is None:
+        raise GraphcalError("simulate needs --out FILE.csv (or --streams DIR)")
     drive = simulate_drive(args.length_km, args.seed, theta_true, noise, args.dt, route=args.route)
     say(f"simulated {len(drive.measured)} samples ({drive.measured.t[-1]:.0f} s)")
     try:
@@ -75,37 +79,168 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_check(args: argparse.Namespace) -> int:
-    """Validate a drive log and summarize what calibration would use."""
+def _bag_options(args: argparse.Namespace):
+    from graphcal.data.importer import BagOptions
+
+    return BagOptions(
+        pose_topic=args.pose_topic,
+        wheel_topic=args.wheel_topic,
+        imu_topic=args.imu_topic,
+        rear_left=args.rear_left,
+        rear_right=args.rear_right,
+        wheel_kind=args.wheel_kind,
+    )
+
+
+def _load(args: argparse.Namespace, settings: Settings, min_distance: float = 0.0):
+    """The drive log of ``args.log`` — a drive-log CSV, or a manifest or bag imported in
+    memory — and the :class:`~graphcal.data.importer.ImportedLog` of an import (else None).
+    Checked against the vehicle's nominal theta."""
     from graphcal.data.drive_log import load_drive_log
+    from graphcal.data.importer import import_recording, is_recording
+
+    nominal = settings.vehicle.theta_nominal
+    if is_recording(args.log):
+        imported = import_recording(
+            args.log,
+            rate=args.rate,
+            max_gap=args.max_gap,
+            bag=_bag_options(args),
+            nominal=nominal,
+            min_distance=min_distance,
+        )
+        return imported.log, imported
+    return load_drive_log(args.log, min_distance=min_distance, nominal=nominal), None
+
+
+def _distance_line(log, settings: Settings) -> str:
+    c_e = float(settings.vehicle.theta_nominal[0])
+    return f"{log.travelled_distance(c_e)[-1]:.1f} m (wheels, nominal c_e = {c_e:g} m)"
+
+
+def _print_masked(log) -> None:
+    if log.masked is not None:
+        print(
+            f"  masked           {log.masked.sum() * log.dt:.1f} s that no segment spans "
+            "(gaps, reversing, positions that disagree with the wheels):"
+        )
+        for note in log.mask_notes:
+            print(f"    {note}")
+
+
+def _print_excitation(log, settings: Settings) -> None:
+    from graphcal.data.excitation import drive_excitation
+
+    seg = settings.segments
+    excitation = drive_excitation(
+        log,
+        seg.length,
+        seg.min_yaw_rate,
+        seg.yaw_statistic,
+        seg.yaw_window,
+        wheel_circumference=float(settings.vehicle.theta_nominal[0]),
+    )
+    for line in excitation.lines():
+        print(f"  {line}")
+
+
+def cmd_import(args: argparse.Namespace) -> int:
+    """Import a streams manifest (TOML) or a ROS 1/2 bag or MCAP file into a drive-log CSV."""
+    from graphcal.data.importer import import_recording, write_import
+
+    settings = settings_from_args(args)
+    out = Path(args.out)
+    if out.is_dir():
+        raise GraphcalError(f"--out {out}: is a directory; give the drive-log CSV's path")
+    if out.resolve() == Path(args.source).resolve():
+        raise GraphcalError(f"--out {out}: is the source; give a new CSV path")
+    say = _timed_progress()
+    imported = import_recording(
+        args.source,
+        rate=args.rate,
+        max_gap=args.max_gap,
+        bag=_bag_options(args),
+        nominal=settings.vehicle.theta_nominal,
+    )
+    say(f"imported {args.source}")
+    log = imported.log
+    print(f"{args.source}: recording")
+    for line in imported.lines():
+        print(f"  {line}")
+    print(f"  distance         {_distance_line(log, settings)}, {log.t[-1] - log.t[0]:.1f} s")
+    _print_excitation(log, settings)
+    _print_masked(log)
+    try:
+        written = write_import(imported, out)
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {out}: {exc.strerror or exc}") from exc
+    say(f"wrote {', '.join(str(p) for p in written)}")
+    return 0
+
+
+def _simulate_streams(
+    args: argparse.Namespace, theta_true: np.ndarray, say: Callable[[str], None]
+) -> int:
+    """``simulate --streams DIR``: raw GNSS, wheel and IMU streams with a manifest."""
+    from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
+
+    directory = Path(args.streams)
+    if directory.exists() and not directory.is_dir():
+        raise GraphcalError(f"--streams {directory}: exists and is not a directory")
+    stream_settings = StreamSettings(
+        position_noise=args.position_noise,
+        heading_noise=float(np.deg2rad(args.heading_noise_deg)),
+        lateral_acceleration_noise=args.ay_noise,
+        sideslip_noise=float(np.deg2rad(args.sideslip_noise_deg)),
+        wheel_kind=args.wheel_kind_sim,
+    )
+    sim = simulate_streams(args.length_km, args.seed, theta_true, stream_settings, route=args.route)
+    say(f"simulated {args.length_km:g} km as GNSS, wheel and IMU streams")
+    try:
+        written = write_streams(sim, directory)
+        if args.bag is not None:
+            from graphcal.simulate.bags import write_bag
+
+            suffix = {"ros1": "drive.bag", "ros2": "drive_ros2", "mcap": "drive_mcap"}[args.bag]
+            written.append(write_bag(sim.recording, directory / suffix, args.bag))
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {directory}: {exc.strerror or exc}") from exc
+    for path in written:
+        say(f"wrote {path}")
+    return 0
+
+
+def cmd_check(args: argparse.Namespace) -> int:
+    """Validate a drive log (or a manifest or bag, imported in memory) and summarize it."""
     from graphcal.data.segments import split_segments, yaw_rate_statistic
 
-    seg = settings_from_args(args).segments
-    log = load_drive_log(args.log)
-    segments = split_segments(log, seg.length, seg.stride)
+    settings = settings_from_args(args)
+    seg = settings.segments
+    log, imported = _load(args, settings)
+    segments = split_segments(log, seg.length, seg.stride, settings.vehicle.theta_nominal[0])
     yaw = yaw_rate_statistic(log, segments, seg.yaw_statistic, seg.yaw_window)
-    print(f"{args.log}: valid drive log")
+    print(f"{args.log}: valid {'recording' if imported else 'drive log'}")
+    if imported is not None:
+        for line in imported.lines():
+            print(f"  {line}")
     print(f"  samples          {len(log)} at {log.dt * 1e3:.1f} ms ({1 / log.dt:.1f} Hz)")
     print(f"  duration         {log.t[-1] - log.t[0]:.1f} s")
-    print(f"  distance         {log.travelled_distance()[-1]:.1f} m (wheels, c_e = 2 m)")
+    print(f"  distance         {_distance_line(log, settings)}")
     print(
         f"  segments         {len(segments)} of {seg.length:g} m, "
         f"{int((yaw > seg.min_yaw_rate).sum())} with {seg.yaw_statistic} |yaw rate| > "
         f"{seg.min_yaw_rate:g} rad/s"
     )
-    if log.masked is not None:
-        print(
-            f"  masked           {log.masked.sum() * log.dt:.1f} s where the positions disagree "
-            "with the wheels (no segment spans them):"
-        )
-        for note in log.mask_notes:
-            print(f"    {note}")
+    _print_excitation(log, settings)
+    _print_masked(log)
     return 0
 
 
 def settings_from_args(args: argparse.Namespace) -> Settings:
     """Settings: the paper's defaults, then ``--config FILE``, then explicit options."""
     settings = load_settings(args.config) if getattr(args, "config", None) else Settings()
+    if getattr(args, "vehicle", None) is not None:
+        settings = apply_vehicle(settings, load_vehicle(args.vehicle))
     segments = {
         "length": args.segment_length,
         "stride": args.segment_stride,
@@ -135,8 +270,9 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate theta from a drive log and write results, figures and a summary."""
-    from graphcal.data.drive_log import load_drive_log
+    from graphcal.data.importer import heading_derived
     from graphcal.pipeline.run import run_calibration
+    from graphcal.pipeline.settings import for_derived_heading
     from graphcal.report.result_set import check_output_directory
     from graphcal.report.results import summary_text, write_results
 
@@ -152,10 +288,29 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     check_output_directory(args.out)  # before minutes of computation, not after
     workers = args.workers or default_workers()
     say = _timed_progress()
-    log = load_drive_log(args.log, min_distance=settings.segments.length)
-    say(f"loaded {args.log}: {len(log)} samples, {log.travelled_distance()[-1]:.0f} m")
+    log, imported = _load(args, settings, min_distance=settings.segments.length)
+    if imported.resampled.heading_derived if imported else heading_derived(args.log):
+        settings = for_derived_heading(settings)
+        say(
+            "heading derived from the GNSS course, not measured: calibrating with heading "
+            f"weight {settings.joint.pose_weights[2]:g} (the positions carry the information)"
+        )
+    what = "imported" if imported else "loaded"
+    distance = log.travelled_distance(settings.vehicle.theta_nominal[0])[-1]
+    say(f"{what} {args.log}: {len(log)} samples, {distance:.0f} m")
+    if imported is not None:
+        for line in imported.lines():
+            say(line)
     run = run_calibration(log, settings, method, progress=say, workers=workers)
-    evaluation = _evaluate_synthetic(run, args.log, say, workers)
+    if imported is not None:
+        evaluation = None
+        if imported.truth is not None:
+            from graphcal.evaluation import Truth, evaluate
+
+            say("synthetic recording: comparing with theta_true from its manifest")
+            evaluation = evaluate(run, Truth(imported.truth), say, workers)
+    else:
+        evaluation = _evaluate_synthetic(run, args.log, say, workers)
     try:
         written = write_results(run, args.out, evaluation=evaluation)
     except OSError as exc:
@@ -260,7 +415,30 @@ def build_parser() -> argparse.ArgumentParser:
         help="city: bends, turns and roundabouts (default); straight: a straight road, where "
         "t_r and d are not observable",
     )
-    p.add_argument("--out", required=True, type=Path, help="output CSV path")
+    p.add_argument("--out", type=Path, default=None, help="output CSV path")
+    p.add_argument(
+        "--streams",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="instead of a drive-log CSV, write raw streams into DIR: GNSS at 10 Hz "
+        "(latitude/longitude), rear wheels and IMU at 100 Hz on their own clocks, with "
+        "manifest.toml for `graphcal import`",
+    )
+    p.add_argument(
+        "--wheel-kind",
+        dest="wheel_kind_sim",
+        choices=["speed", "ticks"],
+        default="speed",
+        help="with --streams: wheel speeds in m/s (the ECU's circumference 2.0 m; default) or "
+        "cumulative ticks (96 per revolution)",
+    )
+    p.add_argument(
+        "--bag",
+        choices=["ros1", "ros2", "mcap"],
+        default=None,
+        help="with --streams: also write the streams as a ROS 1 bag, a ROS 2 bag or an MCAP file",
+    )
     p.add_argument(
         "--dt", type=_at_least(1e-3, "s"), default=0.025, help="sampling interval [s] (0.025)"
     )
@@ -317,17 +495,78 @@ def build_parser() -> argparse.ArgumentParser:
     add_bench_arguments(p)
     p.set_defaults(func=cmd_bench)
 
+    def vehicle_option(p: argparse.ArgumentParser) -> None:
+        p.add_argument(
+            "--vehicle",
+            type=Path,
+            default=None,
+            metavar="FILE",
+            help="vehicle profile (TOML: nominal theta, sensor noise, ticks per revolution; "
+            "data/vehicles/*.toml); default the paper's car",
+        )
+
+    def recording_options(p: argparse.ArgumentParser) -> None:
+        g = p.add_argument_group(
+            "recordings (a streams manifest or a ROS bag instead of a drive-log CSV)"
+        )
+        g.add_argument(
+            "--rate",
+            type=_at_least(1.0, "Hz"),
+            default=None,
+            metavar="HZ",
+            help="rate of the drive log [Hz] (default: the manifest's rate, else 40)",
+        )
+        g.add_argument(
+            "--max-gap",
+            type=_at_least(0.01, "s"),
+            default=None,
+            metavar="S",
+            help="a longer gap in any stream is masked [s] (default: the manifest's, else 0.5)",
+        )
+        g.add_argument("--pose-topic", default=None, help="bag: NavSatFix/Odometry/Pose topic")
+        g.add_argument("--wheel-topic", default=None, help="bag: JointState topic")
+        g.add_argument("--imu-topic", default=None, help="bag: Imu topic (optional)")
+        g.add_argument("--rear-left", default=None, metavar="JOINT", help="bag: joint name")
+        g.add_argument("--rear-right", default=None, metavar="JOINT", help="bag: joint name")
+        g.add_argument(
+            "--wheel-kind",
+            choices=["angle", "angular_speed"],
+            default=None,
+            help="bag: use the joints' positions [rad] or velocities [rad/s] (default: "
+            "positions if logged)",
+        )
+
+    p = sub.add_parser(
+        "import",
+        help="import a streams manifest or a ROS bag into a drive-log CSV",
+        description=cmd_import.__doc__
+        + " The manifest's keys are documented in graphcal/data/manifest.py and the README.",
+    )
+    p.add_argument("source", type=Path, help="streams manifest (.toml), ROS 1 bag, ROS 2 bag, MCAP")
+    p.add_argument("--out", type=Path, required=True, help="drive-log CSV to write (+ .json)")
+    recording_options(p)
+    segment_options(p)
+    vehicle_option(p)
+    p.set_defaults(func=cmd_import)
+
     p = sub.add_parser(
         "check", help="validate a drive log and summarize it", description=cmd_check.__doc__
     )
-    p.add_argument("log", type=Path, help="drive-log CSV")
+    p.add_argument("log", type=Path, help="drive-log CSV, streams manifest or ROS bag")
     segment_options(p)
+    recording_options(p)
+    vehicle_option(p)
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser(
         "calibrate", help="calibrate theta from a drive log", description=cmd_calibrate.__doc__
     )
-    p.add_argument("log", type=Path, help="drive-log CSV (t, px, py, psi, n_rl, n_rr, beta, ay)")
+    p.add_argument(
+        "log",
+        type=Path,
+        help="drive-log CSV (t, px, py, psi, n_rl, n_rr, beta, ay), or a streams manifest or "
+        "ROS bag (imported in memory)",
+    )
     p.add_argument(
         "--out", type=Path, default=Path("results"), help="output directory (default results/)"
     )
@@ -379,6 +618,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="follow the paper literally: eq. 15 heading correction on every sample and start "
         "poses held in Steps 3 and 5 (graphcal's defaults are measured to be more accurate)",
     )
+    recording_options(p)
+    vehicle_option(p)
     p.set_defaults(func=cmd_calibrate)
     return parser
 

@@ -1,0 +1,432 @@
+"""Sensor streams of a recording, each at its own rate, and their resampling onto a uniform grid.
+
+A recording holds a pose stream (GNSS or a fused pose), a rear-wheel stream and optionally
+an IMU stream, all with time in seconds on one time base but sampled at their own instants.
+Every reader (:mod:`graphcal.data.manifest` for CSV streams, :mod:`graphcal.data.bags` for
+ROS bags) converts its units into the SI quantities of these classes, so that
+:func:`resample` does one job: put them on the drive log's grid ``t_k = t_0 + k / rate``.
+
+* Wheel rotation per interval is **integrated**, never sampled: a cumulative angle is
+  interpolated at the grid times and differenced; a rotation rate is first integrated with
+  the trapezoid rule.
+* Positions are interpolated linearly; the heading on the circle (unwrapped first). Without
+  a logged heading it is the GNSS course (direction of travel over :data:`COURSE_WINDOW_S`)
+  minus the sideslip.
+* Lateral acceleration and yaw rate are the IMU's means over each interval; without an IMU,
+  lateral acceleration is speed × yaw rate (speed from the wheels, yaw rate from the heading).
+* A gap in any stream longer than :func:`gap_threshold` masks the grid samples around it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graphcal.data.consistency import runs
+from graphcal.errors import GraphcalError
+
+#: Smallest gap [s] between two samples of a stream that counts as a gap; a slower stream's
+#: threshold is :data:`GAP_INTERVALS` of its own median interval.
+MAX_GAP_S = 0.5
+GAP_INTERVALS = 2.5
+#: The streams must overlap for at least this share of the shortest stream's time span.
+MIN_OVERLAP_SHARE = 0.5
+#: Window [s] over which the GNSS course (direction of travel) is taken, and the distance [m]
+#: the vehicle must travel in it for the course to be defined (else the last one is held).
+COURSE_WINDOW_S = 1.0
+COURSE_MIN_DISTANCE = 1.0
+#: Half the chord [m] along the wheels' travel over which the heading is derived from the
+#: GNSS course when no heading is logged.
+COURSE_HALF_DISTANCE = 5.0
+#: Window [s] of the heading difference that gives the yaw rate when no IMU is logged.
+YAW_RATE_WINDOW_S = 1.0
+#: Most negative wheel rotation [rev] per grid interval accepted before a sample counts as
+#: reversing (masked, its rotation set to 0).
+REVERSING_TOLERANCE = 0.005
+
+
+class StreamError(GraphcalError, ValueError):
+    """A sensor stream that cannot be used; the message is one line: what, where, how to fix."""
+
+
+@dataclass(frozen=True)
+class PoseStream:
+    """Measured pose of the vehicle (GNSS fixes or a fused pose), in a local metric frame.
+
+    Attributes:
+        t: time [s], strictly increasing, ``(M,)``.
+        x, y: position [m], east and north of ``origin`` (or any local metric frame).
+        heading: heading [rad], ENU convention (0 = east, counter-clockwise), or ``None``
+            when not logged (then the course is used).
+        sideslip: sideslip angle [rad], or ``None`` (then 0).
+        source: where the stream came from, for messages (``"gnss.csv"``, ``"bag:/fix"``).
+        origin: ``(latitude, longitude)`` [deg] of the local frame's origin when the fixes
+            were geodetic, else ``None``.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray | None
+    sideslip: np.ndarray | None
+    source: str
+    origin: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
+class WheelStream:
+    """Rear-wheel rotation, either cumulative [rev] or as a rate [rev/s].
+
+    Attributes:
+        t: time [s], strictly increasing, ``(M,)``.
+        left, right: rear-left and rear-right wheel, ``(M,)``: revolutions since an arbitrary
+            start when ``cumulative`` (ticks / ticks per revolution, angle / 2π), else
+            revolutions per second (speed / circumference, rpm / 60, ...).
+        cumulative: which of the two the arrays hold.
+        source: where the stream came from, for messages.
+        resolution: one count [rev] of a tick counter (1 / ticks per revolution), or ``None``.
+    """
+
+    t: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    cumulative: bool
+    source: str
+    resolution: float | None = None
+
+
+@dataclass(frozen=True)
+class ImuStream:
+    """IMU signals in the vehicle frame (x forward, y left, z up; ROS REP 103).
+
+    Attributes:
+        t: time [s], strictly increasing, ``(M,)``.
+        lateral_acceleration: [m/s²], positive to the left, or ``None``.
+        yaw_rate: [rad/s], positive counter-clockwise, or ``None``.
+        source: where the stream came from, for messages.
+    """
+
+    t: np.ndarray
+    lateral_acceleration: np.ndarray | None
+    yaw_rate: np.ndarray | None
+    source: str
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The streams of one drive, read from a manifest or a bag; :func:`resample` grids them."""
+
+    pose: PoseStream
+    wheels: WheelStream
+    imu: ImuStream | None
+    source: str
+    notes: tuple[str, ...] = ()
+
+    def streams(self) -> dict[str, PoseStream | WheelStream | ImuStream]:
+        """The present streams by role (``pose``, ``wheels``, ``imu``)."""
+        found = {"pose": self.pose, "wheels": self.wheels, "imu": self.imu}
+        return {name: stream for name, stream in found.items() if stream is not None}
+
+
+@dataclass(frozen=True)
+class StreamSummary:
+    """What the import found in one stream: rate, span and gaps."""
+
+    role: str
+    source: str
+    samples: int
+    rate: float
+    start: float
+    end: float
+    gaps: tuple[tuple[float, float], ...]
+
+    def line(self) -> str:
+        """One line for the import's printout."""
+        gaps = f", {len(self.gaps)} gap(s) {_gap_text(self.gaps)}" if self.gaps else ", no gaps"
+        return (
+            f"{self.role:<6} {self.source}: {self.samples} samples at {self.rate:.1f} Hz, "
+            f"t = {self.start:.3f} … {self.end:.3f} s{gaps}"
+        )
+
+
+@dataclass(frozen=True)
+class Resampled:
+    """A recording on the uniform grid: drive-log columns, masked samples and what was done."""
+
+    columns: dict[str, np.ndarray]
+    masked: np.ndarray
+    mask_notes: tuple[str, ...]
+    streams: tuple[StreamSummary, ...]
+    overlap: tuple[float, float]
+    notes: tuple[str, ...] = field(default=())
+    heading_derived: bool = False
+
+
+def check_time(t: np.ndarray, source: str) -> None:
+    """Raise :class:`StreamError` unless ``t`` is finite and strictly increasing."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2:
+        raise StreamError(f"{source}: only {len(t)} sample(s); a stream needs many samples")
+    if not np.all(np.isfinite(t)):
+        k = int(np.flatnonzero(~np.isfinite(t))[0])
+        raise StreamError(f"{source}: time of sample {k + 1} is {t[k]}; fill or drop that row")
+    step = np.diff(t)
+    if (step <= 0).any():
+        k = int(np.flatnonzero(step <= 0)[0]) + 1
+        raise StreamError(
+            f"{source}: time does not increase at sample {k + 1} ({t[k - 1]:.9g} then "
+            f"{t[k]:.9g} s); sort the stream by time and drop duplicate samples"
+        )
+
+
+def gap_threshold(t: np.ndarray, max_gap: float = MAX_GAP_S) -> float:
+    """Longest step [s] between samples of a stream that is not a gap."""
+    return max(max_gap, GAP_INTERVALS * float(np.median(np.diff(t))))
+
+
+def stream_gaps(t: np.ndarray, max_gap: float = MAX_GAP_S) -> list[tuple[float, float]]:
+    """``[(last sample before, first sample after), ...]`` of each gap of a stream [s]."""
+    step = np.diff(t)
+    at = np.flatnonzero(step > gap_threshold(t, max_gap))
+    return [(float(t[k]), float(t[k + 1])) for k in at]
+
+
+def summarize(role: str, stream: PoseStream | WheelStream | ImuStream, max_gap: float):
+    """The :class:`StreamSummary` of one stream."""
+    t = stream.t
+    return StreamSummary(
+        role=role,
+        source=stream.source,
+        samples=len(t),
+        rate=1.0 / float(np.median(np.diff(t))),
+        start=float(t[0]),
+        end=float(t[-1]),
+        gaps=tuple(stream_gaps(t, max_gap)),
+    )
+
+
+def _gap_text(gaps: tuple[tuple[float, float], ...], shown: int = 3) -> str:
+    parts = [f"{b - a:.1f} s at t = {a:.1f}" for a, b in gaps[:shown]]
+    more = f", … ({len(gaps) - shown} more)" if len(gaps) > shown else ""
+    return "(" + ", ".join(parts) + more + ")"
+
+
+def overlap(summaries: list[StreamSummary], source: str) -> tuple[float, float]:
+    """The time span [s] all streams cover; :class:`StreamError` if it is empty or short."""
+    start = max(s.start for s in summaries)
+    end = min(s.end for s in summaries)
+    spans = ", ".join(f"{s.role} {s.start:.3f} … {s.end:.3f} s" for s in summaries)
+    if end <= start:
+        raise StreamError(
+            f"{source}: the streams' clocks do not overlap ({spans}); give every stream's time "
+            "on one time base (same unit and epoch; a manifest's time_unit and time_offset)"
+        )
+    shortest = min(s.end - s.start for s in summaries)
+    if end - start < MIN_OVERLAP_SHARE * shortest:
+        raise StreamError(
+            f"{source}: the streams overlap for only {end - start:.1f} s ({spans}), less than "
+            f"{MIN_OVERLAP_SHARE:.0%} of the shortest; check that the clocks share one time "
+            "base (a manifest's time_unit and time_offset)"
+        )
+    return start, end
+
+
+def interval_means(t: np.ndarray, values: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Mean of a signal over each grid interval ``[grid[k], grid[k+1]]``, ``(len(grid),)``.
+
+    The signal is integrated with the trapezoid rule, the integral interpolated at the grid
+    times and differenced; the last sample repeats the last interval's mean.
+    """
+    integral = cumulative_integral(t, values)
+    return _differenced(np.interp(grid, t, integral), grid) / _repeat_last(np.diff(grid))
+
+
+def cumulative_integral(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """∫ values dt from ``t[0]`` to each sample (trapezoid rule), ``(M,)``."""
+    return np.concatenate([[0.0], np.cumsum(0.5 * (values[1:] + values[:-1]) * np.diff(t))])
+
+
+def _repeat_last(x: np.ndarray) -> np.ndarray:
+    return np.append(x, x[-1])
+
+
+def _differenced(cumulative_at_grid: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Increments over each grid interval, the last repeated so that rows match the grid."""
+    return _repeat_last(np.diff(cumulative_at_grid))
+
+
+def wheel_rotations(wheels: WheelStream, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation [rev] of each rear wheel during each grid interval (integrated, never sampled)."""
+    out = []
+    for signal in (wheels.left, wheels.right):
+        cumulative = signal if wheels.cumulative else cumulative_integral(wheels.t, signal)
+        out.append(_differenced(np.interp(grid, wheels.t, cumulative), grid))
+    return out[0], out[1]
+
+
+def course(
+    x: np.ndarray, y: np.ndarray, dt: float, travelled: np.ndarray | None = None
+) -> np.ndarray:
+    """Direction of travel [rad, unwrapped] from grid positions, as a central chord.
+
+    With ``travelled`` (distance [m] at each sample, from the wheels) the chord spans
+    :data:`COURSE_HALF_DISTANCE` on each side, so that its direction error (position noise
+    over chord length) does not grow at low speed; else :data:`COURSE_WINDOW_S`. Where the
+    chord is shorter than :data:`COURSE_MIN_DISTANCE` (standstill) the last defined course
+    is held (the first defined one before it).
+    """
+    n = len(x)
+    if travelled is not None:
+        ahead = np.searchsorted(travelled, travelled + COURSE_HALF_DISTANCE, side="left")
+        behind = np.searchsorted(travelled, travelled - COURSE_HALF_DISTANCE, side="right") - 1
+        ahead, behind = np.minimum(ahead, n - 1), np.maximum(behind, 0)
+    else:
+        half = max(1, round(0.5 * COURSE_WINDOW_S / dt))
+        ahead = np.minimum(np.arange(n) + half, n - 1)
+        behind = np.maximum(np.arange(n) - half, 0)
+    dx, dy = x[ahead] - x[behind], y[ahead] - y[behind]
+    defined = np.hypot(dx, dy) >= COURSE_MIN_DISTANCE
+    if not defined.any():
+        return np.zeros(n)
+    index = np.where(defined, np.arange(n), -1)
+    index = np.maximum.accumulate(index)
+    index[index < 0] = int(np.flatnonzero(defined)[0])
+    angle = np.arctan2(dy, dx)[index]
+    return np.unwrap(angle)
+
+
+def yaw_rate_from_heading(heading: np.ndarray, dt: float) -> np.ndarray:
+    """Yaw rate [rad/s] as a central difference of the heading over :data:`YAW_RATE_WINDOW_S`."""
+    n = len(heading)
+    half = max(1, round(0.5 * YAW_RATE_WINDOW_S / dt))
+    ahead = np.minimum(np.arange(n) + half, n - 1)
+    behind = np.maximum(np.arange(n) - half, 0)
+    return (heading[ahead] - heading[behind]) / ((ahead - behind) * dt)
+
+
+def grid_mask(grid: np.ndarray, gaps: list[tuple[float, float]]) -> np.ndarray:
+    """Grid samples whose interval to a neighbour overlaps one of ``gaps``, ``(len(grid),)``."""
+    masked = np.zeros(len(grid), dtype=bool)
+    if not gaps:
+        return masked
+    a = np.array([g[0] for g in gaps])
+    b = np.array([g[1] for g in gaps])
+    first = np.searchsorted(grid, a, side="right") - 1  # last sample at or before the gap
+    last = np.searchsorted(grid, b, side="left")  # first sample at or after it
+    cover = np.zeros(len(grid) + 1, dtype=np.int64)
+    np.add.at(cover, np.clip(first, 0, len(grid)), 1)
+    np.add.at(cover, np.clip(last + 1, 0, len(grid)), -1)
+    return np.cumsum(cover[:-1]) > 0
+
+
+def resample(
+    recording: Recording,
+    rate: float = 40.0,
+    max_gap: float = MAX_GAP_S,
+    wheel_circumference: float = 2.0,
+) -> Resampled:
+    """Put a recording on the uniform grid of a drive log (see the module docstring).
+
+    Args:
+        recording: the streams, SI units, one time base.
+        rate: samples per second of the drive log [Hz] (the paper: 40).
+        max_gap: shortest gap [s] in a stream that masks the grid around it (a slower stream
+            uses :data:`GAP_INTERVALS` of its own interval if longer).
+        wheel_circumference: [m] the vehicle's nominal c_e: for the speed in speed × yaw rate
+            when no IMU lateral acceleration is logged, and the travel of a derived course.
+
+    Raises:
+        StreamError: streams whose times do not overlap (enough).
+    """
+    if not (np.isfinite(rate) and rate > 0):
+        raise StreamError(f"{recording.source}: rate must be a positive number of Hz, got {rate}")
+    summaries = [summarize(role, s, max_gap) for role, s in recording.streams().items()]
+    start, end = overlap(summaries, recording.source)
+    dt = 1.0 / rate
+    count = int(np.floor((end - start) * rate + 1e-9)) + 1
+    if count < 3:
+        raise StreamError(
+            f"{recording.source}: the streams overlap for only {end - start:.3f} s, fewer than "
+            f"3 samples at {rate:g} Hz"
+        )
+    since_start = dt * np.arange(count)  # the drive log's time: 0 at the overlap's start
+    grid = start + since_start
+    notes: list[str] = [f"time of the drive log: seconds since t = {start:.6f} s of the streams"]
+
+    pose = recording.pose
+    px = np.interp(grid, pose.t, pose.x)
+    py = np.interp(grid, pose.t, pose.y)
+    beta = np.interp(grid, pose.t, pose.sideslip) if pose.sideslip is not None else np.zeros(count)
+    if pose.sideslip is None:
+        notes.append(
+            "sideslip not logged: set to 0 — right for a pose at the rear axle; a pose at the "
+            "centre of gravity moves off its heading in bends, which biases t_r and d "
+            "(docs/import.md)"
+        )
+    n_rl, n_rr = wheel_rotations(recording.wheels, grid)
+    reversing = (n_rl < -REVERSING_TOLERANCE) | (n_rr < -REVERSING_TOLERANCE)
+    n_rl, n_rr = np.maximum(n_rl, 0.0), np.maximum(n_rr, 0.0)
+
+    if pose.heading is not None:
+        psi = np.interp(grid, pose.t, np.unwrap(pose.heading))
+    else:
+        psi = course(px, py, dt) - beta
+        notes.append(
+            f"heading not logged: derived from the GNSS course over {COURSE_WINDOW_S:g} s "
+            "windows (minus the sideslip), held at standstill; calibration gives it almost "
+            "no weight"
+        )
+
+    imu = recording.imu
+    if imu is not None and imu.lateral_acceleration is not None:
+        ay = interval_means(imu.t, imu.lateral_acceleration, grid)
+    else:
+        speed = 0.5 * (n_rl + n_rr) * wheel_circumference / dt
+        if imu is not None and imu.yaw_rate is not None:
+            yaw_rate = interval_means(imu.t, imu.yaw_rate, grid)
+            notes.append("lateral acceleration not logged: speed × the IMU's yaw rate")
+        else:
+            yaw_rate = yaw_rate_from_heading(psi, dt)
+            notes.append(
+                "lateral acceleration not logged: speed × yaw rate from the heading over "
+                f"{YAW_RATE_WINDOW_S:g} s"
+            )
+        ay = speed * yaw_rate
+
+    masked = np.zeros(count, dtype=bool)
+    mask_notes: list[str] = []
+    for summary in summaries:
+        gaps = [g for g in summary.gaps if g[1] > start and g[0] < end]
+        gap_mask = grid_mask(grid, gaps)
+        masked |= gap_mask
+        for a, b in gaps:
+            mask_notes.append(
+                f"t = {a - start:.1f}–{b - start:.1f} s: gap of {b - a:.1f} s in the "
+                f"{summary.role} stream ({summary.source})"
+            )
+    for a, b in runs(reversing):
+        masked[a : b + 1] = True
+        mask_notes.append(
+            f"t = {since_start[a]:.1f}–{since_start[b]:.1f} s: wheels turning backwards "
+            "(reversing), rotations set to 0"
+        )
+    columns = {
+        "t": since_start,
+        "px": px,
+        "py": py,
+        "psi": psi,
+        "n_rl": n_rl,
+        "n_rr": n_rr,
+        "beta": beta,
+        "ay": ay,
+    }
+    return Resampled(
+        columns=columns,
+        masked=masked,
+        mask_notes=tuple(mask_notes),
+        streams=tuple(summaries),
+        overlap=(start, end),
+        notes=(*recording.notes, *notes),
+        heading_derived=pose.heading is None,
+    )

@@ -1,0 +1,288 @@
+"""Recordings in: streams manifests resampled onto the drive-log grid, and what goes wrong."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from graphcal.cli import main
+from graphcal.data.importer import import_recording
+from graphcal.data.segments import split_segments
+from graphcal.data.streams import (
+    Recording,
+    WheelStream,
+    interval_means,
+    wheel_rotations,
+)
+from graphcal.evaluation import Truth, evaluate
+from graphcal.pipeline.run import run_calibration
+from graphcal.simulate.drive import simulate_drive
+from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
+
+
+@pytest.fixture(scope="session")
+def synthetic():
+    """A 4 km synthetic recording (seed 1): the route and truth of ``simulate_drive(4, 1)``."""
+    return simulate_streams(4.0, 1)
+
+
+@pytest.fixture(scope="session")
+def streams_dir(tmp_path_factory, synthetic):
+    """The recording written as streams with its manifest."""
+    directory = tmp_path_factory.mktemp("streams")
+    write_streams(synthetic, directory)
+    return directory
+
+
+@pytest.fixture(scope="session")
+def csv_sigma():
+    """σ of theta from the equivalent 40 Hz drive-log CSV (same route, truth and noise levels)."""
+    run = run_calibration(simulate_drive(4.0, 1).measured, method="whole", workers=1)
+    return np.sqrt(np.diag(run.covariance))
+
+
+def _within_3_sigma_and_as_tight_as_csv(log, theta_true, csv_sigma) -> None:
+    run = run_calibration(log, method="whole", workers=1)
+    error = evaluate(run, Truth(theta_true)).theta_error
+    sigma = np.sqrt(np.diag(run.covariance))
+    assert np.all(np.abs(error) < 3 * sigma), error / sigma
+    assert np.all(sigma <= 1.2 * csv_sigma), sigma / csv_sigma
+
+
+@pytest.fixture()
+def recording(streams_dir, tmp_path):
+    """A private copy of the recording's files, to edit."""
+    shutil.copytree(streams_dir, tmp_path / "rec")
+    return tmp_path / "rec"
+
+
+def _one_line_exit_2(args: list[str], capsys) -> str:
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    return err
+
+
+def _edit(path, old: str, new: str) -> None:
+    text = path.read_text()
+    assert old in text, old
+    path.write_text(text.replace(old, new))
+
+
+def test_wheel_speeds_are_integrated_over_each_interval_not_sampled():
+    # A wheel speed oscillating at 7 Hz, logged at 100 Hz, on a 40 Hz grid: sampling the speed
+    # at the grid times misses the oscillation's share of each interval; integrating does not.
+    t = np.arange(0.0, 10.0, 0.001)
+    rate = 5.0 + 2.0 * np.sin(2 * np.pi * 7.0 * t)  # rev/s
+    stream = WheelStream(t[::10], rate[::10], rate[::10], cumulative=False, source="w")
+    grid = np.arange(1.0, 9.0, 0.025)
+    n_rl, _ = wheel_rotations(stream, grid)
+
+    def exact(time):
+        return 5.0 * time - 2.0 / (2 * np.pi * 7.0) * np.cos(2 * np.pi * 7.0 * time)
+
+    truth = np.diff(exact(grid))
+    integrated_error = np.abs(n_rl[:-1] - truth).max()
+    sampled_error = np.abs(np.interp(grid[:-1], t, rate) * 0.025 - truth).max()
+    assert integrated_error < 0.015 * truth.mean()  # the 100 Hz trapezoid on a 7 Hz wave
+    assert sampled_error > 10 * integrated_error
+    # Over the whole grid the integral is exact but for the two ends' interpolation.
+    assert abs(n_rl[:-1].sum() - (exact(grid[-1]) - exact(grid[0]))) < 2e-3
+
+    cumulative = WheelStream(t[::10], exact(t[::10]), exact(t[::10]), True, "ticks")
+    assert np.abs(wheel_rotations(cumulative, grid)[0][:-1] - truth).max() < 2e-3
+
+
+def test_imu_signals_are_averaged_over_each_interval():
+    t = np.linspace(0.0, 2.0, 201)
+    grid = np.array([0.5, 1.0, 1.5])
+    means = interval_means(t, 2.0 * t, grid)  # mean of 2t over [0.5, 1.0] is 1.5
+    np.testing.assert_allclose(means, [1.5, 2.5, 2.5])
+
+
+def test_streams_round_trip_within_3_sigma_and_as_tight_as_the_40hz_csv(streams_dir, csv_sigma):
+    imported = import_recording(streams_dir / "manifest.toml")
+    log = imported.log
+    assert abs(1.0 / log.dt - 40.0) < 1e-6 and log.masked is None
+    np.testing.assert_allclose(imported.truth, [1.985, 1.2e-3, 1.585, 1.5e-3])
+    _within_3_sigma_and_as_tight_as_csv(log, imported.truth, csv_sigma)
+
+
+@pytest.mark.parametrize(
+    ("storage", "name"), [("ros2", "bag_ros2"), ("ros1", "drive.bag"), ("mcap", "bag_mcap")]
+)
+def test_bags_round_trip_within_3_sigma(synthetic, csv_sigma, tmp_path, storage, name):
+    # nav_msgs/Odometry carries the heading and, in its body-frame twist, the sideslip.
+    pytest.importorskip("rosbags")
+    from graphcal.simulate.bags import write_bag
+
+    path = write_bag(synthetic.recording, tmp_path / name, storage, pose_message="odometry")
+    if storage == "mcap":  # the bare MCAP file, by its own path
+        path = next(path.glob("*.mcap"))
+    imported = import_recording(path)
+    assert any("sideslip from the direction" in note for note in imported.resampled.notes)
+    _within_3_sigma_and_as_tight_as_csv(imported.log, synthetic.drive.theta_true, csv_sigma)
+
+
+def test_a_navsatfix_bag_takes_the_heading_from_the_ins_orientation(tmp_path, csv_sigma):
+    # A NavSatFix has neither heading nor sideslip: the heading comes from the Imu orientation
+    # (an INS); the sideslip is 0, exact for a pose reference at the rear axle (no sideslip).
+    pytest.importorskip("rosbags")
+    from graphcal.simulate.bags import write_bag
+    from graphcal.simulate.drive import VehicleMotion
+
+    motion = VehicleMotion(rear_axle_to_cg=0.0, sideslip_speed_gain=0.0)
+    sim = simulate_streams(4.0, 1, motion=motion)
+    imported = import_recording(write_bag(sim.recording, tmp_path / "fix", "ros2"))
+    notes = imported.resampled.notes
+    assert any("heading from the orientation" in n for n in notes)
+    assert any(n.startswith("sideslip not logged: set to 0") for n in notes)
+    _within_3_sigma_and_as_tight_as_csv(imported.log, sim.drive.theta_true, csv_sigma)
+
+
+def test_the_ecu_circumference_is_undone_so_c_e_is_the_true_circumference(tmp_path):
+    # The ECU turns rotations into speed with 2.2 m; the manifest says so; c_e stays the truth.
+    sim = simulate_streams(4.0, 1, settings=StreamSettings(circumference=2.2))
+    write_streams(sim, tmp_path)
+    assert "circumference = 2.2" in (tmp_path / "manifest.toml").read_text()
+    log = import_recording(tmp_path / "manifest.toml").log
+    run = run_calibration(log, method="whole", workers=1)
+    sigma = np.sqrt(run.covariance[0, 0])
+    assert abs(run.theta[0] - 1.985) < 3 * sigma
+    assert sigma < 0.5e-3
+
+
+def test_tick_counters_that_wrap_are_unwrapped(tmp_path):
+    sim = simulate_streams(1.0, 2, settings=StreamSettings(wheel_kind="ticks"))
+    write_streams(sim, tmp_path)
+    plain = import_recording(tmp_path / "manifest.toml").log
+    wheels = pd.read_csv(tmp_path / "wheels.csv")
+    wheels[["rl", "rr"]] %= 4096
+    wheels.to_csv(tmp_path / "wheels.csv", index=False)
+    _edit(
+        tmp_path / "manifest.toml",
+        "ticks_per_revolution = 96",
+        "ticks_per_revolution = 96\nticks_wrap = 4096",
+    )
+    wrapped = import_recording(tmp_path / "manifest.toml").log
+    np.testing.assert_allclose(wrapped.n_rl, plain.n_rl, atol=1e-12)
+    assert plain.n_rl.sum() * 96 > 3 * 4096  # the counters did wrap
+
+
+def test_a_gap_in_a_stream_is_masked_and_no_segment_spans_it(recording):
+    gnss = pd.read_csv(recording / "gnss.csv")
+    t0 = gnss["t"].iloc[0]
+    gap = (gnss["t"] > t0 + 200.0) & (gnss["t"] < t0 + 203.0)
+    gnss[~gap].to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
+    log = import_recording(recording / "manifest.toml").log
+    assert log.masked is not None
+    note = next(n for n in log.mask_notes if "gap" in n)
+    assert "pose stream" in note and "3.0 s" in note
+    masked_t = log.t[log.masked]
+    assert 199.0 < masked_t.min() and masked_t.max() < 204.0
+    for length in (150.0, 300.0):  # calibration and validation segments
+        segments = split_segments(log, length)
+        for a, b in zip(segments.start, segments.stop, strict=True):
+            assert not log.masked[a : b + 1].any()
+
+
+def test_import_command_writes_the_log_and_a_sidecar(streams_dir, tmp_path, capsys):
+    out = tmp_path / "drive.csv"
+    assert main(["import", str(streams_dir / "manifest.toml"), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    for expected in ("pose", "10.0 Hz", "wheels", "100.0 Hz", "overlap", "turning", "observable"):
+        assert expected in printed
+    sidecar = json.loads((tmp_path / "drive.json").read_text())
+    assert sidecar["generator"].endswith("import") and sidecar["samples"] > 16000
+    assert sidecar["origin_deg"]["latitude"] == pytest.approx(47.4979, abs=1e-3)
+    assert main(["check", str(out)]) == 0
+
+
+def test_calibrate_takes_a_manifest_and_compares_with_its_truth(streams_dir, tmp_path, capsys):
+    out = tmp_path / "results"
+    args = ["calibrate", str(streams_dir / "manifest.toml"), "--method", "whole"]
+    assert main([*args, "--out", str(out), "--workers", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "true" in printed and (out / "calibration.json").exists()
+
+
+def test_a_heading_derived_from_the_course_is_not_weighted_as_a_measurement(
+    recording, tmp_path, capsys
+):
+    text = (recording / "manifest.toml").read_text()
+    for line in ('heading = "heading"', 'heading_unit = "deg"', 'heading_convention = "compass"'):
+        text = text.replace(line + "\n", "")
+    (recording / "manifest.toml").write_text(text)
+    out = tmp_path / "drive.csv"
+    assert main(["import", str(recording / "manifest.toml"), "--out", str(out)]) == 0
+    assert "derived from the GNSS course" in capsys.readouterr().out
+    assert main(["calibrate", str(out), "--method", "whole", "--out", str(tmp_path / "r")]) == 0
+    captured = capsys.readouterr()
+    assert "calibrating with heading weight 0.01" in captured.err
+    result = json.loads((tmp_path / "r" / "calibration.json").read_text())
+    assert result["settings"]["joint"]["pose_weights"] == [1.0, 1.0, 0.01]
+    error = np.array([result["theta_error"][n] for n in ("c_e", "c_d", "t_r", "d")])
+    sigma = np.array([result["parameters"][n]["sigma"] for n in ("c_e", "c_d", "t_r", "d")])
+    assert np.all(np.abs(error) < 3 * sigma), error / sigma
+
+
+def test_simulate_streams_command_writes_a_manifest(tmp_path, capsys):
+    args = ["simulate", "--streams", str(tmp_path / "s"), "--length-km", "0.5", "--seed", "4"]
+    assert main(args) == 0
+    names = sorted(p.name for p in (tmp_path / "s").iterdir())
+    assert names == ["gnss.csv", "imu.csv", "manifest.toml", "truth.json", "wheels.csv"]
+
+
+@pytest.mark.parametrize(
+    ("file", "old", "new", "expected"),
+    [
+        ("manifest.toml", 'file = "gnss.csv"', 'file = "gps.csv"', "gps.csv: no such file"),
+        ("manifest.toml", 'yaw_rate = "wz"', 'yaw_rate = "gz"', "no column 'gz'"),
+        ("manifest.toml", 'kind = "speed"', 'kind = "furlongs"', "kind = 'furlongs' is not known"),
+        ("manifest.toml", 'kind = "speed"\n', "", "[wheels] needs kind"),
+        ("manifest.toml", "circumference = 2.0", "", "needs circumference"),
+        ("manifest.toml", 'heading_unit = "deg"\n', "", "[gnss] needs heading_unit"),
+        ("manifest.toml", 'time = "t"\n', 'time = "t"\ntime_unit = "min"\n', "'min' is not known"),
+        ("manifest.toml", "[imu]\n", "[imu]\ntime_offset = 1e6\n", "clocks do not overlap"),
+        ("manifest.toml", 'latitude = "lat"', 'latitude = "heading"', "outside ±90°"),
+        ("manifest.toml", "rate = 40.0", "rate = 40.0\nwheel = 1", "unknown key(s) ['wheel']"),
+        (
+            "manifest.toml",
+            'latitude = "lat"\nlongitude = "lon"',
+            'latitude = "lon"\nlongitude = "lat"',
+            "latitude and longitude swapped",
+        ),
+    ],
+)
+def test_bad_manifests_get_one_line_and_nothing_is_written(
+    recording, tmp_path, capsys, file, old, new, expected
+):
+    _edit(recording / file, old, new)
+    out = tmp_path / "drive.csv"
+    err = _one_line_exit_2(["import", str(recording / "manifest.toml"), "--out", str(out)], capsys)
+    assert expected in err
+    assert not out.exists() and not (tmp_path / "drive.json").exists()
+
+
+def test_a_stream_whose_time_does_not_increase_is_refused(recording, tmp_path, capsys):
+    wheels = pd.read_csv(recording / "wheels.csv")
+    wheels.loc[500, "t"] = wheels.loc[498, "t"]
+    wheels.to_csv(recording / "wheels.csv", index=False, float_format="%.17g")
+    args = ["calibrate", str(recording / "manifest.toml"), "--out", str(tmp_path / "r")]
+    err = _one_line_exit_2(args, capsys)
+    assert "wheels.csv" in err and "time does not increase at sample 501" in err
+    assert not (tmp_path / "r").exists()
+
+
+def test_streams_that_overlap_too_little_are_refused():
+    t = np.arange(0.0, 100.0, 0.1)
+    from graphcal.data.streams import PoseStream, StreamError, resample
+
+    pose = PoseStream(t, t, 0 * t, None, None, "p")
+    wheels = WheelStream(t + 80.0, t, t, True, "w")
+    with pytest.raises(StreamError, match=r"overlap for only 19\.9 s"):
+        resample(Recording(pose, wheels, None, "rec"))
