@@ -1,0 +1,662 @@
+"""ROS 1 bags, ROS 2 bags (sqlite3 or mcap storage) and bare MCAP files, read with ``rosbags``.
+
+``rosbags`` is pure Python (no ROS installation); it is the optional extra ``graphcal[ros]``
+and is imported only inside the functions. :func:`read_bag` turns the bag's topics into the
+streams of :mod:`graphcal.data.streams`:
+
+* pose: ``sensor_msgs/NavSatFix`` (latitude/longitude → east/north [m] from the first fix,
+  no heading), ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or
+  ``geometry_msgs/PoseWithCovarianceStamped`` (x, y [m]; heading = yaw of the orientation);
+* wheels: ``sensor_msgs/JointState`` of the two rear wheel joints, ``position`` [rad,
+  cumulative] → revolutions, or ``velocity`` [rad/s] → revolutions per second;
+* IMU (optional): ``sensor_msgs/Imu``, ``linear_acceleration.y`` [m/s²] and
+  ``angular_velocity.z`` [rad/s] in the vehicle frame (x forward, y left; REP 103).
+
+Time is each message's ``header.stamp``; when every stamp of a topic is zero, the time the bag
+recorded the message. Every topic is read in one pass over the bag; each message is
+deserialized once and only its few numbers are kept, converted to arrays at the end.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sqlite3
+import struct
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+
+from graphcal.data.geodesy import GeodesyError, geodetic_to_local
+from graphcal.data.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
+from graphcal.data.streams import check_time as _check_time
+from graphcal.errors import first_line
+
+NAVSATFIX = "sensor_msgs/msg/NavSatFix"
+ODOMETRY = "nav_msgs/msg/Odometry"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+POSE_COVARIANCE = "geometry_msgs/msg/PoseWithCovarianceStamped"
+IMU = "sensor_msgs/msg/Imu"
+JOINT_STATE = "sensor_msgs/msg/JointState"
+#: Message types usable as the pose stream.
+POSE_TYPES = (NAVSATFIX, ODOMETRY, POSE_STAMPED, POSE_COVARIANCE)
+#: Files of a ROS 2 bag's storage (also readable on their own).
+STORAGE_SUFFIXES = (".db3", ".mcap")
+#: JointState messages looked at to find the rear wheel joints when they are not named.
+JOINT_SCAN_MESSAGES = 200
+WheelKind = Literal["angle", "angular_speed"]
+
+_MISSING_ROSBAGS = "reading ROS bags needs the rosbags package: pip install 'graphcal[ros]'"
+_NAN2 = (math.nan, math.nan)
+#: How to repair a bag whose recording was cut off, by file suffix.
+_REPAIR = {
+    ".bag": " (a ROS 1 bag cut off while recording needs `rosbag reindex`)",
+    ".mcap": " (only ROS 2 MCAP files are read; one cut off while recording needs `mcap recover`)",
+}
+
+
+def _require_rosbags() -> None:
+    try:
+        import rosbags  # noqa: F401
+    except ImportError:
+        raise StreamError(_MISSING_ROSBAGS) from None
+
+
+def _reader_errors() -> tuple[type[BaseException], ...]:
+    """Exceptions of a corrupt or unsupported bag (rosbags' own and what its parsers raise)."""
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Reader1Error
+    from rosbags.rosbag2 import ReaderError as Reader2Error
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import TypesysError
+
+    return (
+        AnyReaderError,
+        Reader1Error,
+        Reader2Error,
+        SerdeError,
+        TypesysError,
+        OSError,
+        EOFError,
+        KeyError,
+        IndexError,
+        ValueError,
+        AssertionError,
+        struct.error,
+        sqlite3.Error,
+        UnicodeDecodeError,
+    )
+
+
+def is_bag(path: str | Path) -> bool:
+    """Whether ``path`` looks like a bag: a ``.bag`` (ROS 1), ``.mcap`` or ``.db3`` file, or a
+    directory holding ``metadata.yaml`` (ROS 2) or ``*.db3`` / ``*.mcap`` storage files."""
+    path = Path(path)
+    if path.is_file():
+        return path.suffix in (".bag", *STORAGE_SUFFIXES)
+    if path.is_dir():
+        return (path / "metadata.yaml").is_file() or bool(_storage_files(path))
+    return False
+
+
+def _storage_files(directory: Path) -> list[Path]:
+    return sorted(p for p in directory.iterdir() if p.suffix in STORAGE_SUFFIXES)
+
+
+def _reader_paths(path: Path) -> list[Path]:
+    """What ``AnyReader`` opens for ``path``; :class:`StreamError` if it is no bag."""
+    what = "a ROS bag (a .bag or .mcap file, or a ROS 2 bag directory)"
+    if not path.exists():
+        raise StreamError(f"{path}: no such file or directory; give the path of {what}")
+    if not is_bag(path):
+        raise StreamError(f"{path}: not {what}; give the path of one")
+    if path.is_dir() and not (path / "metadata.yaml").is_file():
+        # rosbags reads a ROS 2 directory only through its metadata.yaml; without it, its
+        # storage files are read one by one (each .mcap/.db3 file is readable on its own).
+        return _storage_files(path)
+    return [path]
+
+
+class _Bag:
+    """An open ``AnyReader`` of one bag, its errors turned into one-line :class:`StreamError`."""
+
+    def __init__(self, path: Path, source: str):
+        _require_rosbags()
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+
+        self.path = path
+        self.source = source
+        self.errors = _reader_errors()
+        paths = _reader_paths(path)
+        ros1 = all(p.suffix == ".bag" for p in paths)
+        store = Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE
+        with self.guard():
+            self.reader = AnyReader(paths, default_typestore=get_typestore(store))
+            self.reader.open()
+            self.topics = {
+                name: info.msgtype or ", ".join(sorted({c.msgtype for c in info.connections}))
+                for name, info in self.reader.topics.items()
+            }
+            self.counts = {name: info.msgcount for name, info in self.reader.topics.items()}
+
+    @contextmanager
+    def guard(self) -> Iterator[None]:
+        """Context turning rosbags' exceptions into a one-line :class:`StreamError`."""
+        try:
+            yield
+        except StreamError:
+            raise
+        except (FileNotFoundError, PermissionError) as error:
+            raise StreamError(
+                f"{self.source}: cannot read {self.path}: {first_line(str(error))}; check the "
+                "path and its permissions"
+            ) from None
+        except self.errors as error:
+            text = first_line(str(error)) or type(error).__name__
+            raise StreamError(
+                f"{self.source}: cannot read the bag ({type(error).__name__}: {text}); it is "
+                f"corrupt, truncated or of an unsupported format{_REPAIR.get(self.path.suffix, '')}"
+            ) from None
+
+    def close(self) -> None:
+        """Close the reader (errors on close are ignored)."""
+        try:
+            self.reader.close()
+        except self.errors:
+            pass
+
+    def topic_list(self) -> str:
+        """``/a (type), /b (type)`` of every topic in the bag."""
+        if not self.topics:
+            return "the bag has no topics"
+        return "topics: " + ", ".join(f"{t} ({self.topics[t]})" for t in sorted(self.topics))
+
+    def messages(self, topics: Iterable[str]) -> Iterable[tuple[str, int, Any]]:
+        """``(topic, receive time [ns], message)`` of every message on ``topics``, in one pass."""
+        wanted = set(topics)
+        connections = [c for c in self.reader.connections if c.topic in wanted]
+        deserialize = self.reader.deserialize
+        for connection, timestamp, raw in self.reader.messages(connections=connections):
+            yield connection.topic, timestamp, deserialize(raw, connection.msgtype)
+
+
+def bag_topics(path: str | Path) -> dict[str, str]:
+    """Topics of a bag and their message types, e.g. ``{"/fix": "sensor_msgs/msg/NavSatFix"}``.
+
+    Raises:
+        StreamError: ``path`` missing, not a bag, or unreadable.
+    """
+    path = Path(path)
+    bag = _Bag(path, str(path))
+    try:
+        return dict(sorted(bag.topics.items()))
+    finally:
+        bag.close()
+
+
+# --- topic and joint selection ----------------------------------------------------------------
+
+
+def _short(msgtype: str) -> str:
+    return msgtype.rsplit("/", 1)[-1]
+
+
+def _pick_topic(
+    bag: _Bag, topic: str | None, types: tuple[str, ...], role: str, flag: str, required: bool
+) -> tuple[str | None, str | None]:
+    """The topic of ``role`` and a note if it was picked automatically."""
+    wanted = " or ".join(_short(t) for t in types)
+    if topic is not None:
+        if topic not in bag.topics:
+            raise StreamError(
+                f"{bag.source}: {role} topic {topic} is not in the bag; pass {flag} with one of "
+                f"the {bag.topic_list()}"
+            )
+        if bag.topics[topic] not in types:
+            raise StreamError(
+                f"{bag.source}: {role} topic {topic} is {bag.topics[topic]}, not {wanted}; pass "
+                f"{flag} with a topic of that type ({bag.topic_list()})"
+            )
+        return topic, None
+    candidates = sorted(t for t, msgtype in bag.topics.items() if msgtype in types)
+    if len(candidates) == 1:
+        picked = candidates[0]
+        return picked, f"{role} topic {picked} ({_short(bag.topics[picked])}) picked automatically"
+    if not candidates:
+        if not required:
+            return None, None
+        raise StreamError(
+            f"{bag.source}: no {role} topic ({wanted}) in the bag; {bag.topic_list()}; record "
+            f"one, or pass {flag} if it has another type"
+        )
+    listed = ", ".join(f"{t} ({_short(bag.topics[t])})" for t in candidates)
+    raise StreamError(
+        f"{bag.source}: {len(candidates)} {role} topics ({listed}); pass {flag} with the one to use"
+    )
+
+
+def pick_joints(names: Iterable[str]) -> tuple[str, str] | None:
+    """The rear-left and rear-right joint among ``names``, or ``None`` if ambiguous.
+
+    The names containing ``left`` / ``right`` (case-insensitive); when there are several, only
+    those also containing ``rear``. Exactly one of each must remain.
+    """
+    names = sorted(set(names))
+
+    def side(word: str) -> list[str]:
+        found = [n for n in names if word in n.lower()]
+        if len(found) > 1:
+            found = [n for n in found if "rear" in n.lower()]
+        return found
+
+    left, right = side("left"), side("right")
+    if len(left) == 1 and len(right) == 1 and left[0] != right[0]:
+        return left[0], right[0]
+    return None
+
+
+def _joint_names(bag: _Bag, topic: str) -> list[str]:
+    """Every joint name in the first :data:`JOINT_SCAN_MESSAGES` messages of ``topic``."""
+    names: set[str] = set()
+    with bag.guard():
+        for count, (_, _, msg) in enumerate(bag.messages([topic]), start=1):
+            names.update(msg.name)
+            if count >= JOINT_SCAN_MESSAGES:
+                break
+    return sorted(names)
+
+
+# --- collecting the messages ------------------------------------------------------------------
+
+
+@dataclass
+class _Topic:
+    """Rows of one topic: stamps and the message's numbers, kept as lists until the end."""
+
+    extract: Callable[[Any], tuple | None]
+    stamps: list[tuple[int, int, int]] = field(default_factory=list)
+    rows: list[tuple] = field(default_factory=list)
+    skipped: int = 0
+
+    def add(self, timestamp: int, msg: Any) -> None:
+        """Keep the numbers of one message (``timestamp``: receive time [ns])."""
+        row = self.extract(msg)
+        if row is None:
+            self.skipped += 1
+            return
+        stamp = msg.header.stamp
+        self.stamps.append((stamp.sec, stamp.nanosec, timestamp))
+        self.rows.append(row)
+
+    def values(self) -> np.ndarray:
+        """The rows as floats, ``(M, fields)``."""
+        return np.array(self.rows, dtype=float, ndmin=2)
+
+    def times(self, source: str, notes: list[str]) -> np.ndarray:
+        """Header stamps [s]; the receive times if every stamp is zero."""
+        stamps = np.array(self.stamps, dtype=np.int64, ndmin=2)
+        sec, nanosec = stamps[:, 0], stamps[:, 1]
+        if len(sec) and not (sec.any() or nanosec.any()):
+            sec, nanosec = np.divmod(stamps[:, 2], 1_000_000_000)
+            notes.append(f"{source}: header stamps all zero, used the bag's receive times")
+        return sec.astype(float) + 1e-9 * nanosec.astype(float)
+
+
+def _navsatfix(msg: Any) -> tuple:
+    return msg.latitude, msg.longitude, msg.status.status
+
+
+def _pose_of(get: Callable[[Any], Any]) -> Callable[[Any], tuple]:
+    def extract(msg: Any) -> tuple:
+        pose = get(msg)
+        p, q = pose.position, pose.orientation
+        return p.x, p.y, q.x, q.y, q.z, q.w
+
+    return extract
+
+
+def _odometry(msg: Any) -> tuple:
+    p, q, v = msg.pose.pose.position, msg.pose.pose.orientation, msg.twist.twist.linear
+    return p.x, p.y, q.x, q.y, q.z, q.w, v.x, v.y
+
+
+#: Body-frame speed [m/s] above which an Odometry twist's direction gives the sideslip.
+SIDESLIP_MIN_SPEED = 0.5
+
+_EXTRACT = {
+    NAVSATFIX: _navsatfix,
+    ODOMETRY: _odometry,
+    POSE_COVARIANCE: _pose_of(lambda m: m.pose.pose),
+    POSE_STAMPED: _pose_of(lambda m: m.pose),
+}
+
+
+def _imu(msg: Any) -> tuple:
+    q = msg.orientation
+    return (
+        msg.linear_acceleration.y,
+        msg.angular_velocity.z,
+        msg.linear_acceleration_covariance[0],
+        msg.angular_velocity_covariance[0],
+        msg.orientation_covariance[0],
+        q.x,
+        q.y,
+        q.z,
+        q.w,
+    )
+
+
+def _joint_extractor(left: str, right: str) -> tuple[Callable[[Any], tuple | None], set[str]]:
+    """Per-message ``(position l, r, velocity l, r)`` of two joints, looked up by name.
+
+    The joint indices are found once per distinct name list; messages without both joints
+    give ``None`` (skipped). Also returns the set that collects every joint name seen.
+    """
+    indices: dict[tuple[str, ...], tuple[int, int, int] | None] = {}
+    seen: set[str] = set()
+
+    def extract(msg: Any) -> tuple | None:
+        key = tuple(msg.name)
+        try:
+            found = indices[key]
+        except KeyError:
+            seen.update(key)
+            found = (
+                (key.index(left), key.index(right), max(key.index(left), key.index(right)))
+                if left in key and right in key
+                else None
+            )
+            indices[key] = found
+        if found is None:
+            return None
+        il, ir, last = found
+        pos, vel = msg.position, msg.velocity
+        p = (pos[il], pos[ir]) if len(pos) > last else _NAN2
+        v = (vel[il], vel[ir]) if len(vel) > last else _NAN2
+        return (*p, *v)
+
+    return extract, seen
+
+
+# --- post-processing --------------------------------------------------------------------------
+
+
+def _sorted_unique(t: np.ndarray, source: str, notes: list[str]) -> np.ndarray:
+    """Indices that sort ``t`` and keep the first of each duplicate stamp."""
+    order = np.argsort(t, kind="stable")
+    ts = t[order]
+    keep = np.ones(len(ts), dtype=bool)
+    keep[1:] = ts[1:] != ts[:-1]
+    if not keep.all():
+        notes.append(f"{source}: dropped {int((~keep).sum())} message(s) with a duplicate stamp")
+    return order[keep]
+
+
+def _yaw(q: np.ndarray) -> np.ndarray:
+    """Yaw [rad] (ENU, about z) of quaternions ``(x, y, z, w)``, ``(M, 4)``."""
+    x, y, z, w = q.T
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def _no_messages(bag: _Bag, topic: str, role: str, flag: str) -> StreamError:
+    return StreamError(
+        f"{bag.source}: {role} topic {topic} has no messages; pass {flag} with a recorded "
+        f"topic ({bag.topic_list()})"
+    )
+
+
+def _pose_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> PoseStream:
+    source = f"{bag.source}:{topic}"
+    msgtype = bag.topics[topic]
+    values, t = rows.values(), rows.times(source, notes)
+    if msgtype == NAVSATFIX:
+        fixed = (values[:, 2] >= 0) & np.isfinite(values[:, :2]).all(axis=1)
+        if not fixed.any():
+            raise StreamError(
+                f"{source}: none of the {len(t)} NavSatFix messages has a fix (status >= 0 and "
+                "finite latitude/longitude); record the receiver with a fix or pass --pose-topic"
+            )
+        if not fixed.all():
+            notes.append(f"{source}: skipped {int((~fixed).sum())} NavSatFix without a fix")
+        values, t = values[fixed], t[fixed]
+    keep = _sorted_unique(t, source, notes)
+    values, t = values[keep], t[keep]
+    _check_time(t, source)
+    if msgtype == NAVSATFIX:
+        try:
+            x, y, origin = geodetic_to_local(values[:, 0], values[:, 1], source)
+        except GeodesyError as error:
+            raise StreamError(str(error)) from None
+        return PoseStream(t, x, y, None, None, source, origin)
+    quaternion = values[:, 2:6]
+    if not np.linalg.norm(quaternion, axis=1).any():
+        notes.append(f"{source}: orientation all zero (not logged); the course is used")
+        heading = None
+    else:
+        heading = _yaw(quaternion)
+    sideslip = None
+    if msgtype == ODOMETRY:  # body-frame twist (child frame): its direction is the sideslip
+        vx, vy = values[:, 6], values[:, 7]
+        moving = np.hypot(vx, vy) >= SIDESLIP_MIN_SPEED
+        if moving.any() and np.abs(vy).any():
+            sideslip = np.where(moving, np.arctan2(vy, np.where(moving, vx, 1.0)), 0.0)
+            notes.append(f"{source}: sideslip from the direction of the body-frame twist")
+    return PoseStream(t, values[:, 0].copy(), values[:, 1].copy(), heading, sideslip, source)
+
+
+def _wheel_stream(
+    bag: _Bag,
+    topic: str,
+    rows: _Topic,
+    joints: tuple[str, str],
+    seen: set[str],
+    wheel_kind: WheelKind | None,
+    notes: list[str],
+) -> WheelStream:
+    source = f"{bag.source}:{topic}"
+    names = ", ".join(sorted(seen)) or "none"
+    if not rows.rows:
+        raise StreamError(
+            f"{source}: no JointState message has both joints {joints[0]} and {joints[1]} "
+            f"(joint names: {names}); pass --rear-left/--rear-right with two of them"
+        )
+    if rows.skipped:
+        notes.append(
+            f"{source}: skipped {rows.skipped} JointState message(s) without both {joints[0]} "
+            f"and {joints[1]}"
+        )
+    values, t = rows.values(), rows.times(source, notes)
+    has_position = np.isfinite(values[:, :2]).all(axis=1)
+    has_velocity = np.isfinite(values[:, 2:]).all(axis=1)
+    if wheel_kind is None:
+        wheel_kind = "angle" if has_position.all() or not has_velocity.any() else "angular_speed"
+    angle = wheel_kind == "angle"
+    present = has_position if angle else has_velocity
+    field_name, other = ("position", "angular_speed") if angle else ("velocity", "angle")
+    if not present.any():
+        raise StreamError(
+            f"{source}: the JointState messages carry no {field_name} of {joints[0]} and "
+            f"{joints[1]}; pass --wheel-kind {other} or record the {field_name}"
+        )
+    if not present.all():
+        notes.append(
+            f"{source}: skipped {int((~present).sum())} JointState message(s) without a "
+            f"{field_name}"
+        )
+    values, t = values[present], t[present]
+    keep = _sorted_unique(t, source, notes)
+    columns = values[keep][:, :2] if angle else values[keep][:, 2:]
+    t = t[keep]
+    _check_time(t, source)
+    revolutions = columns / (2.0 * np.pi)
+    return WheelStream(
+        t, revolutions[:, 0].copy(), revolutions[:, 1].copy(), cumulative=angle, source=source
+    )
+
+
+def _imu_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> ImuStream:
+    source = f"{bag.source}:{topic}"
+    values, t = rows.values(), rows.times(source, notes)
+    keep = _sorted_unique(t, source, notes)
+    values, t = values[keep], t[keep]
+    _check_time(t, source)
+    signals = []
+    for column, covariance, what in ((0, 2, "linear acceleration"), (1, 3, "angular velocity")):
+        # REP 145: a covariance whose first element is -1 means "this field is not provided".
+        if (values[:, covariance] == -1).all():
+            notes.append(f"{source}: {what} not provided (covariance -1)")
+            signals.append(None)
+        else:
+            signals.append(values[:, column].copy())
+    return ImuStream(t, signals[0], signals[1], source)
+
+
+def _imu_heading(rows: _Topic, imu: ImuStream, pose: PoseStream, notes: list[str]) -> PoseStream:
+    """``pose`` with the heading of the IMU's orientation (an INS's), if it gives one.
+
+    A NavSatFix has no heading; an INS publishes its orientation in the Imu messages. The
+    yaw is unwrapped and interpolated at the fix times.
+    """
+    values = rows.values()
+    t_raw = rows.times(imu.source, [])
+    provided = values[:, 4] != -1
+    quaternion = values[:, 5:9]
+    if not provided.all() or not np.linalg.norm(quaternion, axis=1).all():
+        return pose
+    order = np.argsort(t_raw, kind="stable")
+    t_sorted, yaw = t_raw[order], np.unwrap(_yaw(quaternion[order]))
+    keep = np.concatenate([[True], np.diff(t_sorted) > 0])
+    heading = np.interp(pose.t, t_sorted[keep], yaw[keep])
+    notes.append(f"heading from the orientation of {imu.source} (an INS), at the fix times")
+    return dataclasses.replace(pose, heading=heading)
+
+
+# --- the reader -------------------------------------------------------------------------------
+
+
+def read_bag(
+    path: str | Path,
+    *,
+    pose_topic: str | None = None,
+    wheel_topic: str | None = None,
+    imu_topic: str | None = None,
+    rear_left: str | None = None,
+    rear_right: str | None = None,
+    wheel_kind: WheelKind | None = None,
+    source: str | None = None,
+) -> Recording:
+    """Read the pose, rear-wheel and (optional) IMU streams of a ROS 1/ROS 2 bag or MCAP file.
+
+    Args:
+        path: a ``.bag`` file, a ``.mcap`` file or a ROS 2 bag directory.
+        pose_topic: NavSatFix, Odometry, PoseStamped or PoseWithCovarianceStamped topic;
+            ``None``: the only topic of one of these types.
+        wheel_topic: JointState topic; ``None``: the only one.
+        imu_topic: Imu topic; ``None``: the only one, or no IMU stream if there is none.
+        rear_left, rear_right: joint names of the rear wheels; ``None``: the two joints named
+            ``*left*`` / ``*right*`` (preferring ``*rear*``).
+        wheel_kind: ``"angle"`` (JointState position [rad], cumulative) or
+            ``"angular_speed"`` (velocity [rad/s]); ``None``: positions when every message
+            carries them, else velocities.
+        source: name of the recording in messages (default: the path).
+
+    Returns:
+        The :class:`Recording`: time [s] from the header stamps, positions [m] (east/north
+        of the first fix for NavSatFix), heading [rad, ENU], wheels [rev] or [rev/s], lateral
+        acceleration [m/s²] and yaw rate [rad/s]; ``notes`` say what was picked or skipped.
+
+    Raises:
+        StreamError: a missing or unreadable bag, a topic or joint that is absent, of the
+            wrong type, ambiguous or empty; the message is one line.
+    """
+    path = Path(path)
+    source = source or str(path)
+    if wheel_kind not in (None, "angle", "angular_speed"):
+        raise StreamError(
+            f"{source}: wheel kind {wheel_kind!r} is unknown; use 'angle' or 'angular_speed'"
+        )
+    bag = _Bag(path, source)
+    try:
+        return _read(bag, pose_topic, wheel_topic, imu_topic, rear_left, rear_right, wheel_kind)
+    finally:
+        bag.close()
+
+
+def _read(
+    bag: _Bag,
+    pose_topic: str | None,
+    wheel_topic: str | None,
+    imu_topic: str | None,
+    rear_left: str | None,
+    rear_right: str | None,
+    wheel_kind: WheelKind | None,
+) -> Recording:
+    notes: list[str] = []
+    picks = [
+        _pick_topic(bag, pose_topic, POSE_TYPES, "pose", "--pose-topic", True),
+        _pick_topic(bag, wheel_topic, (JOINT_STATE,), "wheel", "--wheel-topic", True),
+        _pick_topic(bag, imu_topic, (IMU,), "IMU", "--imu-topic", False),
+    ]
+    notes.extend(note for _, note in picks if note)
+    (pose, _), (wheel, _), (imu, _) = picks
+    assert pose is not None and wheel is not None
+    streams = [(pose, "pose", "--pose-topic"), (wheel, "wheel", "--wheel-topic")]
+    if imu is not None:
+        streams.append((imu, "IMU", "--imu-topic"))
+    for topic, role, flag in streams:
+        if any(bag.counts.values()) and bag.counts.get(topic, 0) == 0:  # counts are known
+            raise _no_messages(bag, topic, role, flag)
+
+    joints = _resolve_joints(bag, wheel, rear_left, rear_right, notes)
+    joint_extract, seen = _joint_extractor(*joints)
+    collected = {pose: _Topic(_EXTRACT[bag.topics[pose]]), wheel: _Topic(joint_extract)}
+    if imu is not None:
+        collected[imu] = _Topic(_imu)
+    with bag.guard():
+        for topic, timestamp, msg in bag.messages(collected):
+            collected[topic].add(timestamp, msg)
+    for topic, role, flag in streams:
+        if not collected[topic].rows and not collected[topic].skipped:
+            raise _no_messages(bag, topic, role, flag)
+
+    pose_stream = _pose_stream(bag, pose, collected[pose], notes)
+    wheels = _wheel_stream(bag, wheel, collected[wheel], joints, seen, wheel_kind, notes)
+    imu_stream = _imu_stream(bag, imu, collected[imu], notes) if imu is not None else None
+    if pose_stream.heading is None and imu_stream is not None:
+        pose_stream = _imu_heading(collected[imu], imu_stream, pose_stream, notes)
+    return Recording(pose_stream, wheels, imu_stream, bag.source, tuple(notes))
+
+
+def _resolve_joints(
+    bag: _Bag, topic: str, rear_left: str | None, rear_right: str | None, notes: list[str]
+) -> tuple[str, str]:
+    """The rear-left and rear-right joint names: given, or picked from the first messages."""
+    source = f"{bag.source}:{topic}"
+    if rear_left is not None and rear_right is not None:
+        if rear_left == rear_right:
+            raise StreamError(
+                f"{source}: rear-left and rear-right joint are both {rear_left!r}; pass "
+                "--rear-left/--rear-right with two different joints"
+            )
+        return rear_left, rear_right
+    names = _joint_names(bag, topic)
+    listed = ", ".join(names) or "none"
+    if rear_left is None and rear_right is None:
+        picked = pick_joints(names)
+        if picked is None:
+            raise StreamError(
+                f"{source}: cannot tell the rear wheel joints from the joint names ({listed}); "
+                "pass --rear-left/--rear-right"
+            )
+        notes.append(f"{source}: rear wheel joints {picked[0]}, {picked[1]} picked automatically")
+        return picked
+    given, flag = (rear_left, "--rear-right") if rear_right is None else (rear_right, "--rear-left")
+    raise StreamError(
+        f"{source}: only one rear wheel joint given ({given}); pass {flag} too (joint names: "
+        f"{listed})"
+    )
