@@ -324,3 +324,25 @@ def test_pick_joints():
     assert pick_joints(FOUR) == ("Rear_Left_Wheel", "rear_right_wheel")
     assert pick_joints(["fl_left", "fr_right", "ml_left", "mr_right"]) is None
     assert pick_joints(["a", "b"]) is None
+
+
+@pytest.mark.parametrize("storage", list(STORAGES))
+def test_vectorized_decoding_equals_rosbags_message_by_message(bags, storage, monkeypatch):
+    import graphcal.data.bags as reader
+
+    fast = read_bag(bags[storage])
+    monkeypatch.setattr(reader, "FAST_DECODING", False)
+    slow = read_bag(bags[storage])
+    for role in ("pose", "wheels", "imu"):
+        a, b = getattr(fast, role), getattr(slow, role)
+        for name, value in vars(a).items():
+            if isinstance(value, np.ndarray):
+                np.testing.assert_array_equal(value, getattr(b, name), err_msg=f"{role}.{name}")
+    assert fast.notes == slow.notes
+
+
+def test_messages_of_different_layouts_are_not_decoded_together():
+    from graphcal.data.bag_layout import IMU, decode_fixed
+
+    assert decode_fixed([b"\x00\x01" + bytes(10), b"\x00\x01" + bytes(11)], IMU, False) is None
+    assert decode_fixed([b"\x01\x00" + bytes(400)], IMU, False) is None  # big-endian CDR

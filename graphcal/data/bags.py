@@ -31,6 +31,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from graphcal.data.bag_layout import decode_fixed
 from graphcal.data.geodesy import GeodesyError, geodetic_to_local
 from graphcal.data.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
 from graphcal.data.streams import check_time as _check_time
@@ -49,6 +50,8 @@ STORAGE_SUFFIXES = (".db3", ".mcap")
 #: JointState messages looked at to find the rear wheel joints when they are not named.
 JOINT_SCAN_MESSAGES = 200
 WheelKind = Literal["angle", "angular_speed"]
+#: Decode Imu and JointState messages of one layout with numpy (False: one by one, rosbags).
+FAST_DECODING = True
 
 _MISSING_ROSBAGS = "reading ROS bags needs the rosbags package: pip install 'graphcal[ros]'"
 _NAN2 = (math.nan, math.nan)
@@ -133,7 +136,7 @@ class _Bag:
         self.source = source
         self.errors = _reader_errors()
         paths = _reader_paths(path)
-        ros1 = all(p.suffix == ".bag" for p in paths)
+        self.ros1 = ros1 = all(p.suffix == ".bag" for p in paths)
         store = Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE
         with self.guard():
             self.reader = AnyReader(paths, default_typestore=get_typestore(store))
@@ -175,6 +178,30 @@ class _Bag:
         if not self.topics:
             return "the bag has no topics"
         return "topics: " + ", ".join(f"{t} ({self.topics[t]})" for t in sorted(self.topics))
+
+    def raw_messages(self, topics: Iterable[str]) -> Iterable[tuple[str, int, bytes, str]]:
+        """``(topic, receive time [ns], raw bytes, message type)`` of every message on
+        ``topics``, in one pass."""
+        wanted = set(topics)
+        connections = [c for c in self.reader.connections if c.topic in wanted]
+        for connection, timestamp, raw in self.reader.messages(connections=connections):
+            yield connection.topic, timestamp, raw, connection.msgtype
+
+    def raw_topic(
+        self,
+        extract: Callable[[Any], tuple | None],
+        msgtype: str,
+        joints: tuple[str, str] | None = None,
+    ) -> _Topic:
+        """A :class:`_Topic` of a high-rate message type, decoded from raw bytes in chunks."""
+
+        def decode(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray] | None:
+            return decode_fixed(raws, msgtype, self.ros1, joints) if FAST_DECODING else None
+
+        def deserialize(raw: bytes) -> Any:
+            return self.reader.deserialize(raw, msgtype)
+
+        return _Topic(extract, decode, deserialize)
 
     def messages(self, topics: Iterable[str]) -> Iterable[tuple[str, int, Any]]:
         """``(topic, receive time [ns], message)`` of every message on ``topics``, in one pass."""
@@ -274,14 +301,27 @@ def _joint_names(bag: _Bag, topic: str) -> list[str]:
 # --- collecting the messages ------------------------------------------------------------------
 
 
+#: Raw messages of a high-rate topic decoded together (:mod:`graphcal.data.bag_layout`).
+RAW_CHUNK = 65536
+
+
 @dataclass
 class _Topic:
-    """Rows of one topic: stamps and the message's numbers, kept as lists until the end."""
+    """Rows of one topic: stamps and the message's numbers.
+
+    Messages come deserialized (:meth:`add`) or raw (:meth:`add_raw`, for a topic with a
+    ``decode`` of whole chunks of raw messages; a chunk it cannot decode is deserialized
+    message by message with ``deserialize``).
+    """
 
     extract: Callable[[Any], tuple | None]
+    decode: Callable[[list[bytes]], tuple[np.ndarray, np.ndarray] | None] | None = None
+    deserialize: Callable[[bytes], Any] | None = None
     stamps: list[tuple[int, int, int]] = field(default_factory=list)
     rows: list[tuple] = field(default_factory=list)
     skipped: int = 0
+    pending: list[tuple[int, bytes]] = field(default_factory=list)
+    decoded: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
 
     def add(self, timestamp: int, msg: Any) -> None:
         """Keep the numbers of one message (``timestamp``: receive time [ns])."""
@@ -293,13 +333,43 @@ class _Topic:
         self.stamps.append((stamp.sec, stamp.nanosec, timestamp))
         self.rows.append(row)
 
+    def add_raw(self, timestamp: int, raw: bytes) -> None:
+        """Keep one raw message; decoded in chunks of :data:`RAW_CHUNK`."""
+        self.pending.append((timestamp, raw))
+        if len(self.pending) >= RAW_CHUNK:
+            self.flush()
+
+    def flush(self) -> None:
+        """Decode the pending raw messages (vectorized, or one by one if they differ)."""
+        if not self.pending:
+            return
+        pending, self.pending = self.pending, []
+        assert self.decode is not None and self.deserialize is not None
+        result = self.decode([raw for _, raw in pending])
+        if result is None:
+            for timestamp, raw in pending:
+                self.add(timestamp, self.deserialize(raw))
+            return
+        stamp, values = result
+        received = np.array([timestamp for timestamp, _ in pending], dtype=np.int64)
+        self.decoded.append((np.column_stack([stamp, received]), values))
+
+    def __len__(self) -> int:
+        return len(self.rows) + sum(len(values) for _, values in self.decoded)
+
     def values(self) -> np.ndarray:
         """The rows as floats, ``(M, fields)``."""
-        return np.array(self.rows, dtype=float, ndmin=2)
+        parts = [values for _, values in self.decoded]
+        if self.rows or not parts:
+            parts.insert(0, np.array(self.rows, dtype=float, ndmin=2))
+        return np.concatenate(parts) if len(parts) > 1 else parts[0]
 
     def times(self, source: str, notes: list[str]) -> np.ndarray:
         """Header stamps [s]; the receive times if every stamp is zero."""
-        stamps = np.array(self.stamps, dtype=np.int64, ndmin=2)
+        parts = [stamps for stamps, _ in self.decoded]
+        if self.stamps or not parts:
+            parts.insert(0, np.array(self.stamps, dtype=np.int64, ndmin=2).reshape(-1, 3))
+        stamps = np.concatenate(parts) if len(parts) > 1 else parts[0]
         sec, nanosec = stamps[:, 0], stamps[:, 1]
         if len(sec) and not (sec.any() or nanosec.any()):
             sec, nanosec = np.divmod(stamps[:, 2], 1_000_000_000)
@@ -460,7 +530,7 @@ def _wheel_stream(
 ) -> WheelStream:
     source = f"{bag.source}:{topic}"
     names = ", ".join(sorted(seen)) or "none"
-    if not rows.rows:
+    if not len(rows):
         raise StreamError(
             f"{source}: no JointState message has both joints {joints[0]} and {joints[1]} "
             f"(joint names: {names}); pass --rear-left/--rear-right with two of them"
@@ -614,14 +684,23 @@ def _read(
 
     joints = _resolve_joints(bag, wheel, rear_left, rear_right, notes)
     joint_extract, seen = _joint_extractor(*joints)
-    collected = {pose: _Topic(_EXTRACT[bag.topics[pose]]), wheel: _Topic(joint_extract)}
+    collected = {
+        pose: _Topic(_EXTRACT[bag.topics[pose]]),
+        wheel: bag.raw_topic(joint_extract, JOINT_STATE, joints),
+    }
     if imu is not None:
-        collected[imu] = _Topic(_imu)
+        collected[imu] = bag.raw_topic(_imu, IMU)
     with bag.guard():
-        for topic, timestamp, msg in bag.messages(collected):
-            collected[topic].add(timestamp, msg)
+        for topic, timestamp, raw, msgtype in bag.raw_messages(collected):
+            rows = collected[topic]
+            if rows.decode is not None:
+                rows.add_raw(timestamp, raw)
+            else:
+                rows.add(timestamp, bag.reader.deserialize(raw, msgtype))
+        for rows in collected.values():
+            rows.flush()
     for topic, role, flag in streams:
-        if not collected[topic].rows and not collected[topic].skipped:
+        if not len(collected[topic]) and not collected[topic].skipped:
             raise _no_messages(bag, topic, role, flag)
 
     pose_stream = _pose_stream(bag, pose, collected[pose], notes)
