@@ -32,4 +32,15 @@ def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
         default=3,
         help="whole segments of the (a)-vs-(b) agreement problem (3)",
     )
+    parser.add_argument(
+        "--import-hours",
+        type=at_least(0.0, "h"),
+        default=3.0,
+        help="duration of the recording of the import item (h) [h] (3; 0 skips it)",
+    )
+    parser.add_argument(
+        "--only-import",
+        action="store_true",
+        help="run only the import item (h) (a quick check of the recording import)",
+    )
     parser.add_argument("--out", type=Path, default=Path("bench.json"), help="JSON report path")

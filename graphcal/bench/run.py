@@ -17,7 +17,10 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
   example on a 4 km drive with theta fixed (a re-integrating Python factor per interval vs a
   built-in ``BetweenFactorPose2`` from the preintegration: time and trajectory difference)
   and with theta a variable (re-integrating vs preintegrated Python factor), and the online
-  fixed-lag update.
+  fixed-lag update;
+* (h) ``graphcal import`` of a long recording (GNSS 10 Hz, wheels and IMU 100 Hz as CSV
+  streams) in a child process: time and the child's own peak memory
+  (:mod:`graphcal.bench.importing`).
 
 Ratios are taken within one run, never against figures from another machine.
 """
@@ -37,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from graphcal.bench.importing import import_item
 from graphcal.bench.localization import solve_smoothing
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
 from graphcal.data.drive_log import load_drive_log
@@ -78,6 +82,7 @@ def run_benchmarks(
     naive_iterations: int = 2,
     pipeline_batches: int = 20,
     agreement_segments: int = 3,
+    import_hours: float = 3.0,
     progress: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run every item; return ``{"config": ..., "items": [...], "agreement": ...}``."""
@@ -180,6 +185,14 @@ def run_benchmarks(
         )
 
     localization = localization_items(record, repeats)
+    importing = None
+    if import_hours > 0:
+        importing = import_item(import_hours)
+        record(
+            f"(h) graphcal import of a {importing['recording_hours']:.1f} h recording",
+            importing["seconds"],
+            **{k: v for k, v in importing.items() if k != "seconds"},
+        )
 
     return {
         "config": {
@@ -188,11 +201,13 @@ def run_benchmarks(
             "workers": workers,
             "naive_iterations": naive_iterations,
             "pipeline_batches": pipeline_batches,
+            "import_hours": import_hours,
             "python": sys.version.split()[0],
         },
         "items": rows,
         "naive_over_graphcal_per_iteration": speedup,
         "localization": localization,
+        "import": importing,
         "agreement": {
             "segments": len(small),
             "steps": int(small.n_steps.sum()),
@@ -259,6 +274,11 @@ def localization_items(
 def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
     """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`;
     returns the report (write it with :func:`write_report`)."""
+    if getattr(args, "only_import", False):
+        return {
+            "config": {"import_hours": args.import_hours, "python": sys.version.split()[0]},
+            "import": import_item(args.import_hours),
+        }
     return run_benchmarks(
         length_km=args.length_km,
         repeats=args.repeats,
@@ -266,6 +286,7 @@ def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -
         naive_iterations=args.naive_iterations,
         pipeline_batches=args.pipeline_batches,
         agreement_segments=args.agreement_segments,
+        import_hours=args.import_hours,
         progress=progress,
     )
 
