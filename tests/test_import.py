@@ -286,3 +286,38 @@ def test_streams_that_overlap_too_little_are_refused():
     wheels = WheelStream(t + 80.0, t, t, True, "w")
     with pytest.raises(StreamError, match=r"overlap for only 19\.9 s"):
         resample(Recording(pose, wheels, None, "rec"))
+
+
+@pytest.fixture(scope="module")
+def small_bag(tmp_path_factory):
+    """A 1 km recording as a ROS 2 bag."""
+    pytest.importorskip("rosbags")
+    from graphcal.simulate.bags import write_bag
+
+    sim = simulate_streams(1.0, 5)
+    return write_bag(sim.recording, tmp_path_factory.mktemp("bag") / "drive", "ros2")
+
+
+@pytest.mark.parametrize(
+    ("flags", "expected"),
+    [
+        (["--pose-topic", "/nope"], "/nope"),
+        (["--rear-left", "front_left_wheel", "--rear-right", "x"], "front_left_wheel"),
+    ],
+)
+def test_a_bag_without_the_named_topic_or_joint_gets_one_line(
+    small_bag, tmp_path, capsys, flags, expected
+):
+    out = tmp_path / "drive.csv"
+    err = _one_line_exit_2(["import", str(small_bag), "--out", str(out), *flags], capsys)
+    assert expected in err
+    assert not out.exists() and not (tmp_path / "drive.json").exists()
+
+
+def test_check_and_calibrate_take_a_bag(small_bag, tmp_path, capsys):
+    assert main(["check", str(small_bag)]) == 0
+    assert "valid recording" in capsys.readouterr().out
+    out = tmp_path / "r"
+    args = ["calibrate", str(small_bag), "--method", "whole", "--segment-length", "100"]
+    assert main([*args, "--workers", "1", "--out", str(out)]) == 0
+    assert (out / "calibration.json").exists()
