@@ -185,6 +185,13 @@ def _simulate_streams(
     from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
 
     directory = Path(args.streams)
+    if args.bag is not None:
+        import importlib.util
+
+        if importlib.util.find_spec("rosbags") is None:
+            raise GraphcalError(
+                f"--bag {args.bag} needs the rosbags package: pip install 'graphcal[ros]'"
+            )
     if directory.exists() and not directory.is_dir():
         raise GraphcalError(f"--streams {directory}: exists and is not a directory")
     stream_settings = StreamSettings(

@@ -91,7 +91,8 @@ def position_problem(
             f"the positions travel {ratio:.3g}x the distance the wheel rotations imply "
             f"({chords[usable].sum():.0f} m vs {wheels[usable].sum():.0f} m with c_e = "
             f"{nominal[0]:g} m); "
-            "give px, py in metres and n_rl, n_rr in revolutions per sample interval"
+            "give px, py in metres and n_rl, n_rr in revolutions per sample interval, and "
+            "check the vehicle's nominal c_e (--vehicle)"
         )
     return None
 
