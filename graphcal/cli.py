@@ -80,16 +80,10 @@ def cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _bag_options(args: argparse.Namespace):
+    """The bag flags (``--pose-topic`` ...) as :class:`~graphcal.data.importer.BagOptions`."""
     from graphcal.data.importer import BagOptions
 
-    return BagOptions(
-        pose_topic=args.pose_topic,
-        wheel_topic=args.wheel_topic,
-        imu_topic=args.imu_topic,
-        rear_left=args.rear_left,
-        rear_right=args.rear_right,
-        wheel_kind=args.wheel_kind,
-    )
+    return BagOptions(**{f.name: getattr(args, f.name) for f in dataclasses.fields(BagOptions)})
 
 
 def _load(args: argparse.Namespace, settings: Settings, min_distance: float = 0.0):

@@ -10,6 +10,7 @@ CSV and a JSON sidecar saying where it came from.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 from dataclasses import dataclass
@@ -144,16 +145,7 @@ def read_recording(source: str | os.PathLike[str], bag: BagOptions | None = None
             f"{source}: neither a streams manifest (.toml) nor a ROS bag (.bag, .mcap, a ROS 2 "
             "bag directory)"
         )
-    bag = bag or BagOptions()
-    return read_bag(
-        path,
-        pose_topic=bag.pose_topic,
-        wheel_topic=bag.wheel_topic,
-        imu_topic=bag.imu_topic,
-        rear_left=bag.rear_left,
-        rear_right=bag.rear_right,
-        wheel_kind=bag.wheel_kind,
-    )
+    return read_bag(path, **dataclasses.asdict(bag or BagOptions()))
 
 
 def import_recording(
