@@ -171,15 +171,17 @@ def import_recording(
         GraphcalError: one line naming the file, stream or column and how to fix it.
     """
     path = Path(source)
-    recording = read_recording(path, bag)
     truth = None
     if path.suffix.lower() in MANIFEST_SUFFIXES:
-        from graphcal.data.manifest import load_manifest
+        from graphcal.data.manifest import load_manifest, read_manifest
 
         manifest = load_manifest(path)
+        recording = read_manifest(manifest)
         rate = rate if rate is not None else manifest.rate
         max_gap = max_gap if max_gap is not None else manifest.max_gap
         truth = _read_truth(manifest)
+    else:
+        recording = read_recording(path, bag)
     resampled = resample(
         recording,
         rate=rate if rate is not None else 40.0,

@@ -188,9 +188,10 @@ def load_manifest(path: str | os.PathLike[str]) -> Manifest:
     return Manifest(data, path)
 
 
-def read_manifest(path: str | os.PathLike[str]) -> Recording:
-    """The :class:`Recording` a manifest describes: its CSV files, or its bag's topics."""
-    manifest = load_manifest(path)
+def read_manifest(path: str | os.PathLike[str] | Manifest) -> Recording:
+    """The :class:`Recording` a manifest (path, or loaded) describes: its CSV files, or its
+    bag's topics."""
+    manifest = path if isinstance(path, Manifest) else load_manifest(path)
     if manifest.bag is not None:
         return _read_bag_manifest(manifest)
     pose = _read_pose(manifest)
