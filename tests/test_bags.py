@@ -346,3 +346,60 @@ def test_messages_of_different_layouts_are_not_decoded_together():
 
     assert decode_fixed([b"\x00\x01" + bytes(10), b"\x00\x01" + bytes(11)], IMU, False) is None
     assert decode_fixed([b"\x01\x00" + bytes(400)], IMU, False) is None  # big-endian CDR
+
+
+def _imu(t: float, rng: np.random.Generator):
+    """An Imu message whose every number changes, as a real IMU's do."""
+    types = _types()
+
+    def vector(*xyz):
+        return types["geometry_msgs/msg/Vector3"](x=xyz[0], y=xyz[1], z=xyz[2])
+
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    return types["sensor_msgs/msg/Imu"](
+        header=_header(t),
+        orientation=types["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]),
+        orientation_covariance=rng.normal(size=9),
+        angular_velocity=vector(*rng.normal(size=3)),
+        angular_velocity_covariance=rng.normal(size=9),
+        linear_acceleration=vector(*rng.normal(size=3)),
+        linear_acceleration_covariance=rng.normal(size=9),
+    )
+
+
+def test_real_imu_and_joint_messages_decode_vectorized_as_rosbags_does(tmp_path, monkeypatch):
+    # Every number of a real IMU changes, and a JointState carries more joints than the two
+    # rear wheels: only the frame id, names and lengths are the same in every message.
+    import graphcal.data.bags as reader
+    from graphcal.data import bag_layout
+
+    rng = np.random.default_rng(3)
+    messages = []
+    for k in range(300):
+        t = 50.0 + 0.01 * k
+        messages.append(("/imu", "sensor_msgs/msg/Imu", 10**7 * k, _imu(t, rng)))
+        position = rng.normal(size=4) + k
+        messages.append(("/joints", JOINTS, 10**7 * k + 1, _joints(t, FOUR, position, position)))
+        if k % 10 == 0:
+            messages.append(("/fix", FIX, 10**7 * k + 2, _fix(t, 47.0 + 1e-6 * k, 19.0)))
+    path = tmp_path / "real"
+    _write_messages(path, messages)
+    decoded = []
+    original = bag_layout.decode_fixed
+
+    def counting(*args, **kwargs):
+        result = original(*args, **kwargs)
+        decoded.append(result is not None)
+        return result
+
+    monkeypatch.setattr(reader, "decode_fixed", counting)
+    fast = read_bag(path)
+    assert decoded and all(decoded)  # the vectorized path took every chunk
+    monkeypatch.setattr(reader, "FAST_DECODING", False)
+    slow = read_bag(path)
+    for role in ("wheels", "imu"):
+        a, b = getattr(fast, role), getattr(slow, role)
+        for name, value in vars(a).items():
+            if isinstance(value, np.ndarray):
+                np.testing.assert_array_equal(value, getattr(b, name), err_msg=f"{role}.{name}")

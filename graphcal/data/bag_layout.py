@@ -63,18 +63,25 @@ class _Walker:
 
 
 def _layout(raw: bytes, msgtype: str, ros1: bool, joints: tuple[str, str] | None):
-    """``(stamp offsets, number offsets (fields,), fixed byte ranges)`` of ``raw``, or None."""
+    """``(stamp offsets, number offsets, variable byte ranges)`` of ``raw``, or None.
+
+    The variable ranges are every float array (all of them may change from message to
+    message); the rest — frame id, joint names, array lengths — must be the same in every
+    message of one layout."""
     if not ros1 and raw[:2] != b"\x00\x01":  # only little-endian CDR
         return None
     walker = _Walker(raw, ros1)
     sec, nanosec = walker.header()
-    header_end = walker.base + walker.pos
+    variable = [(sec, sec + 4), (nanosec, nanosec + 4)]
+    if ros1:
+        variable.append((0, 4))  # seq
     if msgtype == IMU:
         first = walker.take(8)
         walker.pos += 36 * 8
         if walker.base + walker.pos > len(raw):
             return None
         numbers = [first + 8 * i for i in IMU_DOUBLES]
+        variable.append((first, first + 37 * 8))
     elif msgtype == JOINT_STATE and joints is not None:
         names = [walker.string().rstrip(b"\x00").decode() for _ in range(walker.uint32())]
         if joints[0] not in names or joints[1] not in names:
@@ -86,6 +93,7 @@ def _layout(raw: bytes, msgtype: str, ros1: bool, joints: tuple[str, str] | None
             first = walker.take(8) if count else 0
             walker.pos += 8 * max(count - 1, 0)
             arrays.append((first, count))
+            variable.append((first, first + 8 * count))
         numbers = []
         for first, count in arrays[:2]:
             for index in (left, right):
@@ -94,7 +102,7 @@ def _layout(raw: bytes, msgtype: str, ros1: bool, joints: tuple[str, str] | None
         return None
     if walker.base + walker.pos != len(raw):
         return None
-    return (sec, nanosec), numbers, header_end
+    return (sec, nanosec), numbers, variable
 
 
 def decode_fixed(
@@ -114,19 +122,15 @@ def decode_fixed(
         return None
     if layout is None:
         return None
-    (sec, nanosec), numbers, _ = layout
+    (sec, nanosec), numbers, variable = layout
     length = len(raws[0])
     if any(len(raw) != length for raw in raws):
         return None
     data = np.frombuffer(b"".join(raws), dtype=np.uint8).reshape(len(raws), length)
-    # Everything but the stamp and the numbers (frame id, joint names, counts) must match.
+    # Everything but the stamp and the float arrays (frame id, names, lengths) must match.
     fixed = np.ones(length, dtype=bool)
-    fixed[sec : sec + 4] = fixed[nanosec : nanosec + 4] = False
-    if ros1:
-        fixed[0:4] = False  # seq
-    for offset in numbers:
-        if offset >= 0:
-            fixed[offset : offset + 8] = False
+    for start, end in variable:
+        fixed[start:end] = False
     if not (data[:, fixed] == data[0, fixed]).all():
         return None
     stamp = np.column_stack(
