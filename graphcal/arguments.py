@@ -23,6 +23,18 @@ def at_least(minimum: float, unit: str) -> Callable[[str], float]:
     return parse
 
 
+def in_range(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """An argparse type: a finite number in ``[low, high]``."""
+
+    def parse(text: str) -> float:
+        value = at_least(low, unit)(text)
+        if value > high:
+            raise argparse.ArgumentTypeError(f"must be at most {high:g} {unit}, got {text!r}")
+        return value
+
+    return parse
+
+
 def whole(minimum: int) -> Callable[[str], int]:
     """An argparse type: a whole number >= ``minimum``."""
 

@@ -18,12 +18,19 @@ import numpy as np
 
 from graphcal import __version__
 from graphcal.arguments import at_least as _at_least
+from graphcal.arguments import in_range as _in_range
 from graphcal.arguments import non_negative as _non_negative
 from graphcal.arguments import whole as _whole
 from graphcal.errors import GraphcalError
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
-from graphcal.pipeline.settings import Settings, apply_vehicle, load_settings, load_vehicle
+from graphcal.pipeline.settings import (
+    Settings,
+    apply_vehicle,
+    load_settings,
+    load_vehicle,
+    vehicle_settings_in,
+)
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 if TYPE_CHECKING:
@@ -140,14 +147,11 @@ def _print_excitation(log, settings: Settings) -> None:
 
 def cmd_import(args: argparse.Namespace) -> int:
     """Import a streams manifest (TOML) or a ROS 1/2 bag or MCAP file into a drive-log CSV."""
-    from graphcal.data.importer import import_recording, write_import
+    from graphcal.data.importer import check_import_output, import_recording, write_import
 
     settings = settings_from_args(args)
+    check_import_output(args.source, args.out)
     out = Path(args.out)
-    if out.is_dir():
-        raise GraphcalError(f"--out {out}: is a directory; give the drive-log CSV's path")
-    if out.resolve() == Path(args.source).resolve():
-        raise GraphcalError(f"--out {out}: is the source; give a new CSV path")
     say = _timed_progress()
     imported = import_recording(
         args.source,
@@ -164,10 +168,14 @@ def cmd_import(args: argparse.Namespace) -> int:
     print(f"  distance         {_distance_line(log, settings)}, {log.t[-1] - log.t[0]:.1f} s")
     _print_excitation(log, settings)
     _print_masked(log)
+    for warning in imported.warnings:
+        print(f"warning: {warning}")
     try:
         written = write_import(imported, out)
     except OSError as exc:
-        raise GraphcalError(f"cannot write {out}: {exc.strerror or exc}") from exc
+        raise GraphcalError(
+            f"cannot write {exc.filename or out}: {exc.strerror or exc}; nothing was written"
+        ) from exc
     say(f"wrote {', '.join(str(p) for p in written)}")
     return 0
 
@@ -234,6 +242,8 @@ def cmd_check(args: argparse.Namespace) -> int:
     )
     _print_excitation(log, settings)
     _print_masked(log)
+    for warning in imported.warnings if imported is not None else ():
+        print(f"warning: {warning}")
     return 0
 
 
@@ -241,7 +251,8 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
     """Settings: the paper's defaults, then ``--config FILE``, then explicit options."""
     settings = load_settings(args.config) if getattr(args, "config", None) else Settings()
     if getattr(args, "vehicle", None) is not None:
-        settings = apply_vehicle(settings, load_vehicle(args.vehicle))
+        keep = vehicle_settings_in(args.config) if getattr(args, "config", None) else set()
+        settings = apply_vehicle(settings, load_vehicle(args.vehicle), keep=keep)
     segments = {
         "length": args.segment_length,
         "stride": args.segment_stride,
@@ -303,6 +314,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         for line in imported.lines():
             say(line)
     run = run_calibration(log, settings, method, progress=say, workers=workers)
+    if imported is not None and imported.warnings:  # the import's doubts go with the result
+        run = dataclasses.replace(run, warnings=(*imported.warnings, *run.warnings))
     if imported is not None:
         evaluation = None
         if imported.truth is not None:
@@ -515,7 +528,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
         g.add_argument(
             "--rate",
-            type=_at_least(1.0, "Hz"),
+            type=_in_range(1.0, 1000.0, "Hz"),
             default=None,
             metavar="HZ",
             help="rate of the drive log [Hz] (default: the manifest's rate, else 40)",

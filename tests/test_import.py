@@ -250,6 +250,9 @@ def test_simulate_streams_command_writes_a_manifest(tmp_path, capsys):
         ("manifest.toml", "[imu]\n", "[imu]\ntime_offset = 1e6\n", "clocks do not overlap"),
         ("manifest.toml", 'latitude = "lat"', 'latitude = "heading"', "outside ±90°"),
         ("manifest.toml", "rate = 40.0", "rate = 40.0\nwheel = 1", "unknown key(s) ['wheel']"),
+        ("manifest.toml", "rate = 40.0", "rate = 1e12", "outside 1 … 1000 Hz"),
+        ("manifest.toml", 'rear_right = "rr"', 'rear_right = "rl"', "are both 'rl'"),
+        ("manifest.toml", 'speed_unit = "m/s"', 'speed_unit = "mph"', "the wheels travel 0.4"),
         (
             "manifest.toml",
             'latitude = "lat"\nlongitude = "lon"',
@@ -321,3 +324,71 @@ def test_check_and_calibrate_take_a_bag(small_bag, tmp_path, capsys):
     args = ["calibrate", str(small_bag), "--method", "whole", "--segment-length", "100"]
     assert main([*args, "--workers", "1", "--out", str(out)]) == 0
     assert (out / "calibration.json").exists()
+
+
+def test_the_output_never_overwrites_the_recording(recording, capsys):
+    before = (recording / "gnss.csv").read_bytes()
+    manifest = str(recording / "manifest.toml")
+    for out, expected in (
+        ("gnss.csv", "would overwrite"),
+        ("truth.csv", "truth.json, a file of the recording"),
+        ("drive.json", "give a .csv path"),
+    ):
+        err = _one_line_exit_2(["import", manifest, "--out", str(recording / out)], capsys)
+        assert expected in err
+    assert (recording / "gnss.csv").read_bytes() == before
+    assert not (recording / "gnss.json").exists() and not (recording / "drive.json").exists()
+
+
+def _negate(path, column: str) -> None:
+    frame = pd.read_csv(path)
+    frame[column] = -frame[column]
+    frame.to_csv(path, index=False, float_format="%.17g")
+
+
+@pytest.mark.parametrize(("column", "name"), [("ay", "lateral acceleration"), ("wz", "yaw rate")])
+def test_an_imu_signal_of_the_wrong_sign_is_refused(recording, tmp_path, capsys, column, name):
+    _negate(recording / "imu.csv", column)
+    args = ["import", str(recording / "manifest.toml"), "--out", str(tmp_path / "d.csv")]
+    err = _one_line_exit_2(args, capsys)
+    assert f"IMU's {name} has the opposite sign" in err and "REP 103" in err
+
+
+@pytest.mark.parametrize(("degrees", "refused"), [(5.0, False), (30.0, True)])
+def test_a_heading_offset_warns_or_is_refused(recording, tmp_path, capsys, degrees, refused):
+    gnss = pd.read_csv(recording / "gnss.csv")
+    gnss["heading"] = (gnss["heading"] + degrees) % 360.0
+    gnss.to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
+    args = ["import", str(recording / "manifest.toml"), "--out", str(tmp_path / "d.csv")]
+    if refused:
+        assert "differs from the direction of travel by -30°" in _one_line_exit_2(args, capsys)
+    else:
+        assert main(args) == 0
+        assert "warning: the heading differs from the direction of travel by -5.0°" in (
+            capsys.readouterr().out
+        )
+
+
+def test_slow_gnss_and_short_overlap_are_warned_about(recording):
+    gnss = pd.read_csv(recording / "gnss.csv")
+    gnss.iloc[::10].to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
+    warnings = " | ".join(import_recording(recording / "manifest.toml").warnings)
+    assert "the pose stream runs at 1.0 Hz" in warnings
+    gnss.iloc[:400].to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
+    warnings = " | ".join(import_recording(recording / "manifest.toml").warnings)
+    assert "the streams overlap for 40 s of the 415 s" in warnings
+
+
+def test_a_manifest_naming_a_bag_applies_time_offsets_and_refuses_column_keys(small_bag, tmp_path):
+    from graphcal.data.bags import read_bag
+    from graphcal.data.manifest import read_manifest
+    from graphcal.data.streams import StreamError
+
+    manifest = tmp_path / "bag.toml"
+    manifest.write_text(f'bag = "{small_bag}"\n[imu]\ntime_offset = 1000.0\n')
+    shifted, plain = read_manifest(manifest), read_bag(small_bag)
+    np.testing.assert_allclose(shifted.imu.t - plain.imu.t, 1000.0)
+    np.testing.assert_array_equal(shifted.wheels.t, plain.wheels.t)
+    manifest.write_text(f'bag = "{small_bag}"\n[imu]\ntime_unit = "ms"\n')
+    with pytest.raises(StreamError, match="time_unit: not used with bag"):
+        read_manifest(manifest)

@@ -234,3 +234,15 @@ def test_a_robot_drive_calibrates_with_its_profile(robot, robot_frame):
     assert doc["settings"]["vehicle"]["ticks_per_revolution"] == 64
     # The wheels' distance with the robot's 0.5 m circumference, not the car's 2 m.
     assert doc["log"]["distance_m"] == pytest.approx(log.travelled_distance(2.0)[-1] / 4.0)
+
+
+def test_a_vehicle_on_the_command_line_keeps_what_the_config_sets(tmp_path):
+    from graphcal.cli import build_parser, settings_from_args
+
+    config = tmp_path / "cfg.toml"
+    config.write_text("[joint]\nwheel_noise = 0.0005\n")  # the car's value, set explicitly
+    robot = str(VEHICLES / "delivery_robot.toml")
+    args = ["calibrate", "x.csv", "--config", str(config), "--vehicle", robot]
+    settings = settings_from_args(build_parser().parse_args(args))
+    assert settings.joint.wheel_noise == 0.0005
+    np.testing.assert_allclose(settings.joint.theta_initial, [0.5, 0.0, 0.2, 0.0])

@@ -395,7 +395,8 @@ def _odometry(msg: Any) -> tuple:
     return p.x, p.y, q.x, q.y, q.z, q.w, v.x, v.y
 
 
-#: Body-frame speed [m/s] above which an Odometry twist's direction gives the sideslip.
+#: Forward body-frame speed [m/s] above which an Odometry twist's direction gives the
+#: sideslip.
 SIDESLIP_MIN_SPEED = 0.5
 
 _EXTRACT = {
@@ -512,9 +513,9 @@ def _pose_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> PoseS
     sideslip = None
     if msgtype == ODOMETRY:  # body-frame twist (child frame): its direction is the sideslip
         vx, vy = values[:, 6], values[:, 7]
-        moving = np.hypot(vx, vy) >= SIDESLIP_MIN_SPEED
-        if moving.any() and np.abs(vy).any():
-            sideslip = np.where(moving, np.arctan2(vy, np.where(moving, vx, 1.0)), 0.0)
+        forward = vx >= SIDESLIP_MIN_SPEED  # reversing (masked by the wheels) and standstill: 0
+        if forward.any() and np.abs(vy).any():
+            sideslip = np.where(forward, np.arctan2(vy, np.where(forward, vx, 1.0)), 0.0)
             notes.append(f"{source}: sideslip from the direction of the body-frame twist")
     return PoseStream(t, values[:, 0].copy(), values[:, 1].copy(), heading, sideslip, source)
 

@@ -25,6 +25,7 @@ from graphcal.data.streams import (
     Resampled,
     StreamError,
     course,
+    interval_means,
     resample,
 )
 from graphcal.files import atomic_write_text
@@ -64,6 +65,7 @@ class ImportedLog:
         truth: ``theta_true`` [SI] of a synthetic recording (the manifest's ``truth``), or
             ``None``.
         source: the manifest or bag.
+        warnings: what a user must know before trusting a calibration from this log.
     """
 
     log: DriveLog
@@ -71,6 +73,7 @@ class ImportedLog:
     origin: tuple[float, float] | None
     truth: np.ndarray | None
     source: str
+    warnings: tuple[str, ...] = ()
 
     def sidecar(self) -> dict:
         """The JSON sidecar's content: where the log came from and what was done."""
@@ -102,6 +105,7 @@ class ImportedLog:
             "notes": list(r.notes),
             "masked": list(self.log.mask_notes),
             "heading": "derived from the GNSS course" if r.heading_derived else "logged",
+            "warnings": list(self.warnings),
         }
         if self.truth is not None:
             meta["theta_true"] = dict(zip(PARAMETER_NAMES, map(float, self.truth), strict=True))
@@ -188,7 +192,7 @@ def import_recording(
         max_gap=max_gap if max_gap is not None else MAX_GAP_S,
         wheel_circumference=float(nominal[0]),
     )
-    check_turning(resampled, recording, nominal)
+    warnings = check_recording(resampled, recording, nominal)
     import pandas as pd
 
     log = validate_frame(
@@ -205,6 +209,7 @@ def import_recording(
         origin=recording.pose.origin,
         truth=truth,
         source=str(source),
+        warnings=tuple(warnings),
     )
 
 
@@ -295,6 +300,128 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
         )
 
 
+def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndarray) -> list[str]:
+    """Check the streams against each other; raise :class:`StreamError` (one line) for what is
+    certainly wrong, return warnings for what makes a calibration doubtful.
+
+    In order: the wheels' distance against the GNSS track's (a wrong speed unit,
+    circumference or tick count), the direction of turns (:func:`check_turning`), the
+    heading against the direction of travel (a constant offset), the IMU's signs, the GNSS
+    rate and how much of the streams overlap.
+    """
+    c = resampled.columns
+    dt = float(c["t"][1] - c["t"][0])
+    usable = ~resampled.masked
+    _check_wheel_scale(c, usable, dt, recording, nominal)
+    check_turning(resampled, recording, nominal)
+    warnings = []
+    offset = _heading_offset(c, usable, dt, float(nominal[0]))
+    if offset is not None and recording.pose.heading is not None:
+        where = recording.pose.source
+        if abs(offset) > HEADING_OFFSET_ERROR:
+            raise StreamError(
+                f"{where}: the heading differs from the direction of travel by "
+                f"{np.degrees(offset):+.0f}° on average; check heading_convention and the "
+                "heading's zero (an IMU's yaw has an arbitrary one), or leave the heading out "
+                "to use the GNSS course"
+            )
+        if abs(offset) > HEADING_OFFSET_WARNING:
+            warnings.append(
+                f"the heading differs from the direction of travel by {np.degrees(offset):+.1f}° "
+                "on average (more than a sideslip explains): a mounting offset biases t_r and d"
+            )
+    _check_imu_signs(c, usable, dt, resampled, recording)
+    pose_rate = next(s.rate for s in resampled.streams if s.role == "pose")
+    if pose_rate < MIN_POSE_RATE:
+        warnings.append(
+            f"the pose stream runs at {pose_rate:.1f} Hz: interpolating between fixes that far "
+            f"apart cuts bends short and biases the calibration (below {MIN_POSE_RATE:g} Hz)"
+        )
+    longest = max(s.end - s.start for s in resampled.streams)
+    covered = resampled.overlap[1] - resampled.overlap[0]
+    if covered < MIN_OVERLAP_OF_LONGEST * longest:
+        warnings.append(
+            f"the streams overlap for {covered:.0f} s of the {longest:.0f} s the longest covers; "
+            "the rest is left out (check the clocks)"
+        )
+    return warnings
+
+
+#: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's.
+WHEEL_SCALE_RANGE = (0.8, 1.25)
+#: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°).
+HEADING_OFFSET_WARNING = np.radians(3.0)
+HEADING_OFFSET_ERROR = np.radians(15.0)
+#: Pose rate [Hz] below which interpolation is warned about; share of the longest stream the
+#: overlap should cover.
+MIN_POSE_RATE = 5.0
+MIN_OVERLAP_OF_LONGEST = 0.5
+#: Speed [m/s] above which the direction of travel is compared with the heading.
+HEADING_CHECK_SPEED = 3.0
+
+
+def _windows(values: np.ndarray, usable: np.ndarray, window: int) -> np.ndarray:
+    """Increments of a cumulative signal over consecutive windows (NaN where masked)."""
+    return _turn_directions(values, usable, window)
+
+
+def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nominal) -> None:
+    window = max(1, round(TURN_WINDOW_S / dt))
+    wheel = np.concatenate([[0.0], np.cumsum(0.5 * (c["n_rl"] + c["n_rr"])[:-1] * nominal[0])])
+    ends = np.arange(0, len(wheel), window)
+    rolled = np.diff(wheel[ends])
+    chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
+    clean = np.add.reduceat((~usable).astype(int), ends)[: len(rolled)] == 0
+    moving = clean & (rolled > 5.0) & (chords > 5.0)
+    if chords[moving].sum() < 200.0:
+        return
+    ratio = rolled[moving].sum() / chords[moving].sum()
+    low, high = WHEEL_SCALE_RANGE
+    if not low <= ratio <= high:
+        raise StreamError(
+            f"{recording.wheels.source}: the wheels travel {ratio:.3g}x the distance of the "
+            f"GNSS track (with the nominal c_e = {nominal[0]:g} m); check [wheels] kind, "
+            "speed_unit, circumference or ticks_per_revolution, the time units, and the "
+            "vehicle's c_e (--vehicle)"
+        )
+
+
+def _heading_offset(c: dict, usable: np.ndarray, dt: float, circumference: float) -> float | None:
+    """Median of heading + sideslip − direction of travel [rad] while moving, or None."""
+    track = course(c["px"], c["py"], dt)
+    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * circumference / dt
+    moving = usable & (speed > HEADING_CHECK_SPEED)
+    if moving.sum() < 10.0 / dt:
+        return None
+    difference = np.angle(np.exp(1j * (c["psi"] + c["beta"] - track)))[moving]
+    return float(np.median(difference))
+
+
+def _check_imu_signs(c: dict, usable: np.ndarray, dt: float, resampled, recording) -> None:
+    """One line if the IMU's lateral acceleration or yaw rate turns against the GNSS track."""
+    imu = recording.imu
+    if imu is None:
+        return
+    window = max(1, round(TURN_WINDOW_S / dt))
+    track = _windows(course(c["px"], c["py"], dt), usable, window)
+    grid = c["t"] + resampled.overlap[0]  # the streams' time base
+    for name, signal, hint in (
+        ("lateral acceleration", imu.lateral_acceleration, "positive to the left"),
+        ("yaw rate", imu.yaw_rate, "positive counter-clockwise"),
+    ):
+        if signal is None:
+            continue
+        values = interval_means(imu.t, signal, grid)
+        integral = np.concatenate([[0.0], np.cumsum(values[:-1] * dt)])
+        agreement = _agreement(_windows(integral, usable, window), track)
+        if agreement is not None and agreement < TURN_MIN_AGREEMENT:
+            raise StreamError(
+                f"{imu.source}: the IMU's {name} has the opposite sign to the turns of the "
+                f"GNSS track in {1 - agreement:.0%} of them; it must be {hint} (ROS REP 103: "
+                "x forward, y left, z up): negate the column or fix the IMU's frame"
+            )
+
+
 def _pose_names(geodetic: bool) -> str:
     return "latitude and longitude" if geodetic else "x and y"
 
@@ -302,9 +429,8 @@ def _pose_names(geodetic: bool) -> str:
 def heading_derived(csv_path: str | os.PathLike[str]) -> bool:
     """True if the drive-log CSV at ``csv_path`` was imported with a heading derived from the
     GNSS course (its ``<stem>.json`` sidecar from ``graphcal import`` says so)."""
-    path = Path(csv_path)
     try:
-        meta = json.loads(path.with_name(f"{path.stem}.json").read_text())
+        meta = json.loads(sidecar_of(csv_path).read_text())
     except (OSError, ValueError):
         return False
     return (
@@ -314,10 +440,64 @@ def heading_derived(csv_path: str | os.PathLike[str]) -> bool:
     )
 
 
+def sidecar_of(csv_path: str | os.PathLike[str]) -> Path:
+    """The ``<stem>.json`` sidecar beside a drive-log CSV (as a synthetic drive's)."""
+    path = Path(csv_path)
+    return path.with_name(f"{path.stem}.json")
+
+
+def source_files(source: str | os.PathLike[str]) -> set[Path]:
+    """Every file a recording is read from (resolved): the manifest and the files it names,
+    or the bag and the files of its directory."""
+    path = Path(source)
+    files = {path}
+    if path.suffix.lower() in MANIFEST_SUFFIXES and path.is_file():
+        from graphcal.data.manifest import load_manifest
+
+        try:
+            manifest = load_manifest(path)
+        except StreamError:
+            return {path.resolve()}
+        for table in (manifest.pose, manifest.wheels, manifest.imu):
+            if table and isinstance(table.get("file"), str):
+                files.add(manifest.resolve(table["file"]))
+        if isinstance(manifest.data.get("truth"), str):
+            files.add(manifest.resolve(manifest.data["truth"]))
+        if manifest.bag is not None:
+            path = manifest.bag
+            files.add(path)
+    if path.is_dir():
+        files.update(path.iterdir())
+    return {f.resolve() for f in files}
+
+
+def check_import_output(source: str | os.PathLike[str], out: str | os.PathLike[str]) -> None:
+    """One line if ``out`` (or its sidecar) is a directory, a JSON name, or a file the
+    recording is read from; checked before the import."""
+    out = Path(out)
+    if out.is_dir():
+        raise StreamError(f"--out {out}: is a directory; give the drive-log CSV's path")
+    if out.suffix.lower() == ".json":
+        raise StreamError(
+            f"--out {out}: the drive log is a CSV and its sidecar is <name>.json; give a .csv path"
+        )
+    protected = source_files(source)
+    for path in (out, sidecar_of(out)):
+        if path.resolve() in protected:
+            raise StreamError(
+                f"--out {out}: would overwrite {path}, a file of the recording; choose another path"
+            )
+
+
 def write_import(imported: ImportedLog, csv_path: str | os.PathLike[str]) -> list[Path]:
-    """Write the drive-log CSV and its ``<stem>.json`` sidecar (each atomically)."""
+    """Write the drive-log CSV and its ``<stem>.json`` sidecar (each atomically; the CSV is
+    removed again if the sidecar cannot be written, so that nothing is half-written)."""
     csv_path = Path(csv_path)
+    sidecar = sidecar_of(csv_path)
     write_drive_log(imported.log, csv_path)
-    sidecar = csv_path.with_name(f"{csv_path.stem}.json")  # as a synthetic drive's sidecar
-    atomic_write_text(sidecar, json.dumps(imported.sidecar(), indent=2) + "\n")
+    try:
+        atomic_write_text(sidecar, json.dumps(imported.sidecar(), indent=2) + "\n")
+    except BaseException:
+        csv_path.unlink(missing_ok=True)
+        raise
     return [csv_path, sidecar]

@@ -5,7 +5,8 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
     rate = 40.0                      # Hz of the written drive log
     max_gap = 0.5                    # s: a longer gap in any stream masks the log there
     # bag = "drive.bag"              # a ROS 1/2 bag or MCAP file instead of CSV files;
-                                     # then each section names a `topic` instead of `file`
+                                     # then a section holds only `topic` and `time_offset`
+                                     # ([wheels] also rear_left/rear_right joints and kind)
     [gnss]                           # the pose: GNSS fixes or a fused pose ([pose] works too)
     file = "gnss.csv"                # relative to the manifest
     time = "t"                       # column
@@ -101,14 +102,15 @@ class Manifest:
         self.data = data
         self.rate = self.number(data, "rate", 40.0, "", positive=True)
         self.max_gap = self.number(data, "max_gap", MAX_GAP_S, "", positive=True)
-        self.pose_name = "pose" if "pose" in data else "gnss"
-        self.pose = self.section(self.pose_name, POSE_KEYS, required=True)
-        self.wheels = self.section("wheels", WHEEL_KEYS, required=True)
-        self.imu = self.section("imu", IMU_KEYS, required=False)
         bag = data.get("bag")
         if bag is not None and not isinstance(bag, str):
             raise self.error(f"bag must be a path (text), got {bag!r}")
         self.bag = self.resolve(bag) if bag else None
+        csv = self.bag is None  # a bag's topics are found when the sections do not name them
+        self.pose_name = "pose" if "pose" in data else "gnss"
+        self.pose = self.section(self.pose_name, POSE_KEYS, required=csv) or {}
+        self.wheels = self.section("wheels", WHEEL_KEYS, required=csv) or {}
+        self.imu = self.section("imu", IMU_KEYS, required=False)
 
     def error(self, what: str) -> StreamError:
         """A one-line :class:`StreamError` about this manifest."""
@@ -200,9 +202,24 @@ def read_manifest(path: str | os.PathLike[str] | Manifest) -> Recording:
     return Recording(pose=pose, wheels=wheels, imu=imu, source=manifest.source)
 
 
+#: Keys a section may hold when the manifest reads a bag (the wheels' also name the joints).
+BAG_KEYS = {"topic", "time_offset"}
+BAG_WHEEL_KEYS = BAG_KEYS | {"rear_left", "rear_right", "kind"}
+
+
 def _read_bag_manifest(manifest: Manifest) -> Recording:
+    import dataclasses
+
     from graphcal.data.bags import read_bag
 
+    sections = {manifest.pose_name: manifest.pose, "wheels": manifest.wheels, "imu": manifest.imu}
+    for name, table in sections.items():
+        extra = sorted(set(table or {}) - (BAG_WHEEL_KEYS if name == "wheels" else BAG_KEYS))
+        if extra:
+            raise manifest.error(
+                f"[{name}] {', '.join(extra)}: not used with bag = ...; a bag's messages name "
+                "their fields and stamp their time (use topic and time_offset)"
+            )
     wheels = manifest.wheels
     kind = wheels.get("kind")
     if kind is not None and kind not in ("angle", "angular_speed"):
@@ -210,7 +227,7 @@ def _read_bag_manifest(manifest: Manifest) -> Recording:
             f"[wheels] kind = {kind!r}: a bag's JointState gives angle (position) or "
             "angular_speed (velocity)"
         )
-    return read_bag(
+    recording = read_bag(
         manifest.bag,
         pose_topic=manifest.pose.get("topic"),
         wheel_topic=wheels.get("topic"),
@@ -220,6 +237,17 @@ def _read_bag_manifest(manifest: Manifest) -> Recording:
         wheel_kind=kind,
         source=manifest.source,
     )
+    shifted = {}
+    for role, name, table in (
+        ("pose", manifest.pose_name, manifest.pose),
+        ("wheels", "wheels", manifest.wheels),
+        ("imu", "imu", manifest.imu),
+    ):
+        offset = manifest.number(table or {}, "time_offset", 0.0, name)
+        stream = getattr(recording, role)
+        if offset and stream is not None:
+            shifted[role] = dataclasses.replace(stream, t=stream.t + offset)
+    return dataclasses.replace(recording, **shifted) if shifted else recording
 
 
 def _read_columns(
@@ -314,6 +342,11 @@ def _read_wheels(manifest: Manifest) -> WheelStream:
     table = manifest.wheels
     kind = manifest.choice(table, "kind", WHEEL_KINDS, "wheels", None)
     columns = {key: manifest.text(table, key, "wheels") for key in ("rear_left", "rear_right")}
+    if columns["rear_left"] == columns["rear_right"]:
+        raise manifest.error(
+            f"[wheels] rear_left and rear_right are both {columns['rear_left']!r}; name the two "
+            "wheels' columns"
+        )
     scale, cumulative, resolution = 1.0, kind in ("ticks", "angle"), None
     if kind == "speed":
         circumference = manifest.number(table, "circumference", None, "wheels", positive=True)

@@ -26,6 +26,8 @@ import numpy as np
 from graphcal.data.consistency import runs
 from graphcal.errors import GraphcalError
 
+#: Rates [Hz] a drive log may be written at.
+RATE_RANGE = (1.0, 1000.0)
 #: Smallest gap [s] between two samples of a stream that counts as a gap; a slower stream's
 #: threshold is :data:`GAP_INTERVALS` of its own median interval.
 MAX_GAP_S = 0.5
@@ -339,8 +341,12 @@ def resample(
     Raises:
         StreamError: streams whose times do not overlap (enough).
     """
-    if not (np.isfinite(rate) and rate > 0):
-        raise StreamError(f"{recording.source}: rate must be a positive number of Hz, got {rate}")
+    low, high = RATE_RANGE
+    if not (np.isfinite(rate) and low <= rate <= high):
+        raise StreamError(
+            f"{recording.source}: rate {rate:g} Hz is outside {low:g} … {high:g} Hz; the paper's "
+            "drive log runs at 40 Hz"
+        )
     summaries = [summarize(role, s, max_gap) for role, s in recording.streams().items()]
     start, end = overlap(summaries, recording.source)
     dt = 1.0 / rate

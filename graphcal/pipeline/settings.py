@@ -469,3 +469,17 @@ def for_derived_heading(settings: Settings) -> Settings:
     return dataclasses.replace(
         settings, calibration=weights(settings.calibration), joint=weights(settings.joint)
     )
+
+
+def vehicle_settings_in(path: str | os.PathLike[str]) -> set[str]:
+    """The settings a TOML settings file sets that a vehicle profile would otherwise set
+    (``"joint.wheel_noise"``, ...): what :func:`apply_vehicle` must ``keep`` when a vehicle
+    is given on top of the file."""
+    data = _read_toml(path, "settings")
+    return {
+        f"{section}.{key}"
+        for section, derived in _DERIVED_SECTIONS
+        if isinstance(data.get(section), dict)
+        for key in data[section]
+        if key in derived
+    }
