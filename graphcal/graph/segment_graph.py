@@ -259,6 +259,17 @@ class ThetaEstimate:
     iterations: int
     initial_error: float
     final_error: float
+    #: Residual dimensions minus unknowns: the χ² of a solve that fits its noise model,
+    #: ``2 * final_error``, is about this (0 when not known).
+    degrees_of_freedom: int = field(default=0, kw_only=True)
+
+    @property
+    def chi2_per_dof(self) -> float | None:
+        """``2 * final_error / degrees_of_freedom``: about 1 when the residuals fit the noise
+        model, ``None`` when the degrees of freedom are not known."""
+        if self.degrees_of_freedom <= 0:
+            return None
+        return 2.0 * self.final_error / self.degrees_of_freedom
 
     @property
     def theta_sigma(self) -> np.ndarray:
@@ -283,6 +294,7 @@ class SegmentSolution(ThetaEstimate):
             self.iterations,
             self.initial_error,
             self.final_error,
+            degrees_of_freedom=self.degrees_of_freedom,
         )
 
 
@@ -325,4 +337,11 @@ def solve_segment_graph(
         final_error=float(built.graph.error(result)),
         result=result,
         built=built,
+        degrees_of_freedom=degrees_of_freedom(built.graph, result),
     )
+
+
+def degrees_of_freedom(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> int:
+    """Residual dimensions of ``graph`` minus the dimensions of the unknowns in ``values``."""
+    residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
+    return int(residuals - values.dim())

@@ -140,4 +140,5 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
         solved.initial_error,
         solved.final_error,
         observability,
+        degrees_of_freedom=solved.degrees_of_freedom,
     )

@@ -42,10 +42,12 @@ from graphcal.data.segments import (
 )
 from graphcal.errors import GraphcalError
 from graphcal.graph.observability import Observability, condition_on_prior
+from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
+from graphcal.pipeline.trust import TrustAssessment, assess_trust
 from graphcal.pipeline.validation import position_errors
 
 Progress = Callable[[str], None]
@@ -83,6 +85,7 @@ class CalibrationRun:
         batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
             failed (never written to a file).
         warnings: what a user must know before trusting the result.
+        trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
     """
 
     log: DriveLog
@@ -105,6 +108,18 @@ class CalibrationRun:
     warnings: tuple[str, ...] = ()
     covariance: np.ndarray | None = None
     observability: Observability | None = None
+    trust: TrustAssessment | None = None
+
+    def verdicts(self) -> dict[str, str]:
+        """Per parameter: the observability verdict, or why it is not to be trusted
+        (:mod:`graphcal.pipeline.trust`)."""
+        out = self.observability.verdicts() if self.observability is not None else {}
+        doubts = self.trust.parameter_doubts if self.trust is not None else {}
+        for name in PARAMETER_NAMES:
+            if name in doubts and out.get(name, "calibrated").startswith("calibrated"):
+                out[name] = f"not trusted: {doubts[name]}"
+            out.setdefault(name, "calibrated")
+        return out
 
     def batch_estimates(self, name: str) -> np.ndarray:
         """Per-batch thetas ``(B, 4)`` of step or method ``name`` with failed and excluded
@@ -234,7 +249,7 @@ def run_calibration(
     batch_theta: dict[str, np.ndarray] = {}
     batch_covariance: dict[str, np.ndarray] = {}
     batch_excluded: dict[str, np.ndarray] = {}
-    covariance = observability = None
+    covariance = observability = whole = None
     warnings: list[str] = []
     if log.masked is not None:
         seconds = float(log.masked.sum() * log.dt)
@@ -277,7 +292,7 @@ def run_calibration(
             # Step 1 is the baseline of the same batches: compare both on the batches kept.
             batch_excluded["joint"] = batch_excluded["step1"] = reasons
             warnings += _exclusion_warnings(reasons)
-        theta, covariance, observability = _whole_log_solve(data, settings.joint, say)
+        theta, covariance, observability, whole = _whole_log_solve(data, settings.joint, say)
         if observability.degenerate:
             warnings.append(
                 f"{', '.join(observability.not_calibrated)} not calibrated: "
@@ -308,11 +323,19 @@ def run_calibration(
             )
         )
     calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
-    if calibrated > nominal:
-        warnings.append(
-            f"the calibrated theta validates worse than the nominal one ({calibrated:.2f} m vs "
-            f"{nominal:.2f} m): check the log (units, a faulty wheel sensor) before using it"
-        )
+    trust = assess_trust(
+        iterations=whole.iterations if whole is not None else 0,
+        max_iterations=settings.joint.max_iterations if whole is not None else 1,
+        chi2_per_dof=whole.chi2_per_dof if whole is not None else None,
+        batch_theta=without_excluded(batch_theta["joint"], batch_excluded.get("joint"))
+        if "joint" in batch_covariance
+        else None,
+        batch_covariance=batch_covariance.get("joint"),
+        calibrated=observability.calibrated if observability is not None else np.ones(4, bool),
+        validation_calibrated=float(calibrated),
+        validation_nominal=float(nominal),
+    )
+    warnings += [f"not to be trusted: {doubt}" for doubt in trust.doubts]
     solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
     if staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
         first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
@@ -343,6 +366,7 @@ def run_calibration(
         batch_errors=batch_errors,
         batch_excluded=batch_excluded,
         warnings=tuple(warnings),
+        trust=trust,
         covariance=covariance,
         observability=observability,
     )
@@ -363,12 +387,14 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
 
 def _whole_log_solve(
     data: SegmentData, settings: JointSettings, say: Progress
-) -> tuple[np.ndarray, np.ndarray, Observability]:
+) -> tuple[np.ndarray, np.ndarray, Observability, JointCalibration]:
     """The joint solve over all ``data``: theta (unobservable parameters at their prior), its
-    covariance and observability."""
+    covariance, observability and the solve itself."""
     say(f"joint solve over all {len(data)} selected segments")
     result = calibrate_joint(data, settings)
-    say(f"  converged in {result.iterations} iterations")
+    chi2 = result.chi2_per_dof
+    fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
+    say(f"  {result.iterations} iterations{fit}")
     theta, covariance = condition_on_prior(
         result.theta,
         result.covariance,
@@ -376,7 +402,7 @@ def _whole_log_solve(
         settings.theta_initial,
         settings.theta_prior_sigmas,
     )
-    return theta, covariance, result.observability
+    return theta, covariance, result.observability, result
 
 
 def _plural(count: int, one: str, many: str) -> str:

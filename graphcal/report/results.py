@@ -81,7 +81,7 @@ def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None)
             out[name] = entry
             continue
         sigma = float(np.sqrt(run.covariance[i, i]))
-        verdict = run.observability.verdicts()[name]
+        verdict = run.verdicts()[name]
         if run.observability.calibrated[i]:
             entry["status"] = verdict
             entry["sigma"] = sigma
@@ -246,6 +246,8 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
             doc["theta_display"][f"{name} [{DISPLAY_UNITS[i]}]"] = None
             if "theta_error" in doc:
                 doc["theta_error"][name] = None
+    if run.trust is not None:
+        doc["trust"] = run.trust.to_dict()
     doc["warnings"] = list(run.warnings)
     doc["settings"] = run.settings.to_dict()
     doc["versions"] = {"graphcal": __version__, "gtsam": _gtsam_version()}
@@ -296,7 +298,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
             + interval_table(
                 run.theta,
                 run.covariance,
-                run.observability.verdicts(),
+                run.verdicts(),
                 None if evaluation is None else evaluation.crb,
                 truth,
             )

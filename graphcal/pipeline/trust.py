@@ -1,0 +1,180 @@
+"""Whether a calibration can be trusted, judged without a truth (issue 13: never confidently
+wrong).
+
+A solve reports a σ for each parameter. That σ is honest only if the data fit the model and
+its noise levels. Four checks need nothing but the run itself:
+
+* **convergence**: the whole-log solve stopped before its iteration limit;
+* **fit** (χ² test): the whole-log solve's normalized residuals, ``2 · error / dof``, are
+  about 1 when the noise model fits (0.97 on the sample drive); above
+  :data:`MAX_CHI2_PER_DOF` the residuals are larger than the model allows (a lever arm, a
+  heading noisier than assumed, outliers);
+* **spread** (joint method): the interquartile range of the batch estimates over the median
+  per-batch σ. For an honest σ and independent batches it is about 1.35 (the IQR of a
+  normal distribution in σ); batches that share segments make it smaller. Above
+  :data:`MAX_SPREAD_RATIO` the batches disagree far more than their σ allows;
+* **validation**: the calibrated theta predicts the validation segments worse than the
+  nominal one.
+
+A parameter that fails a check is not reported as calibrated: its verdict says why, the run
+is marked untrusted in ``calibration.json`` and ``graphcal calibrate`` exits with status
+:data:`EXIT_UNTRUSTED`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from graphcal.model import PARAMETER_NAMES
+
+#: χ² per degree of freedom above which the residuals do not fit the noise model: the σ
+#: would be understated by more than sqrt(1.5) = 1.22 (statistical noise on the whole-log
+#: solve's tens of thousands of degrees of freedom is about 0.01).
+MAX_CHI2_PER_DOF = 1.5
+#: Batch IQR over median batch σ above which σ is not honest (1.35 when it is).
+MAX_SPREAD_RATIO = 2.5
+#: Exit status of ``graphcal calibrate`` when the result is written but not to be trusted.
+EXIT_UNTRUSTED = 3
+#: Normal distribution's interquartile range in units of its σ.
+NORMAL_IQR = 1.349
+
+
+@dataclass(frozen=True)
+class TrustAssessment:
+    """The checks of the module docstring and what they found.
+
+    Attributes:
+        converged: the whole-log solve stopped before its iteration limit.
+        iterations, max_iterations: of the whole-log solve.
+        chi2_per_dof: its χ² per degree of freedom (``None`` if unknown).
+        spread_ratio: ``(4,)`` batch IQR / median batch σ per parameter, or ``None``
+            without batches with σ.
+        validates_worse: the calibrated theta validates worse than the nominal one.
+        parameter_doubts: per parameter, why it is not to be trusted (absent if it is).
+        doubts: the run-level reasons, one line each.
+    """
+
+    converged: bool
+    iterations: int
+    max_iterations: int
+    chi2_per_dof: float | None
+    spread_ratio: np.ndarray | None
+    validates_worse: bool
+    parameter_doubts: dict[str, str]
+    doubts: tuple[str, ...]
+
+    @property
+    def trusted(self) -> bool:
+        """True if no check failed."""
+        return not self.doubts
+
+    def to_dict(self) -> dict:
+        """Plain data for ``calibration.json``."""
+        return {
+            "trusted": self.trusted,
+            "converged": self.converged,
+            "iterations": self.iterations,
+            "max_iterations": self.max_iterations,
+            "chi2_per_dof": self.chi2_per_dof,
+            "max_chi2_per_dof": MAX_CHI2_PER_DOF,
+            "spread_ratio": None
+            if self.spread_ratio is None
+            else {
+                n: (float(r) if np.isfinite(r) else None)
+                for n, r in zip(PARAMETER_NAMES, self.spread_ratio, strict=True)
+            },
+            "max_spread_ratio": MAX_SPREAD_RATIO,
+            "validates_worse_than_nominal": self.validates_worse,
+            "doubts": list(self.doubts),
+        }
+
+
+def spread_ratio(batch_theta: np.ndarray, batch_covariance: np.ndarray) -> np.ndarray | None:
+    """IQR of the batch estimates over their median σ, per parameter ``(4,)``; ``None`` with
+    fewer than 8 usable batches (rows with NaN are left out)."""
+    theta = np.asarray(batch_theta, float)
+    sigma = np.sqrt(np.abs(np.diagonal(np.asarray(batch_covariance, float), axis1=1, axis2=2)))
+    usable = np.all(np.isfinite(theta), axis=1) & np.all(np.isfinite(sigma), axis=1)
+    if usable.sum() < 8:
+        return None
+    q75, q25 = np.percentile(theta[usable], [75, 25], axis=0)
+    return (q75 - q25) / np.median(sigma[usable], axis=0)
+
+
+def assess_trust(
+    *,
+    iterations: int,
+    max_iterations: int,
+    chi2_per_dof: float | None,
+    batch_theta: np.ndarray | None,
+    batch_covariance: np.ndarray | None,
+    calibrated: np.ndarray,
+    validation_calibrated: float,
+    validation_nominal: float,
+) -> TrustAssessment:
+    """Run the checks of the module docstring.
+
+    Args:
+        iterations, max_iterations: of the whole-log solve.
+        chi2_per_dof: its χ² per degree of freedom.
+        batch_theta, batch_covariance: per-batch estimates ``(B, 4)`` and covariances
+            ``(B, 4, 4)`` of the joint method (``None`` without batches).
+        calibrated: ``(4,)`` the parameters the data determined (observability); the spread
+            of the others is the prior's and is not judged.
+        validation_calibrated, validation_nominal: E_p [m] of both thetas.
+    """
+    doubts: list[str] = []
+    parameter_doubts: dict[str, str] = {}
+    converged = iterations < max_iterations
+    if not converged:
+        doubts.append(
+            f"the whole-log solve stopped at its iteration limit ({max_iterations}) without "
+            "converging"
+        )
+        for name in PARAMETER_NAMES:
+            parameter_doubts[name] = "the solve did not converge"
+    if chi2_per_dof is not None and chi2_per_dof > MAX_CHI2_PER_DOF:
+        doubts.append(
+            f"the residuals do not fit the noise model: χ²/dof = {chi2_per_dof:.2f} (about 1 "
+            f"when they do; limit {MAX_CHI2_PER_DOF:g}): a defect the model does not cover "
+            "(lever arm, latency, outliers, a noisier heading) or noise levels set too low"
+        )
+        for name in PARAMETER_NAMES:
+            parameter_doubts.setdefault(name, f"residuals {chi2_per_dof:.1f}× the noise model")
+    ratio = None
+    if batch_theta is not None and batch_covariance is not None:
+        ratio = spread_ratio(batch_theta, batch_covariance)
+    if ratio is not None:
+        spread = [
+            (name, float(r))
+            for name, r, ok in zip(PARAMETER_NAMES, ratio, calibrated, strict=True)
+            if ok and np.isfinite(r) and r > MAX_SPREAD_RATIO
+        ]
+        if spread:
+            listed = ", ".join(f"{name} {r:.1f}×" for name, r in spread)
+            doubts.append(
+                f"the batches disagree far more than their σ allows (IQR over median σ: "
+                f"{listed}; about {NORMAL_IQR:.2f} when σ is honest, limit {MAX_SPREAD_RATIO:g})"
+            )
+            for name, r in spread:
+                parameter_doubts.setdefault(name, f"batches spread {r:.1f}× their σ")
+    validates_worse = bool(validation_calibrated > validation_nominal)
+    if validates_worse:
+        doubts.append(
+            f"the calibrated theta validates worse than the nominal one "
+            f"({validation_calibrated:.2f} m vs {validation_nominal:.2f} m)"
+        )
+        for name in PARAMETER_NAMES:
+            parameter_doubts.setdefault(name, "validates worse than nominal")
+    return TrustAssessment(
+        converged=converged,
+        iterations=iterations,
+        max_iterations=max_iterations,
+        chi2_per_dof=chi2_per_dof,
+        spread_ratio=ratio,
+        validates_worse=validates_worse,
+        parameter_doubts=parameter_doubts,
+        doubts=tuple(doubts),
+    )
