@@ -13,6 +13,7 @@ import json
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from graphcal.data.drive_log import DriveLog, write_drive_log
 from graphcal.files import atomic_write_text
 from graphcal.model import PARAMETER_NAMES, integrate, wheel_rotations_for_motion
 from graphcal.simulate.route import ROUTES
+
+if TYPE_CHECKING:
+    from graphcal.simulate.defects import Defects
 
 #: Default true parameters, away from nominal: [1.985 m, 1.2 mm, 1.585 m, 1.5 mm·s²/m] in SI.
 THETA_TRUE_DEFAULT = np.array([1.985, 1.2e-3, 1.585, 1.5e-3])
@@ -58,7 +62,12 @@ class VehicleMotion:
 
 @dataclass(frozen=True)
 class SyntheticDrive:
-    """A simulated drive: the measured (noisy) log, the noise-free truth and how it was made."""
+    """A simulated drive: the measured (noisy) log, the noise-free truth and how it was made.
+
+    ``defects`` (with the seed of their random choices, ``defect_seed``) are the defects of
+    real logs :func:`graphcal.simulate.defects.degrade` added to ``measured``; ``None``: a
+    clean drive.
+    """
 
     measured: DriveLog
     truth: DriveLog
@@ -69,6 +78,8 @@ class SyntheticDrive:
     motion: VehicleMotion = field(default_factory=VehicleMotion)
     route: str = "city"
     theta_change: ThetaChange | None = None
+    defects: Defects | None = None
+    defect_seed: int | None = None
 
 
 @dataclass(frozen=True)
@@ -222,7 +233,8 @@ def sidecar_path(csv_path: str | os.PathLike[str]) -> Path:
 def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str]) -> list[Path]:
     """Write the measured CSV, the noise-free ``*_truth.csv`` and the ``*.json`` sidecar.
 
-    Each file is written atomically. Returns the three paths.
+    The sidecar names a degraded drive's defects (``"defects"``: their names, settings in SI
+    units and seed). Each file is written atomically. Returns the three paths.
     """
     from graphcal import __version__
 
@@ -256,6 +268,8 @@ def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str
                 zip(PARAMETER_NAMES, map(float, drive.theta_change.theta_after), strict=True)
             ),
         }
+    if drive.defects is not None:
+        meta["defects"] = {"seed": drive.defect_seed, **drive.defects.to_dict()}
     atomic_write_text(sidecar, json.dumps(meta, indent=2) + "\n")
     return [csv_path, truth_csv, sidecar]
 

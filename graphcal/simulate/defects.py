@@ -1,0 +1,517 @@
+"""Defects of real drive logs, added to a synthetic drive with the truth kept.
+
+:func:`degrade` rebuilds a :class:`~graphcal.simulate.drive.SyntheticDrive`'s measured log
+from its noise-free truth, the drive's own white noise (measured − truth) and the defects of
+a :class:`Defects`; :func:`parse_defects` reads them from text such as
+``"outliers,latency=0.1,lever_arm=1.5"`` (``graphcal simulate --defects``).
+
+Order in which the defects act (each on the result of the one before):
+
+* wheels: true rotation → per-wheel slip (relative scale) → latency (the cumulative rotation
+  read ``latency`` earlier) → tick quantization of the cumulative rotation → the drive's own
+  white wheel noise;
+* position: true centre of gravity → antenna lever arm → GNSS fixes at ``gnss_rate`` with
+  white noise (the drive's own noise when every log sample is a fix) → multipath outliers on
+  the fixes → outages (fixes held or missing) → fixes to the log rate (interpolated, or
+  sample-and-hold);
+* heading: true heading → slow bias + white noise (the drive's own white noise unless
+  ``heading_white`` replaces it); a fused heading comes from the INS, so the GNSS rate and
+  holding outages leave it alone, and only a true dropout (the pose stream silent) bridges it;
+* sideslip, lateral acceleration and time are the drive's own.
+
+Every random choice comes from ``seed``: one :class:`numpy.random.SeedSequence` child per
+defect (spawned from ``[seed, 13]``, apart from the drive's own streams), always all of them,
+so switching one defect on does not change another's realisation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog
+
+if TYPE_CHECKING:
+    from graphcal.simulate.drive import SyntheticDrive
+
+#: Correlation time [s] of the wheel slip: φ = exp(−dt/τ) is 0.995 per 40 Hz sample.
+SLIP_TIME = -0.025 / float(np.log(0.995))
+#: Random-walk rate [rad/√s] of the fused-heading bias when on: 0.5°/√min.
+HEADING_BIAS_RATE = float(np.deg2rad(0.5)) / float(np.sqrt(60.0))
+#: Correlation time [s] that bounds the heading bias (GNSS aiding): stationary σ ≈ 1.1°.
+HEADING_BIAS_TIME = 600.0
+#: White noise [rad] of a fused heading: 0.3° (the paper's heading has 1.5°).
+HEADING_WHITE = float(np.deg2rad(0.3))
+#: Samples of one chunk of the exact AR(1) recursion (:func:`ar1`).
+_AR1_CHUNK = 256
+#: Nothing of an outage within this long [s] of the drive's start and end, nor between two.
+_OUTAGE_MARGIN_S = 1.0
+_OUTAGE_SPACING_S = 5.0
+#: At most this share of the drive's time in outages.
+_MAX_OUTAGE_SHARE = 0.4
+#: The random streams, one per defect, in spawn order (never reorder: it changes seeds).
+_STREAMS = ("gnss", "outliers", "outages", "heading", "slip", "ticks")
+
+
+@dataclass(frozen=True)
+class Defects:
+    """Which defects of real logs to add, and how large (SI units; ``None``/0: absent).
+
+    The realistic default of each (what :func:`parse_defects` switches on for a bare name)
+    follows in brackets; they come from measured real logs.
+
+    Attributes:
+        gnss_rate: GNSS fix rate [Hz], the fixes interpolated linearly to the log rate
+            (``None``: every log sample is a fix) [10 Hz].
+        gnss_hold: sample-and-hold the fixes to the log rate instead (needs ``gnss_rate``).
+        outlier_share: share of the fixes moved by multipath [0.005].
+        outlier_range: ``(least, most)`` distance [m] a multipath fix is off, in a uniformly
+            random direction [(10, 50) m].
+        outages: number of GNSS outages, placed at random [2].
+        outage_s: duration of each outage [s] [30 s].
+        outage_hold: the receiver repeats its last fix during an outage (``True``); else a
+            true dropout: no pose at all, bridged linearly and marked ``masked`` in the log.
+        heading_bias_rate: random-walk rate [rad/√s] of a slow bias of the fused heading
+            [0.5°/√min = 1.13e-3 rad/√s: about 0.25° over a 15 s segment].
+        heading_bias_time: correlation time [s] of that bias (a Gauss–Markov process, bounded
+            by the GNSS aiding: stationary σ = rate·√(τ/2)); ``None``: a pure random walk
+            [600 s: σ ≈ 1.1°].
+        heading_white: white noise [rad] of the fused heading, replacing the drive's own
+            (``None``: keep it) [0.3°].
+        latency: delay [s] of the wheel signals relative to the pose: the rotation logged over
+            ``[t_k, t_k+1]`` is the true one over ``[t_k − latency, t_k+1 − latency]``
+            (negative: wheels early) [0.05 s].
+        lever_arm: GNSS antenna position ``(longitudinal, lateral)`` [m] from the centre of
+            gravity in the body frame (forward, left); the fix is CG + R(ψ)·arm [(1.2, 0) m].
+        ticks_per_revolution: the wheel rotations are counts of this many ticks per revolution
+            (cumulative rotation floored, counters starting at a random phase) [96].
+        slip_sigma: stationary σ of each rear wheel's slow relative slip (an AR(1) scale on its
+            rotation, independent per wheel) [0.0015 = 0.15 %].
+        slip_time: correlation time [s] of the slip [4.99 s: φ = 0.995 per 40 Hz sample].
+    """
+
+    gnss_rate: float | None = None
+    gnss_hold: bool = False
+    outlier_share: float = 0.0
+    outlier_range: tuple[float, float] = (10.0, 50.0)
+    outages: int = 0
+    outage_s: float = 30.0
+    outage_hold: bool = True
+    heading_bias_rate: float = 0.0
+    heading_bias_time: float | None = HEADING_BIAS_TIME
+    heading_white: float | None = None
+    latency: float = 0.0
+    lever_arm: tuple[float, float] | None = None
+    ticks_per_revolution: int = 0
+    slip_sigma: float = 0.0
+    slip_time: float = SLIP_TIME
+
+    def __post_init__(self) -> None:
+        def fail(what: str) -> None:
+            raise ValueError(f"Defects: {what}")
+
+        def finite(value: float) -> bool:
+            return bool(np.isfinite(value))
+
+        if self.gnss_rate is not None and not (finite(self.gnss_rate) and self.gnss_rate > 0):
+            fail(f"gnss_rate must be a positive rate in Hz, got {self.gnss_rate}")
+        if self.gnss_hold and self.gnss_rate is None:
+            fail("gnss_hold needs a gnss_rate to hold the fixes of")
+        if not (finite(self.outlier_share) and 0 <= self.outlier_share < 1):
+            fail(f"outlier_share must be in [0, 1), got {self.outlier_share}")
+        low, high = self.outlier_range
+        if not (finite(low) and finite(high) and 0 <= low <= high):
+            fail(f"outlier_range must be (least, most) metres >= 0, got {self.outlier_range}")
+        if int(self.outages) != self.outages or self.outages < 0:
+            fail(f"outages must be a whole number >= 0, got {self.outages}")
+        if not (finite(self.outage_s) and self.outage_s > 0):
+            fail(f"outage_s must be positive, got {self.outage_s}")
+        if not (finite(self.heading_bias_rate) and self.heading_bias_rate >= 0):
+            fail(f"heading_bias_rate must be >= 0, got {self.heading_bias_rate}")
+        if self.heading_bias_time is not None and not (
+            finite(self.heading_bias_time) and self.heading_bias_time > 0
+        ):
+            fail(f"heading_bias_time must be positive or None, got {self.heading_bias_time}")
+        if self.heading_white is not None and not (
+            finite(self.heading_white) and self.heading_white >= 0
+        ):
+            fail(f"heading_white must be >= 0 or None, got {self.heading_white}")
+        if not (finite(self.latency) and abs(self.latency) < 10.0):
+            fail(f"latency must be under 10 s, got {self.latency}")
+        if self.lever_arm is not None and not (
+            len(self.lever_arm) == 2 and all(finite(a) for a in self.lever_arm)
+        ):
+            fail(f"lever_arm must be (longitudinal, lateral) metres, got {self.lever_arm}")
+        ticks = self.ticks_per_revolution
+        if int(ticks) != ticks or ticks < 0:
+            fail(f"ticks_per_revolution must be a whole number >= 0, got {ticks}")
+        if not (finite(self.slip_sigma) and 0 <= self.slip_sigma < 0.1):
+            fail(f"slip_sigma must be in [0, 0.1), got {self.slip_sigma}")
+        if not (finite(self.slip_time) and self.slip_time > 0):
+            fail(f"slip_time must be positive, got {self.slip_time}")
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The defects switched on, by their :data:`DEFECT_NAMES` (empty: a clean drive)."""
+        on = {
+            "gnss10hz": self.gnss_rate is not None and not self.gnss_hold,
+            "hold": self.gnss_hold,
+            "outliers": self.outlier_share > 0,
+            "outages": self.outages > 0 and self.outage_hold,
+            "dropouts": self.outages > 0 and not self.outage_hold,
+            "heading_bias": self.heading_bias_rate > 0 or self.heading_white is not None,
+            "latency": self.latency != 0,
+            "lever_arm": self.lever_arm is not None and any(self.lever_arm),
+            "ticks": self.ticks_per_revolution > 0,
+            "slip": self.slip_sigma > 0,
+        }
+        return tuple(name for name in DEFECT_NAMES if on[name])
+
+    def to_dict(self) -> dict:
+        """JSON-ready: the names switched on and every field (SI units)."""
+        fields = dataclasses.asdict(self)
+        for key, value in fields.items():
+            if isinstance(value, tuple):
+                fields[key] = list(value)
+        return {"names": list(self.names), "settings": fields}
+
+
+#: Each defect's name, main knob (SI) and realistic default, for ``--defects`` and its help.
+DEFECTS: dict[str, str] = {
+    "gnss10hz": "GNSS fixes at RATE Hz interpolated to the log rate (10)",
+    "hold": "GNSS fixes at RATE Hz, sample-and-hold (10)",
+    "outliers": "SHARE of the fixes off by 10–50 m, multipath (0.005)",
+    "outages": "COUNT outages of 30 s, the receiver holding its last fix (2)",
+    "dropouts": "COUNT outages of 30 s without any pose, masked in the log (2)",
+    "heading_bias": "fused heading: bias random walk RATE rad/√s (1.13e-3 = 0.5°/√min, "
+    "τ 600 s) + 0.3° white instead of the drive's",
+    "latency": "wheel signals SECONDS late relative to the pose (0.05)",
+    "lever_arm": "GNSS antenna LONG[:LAT] m from the centre of gravity (1.2:0)",
+    "ticks": "wheel rotation counted in TICKS per revolution (96)",
+    "slip": "per-wheel slow slip, AR(1) relative SIGMA, φ 0.995 per 40 Hz sample (0.0015)",
+}
+DEFECT_NAMES: tuple[str, ...] = tuple(DEFECTS)
+#: What ``all`` switches on: every defect but ``hold`` and ``dropouts``, the alternatives to
+#: interpolated fixes and to outages that hold the last fix (``all,hold`` or ``all,dropouts``
+#: switches to them).
+ALL_NAMES: tuple[str, ...] = tuple(n for n in DEFECT_NAMES if n not in ("hold", "dropouts"))
+
+
+def _knob(name: str, value: str | None, whole: bool = False) -> float | None:
+    if value is None:
+        return None
+    try:
+        number = float(value)
+    except ValueError:
+        raise ValueError(f"defect {name}={value}: not a number") from None
+    if not np.isfinite(number) or (whole and number != int(number)):
+        kind = "a whole number" if whole else "a finite number"
+        raise ValueError(f"defect {name}={value}: must be {kind}")
+    return number
+
+
+def _switch(name: str, value: str | None, fields: dict) -> None:
+    """Switch defect ``name`` on in ``fields`` (Defects keywords), at its default or ``value``."""
+    if name in ("gnss10hz", "hold"):
+        rate = _knob(name, value)
+        if rate is not None or fields.get("gnss_rate") is None:
+            fields["gnss_rate"] = 10.0 if rate is None else rate
+        fields["gnss_hold"] = name == "hold"
+    elif name == "outliers":
+        share = _knob(name, value)
+        fields["outlier_share"] = 0.005 if share is None else share
+    elif name in ("outages", "dropouts"):
+        count = _knob(name, value, whole=True)
+        fields["outages"] = 2 if count is None else int(count)
+        fields["outage_hold"] = name == "outages"
+    elif name == "heading_bias":
+        rate = _knob(name, value)
+        fields["heading_bias_rate"] = HEADING_BIAS_RATE if rate is None else rate
+        fields["heading_white"] = HEADING_WHITE
+    elif name == "latency":
+        latency = _knob(name, value)
+        fields["latency"] = 0.05 if latency is None else latency
+    elif name == "lever_arm":
+        if value is None:
+            fields["lever_arm"] = (1.2, 0.0)
+        else:
+            parts = value.split(":")
+            if len(parts) > 2:
+                raise ValueError(f"defect lever_arm={value}: give LONGITUDINAL[:LATERAL] metres")
+            arm = [_knob(name, p) for p in parts]
+            fields["lever_arm"] = (float(arm[0]), float(arm[1]) if len(arm) == 2 else 0.0)
+    elif name == "ticks":
+        ticks = _knob(name, value, whole=True)
+        fields["ticks_per_revolution"] = 96 if ticks is None else int(ticks)
+    elif name == "slip":
+        sigma = _knob(name, value)
+        fields["slip_sigma"] = 0.0015 if sigma is None else sigma
+
+
+def parse_defects(text: str) -> Defects:
+    """Defects from a comma-separated list, e.g. ``"outliers,latency=0.1,lever_arm=1.5"``.
+
+    A name switches that defect on at its realistic default; ``name=value`` sets its main
+    knob (SI units, :data:`DEFECTS`); ``lever_arm=LONG:LAT`` both of its components. ``all``
+    switches on every name of :data:`ALL_NAMES`; names after it override it (``all,hold``,
+    ``all,dropouts``, ``all,latency=0.1``). ``outages`` and ``dropouts`` together are refused
+    (both set the one kind of outage), as are ``gnss10hz`` and ``hold``. Empty or ``none``:
+    no defect.
+
+    Raises:
+        ValueError: one line, for an unknown name (listing the known ones) or a bad value.
+    """
+    fields: dict = {}
+    explicit: set[str] = set()
+    for entry in (e.strip() for e in text.split(",")):
+        if not entry or entry.lower() == "none":
+            continue
+        name, _, value = entry.partition("=")
+        name, value = name.strip().lower(), value.strip() if "=" in entry else None
+        if name == "all" and value is None:
+            for each in ALL_NAMES:
+                _switch(each, None, fields)
+            continue
+        if name not in DEFECTS:
+            raise ValueError(
+                f"unknown defect {name!r}; known: all, {', '.join(DEFECT_NAMES)} "
+                "(name=value sets its size)"
+            )
+        for pair in (("outages", "dropouts"), ("gnss10hz", "hold")):
+            other = pair[1 - pair.index(name)] if name in pair else None
+            if other in explicit:
+                raise ValueError(f"defects {other} and {name} exclude each other; choose one")
+        explicit.add(name)
+        _switch(name, value, fields)
+    try:
+        return Defects(**fields)
+    except ValueError as exc:
+        raise ValueError(str(exc).removeprefix("Defects: ")) from None
+
+
+def ar1(
+    n: int, phi: float, innovation: float, start: float, rng: np.random.Generator, width: int
+) -> np.ndarray:
+    """``width`` independent AR(1) series of ``n`` samples, ``(n, width)``, exactly.
+
+    ``x_0 ~ N(0, start²)``, ``x_k = phi·x_{k−1} + w_k`` with ``w_k ~ N(0, innovation²)``.
+    Vectorized: within chunks of :data:`_AR1_CHUNK` samples the recursion is a product with
+    the lower-triangular matrix ``phi^(i−j)`` (no negative powers, so stable for any
+    ``0 <= phi <= 1``, a random walk included); only the carry from one chunk to the next is a
+    loop, over chunks, not samples.
+    """
+    size = _AR1_CHUNK
+    chunks = max(1, -(-n // size))
+    w = rng.standard_normal((chunks * size, width))
+    w[0] *= start
+    w[1:] *= innovation
+    w[n:] = 0.0
+    i = np.arange(size)
+    lag = i[:, None] - i[None, :]
+    powers = np.where(lag >= 0, float(phi) ** np.maximum(lag, 0), 0.0)
+    # local[c, i] = sum_{j <= i} phi^(i-j) w[c, j], per chunk c and series.
+    local = np.einsum("ij,cjw->ciw", powers, w.reshape(chunks, size, width))
+    ends = np.empty((chunks, width))
+    carry = np.zeros(width)
+    for c in range(chunks):  # the end of each chunk carries into the next
+        carry = float(phi) ** size * carry + local[c, -1]
+        ends[c] = carry
+    previous = np.vstack([np.zeros((1, width)), ends[:-1]])
+    x = local + (float(phi) ** (i + 1))[None, :, None] * previous[:, None, :]
+    return x.reshape(chunks * size, width)[:n]
+
+
+def gauss_markov(
+    n: int, dt: float, sigma: float, time: float | None, rng: np.random.Generator, width: int = 1
+) -> np.ndarray:
+    """First-order Gauss–Markov series ``(n, width)`` sampled every ``dt`` [s], started in its
+    stationary state: correlation time ``time`` [s], stationary σ ``sigma``; with ``time``
+    ``None``, a random walk of rate ``sigma`` [unit/√s] starting at 0."""
+    if time is None:
+        return ar1(n, 1.0, sigma * np.sqrt(dt), 0.0, rng, width)
+    phi = float(np.exp(-dt / time))
+    return ar1(n, phi, sigma * np.sqrt(1.0 - phi**2), sigma, rng, width)
+
+
+def _delayed(cumulative: np.ndarray, times: np.ndarray, delay: float) -> np.ndarray:
+    """Cumulative signals ``(M, k)`` read at ``times − delay``: linear between the samples
+    (the rate is constant within each step) and extended at the first/last rate outside."""
+    query = times - delay
+    out = np.empty_like(cumulative)
+    for col in range(cumulative.shape[1]):
+        c = cumulative[:, col]
+        inside = np.interp(query, times, c)
+        first = (c[1] - c[0]) / (times[1] - times[0])
+        last = (c[-1] - c[-2]) / (times[-1] - times[-2])
+        inside = np.where(query < times[0], c[0] + first * (query - times[0]), inside)
+        out[:, col] = np.where(query > times[-1], c[-1] + last * (query - times[-1]), inside)
+    return out
+
+
+def _wheels(
+    drive: SyntheticDrive, defects: Defects, rngs: dict[str, np.random.Generator]
+) -> np.ndarray:
+    """Measured rear-wheel rotations ``(N, 2)`` [rev per sample]: truth → slip → latency →
+    quantization → the drive's own white noise."""
+    truth, clean = drive.truth, drive.measured
+    true = np.column_stack([truth.n_rl, truth.n_rr])
+    n, dt = true, truth.dt
+    if defects.slip_sigma > 0:
+        slip = gauss_markov(len(n), dt, defects.slip_sigma, defects.slip_time, rngs["slip"], 2)
+        n = n * (1.0 + slip)
+    if defects.latency != 0 or defects.ticks_per_revolution > 0:
+        # Cumulative rotation at t_0 … t_N (t_N one interval after the last sample).
+        cumulative = np.vstack([np.zeros((1, 2)), np.cumsum(n, axis=0)])
+        times = np.append(truth.t, truth.t[-1] + dt)
+        if defects.latency != 0:
+            cumulative = _delayed(cumulative, times, defects.latency)
+        if defects.ticks_per_revolution > 0:
+            ticks = defects.ticks_per_revolution
+            phase = rngs["ticks"].uniform(0.0, 1.0, 2)
+            cumulative = np.floor(cumulative * ticks + phase) / ticks
+        n = np.diff(cumulative, axis=0)
+    # The drive's own white noise on top: measured = clean + (defective − true rotation).
+    return np.column_stack([clean.n_rl, clean.n_rr]) + (n - true)
+
+
+def _outage_starts(t0: float, t_end: float, defects: Defects, rng: np.random.Generator):
+    """Start times [s] of the outages: random, apart, within the drive (``ValueError`` if the
+    drive is too short for them)."""
+    count, duration = int(defects.outages), defects.outage_s
+    span = t_end - t0
+    free = span - 2 * _OUTAGE_MARGIN_S - count * duration - (count - 1) * _OUTAGE_SPACING_S
+    if count * duration > _MAX_OUTAGE_SHARE * span or free < 0:
+        raise ValueError(
+            f"a drive of {span:.0f} s is too short for {count} outage(s) of {duration:g} s "
+            f"(at most {_MAX_OUTAGE_SHARE:.0%} of its time); use a longer drive or fewer outages"
+        )
+    u = np.sort(rng.uniform(0.0, free, count))
+    return t0 + _OUTAGE_MARGIN_S + u + np.arange(count) * (duration + _OUTAGE_SPACING_S)
+
+
+def _pose(
+    drive: SyntheticDrive, defects: Defects, rngs: dict[str, np.random.Generator]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, tuple[str, ...]]:
+    """Measured ``px, py, psi``, the masked samples (dropouts) and their notes."""
+    truth, clean = drive.truth, drive.measured
+    t, dt = truth.t, truth.dt
+    count = len(t)
+
+    # Heading: truth + slow bias + white (the drive's own unless replaced).
+    heading = rngs["heading"]
+    psi = clean.psi  # truth + the drive's own white noise
+    if defects.heading_white is not None:
+        psi = truth.psi + defects.heading_white * heading.standard_normal(count)
+    if defects.heading_bias_rate > 0:
+        time = defects.heading_bias_time
+        sigma = defects.heading_bias_rate * (1.0 if time is None else np.sqrt(time / 2.0))
+        psi = psi + gauss_markov(count, dt, sigma, time, heading)[:, 0]
+
+    # GNSS fixes of the antenna: times, true antenna position, white noise.
+    gnss = rngs["gnss"]
+    if defects.gnss_rate is None:  # every sample a fix, with the drive's own noise
+        t_fix = t
+        fix = np.column_stack([clean.px, clean.py])
+        yaw = truth.psi
+    else:
+        period = 1.0 / defects.gnss_rate
+        t_fix = t[0] + gnss.uniform(0.0, period) + np.arange(0.0, t[-1] - t[0], period)
+        t_fix = t_fix[t_fix <= t[-1]]
+        if len(t_fix) < 2:
+            raise ValueError(f"the drive is too short for fixes at {defects.gnss_rate:g} Hz")
+        cg = np.column_stack([np.interp(t_fix, t, truth.px), np.interp(t_fix, t, truth.py)])
+        yaw = np.interp(t_fix, t, truth.psi)
+        fix = cg + drive.noise.position * gnss.standard_normal((len(t_fix), 2))
+    if defects.lever_arm is not None:
+        along, across = defects.lever_arm
+        c, s = np.cos(yaw), np.sin(yaw)
+        fix = fix + np.column_stack([c * along - s * across, s * along + c * across])
+    n_fix = len(t_fix)
+
+    # Multipath outliers on a share of the fixes.
+    outliers = rngs["outliers"]
+    chosen = outliers.permutation(n_fix)[: round(defects.outlier_share * n_fix)]
+    distance = outliers.uniform(*defects.outlier_range, len(chosen))
+    direction = outliers.uniform(0.0, 2.0 * np.pi, len(chosen))
+    fix[chosen] += distance[:, None] * np.column_stack([np.cos(direction), np.sin(direction)])
+
+    # Outages: fixes repeated (receiver holding its last fix) or missing (dropout).
+    masked, notes = None, ()
+    if defects.outages > 0:
+        starts = _outage_starts(t[0], t[-1], defects, rngs["outages"])
+        which = np.searchsorted(starts, t_fix, side="right") - 1
+        out = (which >= 0) & (t_fix < starts[np.maximum(which, 0)] + defects.outage_s)
+        if defects.outage_hold:
+            last = np.maximum.accumulate(np.where(out, 0, np.arange(n_fix)))
+            fix = fix[last]
+        else:
+            t_fix, fix = t_fix[~out], fix[~out]
+            before = np.searchsorted(t_fix, starts) - 1  # last fix before each dropout
+            gap_a, gap_b = t_fix[before], t_fix[before + 1]
+            inside = np.zeros(count, dtype=bool)
+            masked = np.zeros(count, dtype=bool)
+            for a, b in zip(gap_a, gap_b, strict=True):  # one per outage, not per sample
+                first = np.searchsorted(t, a, side="right") - 1
+                last_sample = min(count - 1, np.searchsorted(t, b, side="left"))
+                masked[first : last_sample + 1] = True
+                inside[(t > a) & (t < b)] = True
+            notes = tuple(
+                f"t = {a:.1f}–{b:.1f} s: no pose (simulated dropout)"
+                for a, b in zip(gap_a, gap_b, strict=True)
+            )
+            psi = np.where(inside, np.interp(t, t[~inside], psi[~inside]), psi)
+
+    # Fixes to the log rate.
+    if t_fix is t:
+        px, py = fix[:, 0], fix[:, 1]
+    elif defects.gnss_hold:
+        held = np.clip(np.searchsorted(t_fix, t, side="right") - 1, 0, len(t_fix) - 1)
+        px, py = fix[held, 0], fix[held, 1]
+    else:
+        px, py = np.interp(t, t_fix, fix[:, 0]), np.interp(t, t_fix, fix[:, 1])
+    return px, py, psi, masked, notes
+
+
+def degrade(drive: SyntheticDrive, defects: Defects, seed: int) -> SyntheticDrive:
+    """``drive`` with ``defects`` in its measured log; the truth and ``theta_true`` kept.
+
+    The measured log is rebuilt from the noise-free truth, the drive's own white noise
+    (measured − truth) and the defects, in the order of the module docstring, so
+    ``Defects()`` gives the drive's measured log back. A true dropout marks its samples in the
+    log's ``masked`` (with a note); ``write_drive_log`` writes them as the ``masked`` column.
+
+    Args:
+        drive: a drive from :func:`~graphcal.simulate.drive.simulate_drive`, not yet degraded.
+        defects: which defects, how large.
+        seed: seed of every random choice of the defects (independent of the drive's seed).
+
+    Returns:
+        a new drive with ``defects`` and ``defect_seed`` recorded.
+
+    Raises:
+        ValueError: a drive already degraded, or too short for the outages.
+    """
+    if drive.defects is not None:
+        raise ValueError("the drive already has defects; degrade the clean drive")
+    children = np.random.SeedSequence([int(seed), 13]).spawn(len(_STREAMS))
+    rngs = {name: np.random.default_rng(s) for name, s in zip(_STREAMS, children, strict=True)}
+    wheels = _wheels(drive, defects, rngs)
+    px, py, psi, masked, notes = _pose(drive, defects, rngs)
+    clean = drive.measured
+    measured = DriveLog(
+        t=clean.t.copy(),
+        px=px,
+        py=py,
+        psi=psi,
+        n_rl=wheels[:, 0],
+        n_rr=wheels[:, 1],
+        beta=clean.beta.copy(),
+        ay=clean.ay.copy(),
+        source=clean.source,
+        masked=masked,
+        mask_notes=notes,
+    )
+    return dataclasses.replace(drive, measured=measured, defects=defects, defect_seed=int(seed))
