@@ -38,6 +38,7 @@ if TYPE_CHECKING:
     from graphcal.pipeline.run import CalibrationRun
 
 EXIT_BAD_INPUT = 2
+EXIT_UNTRUSTED = 3  # graphcal.pipeline.trust: written, but not to be trusted
 
 
 def _log_line(message: str) -> None:
@@ -71,12 +72,32 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         lateral_acceleration=args.ay_noise,
     )
     say = _timed_progress()
+    defects = None
+    if args.defects is not None:
+        if args.streams is not None:
+            raise GraphcalError(
+                "--defects applies to the drive-log output (--out) for now, not to --streams"
+            )
+        from graphcal.simulate.defects import parse_defects
+
+        try:
+            defects = parse_defects(args.defects)
+        except ValueError as exc:
+            raise GraphcalError(f"--defects {args.defects}: {exc}") from None
     if args.streams is not None:
         return _simulate_streams(args, theta_true, say)
     if args.out is None:
         raise GraphcalError("simulate needs --out FILE.csv (or --streams DIR)")
     drive = simulate_drive(args.length_km, args.seed, theta_true, noise, args.dt, route=args.route)
     say(f"simulated {len(drive.measured)} samples ({drive.measured.t[-1]:.0f} s)")
+    if defects is not None and defects.names:
+        from graphcal.simulate.defects import degrade
+
+        try:
+            drive = degrade(drive, defects, args.seed)
+        except ValueError as exc:
+            raise GraphcalError(f"--defects {args.defects}: {exc}") from None
+        say(f"added defects: {', '.join(defects.names)}")
     try:
         written = write_synthetic_drive(drive, args.out)
     except OSError as exc:
@@ -331,6 +352,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise GraphcalError(f"cannot write results to {args.out}: {exc.strerror or exc}") from exc
     say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")
     print(summary_text(run, evaluation))
+    if run.trust is not None and not run.trust.trusted:
+        return EXIT_UNTRUSTED  # results written, but a check says they are not to be trusted
     return 0
 
 
@@ -501,6 +524,19 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.0,
         metavar="M_S2",
         help="lateral acceleration noise sigma [m/s²] (0)",
+    )
+    from graphcal.simulate.defects import ALL_NAMES, DEFECT_NAMES
+
+    p.add_argument(
+        "--defects",
+        default=None,
+        metavar="LIST",
+        help="add defects of real logs to the drive-log output, comma-separated: "
+        f"{', '.join(DEFECT_NAMES)}, or all (= {', '.join(ALL_NAMES)}); a name alone takes "
+        "its realistic default, name=VALUE sets its size in SI units (gnss10hz/hold: Hz; "
+        "outliers: share; outages/dropouts: count; heading_bias: rad/√s; latency: s; "
+        "lever_arm: LONG[:LAT] m; ticks: per revolution; slip: relative σ), e.g. "
+        "all,latency=0.1 or outliers=0.01,lever_arm=1.5:0.2 (docs/results.md)",
     )
     p.set_defaults(func=cmd_simulate)
 

@@ -1,0 +1,92 @@
+"""Never confidently wrong: the checks that need no truth mark a wrong result as untrusted."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from graphcal.cli import main
+from graphcal.data.drive_log import write_drive_log
+from graphcal.pipeline.trust import (
+    EXIT_UNTRUSTED,
+    MAX_CHI2_PER_DOF,
+    NORMAL_IQR,
+    assess_trust,
+    spread_ratio,
+)
+
+CLEAN = dict(
+    iterations=4,
+    max_iterations=30,
+    chi2_per_dof=0.97,
+    batch_theta=None,
+    batch_covariance=None,
+    calibrated=np.ones(4, bool),
+    validation_calibrated=0.3,
+    validation_nominal=9.0,
+)
+
+
+def test_spread_ratio_of_honest_independent_batches_is_the_normal_iqr(rng):
+    sigma = np.array([2e-4, 2e-4, 6e-3, 1e-4])
+    theta = rng.normal(size=(4000, 4)) * sigma
+    covariance = np.broadcast_to(np.diag(sigma**2), (4000, 4, 4))
+    np.testing.assert_allclose(spread_ratio(theta, covariance), NORMAL_IQR, rtol=0.05)
+    assert spread_ratio(theta[:5], covariance[:5]) is None  # too few batches to judge
+
+
+def test_a_clean_run_is_trusted():
+    trust = assess_trust(**CLEAN)
+    assert trust.trusted and not trust.parameter_doubts and trust.to_dict()["trusted"]
+
+
+@pytest.mark.parametrize(
+    ("change", "says"),
+    [
+        ({"iterations": 30}, "iteration limit"),
+        ({"chi2_per_dof": MAX_CHI2_PER_DOF + 0.3}, "do not fit the noise model"),
+        ({"validation_calibrated": 10.0}, "validates worse than the nominal"),
+    ],
+)
+def test_each_check_makes_the_run_untrusted(change, says):
+    trust = assess_trust(**{**CLEAN, **change})
+    assert not trust.trusted and says in trust.doubts[0]
+    assert set(trust.parameter_doubts) == {"c_e", "c_d", "t_r", "d"}
+
+
+def test_batches_that_spread_beyond_their_sigma_distrust_only_those_parameters(rng):
+    sigma = np.array([2e-4, 2e-4, 6e-3, 1e-4])
+    theta = rng.normal(size=(200, 4)) * sigma * np.array([6.0, 1.0, 1.0, 1.0])
+    covariance = np.broadcast_to(np.diag(sigma**2), (200, 4, 4))
+    trust = assess_trust(**{**CLEAN, "batch_theta": theta, "batch_covariance": covariance})
+    assert set(trust.parameter_doubts) == {"c_e"} and "c_e " in trust.doubts[0]
+    assert trust.spread_ratio[0] == pytest.approx(6.0 * NORMAL_IQR, rel=0.15)
+    # A parameter the data did not determine spreads with its prior; it is not judged.
+    calibrated = np.array([False, True, True, True])
+    kept = assess_trust(
+        **{**CLEAN, "batch_theta": theta, "batch_covariance": covariance, "calibrated": calibrated}
+    )
+    assert kept.trusted
+
+
+def test_a_lever_arm_is_not_reported_as_calibrated(drive, tmp_path, capsys):
+    # The GNSS antenna 1.2 m ahead of the centre of gravity: c_e ends up many sigma off.
+    truth = drive.truth
+    log = dataclasses.replace(
+        drive.measured,
+        px=drive.measured.px + 1.2 * np.cos(truth.psi),
+        py=drive.measured.py + 1.2 * np.sin(truth.psi),
+    )
+    path = tmp_path / "lever.csv"
+    write_drive_log(log, path)
+    out = tmp_path / "results"
+    status = main(["calibrate", str(path), "--method", "whole", "--out", str(out)])
+    assert status == EXIT_UNTRUSTED
+    printed = capsys.readouterr().out
+    assert "not trusted: residuals" in printed
+    result = json.loads((out / "calibration.json").read_text())
+    assert result["trust"]["trusted"] is False and result["trust"]["chi2_per_dof"] > 1.5
+    assert result["parameters"]["c_e"]["status"].startswith("not trusted")
