@@ -203,6 +203,14 @@ def select(
         )
     validation = split_segments(log, s.validation_length, None, circumference)
     if len(validation) == 0:
+        distance = log.travelled_distance(circumference)[-1]
+        if log.masked is not None and distance >= s.validation_length:
+            raise NoUsableSegments(
+                f"{log.source}: no {s.validation_length:g} m stretch of the log is free of "
+                f"masked samples ({log.masked.mean():.0%} of the log masked in "
+                f"{len(log.mask_notes)} span(s); first: {log.mask_notes[0]}); check the "
+                "positions, or use a shorter --validation-length"
+            )
         raise NoUsableSegments(
             f"{log.source}: log is shorter than one {s.validation_length:g} m validation "
             "segment; use a longer drive or a shorter --validation-length"
