@@ -291,6 +291,11 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
             segments=dataclasses.replace(settings.segments, **segments),
             batches=dataclasses.replace(settings.batches, **batches),
         )
+        if getattr(args, "estimate_time_offset", False):
+            settings = dataclasses.replace(
+                settings,
+                time_offset=dataclasses.replace(settings.time_offset, estimate=True),
+            )
         if getattr(args, "paper_exact", False):
             staged = dataclasses.replace(
                 settings.staged, heading_correction="paper", estimate_start_poses=False
@@ -670,6 +675,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="follow the paper literally: eq. 15 heading correction on every sample and start "
         "poses held in Steps 3 and 5 (graphcal's defaults are measured to be more accurate)",
+    )
+    p.add_argument(
+        "--estimate-time-offset",
+        action="store_true",
+        help="estimate how late the wheel signals are against the pose (χ² profile of the "
+        "joint solve, about 9 extra whole-log solves) and correct them before calibrating",
     )
     recording_options(p)
     vehicle_option(p)

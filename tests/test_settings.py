@@ -85,7 +85,15 @@ def test_dict_and_toml_round_trips(settings, tmp_path):
 
 def test_sections_and_keys_are_the_field_names():
     data = Settings().to_dict()
-    assert list(data) == ["segments", "batches", "calibration", "staged", "joint", "vehicle"]
+    assert list(data) == [
+        "segments",
+        "batches",
+        "calibration",
+        "staged",
+        "joint",
+        "vehicle",
+        "time_offset",
+    ]
     assert set(data["calibration"]) == {f.name for f in dataclasses.fields(BatchSettings)}
     assert set(data["staged"]["step4"]) == {
         f.name for f in dataclasses.fields(InputEstimationSettings)

@@ -40,6 +40,7 @@ from graphcal.data.segments import (
     split_segments,
     yaw_rate_statistic,
 )
+from graphcal.data.timing import shift_wheel_rotations
 from graphcal.errors import GraphcalError
 from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import PARAMETER_NAMES
@@ -47,6 +48,7 @@ from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_j
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
+from graphcal.pipeline.time_offset import TimeOffset, estimate_time_offset
 from graphcal.pipeline.trust import TrustAssessment, assess_trust
 from graphcal.pipeline.validation import position_errors
 
@@ -86,6 +88,8 @@ class CalibrationRun:
             failed (never written to a file).
         warnings: what a user must know before trusting the result.
         trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
+        time_offset: the estimated wheel-vs-pose offset (``[time_offset] estimate``), by
+            which ``log`` was corrected; ``None`` if not estimated.
     """
 
     log: DriveLog
@@ -109,6 +113,7 @@ class CalibrationRun:
     covariance: np.ndarray | None = None
     observability: Observability | None = None
     trust: TrustAssessment | None = None
+    time_offset: TimeOffset | None = None
 
     def verdicts(self) -> dict[str, str]:
         """Per parameter: the observability verdict, or why it is not to be trusted
@@ -250,6 +255,20 @@ def run_calibration(
     segments, yaw, selected, validation_segments = select(
         log, settings, say, fall_back_to_all=method != "staged"
     )
+    time_offset = None
+    if settings.time_offset.estimate:
+        o = settings.time_offset
+        time_offset = estimate_time_offset(
+            log, selected, settings.joint, o.search, o.step, workers, say
+        )
+        say(
+            f"time offset: wheels {time_offset.offset * 1e3:+.1f} ± "
+            f"{time_offset.sigma * 1e3:.1f} ms late against the pose; corrected"
+        )
+        log = shift_wheel_rotations(log, time_offset.offset)
+        segments, yaw, selected, validation_segments = select(
+            log, settings, lambda _line: None, fall_back_to_all=method != "staged"
+        )
     data = gather_segments(log, selected)
     validation = gather_segments(log, validation_segments)
     staged = None
@@ -344,6 +363,11 @@ def run_calibration(
         validation_nominal=float(nominal),
     )
     warnings += [f"not to be trusted: {doubt}" for doubt in trust.doubts]
+    if time_offset is not None and time_offset.at_edge:
+        warnings.append(
+            f"the time offset's best value lies at the end of the searched ±"
+            f"{settings.time_offset.search:g} s: widen [time_offset] search"
+        )
     solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
     if staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
         first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
@@ -375,6 +399,7 @@ def run_calibration(
         batch_excluded=batch_excluded,
         warnings=tuple(warnings),
         trust=trust,
+        time_offset=time_offset,
         covariance=covariance,
         observability=observability,
     )

@@ -75,6 +75,11 @@ Every section and key, with the defaults::
     max_iterations = 30
     max_sigma_ratio = 0.1       # calibrated = data shrink the prior sigma to at most this
 
+    [time_offset]               # wheels late against the pose (--estimate-time-offset)
+    estimate = false
+    search = 0.2                # s, offsets tried from -search to +search ...
+    step = 0.05                 # s, ... in these steps; a parabola refines the best
+
     [vehicle]                   # the paper's car; defaults of the keys marked (v) above
     name = "paper car"
     theta_nominal = [2.0, 0.0, 1.55, 0.0]           # c_e m, c_d m, t_r m, d s² -> theta_initial
@@ -211,6 +216,26 @@ class StagedSettings:
 
 
 @dataclass(frozen=True)
+class TimeOffsetSettings:
+    """The wheel-vs-pose time offset (:mod:`graphcal.pipeline.time_offset`).
+
+    Attributes:
+        estimate: estimate it from the χ² profile of the joint solve and correct the wheels
+            by it before calibrating (about 9 extra whole-log solves; off by default).
+        search: offsets from ``-search`` to ``+search`` [s] are tried ...
+        step: ... every ``step`` [s]; a parabola refines the best.
+    """
+
+    estimate: bool = False
+    search: float = 0.2
+    step: float = 0.05
+
+    def __post_init__(self) -> None:
+        if not (self.search > 0 and 0 < self.step <= self.search):
+            raise ValueError("time_offset.search and step must be positive, step <= search")
+
+
+@dataclass(frozen=True)
 class Settings:
     """Everything that shapes a calibration run. Defaults are the paper's (and its car)."""
 
@@ -225,6 +250,7 @@ class Settings:
     #: Changing it alone leaves the other sections as they are; :func:`apply_vehicle` makes
     #: the settings that depend on it follow.
     vehicle: VehicleProfile = field(default_factory=VehicleProfile)
+    time_offset: TimeOffsetSettings = field(default_factory=TimeOffsetSettings)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view (lists instead of arrays), as written into ``calibration.json``."""
