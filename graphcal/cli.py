@@ -296,6 +296,10 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
                 settings,
                 time_offset=dataclasses.replace(settings.time_offset, estimate=True),
             )
+        if getattr(args, "estimate_lever_arm", False):
+            settings = dataclasses.replace(
+                settings, lever_arm=dataclasses.replace(settings.lever_arm, estimate=True)
+            )
         if getattr(args, "paper_exact", False):
             staged = dataclasses.replace(
                 settings.staged, heading_correction="paper", estimate_start_poses=False
@@ -681,6 +685,13 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="estimate how late the wheel signals are against the pose (χ² profile of the "
         "joint solve, about 9 extra whole-log solves) and correct them before calibrating",
+    )
+    p.add_argument(
+        "--estimate-lever-arm",
+        action="store_true",
+        help="estimate the GNSS antenna's lever arm (ahead, left of the centre of gravity; χ² "
+        "profiles of the joint solve, about 18 extra whole-log solves) and move the positions "
+        "by it before calibrating",
     )
     recording_options(p)
     vehicle_option(p)

@@ -93,6 +93,7 @@ def test_sections_and_keys_are_the_field_names():
         "joint",
         "vehicle",
         "time_offset",
+        "lever_arm",
     ]
     assert set(data["calibration"]) == {f.name for f in dataclasses.fields(BatchSettings)}
     assert set(data["staged"]["step4"]) == {

@@ -26,11 +26,12 @@ also turns wheel rotations into the distances segments are cut by. Comparison wi
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
 
+from graphcal.data.antenna import move_to_centre
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import (
     SegmentData,
@@ -46,9 +47,10 @@ from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
+from graphcal.pipeline.profile import APPLY, ProfileEstimate, profile_estimate
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
-from graphcal.pipeline.time_offset import TimeOffset, estimate_time_offset
+from graphcal.pipeline.time_offset import estimate_time_offset
 from graphcal.pipeline.trust import TrustAssessment, assess_trust
 from graphcal.pipeline.validation import position_errors
 
@@ -88,8 +90,9 @@ class CalibrationRun:
             failed (never written to a file).
         warnings: what a user must know before trusting the result.
         trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
-        time_offset: the estimated wheel-vs-pose offset (``[time_offset] estimate``), by
-            which ``log`` was corrected; ``None`` if not estimated.
+        estimated: quantities estimated from χ² profiles and corrected in ``log`` before
+            calibrating (``"time_offset"`` [s], ``"lever_arm_longitudinal"``,
+            ``"lever_arm_lateral"`` [m]; :mod:`graphcal.pipeline.profile`).
     """
 
     log: DriveLog
@@ -113,7 +116,7 @@ class CalibrationRun:
     covariance: np.ndarray | None = None
     observability: Observability | None = None
     trust: TrustAssessment | None = None
-    time_offset: TimeOffset | None = None
+    estimated: dict[str, ProfileEstimate] = field(default_factory=dict)
 
     def verdicts(self) -> dict[str, str]:
         """Per parameter: the observability verdict, or why it is not to be trusted
@@ -255,17 +258,9 @@ def run_calibration(
     segments, yaw, selected, validation_segments = select(
         log, settings, say, fall_back_to_all=method != "staged"
     )
-    time_offset = None
-    if settings.time_offset.estimate:
-        o = settings.time_offset
-        time_offset = estimate_time_offset(
-            log, selected, settings.joint, o.search, o.step, workers, say
-        )
-        say(
-            f"time offset: wheels {time_offset.offset * 1e3:+.1f} ± "
-            f"{time_offset.sigma * 1e3:.1f} ms late against the pose; corrected"
-        )
-        log = shift_wheel_rotations(log, time_offset.offset)
+    original = log
+    log, estimated = _estimate_and_correct(log, selected, settings, workers, say)
+    if log is not original:  # the corrections move distances a little: cut anew
         segments, yaw, selected, validation_segments = select(
             log, settings, lambda _line: None, fall_back_to_all=method != "staged"
         )
@@ -363,11 +358,12 @@ def run_calibration(
         validation_nominal=float(nominal),
     )
     warnings += [f"not to be trusted: {doubt}" for doubt in trust.doubts]
-    if time_offset is not None and time_offset.at_edge:
-        warnings.append(
-            f"the time offset's best value lies at the end of the searched ±"
-            f"{settings.time_offset.search:g} s: widen [time_offset] search"
-        )
+    for name, estimate in estimated.items():
+        if estimate.at_edge:
+            warnings.append(
+                f"{name}: the smallest χ² lies at the end of the searched range "
+                f"({estimate.grid[0]:g} … {estimate.grid[-1]:g}); widen the search"
+            )
     solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
     if staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
         first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
@@ -399,7 +395,7 @@ def run_calibration(
         batch_excluded=batch_excluded,
         warnings=tuple(warnings),
         trust=trust,
-        time_offset=time_offset,
+        estimated=estimated,
         covariance=covariance,
         observability=observability,
     )
@@ -436,6 +432,40 @@ def _whole_log_solve(
         settings.theta_prior_sigmas,
     )
     return theta, covariance, result.observability, result
+
+
+def _estimate_and_correct(
+    log: DriveLog, selected: Segments, settings: Settings, workers: int, say: Progress
+) -> tuple[DriveLog, dict[str, ProfileEstimate]]:
+    """The log corrected by the time offset and the lever arm (given or estimated from χ²
+    profiles over ``selected``), and the estimates."""
+    estimated: dict[str, ProfileEstimate] = {}
+    o = settings.time_offset
+    if o.estimate:
+        found = estimate_time_offset(log, selected, settings.joint, o.search, o.step, workers, say)
+        estimated["time_offset"] = found
+        say(
+            f"time offset: wheels {found.value * 1e3:+.1f} ± {found.sigma * 1e3:.1f} ms late "
+            "against the pose; corrected"
+        )
+        log = shift_wheel_rotations(log, found.value)
+    arm = settings.lever_arm
+    ahead, left = arm.longitudinal, arm.lateral
+    if arm.estimate:
+        for name, search in (
+            ("lever_arm_longitudinal", arm.search_longitudinal),
+            ("lever_arm_lateral", arm.search_lateral),
+        ):
+            grid = np.round(np.arange(-search, search + 0.5 * arm.step, arm.step), 9)
+            found = profile_estimate(name, log, selected, settings.joint, grid, workers, say)
+            estimated[name] = found
+            if found.observable:
+                say(f"{name}: {found.value:+.2f} ± {found.sigma:.2f} m; corrected")
+                log = APPLY[name](log, found.value)
+            else:
+                say(f"{name}: not observable from this drive; left at 0")
+        return log, estimated
+    return move_to_centre(log, (ahead, left)), estimated
 
 
 def _plural(count: int, one: str, many: str) -> str:

@@ -80,6 +80,14 @@ Every section and key, with the defaults::
     search = 0.2                # s, offsets tried from -search to +search ...
     step = 0.05                 # s, ... in these steps; a parabola refines the best
 
+    [lever_arm]                 # GNSS antenna ahead of / left of the centre of gravity
+    longitudinal = 0.0          # m, when known; the positions are moved by it
+    lateral = 0.0               # m
+    estimate = false            # --estimate-lever-arm: from chi2 profiles instead
+    search_longitudinal = 2.0   # m, +- range of the profile
+    search_lateral = 1.0        # m
+    step = 0.5                  # m
+
     [vehicle]                   # the paper's car; defaults of the keys marked (v) above
     name = "paper car"
     theta_nominal = [2.0, 0.0, 1.55, 0.0]           # c_e m, c_d m, t_r m, d s² -> theta_initial
@@ -236,6 +244,33 @@ class TimeOffsetSettings:
 
 
 @dataclass(frozen=True)
+class LeverArmSettings:
+    """The GNSS antenna's lever arm (:mod:`graphcal.data.antenna`), ahead of and left of the
+    centre of gravity [m].
+
+    Attributes:
+        longitudinal, lateral: the arm, when known (from the vehicle's drawings); the
+            positions are moved to the centre of gravity by it.
+        estimate: estimate it from χ² profiles of the joint solve instead (about 2 × 9
+            extra whole-log solves; off by default); a component the drive cannot show (a
+            lateral arm on straight roads) is reported not observable and left at 0.
+        search_longitudinal, search_lateral, step: the profiles' ranges ±[m] and step [m].
+    """
+
+    longitudinal: float = 0.0
+    lateral: float = 0.0
+    estimate: bool = False
+    search_longitudinal: float = 2.0
+    search_lateral: float = 1.0
+    step: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("search_longitudinal", "search_lateral", "step"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"lever_arm.{name} must be positive")
+
+
+@dataclass(frozen=True)
 class Settings:
     """Everything that shapes a calibration run. Defaults are the paper's (and its car)."""
 
@@ -251,6 +286,7 @@ class Settings:
     #: the settings that depend on it follow.
     vehicle: VehicleProfile = field(default_factory=VehicleProfile)
     time_offset: TimeOffsetSettings = field(default_factory=TimeOffsetSettings)
+    lever_arm: LeverArmSettings = field(default_factory=LeverArmSettings)
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view (lists instead of arrays), as written into ``calibration.json``."""

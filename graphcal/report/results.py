@@ -26,6 +26,7 @@ from graphcal.report.tables import (
     NOT_OBSERVABLE,
     PAPER_IQR_REDUCTION,
     Z95,
+    estimates_table,
     interval_table,
     iqr_reduction,
     step_statistics,
@@ -248,8 +249,8 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
                 doc["theta_error"][name] = None
     if run.trust is not None:
         doc["trust"] = run.trust.to_dict()
-    if run.time_offset is not None:
-        doc["time_offset"] = run.time_offset.to_dict()
+    if run.estimated:
+        doc["estimated"] = {name: e.to_dict() for name, e in run.estimated.items()}
     doc["warnings"] = list(run.warnings)
     doc["settings"] = run.settings.to_dict()
     doc["versions"] = {"graphcal": __version__, "gtsam": _gtsam_version()}
@@ -294,12 +295,8 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
             f"\n{NOT_OBSERVABLE}: not observable from this drive, not calibrated "
             "(calibration.json keeps the nominal value and says so)"
         )
-    if run.time_offset is not None:
-        o = run.time_offset
-        parts.append(
-            f"time offset: wheels {o.offset * 1e3:+.1f} ms (1σ {o.sigma * 1e3:.1f} ms) late "
-            "against the pose, estimated and corrected before calibrating"
-        )
+    if run.estimated:
+        parts.append(estimates_table(run.estimated))
     if run.covariance is not None and run.observability is not None:
         parts.append(
             f"recommended θ: joint solve over all {len(run.selected)} selected segments\n"

@@ -156,6 +156,28 @@ def interval_table(
     return _render([header, *body])
 
 
+#: Display of the quantities estimated from χ² profiles: label, unit, scale from SI.
+_ESTIMATES = {
+    "time_offset": ("time offset (wheels late)", "ms", 1e3, 1),
+    "lever_arm_longitudinal": ("lever arm, ahead", "m", 1.0, 3),
+    "lever_arm_lateral": ("lever arm, left", "m", 1.0, 3),
+}
+
+
+def estimates_table(estimated: dict) -> str:
+    """The quantities estimated from χ² profiles (:mod:`graphcal.pipeline.profile`) with 1σ
+    and whether the drive showed them; each was corrected in the log before calibrating."""
+    rows = [["estimated and corrected", "value", "1σ", "verdict"]]
+    for name, e in estimated.items():
+        label, unit, scale, digits = _ESTIMATES.get(name, (name, "SI", 1.0, 4))
+        if e.observable:
+            value, sigma = f"{e.value * scale:+.{digits}f}", f"{e.sigma * scale:.{digits}f}"
+            rows.append([f"{label} [{unit}]", value, sigma, "estimated"])
+        else:
+            rows.append([f"{label} [{unit}]", "0", "", "not observable (left at 0)"])
+    return _render(rows)
+
+
 def validation_table(errors: dict[str, float]) -> str:
     """E_p [m] per named theta."""
     return _render(
