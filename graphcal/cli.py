@@ -684,13 +684,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--estimate-time-offset",
         action="store_true",
         help="estimate how late the wheel signals are against the pose (χ² profile of the "
-        "joint solve, about 9 extra whole-log solves) and correct them before calibrating",
+        "joint solve, about 12 extra whole-log solves) and correct them before calibrating",
     )
     p.add_argument(
         "--estimate-lever-arm",
         action="store_true",
         help="estimate the GNSS antenna's lever arm (ahead, left of the centre of gravity; χ² "
-        "profiles of the joint solve, about 18 extra whole-log solves) and move the positions "
+        "profiles of the joint solve, about 22 extra whole-log solves) and move the positions "
         "by it before calibrating",
     )
     recording_options(p)

@@ -229,7 +229,7 @@ class TimeOffsetSettings:
 
     Attributes:
         estimate: estimate it from the χ² profile of the joint solve and correct the wheels
-            by it before calibrating (about 9 extra whole-log solves; off by default).
+            by it before calibrating (about 12 extra whole-log solves; off by default).
         search: offsets from ``-search`` to ``+search`` [s] are tried ...
         step: ... every ``step`` [s]; a parabola refines the best.
     """
@@ -251,7 +251,7 @@ class LeverArmSettings:
     Attributes:
         longitudinal, lateral: the arm, when known (from the vehicle's drawings); the
             positions are moved to the centre of gravity by it.
-        estimate: estimate it from χ² profiles of the joint solve instead (about 2 × 9
+        estimate: estimate it from χ² profiles of the joint solve instead (about 22
             extra whole-log solves; off by default); a component the drive cannot show (a
             lateral arm on straight roads) is reported not observable and left at 0.
         search_longitudinal, search_lateral, step: the profiles' ranges ±[m] and step [m].
