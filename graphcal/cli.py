@@ -690,7 +690,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--estimate-lever-arm",
         action="store_true",
         help="estimate the GNSS antenna's lever arm (ahead, left of the centre of gravity; χ² "
-        "profiles of the joint solve, about 22 extra whole-log solves) and move the positions "
+        "profiles of the joint solve, about 20 extra whole-log solves) and move the positions "
         "by it before calibrating",
     )
     recording_options(p)

@@ -251,7 +251,7 @@ class LeverArmSettings:
     Attributes:
         longitudinal, lateral: the arm, when known (from the vehicle's drawings); the
             positions are moved to the centre of gravity by it.
-        estimate: estimate it from χ² profiles of the joint solve instead (about 22
+        estimate: estimate it from χ² profiles of the joint solve instead (about 20
             extra whole-log solves; off by default); a component the drive cannot show (a
             lateral arm on straight roads) is reported not observable and left at 0.
         search_longitudinal, search_lateral, step: the profiles' ranges ±[m] and step [m].
