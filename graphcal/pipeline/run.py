@@ -358,6 +358,19 @@ def run_calibration(
         validation_nominal=float(nominal),
     )
     warnings += [f"not to be trusted: {doubt}" for doubt in trust.doubts]
+    untried = [
+        flag
+        for flag, on in (
+            ("--estimate-time-offset", settings.time_offset.estimate),
+            ("--estimate-lever-arm", settings.lever_arm.estimate),
+        )
+        if not on
+    ]
+    if not trust.trusted and untried and whole is not None:
+        warnings.append(
+            f"wheels late against the pose or a GNSS antenna away from the centre of gravity "
+            f"cause such doubts: try {' and '.join(untried)}"
+        )
     for name, estimate in estimated.items():
         if estimate.at_edge:
             warnings.append(
