@@ -82,6 +82,42 @@ def test_chunk_factor_with_corrections_and_end_pose(segment, free_start, free_th
     assert_jacobians(factor, values)
 
 
+@pytest.mark.parametrize("with_corrections", [True, False])
+def test_chunk_factor_with_wheel_slip_scales(segment, with_corrections, rng):
+    poses, inputs = segment[0][:31], segment[1][:30]
+    S = gtsam.symbol("s", 0)
+    factor = ChunkOdometryFactor(
+        OdometryChunk(inputs, poses),
+        start=X0,
+        theta=T,
+        corrections=C(0) if with_corrections else None,
+        end=X1,
+        slip=S,
+    ).factor()
+    assert list(factor.keys())[-1] == S
+    values = gtsam.Values()
+    values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
+    values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
+    if with_corrections:
+        values.insert(C(0), rng.normal(0, 1e-3, 60))
+    values.insert(T, THETA)
+    values.insert(S, np.array([2e-3, -1e-3]))
+    assert_jacobians(factor, values)
+    # A slip scale is a relative change of the measured rotations.
+    scaled = inputs.copy()
+    scaled[:, :2] *= 1.0 + np.array([2e-3, -1e-3])
+    same = ChunkOdometryFactor(
+        OdometryChunk(scaled, poses),
+        X0,
+        T,
+        corrections=C(0) if with_corrections else None,
+        end=X1,
+    ).factor()
+    np.testing.assert_allclose(
+        factor.unwhitenedError(values), same.unwhitenedError(values), atol=1e-12
+    )
+
+
 def test_one_step_between_poses_is_eq_1_as_pose2_composition(rng):
     inputs = np.array([0.16, 0.17, 0.02, 1.5])
     x0 = np.array([10.0, -4.0, 3.0])  # near pi: Pose2 wraps, the model does not

@@ -55,12 +55,14 @@ class SegmentData:
         inputs: measured inputs, ``(S, K, 4)``; padding is zero (a zero step leaves the pose as is).
         n_steps: true number of steps of each segment, ``(S,)``.
         valid: ``(S, K+1)`` mask of real (not padded) samples.
+        dt: the log's sampling interval [s].
     """
 
     poses: np.ndarray
     inputs: np.ndarray
     n_steps: np.ndarray
     valid: np.ndarray
+    dt: float = 0.025
 
     def __len__(self) -> int:
         return len(self.n_steps)
@@ -91,6 +93,7 @@ class SegmentData:
             self.inputs[index, :k],
             self.n_steps[index],
             self.valid[index, : k + 1],
+            self.dt,
         )
 
 
@@ -224,4 +227,4 @@ def gather_segments(log: DriveLog, segments: Segments) -> SegmentData:
     poses = log.poses[index]
     inputs = log.inputs[index[:, :-1]]
     inputs[~valid[:, 1:]] = 0.0
-    return SegmentData(poses, inputs, segments.n_steps.copy(), valid)
+    return SegmentData(poses, inputs, segments.n_steps.copy(), valid, log.dt)

@@ -51,6 +51,7 @@ class ChunkError:
         start, theta: ``(dim, 3)``, ``(dim, 4)``.
         corrections: ``(dim, L, 2)`` or ``None`` (no corrections given).
         end: ``(dim, 3)`` or ``None`` (no end given).
+        slip: ``(dim, 2)`` or ``None`` (no slip given).
     """
 
     error: np.ndarray
@@ -58,6 +59,7 @@ class ChunkError:
     theta: np.ndarray | None = None
     corrections: np.ndarray | None = None
     end: np.ndarray | None = None
+    slip: np.ndarray | None = None
 
 
 class OdometryChunk:
@@ -104,13 +106,19 @@ class OdometryChunk:
         corrections: np.ndarray | None = None,
         end: np.ndarray | None = None,
         jacobians: bool = True,
+        slip: np.ndarray | None = None,
     ) -> ChunkError:
         """Residuals for a start state ``(3,)``, theta ``(4,)``, corrections ``(L, 2)`` [rev]
-        added to the measured rotations, and the end state ``(3,)`` of the next chunk (any
-        heading branch: the continuity heading is wrapped)."""
+        added to the measured rotations, the end state ``(3,)`` of the next chunk (any
+        heading branch: the continuity heading is wrapped) and relative slip scales ``(2,)``
+        of the two wheels (the rotation of wheel w becomes ``n_w · (1 + slip_w)``)."""
         inputs = self.inputs
-        if corrections is not None:
+        if corrections is not None or slip is not None:
             inputs = inputs.copy()
+        if slip is not None:
+            inputs[:, N_RL] += self.inputs[:, N_RL] * slip[0]
+            inputs[:, N_RR] += self.inputs[:, N_RR] * slip[1]
+        if corrections is not None:
             inputs[:, N_RL] += corrections[:, 0]
             inputs[:, N_RR] += corrections[:, 1]
         states, d_start, d_theta = integrate_with_jacobians(start, inputs, theta, jacobians)
@@ -136,10 +144,14 @@ class OdometryChunk:
         if end is not None:
             d_end = np.zeros((len(error), 3))
             d_end[-3:] = -np.eye(3)
-        d_corrections = None
-        if corrections is not None:
-            d_corrections = stack(wheel_rotation_jacobian(states, inputs, theta))
-        return ChunkError(error, stack(d_start), stack(d_theta), d_corrections, d_end)
+        d_corrections = d_slip = None
+        if corrections is not None or slip is not None:
+            d_rotations = stack(wheel_rotation_jacobian(states, inputs, theta))  # (dim, L, 2)
+            if corrections is not None:
+                d_corrections = d_rotations
+            if slip is not None:  # d n_w / d slip_w = measured n_w, summed over the steps
+                d_slip = np.einsum("dlw,lw->dw", d_rotations, self.inputs[:, [N_RL, N_RR]])
+        return ChunkError(error, stack(d_start), stack(d_theta), d_corrections, d_end, d_slip)
 
 
 class ChunkOdometryFactor:
@@ -155,8 +167,9 @@ class ChunkOdometryFactor:
             :func:`~graphcal.factors.poses.pose_sigmas`).
         continuity_sigmas: ``[m, m, rad]`` of the continuity residual
             (default :data:`CONTINUITY_SIGMAS`).
+        slip: key of the segment's 2-vector of relative wheel-slip scales, or ``None``.
 
-    Keys, in order: start, end, corrections, theta — each only if it is a key.
+    Keys, in order: start, end, corrections, theta, slip — each only if it is a key.
     """
 
     def __init__(
@@ -168,8 +181,10 @@ class ChunkOdometryFactor:
         end: int | None = None,
         tracking_sigmas: np.ndarray | None = None,
         continuity_sigmas: np.ndarray | None = None,
+        slip: int | None = None,
     ):
         self.chunk = chunk
+        self.slip_key = slip
         self.start_key, self.start_state = _slot(start, 3, "start")
         self.theta_key, self.theta = _slot(theta, 4, "theta")
         self.corrections_key = corrections
@@ -187,8 +202,8 @@ class ChunkOdometryFactor:
 
     @property
     def keys(self) -> list[int]:
-        """The factor's keys: start, end, corrections, theta (those that are keys)."""
-        slots = (self.start_key, self.end_key, self.corrections_key, self.theta_key)
+        """The factor's keys: start, end, corrections, theta, slip (those that are keys)."""
+        slots = (self.start_key, self.end_key, self.corrections_key, self.theta_key, self.slip_key)
         return [k for k in slots if k is not None]
 
     def factor(self) -> gtsam.CustomFactor:
@@ -212,7 +227,8 @@ class ChunkOdometryFactor:
         end = None
         if self.end_key is not None:  # its heading branch does not matter: the gap is wrapped
             end = state_from_pose2(values.atPose2(self.end_key), start[2])
-        result = self.chunk.error(start, theta, corrections, end, H is not None)
+        slip = None if self.slip_key is None else values.atVector(self.slip_key)
+        result = self.chunk.error(start, theta, corrections, end, H is not None, slip)
         if H is not None:
             blocks = []
             if self.start_key is not None:
@@ -223,6 +239,8 @@ class ChunkOdometryFactor:
                 blocks.append(result.corrections.reshape(len(result.error), -1))
             if self.theta_key is not None:
                 blocks.append(result.theta)
+            if self.slip_key is not None:
+                blocks.append(result.slip)
             for i, block in enumerate(blocks):
                 H[i] = np.ascontiguousarray(block)
         return result.error

@@ -10,6 +10,7 @@ letter     variable            index
 ``t``      theta (4-vector)    0, or the slice number of a time-varying theta
 ``p``      segment Pose2       segment, chunk boundary (0 = the segment's start)
 ``c``      wheel corrections   segment, chunk (one ``2L``-vector per chunk)
+``s``      wheel slip scales   segment, chunk (a 2-vector: rear-left, rear-right)
 ``x``      keyframe Pose2      keyframe number (localization graphs)
 =========  ==================  =====================================================
 """
@@ -45,6 +46,12 @@ def segment_pose(segment: int, boundary: int = 0) -> int:
 def segment_corrections(segment: int, chunk: int) -> int:
     """Key of the ``2L``-vector of wheel-rotation corrections of ``chunk`` of ``segment``."""
     return gtsam.symbol("c", _packed(segment, chunk))
+
+
+def segment_slip(segment: int, chunk: int = 0) -> int:
+    """Key of the 2-vector of relative wheel-slip scales ``[s_rl, s_rr]`` of ``chunk`` of
+    ``segment``."""
+    return gtsam.symbol("s", _packed(segment, chunk))
 
 
 def keyframe(index: int) -> int:

@@ -79,6 +79,11 @@ class SegmentGraphSpec:
         chunk_steps: steps per chunk factor; ``None`` for one chunk per segment.
         continuity_sigmas: ``[m, m, rad]`` of the chunk-boundary continuity.
         corrections: the corrections' prior, or ``None`` for no correction variables.
+        slip_sigma: stationary sigma of a relative slip scale of each wheel per chunk (the
+            rotation of wheel w becomes ``n_w · (1 + s_w)``; slow slip, a tyre's load), or
+            ``None`` for none. The scales follow a first-order Gauss–Markov process with
+            correlation time ``slip_time`` [s] from chunk to chunk.
+        slip_time: that correlation time [s].
     """
 
     theta: np.ndarray
@@ -89,6 +94,8 @@ class SegmentGraphSpec:
     chunk_steps: int | None = None
     continuity_sigmas: np.ndarray = field(default_factory=lambda: CONTINUITY_SIGMAS.copy())
     corrections: CorrectionPrior | None = None
+    slip_sigma: float | None = None
+    slip_time: float = 5.0
 
 
 @dataclass(frozen=True)
@@ -141,7 +148,11 @@ class SegmentGraph:
 def _insert_segment(
     values: gtsam.Values, s: int, bounds: np.ndarray, states: np.ndarray, spec: SegmentGraphSpec
 ) -> None:
-    """Insert the Pose2 variables of segment ``s`` (free start, chunk boundaries)."""
+    """Insert the Pose2 variables of segment ``s`` (free start, chunk boundaries) and its
+    slip scales (at zero)."""
+    if spec.slip_sigma is not None:
+        for j in range(len(bounds) - 1):
+            values.insert(keys.segment_slip(s, j), np.zeros(2))
     if spec.start_prior_sigmas is not None:
         values.insert(keys.segment_pose(s), pose2_from_state(states[0]))
     for j in range(1, len(bounds) - 1):
@@ -177,6 +188,8 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
         bounds = chunk_bounds(len(inputs), spec.chunk_steps)
         all_bounds.append(bounds)
         _insert_segment(values, s, bounds, nominal, spec)
+        if spec.slip_sigma is not None:
+            _add_slip(graph, s, bounds, data.dt, spec)
         if free_start:
             start_key = keys.segment_pose(s)
             graph.add(
@@ -202,9 +215,45 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
                 end=None if last else keys.segment_pose(s, j + 1),
                 tracking_sigmas=tracking,
                 continuity_sigmas=continuity,
+                slip=None if spec.slip_sigma is None else keys.segment_slip(s, j),
             )
             graph.add(factor.factor())
     return SegmentGraph(graph, values, all_bounds, spec, data)
+
+
+def _add_slip(
+    graph: gtsam.NonlinearFactorGraph,
+    s: int,
+    bounds: np.ndarray,
+    dt: float,
+    spec: SegmentGraphSpec,
+) -> None:
+    """Priors of segment ``s``'s slip scales: stationary (sigma ``spec.slip_sigma``) at the
+    first chunk, then a first-order Gauss–Markov step between consecutive chunks,
+    ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−chunk duration / slip_time)``,
+    so that every chunk's scale has the stationary sigma."""
+    sigma = float(spec.slip_sigma)
+    graph.add(
+        gtsam.PriorFactorVector(
+            keys.segment_slip(s, 0), np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sigma)
+        )
+    )
+    zero = gtsam.Values()
+    for j in range(len(bounds) - 1):
+        zero.insert(keys.segment_slip(s, j), np.zeros(2))
+    for j in range(1, len(bounds) - 1):
+        phi = float(np.exp(-(bounds[j] - bounds[j - 1]) * dt / spec.slip_time))
+        step_sigma = sigma * np.sqrt(max(1.0 - phi**2, 1e-12))
+        linear = gtsam.JacobianFactor(
+            keys.segment_slip(s, j - 1),
+            -phi * np.eye(2),
+            keys.segment_slip(s, j),
+            np.eye(2),
+            np.zeros(2),
+            gtsam.noiseModel.Isotropic.Sigma(2, float(step_sigma)),
+        )
+        # Linear in the scales: linearized at zero, the container is exact everywhere.
+        graph.add(gtsam.LinearContainerFactor(linear, zero))
 
 
 def _add_corrections(

@@ -57,6 +57,9 @@ class JointSettings:
         max_iterations: Levenberg–Marquardt iteration limit.
         max_sigma_ratio: a parameter counts as calibrated when the data shrink its prior
             sigma to at most this fraction (:mod:`graphcal.graph.observability`).
+        slip_sigma: stationary sigma of a relative slip scale of each rear wheel per chunk
+            (slow, coloured slip; e.g. 0.0015 = 0.15 %), or 0 for none (the default).
+        slip_time: correlation time [s] of the slip scales from chunk to chunk.
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
@@ -69,6 +72,8 @@ class JointSettings:
     continuity_sigmas: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     max_iterations: int = 30
     max_sigma_ratio: float = DEFAULT_MAX_SIGMA_RATIO
+    slip_sigma: float = 0.0
+    slip_time: float = 5.0
 
     def __post_init__(self) -> None:
         check_settings(
@@ -82,9 +87,13 @@ class JointSettings:
             positive={
                 "position_sigma": self.position_sigma,
                 "wheel_noise": self.wheel_noise,
+                "slip_time": self.slip_time,
                 "max_sigma_ratio": self.max_sigma_ratio,
             },
-            non_negative={"smoothness_weight": self.smoothness_weight},
+            non_negative={
+                "smoothness_weight": self.smoothness_weight,
+                "slip_sigma": self.slip_sigma,
+            },
             at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
         )
 
@@ -104,6 +113,8 @@ class JointSettings:
                 sigma=self.wheel_noise,
                 smoothness_sigma=1.0 / np.sqrt(self.smoothness_weight) if smooth else None,
             ),
+            slip_sigma=self.slip_sigma if self.slip_sigma > 0 else None,
+            slip_time=self.slip_time,
         )
 
 

@@ -74,6 +74,8 @@ Every section and key, with the defaults::
     continuity_sigmas = [0.001, 0.001, 0.0001]      # m, m, rad
     max_iterations = 30
     max_sigma_ratio = 0.1       # calibrated = data shrink the prior sigma to at most this
+    slip_sigma = 0.0            # wheel slip scale per chunk (0.0015 = 0.15 %); 0 = off
+    slip_time = 5.0             # s, its correlation time from chunk to chunk
 
     [time_offset]               # wheels late against the pose (--estimate-time-offset)
     estimate = false
