@@ -360,11 +360,6 @@ MIN_OVERLAP_OF_LONGEST = 0.5
 HEADING_CHECK_SPEED = 3.0
 
 
-def _windows(values: np.ndarray, usable: np.ndarray, window: int) -> np.ndarray:
-    """Increments of a cumulative signal over consecutive windows (NaN where masked)."""
-    return _turn_directions(values, usable, window)
-
-
 def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nominal) -> None:
     window = max(1, round(TURN_WINDOW_S / dt))
     wheel = np.concatenate([[0.0], np.cumsum(0.5 * (c["n_rl"] + c["n_rr"])[:-1] * nominal[0])])
@@ -403,7 +398,7 @@ def _check_imu_signs(c: dict, usable: np.ndarray, dt: float, resampled, recordin
     if imu is None:
         return
     window = max(1, round(TURN_WINDOW_S / dt))
-    track = _windows(course(c["px"], c["py"], dt), usable, window)
+    track = _turn_directions(course(c["px"], c["py"], dt), usable, window)
     grid = c["t"] + resampled.overlap[0]  # the streams' time base
     for name, signal, hint in (
         ("lateral acceleration", imu.lateral_acceleration, "positive to the left"),
@@ -413,7 +408,7 @@ def _check_imu_signs(c: dict, usable: np.ndarray, dt: float, resampled, recordin
             continue
         values = interval_means(imu.t, signal, grid)
         integral = np.concatenate([[0.0], np.cumsum(values[:-1] * dt)])
-        agreement = _agreement(_windows(integral, usable, window), track)
+        agreement = _agreement(_turn_directions(integral, usable, window), track)
         if agreement is not None and agreement < TURN_MIN_AGREEMENT:
             raise StreamError(
                 f"{imu.source}: the IMU's {name} has the opposite sign to the turns of the "
