@@ -8,8 +8,10 @@ import pytest
 from numerical import retract_jacobian
 
 from graphcal.data.segments import gather_segments, split_segments
+from graphcal.data.timing import rotation_rate_changes
 from graphcal.factors import (
     ChunkOdometryFactor,
+    MeasuredPoseFactor,
     OdometryChunk,
     chunk_boundary_smoothness,
     chunk_correction_prior,
@@ -116,6 +118,91 @@ def test_chunk_factor_with_wheel_slip_scales(segment, with_corrections, rng):
     np.testing.assert_allclose(
         factor.unwhitenedError(values), same.unwhitenedError(values), atol=1e-12
     )
+
+
+@pytest.mark.parametrize("tracked", [True, False])
+def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, tracked, rng):
+    poses, inputs = segment[0][:31], segment[1][:30]
+    OFFSET, A, B = gtsam.symbol("o", 0), gtsam.symbol("a", 0), gtsam.symbol("b", 0)
+    rates = rotation_rate_changes(inputs[:, :2], 0.025)
+    chunk = OdometryChunk(inputs, poses if tracked else None, float(poses[0, 2]), rates)
+    factor = ChunkOdometryFactor(
+        chunk, X0, T, corrections=C(0), end=X1, time_offset=OFFSET, lever_arm=A, heading_bias=B
+    ).factor()
+    assert list(factor.keys())[-3:] == [OFFSET, A, B]
+    values = gtsam.Values()
+    values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
+    values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
+    values.insert(C(0), rng.normal(0, 1e-3, 60))
+    values.insert(T, THETA)
+    values.insert(OFFSET, np.array([0.04]))
+    values.insert(A, np.array([1.2, -0.4]))
+    values.insert(B, np.array([0.01]))
+    assert_jacobians(factor, values)
+
+
+def test_time_offset_is_the_shifted_rotation_to_first_order(segment):
+    # Rotations over [t_k + tau, t_k+1 + tau] of a smooth cumulative rotation, against the
+    # chunk's first-order shift.
+    poses, inputs = segment[0][:201], segment[1][:200]
+    dt, tau = 0.025, 0.03
+    t = np.arange(201) * dt
+    cumulative = 3.0 * t + 0.4 * t**2  # rev
+    shifted = inputs.copy()
+    shifted[:, 0] = shifted[:, 1] = np.diff(cumulative + 3.0 * tau + 0.4 * (2 * t * tau + tau**2))
+    base = inputs.copy()
+    base[:, 0] = base[:, 1] = np.diff(cumulative)
+    rates = rotation_rate_changes(base[:, :2], dt)
+    chunk = OdometryChunk(base, poses, rotation_rates=rates)
+    exact = OdometryChunk(shifted, poses)
+    start = poses[0]
+    np.testing.assert_allclose(
+        chunk.error(start, THETA, time_offset=tau, jacobians=False).error,
+        exact.error(start, THETA, jacobians=False).error,
+        atol=1e-9,
+    )
+
+
+@pytest.mark.parametrize("arm, bias", [(True, True), (True, False), (False, True)])
+def test_start_pose_factor_jacobians_and_error(arm, bias):
+    A, B = gtsam.symbol("a", 0), gtsam.symbol("b", 0)
+    measured = np.array([10.0, -4.0, 3.0])  # heading beyond pi/2 near the branch cut
+    factor = MeasuredPoseFactor(
+        X0, measured, np.array([0.2, 0.2, 0.01]), A if arm else None, B if bias else None
+    ).factor()
+    values = gtsam.Values()
+    values.insert(X0, gtsam.Pose2(9.0, -4.5, 3.1))
+    values.insert(A, np.array([1.2, 0.5]))
+    values.insert(B, np.array([-0.02]))
+    assert_jacobians(factor, values)
+    # An antenna 1.2 m ahead and 0.5 m left of a vehicle heading 3.1 rad, biased -0.02 rad.
+    c, s = np.cos(3.1), np.sin(3.1)
+    expected = np.array(
+        [
+            9.0 + (c * 1.2 - s * 0.5 if arm else 0.0) - 10.0,
+            -4.5 + (s * 1.2 + c * 0.5 if arm else 0.0) + 4.0,
+            3.1 + (-0.02 if bias else 0.0) - 3.0,
+        ]
+    )
+    np.testing.assert_allclose(factor.unwhitenedError(values), expected, atol=1e-12)
+    position = MeasuredPoseFactor(
+        X0, measured, np.array([0.2, 0.2, 0.01]), A if arm else None, with_heading=False
+    ).factor()
+    assert position.dim() == 2
+    assert_jacobians(position, values)
+    np.testing.assert_allclose(position.unwhitenedError(values), expected[:2], atol=1e-12)
+
+
+def test_down_weighted_fixes_get_wider_sigmas(segment):
+    poses, inputs = segment[0][:11], segment[1][:10]
+    weights = np.ones(10)
+    weights[3] = 0.04
+    factor = ChunkOdometryFactor(OdometryChunk(inputs, poses), X0, T, fix_weights=weights)
+    sigmas = factor.sigmas.reshape(10, 3)
+    np.testing.assert_allclose(sigmas[3, :2], 5.0 * sigmas[2, :2])
+    assert sigmas[3, 2] == sigmas[2, 2]  # the heading is not a GNSS fix
+    with pytest.raises(ValueError, match="fix weights"):
+        ChunkOdometryFactor(OdometryChunk(inputs, poses), X0, T, fix_weights=np.zeros(10))
 
 
 def test_one_step_between_poses_is_eq_1_as_pose2_composition(rng):

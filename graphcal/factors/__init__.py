@@ -10,6 +10,8 @@ a small factor class that consumes it, its error with the Jacobians beside it.
 * :class:`OdometryChunk` + :class:`ChunkOdometryFactor` — a chunk of steps tracking measured
   poses, for the calibration graphs; :func:`segment_odometry_factor` for a whole segment;
 * :func:`pose_measurement_factor` — a measured pose with the paper's weights;
+  :class:`MeasuredPoseFactor` — a measured pose through the antenna's lever arm
+  and a heading bias;
 * :func:`chunk_correction_prior`, :func:`chunk_boundary_smoothness` — priors on corrections;
 * :func:`theta_prior_factor` — a prior on theta.
 """
@@ -26,6 +28,7 @@ from graphcal.factors.corrections import (
     chunk_correction_prior,
     theta_prior_factor,
 )
+from graphcal.factors.measured_pose import MeasuredPoseFactor
 from graphcal.factors.poses import (
     PAPER_POSE_WEIGHTS,
     body_to_world,
@@ -46,6 +49,7 @@ __all__ = [
     "PAPER_POSE_WEIGHTS",
     "ChunkError",
     "ChunkOdometryFactor",
+    "MeasuredPoseFactor",
     "OdometryChunk",
     "PreintegratedWheelOdometry",
     "WheelOdometryFactor",

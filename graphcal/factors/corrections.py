@@ -30,30 +30,43 @@ def _linear(jacobian_factor: gtsam.JacobianFactor, keys_and_dims: list[tuple[int
 
 
 def chunk_correction_prior(
-    key: int, measured: np.ndarray, size: np.ndarray, smooth_sigma: float | None
+    key: int,
+    measured: np.ndarray,
+    size: np.ndarray,
+    smooth_sigma: float | None,
+    quantization: float = 0.0,
 ) -> gtsam.LinearContainerFactor:
     """Size and within-chunk smoothness of a ``2L``-vector of corrections, as one linear factor.
 
     Args:
         key: the chunk's correction vector ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``.
         measured: measured ``[n_rl, n_rr]`` of its ``L`` steps, ``(L, 2)`` [rev].
-        size: size-prior sigmas ``(L, 2)`` [rev].
+        size: size-prior sigmas ``(L, 2)`` [rev] (white noise of each step's rotation).
         smooth_sigma: sigma of the change of a corrected rotation between steps [rev], or
             ``None`` for no smoothness term.
+        quantization: sigma [rev] of the rounding error of each wheel's cumulative count
+            (``1 / (ticks √12)`` for an encoder's ticks), or 0. A step's rotation is the
+            difference of two counts, so its error is ``e_k+1 − e_k``: the prior's
+            covariance per wheel gains ``q²`` times the tridiagonal ``[−1, 2, −1]`` (errors of
+            neighbouring steps cancel in a sum, as they do in the odometry), beside the white
+            ``size²``. Correlation across chunk boundaries is left out.
     """
     measured = np.asarray(measured, float)
     n = 2 * len(measured)
-    a, b = [np.eye(n)], [np.zeros(n)]
-    sigmas = [np.asarray(size, float).reshape(-1)]
+    sizes = np.asarray(size, float).reshape(-1)
+    if quantization > 0:
+        covariance = np.diag(sizes**2) + quantization**2 * (
+            2.0 * np.eye(n) - np.eye(n, k=2) - np.eye(n, k=-2)
+        )
+        whiten = np.linalg.inv(np.linalg.cholesky(covariance))  # W Σ Wᵀ = I
+        a, b = [whiten], [np.zeros(n)]
+    else:
+        a, b = [np.diag(1.0 / sizes)], [np.zeros(n)]
     if smooth_sigma is not None and n > 2:
-        a.append(np.eye(n, k=2)[: n - 2] - np.eye(n)[: n - 2])  # c_{k+1} - c_k per wheel
-        b.append(-np.diff(measured, axis=0).reshape(-1))
-        sigmas.append(np.full(n - 2, smooth_sigma))
+        a.append((np.eye(n, k=2)[: n - 2] - np.eye(n)[: n - 2]) / smooth_sigma)
+        b.append(-np.diff(measured, axis=0).reshape(-1) / smooth_sigma)
     factor = gtsam.JacobianFactor(
-        key,
-        np.vstack(a),
-        np.concatenate(b),
-        gtsam.noiseModel.Diagonal.Sigmas(np.concatenate(sigmas)),
+        key, np.vstack(a), np.concatenate(b), gtsam.noiseModel.Unit.Create(len(np.concatenate(b)))
     )
     return _linear(factor, [(key, n)])
 

@@ -11,6 +11,9 @@ letter     variable            index
 ``p``      segment Pose2       segment, chunk boundary (0 = the segment's start)
 ``c``      wheel corrections   segment, chunk (one ``2L``-vector per chunk)
 ``s``      wheel slip scales   segment, chunk (a 2-vector: rear-left, rear-right)
+``o``      wheel time offset   0 (a 1-vector [s])
+``a``      antenna lever arm   0 (a 2-vector [m]: ahead, left)
+``h``      heading bias        segment (a 1-vector [rad])
 ``x``      keyframe Pose2      keyframe number (localization graphs)
 =========  ==================  =====================================================
 """
@@ -52,6 +55,17 @@ def segment_slip(segment: int, chunk: int = 0) -> int:
     """Key of the 2-vector of relative wheel-slip scales ``[s_rl, s_rr]`` of ``chunk`` of
     ``segment``."""
     return gtsam.symbol("s", _packed(segment, chunk))
+
+
+#: The wheels' time offset against the pose [s] (1-vector).
+TIME_OFFSET = gtsam.symbol("o", 0)
+#: The GNSS antenna's lever arm ``[ahead, left]`` [m] from the centre of gravity (2-vector).
+LEVER_ARM = gtsam.symbol("a", 0)
+
+
+def segment_heading_bias(segment: int) -> int:
+    """Key of the 1-vector bias [rad] of the measured heading over ``segment``."""
+    return gtsam.symbol("h", _packed(segment, 0))
 
 
 def keyframe(index: int) -> int:

@@ -11,7 +11,13 @@ Every calibration graph of graphcal is an instance of this shape, chosen by a
   on the nominal odometry, carry a near-hard continuity residual;
 * optionally per chunk one vector of wheel-rotation corrections under a size prior and the
   paper's smoothness prior on Δu (linear C++ factors);
-* theta: a 4-vector variable (optionally under a prior) or a fixed value.
+* theta: a 4-vector variable (optionally under a prior) or a fixed value;
+* optionally the defects of real logs as variables under zero-mean priors: the wheels' time
+  offset against the pose and the GNSS antenna's lever arm (one each for the graph) and a
+  bias of the measured heading per segment; with a lever arm or heading bias, the free
+  start poses are measured through them (:class:`~graphcal.factors.MeasuredPoseFactor`);
+* optionally per-fix weights (``SegmentData.fix_weights``) that widen the sigmas of outlying
+  fixes (robust estimation by iterative reweighting, :mod:`graphcal.graph.robust`).
 
 Users: the batch solve (one chunk per segment, no corrections), input estimation (one
 segment, theta fixed, corrections), the joint solve (start poses, corrections and theta)
@@ -20,16 +26,19 @@ and the naive per-step benchmark (chunks of one step).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
+from graphcal.data.timing import rotation_rate_changes
 from graphcal.errors import CalibrationFailed
 from graphcal.factors import (
     CONTINUITY_SIGMAS,
     ChunkOdometryFactor,
+    MeasuredPoseFactor,
     OdometryChunk,
     chunk_boundary_smoothness,
     chunk_correction_prior,
@@ -54,11 +63,14 @@ class CorrectionPrior:
             (the paper's ±5 % input bound, softened); 0 for an absolute sigma.
         smoothness_sigma: sigma [rev] of the change of a corrected rotation from one step to
             the next (the paper's R = 1000 is 0.032 rev), or ``None`` for no smoothness term.
+        quantization: sigma [rev] of the rounding error of each wheel's cumulative count
+            (tick quantization, :func:`~graphcal.factors.chunk_correction_prior`), or 0.
     """
 
     sigma: float
     relative: float = 0.0
     smoothness_sigma: float | None = None
+    quantization: float = 0.0
 
     def size_sigmas(self, measured: np.ndarray) -> np.ndarray:
         """Per step and wheel size sigmas ``(L, 2)`` [rev] for measured rotations ``(L, 2)``."""
@@ -84,6 +96,12 @@ class SegmentGraphSpec:
             ``None`` for none. The scales follow a first-order Gauss–Markov process with
             correlation time ``slip_time`` [s] from chunk to chunk.
         slip_time: that correlation time [s].
+        time_offset_sigma: prior sigma [s] of the wheels' time offset (a variable,
+            :data:`~graphcal.graph.keys.TIME_OFFSET`), or ``None`` for none.
+        lever_arm_sigma: prior sigma [m] of each component of the antenna's lever arm (a
+            variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
+        heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
+            or ``None`` for none.
     """
 
     theta: np.ndarray
@@ -96,6 +114,29 @@ class SegmentGraphSpec:
     corrections: CorrectionPrior | None = None
     slip_sigma: float | None = None
     slip_time: float = 5.0
+    time_offset_sigma: float | None = None
+    lever_arm_sigma: float | None = None
+    heading_bias_sigma: float | None = None
+
+    def nuisance_keys(self) -> dict[str, int]:
+        """Graph-wide variables besides theta, by name: ``"time_offset"``, ``"lever_arm"``."""
+        found = {}
+        if self.time_offset_sigma is not None:
+            found["time_offset"] = keys.TIME_OFFSET
+        if self.lever_arm_sigma is not None:
+            found["lever_arm"] = keys.LEVER_ARM
+        return found
+
+
+@dataclass(frozen=True)
+class ChunkFactorSlot:
+    """Where a chunk factor sits: its index in the graph, its segment and its steps
+    ``first .. end`` (tracking the poses ``first+1 .. end``)."""
+
+    index: int
+    segment: int
+    first: int
+    end: int
 
 
 @dataclass(frozen=True)
@@ -107,6 +148,30 @@ class SegmentGraph:
     bounds: list[np.ndarray]
     spec: SegmentGraphSpec
     data: SegmentData
+    chunk_factors: tuple[ChunkFactorSlot, ...] = ()
+
+    def fix_residuals(self, result: gtsam.Values) -> np.ndarray:
+        """Position residuals ``(S, K+1, 2)`` [m] of every measured pose at ``result`` (the
+        predicted antenna position minus the measured one; zero at padding and at held
+        starts), for robust reweighting."""
+        data = self.data
+        out = np.zeros((len(data), data.poses.shape[1], 2))
+        for slot in self.chunk_factors:
+            factor = self.graph.at(slot.index)
+            error = np.asarray(factor.unwhitenedError(result))
+            n = slot.end - slot.first
+            out[slot.segment, slot.first + 1 : slot.end + 1] = error[: 3 * n].reshape(n, 3)[:, :2]
+        if self.spec.start_prior_sigmas is not None:
+            starts = self.start_states(result)
+            arm = np.zeros(2)
+            if self.spec.lever_arm_sigma is not None:
+                arm = np.asarray(result.atVector(keys.LEVER_ARM))
+            cos, sin = np.cos(starts[:, 2]), np.sin(starts[:, 2])
+            antenna = starts[:, :2] + np.column_stack(
+                [cos * arm[0] - sin * arm[1], sin * arm[0] + cos * arm[1]]
+            )
+            out[:, 0] = antenna - data.poses[:, 0, :2]
+        return out
 
     def start_states(self, result: gtsam.Values) -> np.ndarray:
         """Estimated (or held) start state of each segment, ``(S, 3)``."""
@@ -136,6 +201,7 @@ class SegmentGraph:
         values = gtsam.Values()
         if self.spec.estimate_theta:
             values.insert(keys.THETA, np.asarray(theta, float))
+        _insert_nuisance(values, self.spec)
         for s, bounds in enumerate(self.bounds):
             _insert_segment(values, s, bounds, states[s], self.spec)
             if self.spec.corrections is not None and corrections is not None:
@@ -153,10 +219,26 @@ def _insert_segment(
     if spec.slip_sigma is not None:
         for j in range(len(bounds) - 1):
             values.insert(keys.segment_slip(s, j), np.zeros(2))
+    if spec.heading_bias_sigma is not None:
+        values.insert(keys.segment_heading_bias(s), np.zeros(1))
     if spec.start_prior_sigmas is not None:
         values.insert(keys.segment_pose(s), pose2_from_state(states[0]))
     for j in range(1, len(bounds) - 1):
         values.insert(keys.segment_pose(s, j), pose2_from_state(states[int(bounds[j])]))
+
+
+def _insert_nuisance(values: gtsam.Values, spec: SegmentGraphSpec) -> None:
+    """Insert the graph-wide time offset and lever arm (at zero) if ``spec`` has them."""
+    if spec.time_offset_sigma is not None:
+        values.insert(keys.TIME_OFFSET, np.zeros(1))
+    if spec.lever_arm_sigma is not None:
+        values.insert(keys.LEVER_ARM, np.zeros(2))
+
+
+def _zero_prior(key: int, size: int, sigma: float) -> gtsam.PriorFactorVector:
+    return gtsam.PriorFactorVector(
+        key, np.zeros(size), gtsam.noiseModel.Isotropic.Sigma(size, float(sigma))
+    )
 
 
 def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGraph:
@@ -174,28 +256,38 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
         values.insert(keys.THETA, theta0)
         if spec.theta_prior_sigmas is not None:
             graph.add(theta_prior_factor(keys.THETA, np.asarray(spec.theta_prior_sigmas), theta0))
+    _insert_nuisance(values, spec)
+    time_offset_key = lever_arm_key = None
+    if spec.time_offset_sigma is not None:
+        time_offset_key = keys.TIME_OFFSET
+        graph.add(_zero_prior(time_offset_key, 1, spec.time_offset_sigma))
+    if spec.lever_arm_sigma is not None:
+        lever_arm_key = keys.LEVER_ARM
+        graph.add(_zero_prior(lever_arm_key, 2, spec.lever_arm_sigma))
     free_start = spec.start_prior_sigmas is not None
-    if free_start:
-        prior = np.asarray(spec.start_prior_sigmas, float)
-        position_noise = gtsam.noiseModel.Isotropic.Sigma(2, float(prior[0]))
-        heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(prior[2]))
     continuity = np.asarray(spec.continuity_sigmas, float)
     tracking = np.asarray(spec.tracking_sigmas, float)
     all_bounds = []
+    slots = []
     for s in range(len(data)):
         poses, inputs = data.segment(s)
+        weights = data.weights_of(s)
         nominal = integrate(poses[0], inputs, theta0)
         bounds = chunk_bounds(len(inputs), spec.chunk_steps)
         all_bounds.append(bounds)
         _insert_segment(values, s, bounds, nominal, spec)
         if spec.slip_sigma is not None:
             _add_slip(graph, s, bounds, data.dt, spec)
+        bias_key = None
+        if spec.heading_bias_sigma is not None:
+            bias_key = keys.segment_heading_bias(s)
+            graph.add(_zero_prior(bias_key, 1, spec.heading_bias_sigma))
         if free_start:
-            start_key = keys.segment_pose(s)
-            graph.add(
-                gtsam.PoseTranslationPrior2D(start_key, gtsam.Point2(*poses[0, :2]), position_noise)
-            )
-            graph.add(gtsam.PoseRotationPrior2D(start_key, gtsam.Rot2(poses[0, 2]), heading_noise))
+            start_weight = 1.0 if weights is None else float(weights[0])
+            _add_start_prior(graph, s, poses[0], spec, lever_arm_key, bias_key, start_weight)
+        rates = None
+        if time_offset_key is not None:
+            rates = rotation_rate_changes(inputs[:, :2], data.dt)
         n_chunks = len(bounds) - 1
         for j in range(n_chunks):
             a, b = int(bounds[j]), int(bounds[j + 1])
@@ -206,7 +298,12 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
             start: int | np.ndarray = keys.segment_pose(s, j)
             if j == 0 and not free_start:
                 start = poses[0]
-            chunk = OdometryChunk(inputs[a:b], poses[a : b + 1], float(nominal[a, 2]))
+            chunk = OdometryChunk(
+                inputs[a:b],
+                poses[a : b + 1],
+                float(nominal[a, 2]),
+                None if rates is None else rates[a:b],
+            )
             factor = ChunkOdometryFactor(
                 chunk,
                 start,
@@ -216,9 +313,40 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
                 tracking_sigmas=tracking,
                 continuity_sigmas=continuity,
                 slip=None if spec.slip_sigma is None else keys.segment_slip(s, j),
+                time_offset=time_offset_key,
+                lever_arm=lever_arm_key,
+                heading_bias=bias_key,
+                fix_weights=None if weights is None else weights[a + 1 : b + 1],
             )
+            slots.append(ChunkFactorSlot(int(graph.size()), s, a, b))
             graph.add(factor.factor())
-    return SegmentGraph(graph, values, all_bounds, spec, data)
+    return SegmentGraph(graph, values, all_bounds, spec, data, tuple(slots))
+
+
+def _add_start_prior(
+    graph: gtsam.NonlinearFactorGraph,
+    s: int,
+    measured: np.ndarray,
+    spec: SegmentGraphSpec,
+    lever_arm_key: int | None,
+    bias_key: int | None,
+    weight: float,
+) -> None:
+    """The measured start pose of segment ``s`` on its free start (the paper's W): GTSAM's
+    priors, or a :class:`~graphcal.factors.MeasuredPoseFactor` through the lever arm and the
+    heading bias when those are variables; the position sigma widened by a fix weight."""
+    prior = np.asarray(spec.start_prior_sigmas, float).copy()
+    prior[:2] /= np.sqrt(weight)
+    start_key = keys.segment_pose(s)
+    if lever_arm_key is None and bias_key is None:
+        position_noise = gtsam.noiseModel.Isotropic.Sigma(2, float(prior[0]))
+        heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(prior[2]))
+        graph.add(
+            gtsam.PoseTranslationPrior2D(start_key, gtsam.Point2(*measured[:2]), position_noise)
+        )
+        graph.add(gtsam.PoseRotationPrior2D(start_key, gtsam.Rot2(measured[2]), heading_noise))
+        return
+    graph.add(MeasuredPoseFactor(start_key, measured, prior, lever_arm_key, bias_key).factor())
 
 
 def _add_slip(
@@ -272,7 +400,11 @@ def _add_corrections(
     key = keys.segment_corrections(s, j)
     values.insert(key, np.zeros(2 * (b - a)))
     sizes = prior.size_sigmas(measured[a:b])
-    graph.add(chunk_correction_prior(key, measured[a:b], sizes, prior.smoothness_sigma))
+    graph.add(
+        chunk_correction_prior(
+            key, measured[a:b], sizes, prior.smoothness_sigma, prior.quantization
+        )
+    )
     if prior.smoothness_sigma is not None and j < len(bounds) - 2:
         c = int(bounds[j + 2])
         graph.add(
@@ -287,6 +419,31 @@ def _add_corrections(
             )
         )
     return key
+
+
+@dataclass(frozen=True)
+class NuisanceEstimate:
+    """A graph-wide variable besides theta (time offset, lever arm) estimated with it (SI).
+
+    Attributes:
+        value: the estimate ``(n,)``.
+        covariance: its marginal covariance ``(n, n)``.
+        prior_sigma: the sigma of its zero-mean prior.
+    """
+
+    value: np.ndarray
+    covariance: np.ndarray
+    prior_sigma: float
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """Standard deviation of each component."""
+        return np.sqrt(np.diag(self.covariance))
+
+    def observable(self, max_sigma_ratio: float) -> np.ndarray:
+        """Per component: the data shrank the prior sigma to at most ``max_sigma_ratio`` of
+        it (the rule theta's parameters follow, :mod:`graphcal.graph.observability`)."""
+        return self.sigma <= max_sigma_ratio * self.prior_sigma
 
 
 @dataclass(frozen=True)
@@ -311,6 +468,8 @@ class ThetaEstimate:
     #: Residual dimensions minus unknowns: the χ² of a solve that fits its noise model,
     #: ``2 * final_error``, is about this (0 when not known).
     degrees_of_freedom: int = field(default=0, kw_only=True)
+    #: Graph-wide variables estimated with theta, by name (``"time_offset"``, ``"lever_arm"``).
+    nuisance: dict[str, NuisanceEstimate] = field(default_factory=dict, kw_only=True)
 
     @property
     def chi2_per_dof(self) -> float | None:
@@ -344,6 +503,7 @@ class SegmentSolution(ThetaEstimate):
             self.initial_error,
             self.final_error,
             degrees_of_freedom=self.degrees_of_freedom,
+            nuisance=self.nuisance,
         )
 
 
@@ -354,8 +514,11 @@ def solve_segment_graph(
     relative_error_tol: float,
     label: str,
     covariance: bool = True,
+    initial: gtsam.Values | None = None,
 ) -> SegmentSolution:
-    """Build the graph of ``spec`` over ``data`` and solve it with Levenberg–Marquardt.
+    """Build the graph of ``spec`` over ``data`` and solve it with Levenberg–Marquardt, from
+    the builder's initial values or from ``initial`` (values of the same graph, e.g. an
+    earlier solution: a warm start).
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
@@ -364,19 +527,18 @@ def solve_segment_graph(
         CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
     """
     built = build_segment_graph(data, spec)
-    initial_error = float(built.graph.error(built.values))
+    start = built.values if initial is None else initial
+    initial_error = float(built.graph.error(start))
     result, iterations = solve_lm(
-        built.graph, built.values, max_iterations, relative_error_tol, label, CalibrationFailed
+        built.graph, start, max_iterations, relative_error_tol, label, CalibrationFailed
     )
     theta = np.asarray(spec.theta, float)
-    marginal = None
+    marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
         check_plausible(theta, label, reference=spec.theta)
         if covariance:
-            marginal = marginal_covariance(
-                built.graph, result, keys.THETA, label, CalibrationFailed
-            )
+            marginal, nuisance = _marginals(built, result, label)
     return SegmentSolution(
         theta=theta,
         covariance=marginal,
@@ -387,7 +549,35 @@ def solve_segment_graph(
         result=result,
         built=built,
         degrees_of_freedom=degrees_of_freedom(built.graph, result),
+        nuisance=nuisance,
     )
+
+
+def _marginals(
+    built: SegmentGraph, result: gtsam.Values, label: str
+) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
+    """Theta's marginal covariance and the graph-wide nuisance estimates at ``result``."""
+    spec = built.spec
+    extra = spec.nuisance_keys()
+    joint = marginal_covariance(
+        built.graph, result, [keys.THETA, *extra.values()], label, CalibrationFailed
+    )
+    priors = {"time_offset": spec.time_offset_sigma, "lever_arm": spec.lever_arm_sigma}
+    nuisance, at = {}, 4
+    for name, key in extra.items():
+        value = np.asarray(result.atVector(key))
+        n = len(value)
+        nuisance[name] = NuisanceEstimate(value, joint[at : at + n, at : at + n], priors[name])
+        at += n
+    return joint[:4, :4], nuisance
+
+
+def with_covariance(solution: SegmentSolution, label: str) -> SegmentSolution:
+    """``solution`` with theta's marginal covariance and the nuisance estimates computed."""
+    if solution.covariance is not None or not solution.built.spec.estimate_theta:
+        return solution
+    marginal, nuisance = _marginals(solution.built, solution.result, label)
+    return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
 
 
 def degrees_of_freedom(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> int:

@@ -39,17 +39,23 @@ def solve_lm(
 def marginal_covariance(
     graph: gtsam.NonlinearFactorGraph,
     result: gtsam.Values,
-    key: int,
+    key: int | list[int],
     label: str,
     error_type: type[GraphcalError] = GraphcalError,
 ) -> np.ndarray:
-    """Marginal covariance of ``key`` at ``result`` (all other variables marginalized).
+    """Marginal covariance of ``key`` at ``result`` (all other variables marginalized); for a
+    list of keys their joint marginal covariance, blocks in the list's order.
 
     Raises ``error_type`` (``"<label> failed: <reason>"``) if GTSAM cannot factor the
     information matrix or the covariance is not finite.
     """
     try:
-        covariance = gtsam.Marginals(graph, result).marginalCovariance(key)
+        marginals = gtsam.Marginals(graph, result)
+        if isinstance(key, list) and len(key) > 1:
+            joint = marginals.jointMarginalCovariance(gtsam.KeyVector(key))
+            covariance = np.block([[joint.at(a, b) for b in key] for a in key])
+        else:
+            covariance = marginals.marginalCovariance(key[0] if isinstance(key, list) else key)
     except RuntimeError as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise error_type(f"{label} failed: covariance: {reason}") from exc
