@@ -21,7 +21,9 @@ from graphcal.arguments import at_least as _at_least
 from graphcal.arguments import in_range as _in_range
 from graphcal.arguments import non_negative as _non_negative
 from graphcal.arguments import whole as _whole
+from graphcal.data.consistency import runs
 from graphcal.errors import GraphcalError
+from graphcal.pipeline.joint import without_defect_model
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
 from graphcal.pipeline.settings import (
@@ -141,6 +143,13 @@ def _distance_line(log, settings: Settings) -> str:
 
 
 def _print_masked(log) -> None:
+    if log.outlying is not None:
+        runs_ = runs(log.outlying)
+        first = ", ".join(f"{log.t[a]:.1f} s" for a, _ in runs_[:3])
+        print(
+            f"  outlying fixes   {len(runs_)} isolated position spike(s), {log.outlying.sum()} "
+            f"sample(s), given no weight (first at {first})"
+        )
     if log.masked is not None:
         print(
             f"  masked           {log.masked.sum() * log.dt:.1f} s that no segment spans "
@@ -291,15 +300,8 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
             segments=dataclasses.replace(settings.segments, **segments),
             batches=dataclasses.replace(settings.batches, **batches),
         )
-        if getattr(args, "estimate_time_offset", False):
-            settings = dataclasses.replace(
-                settings,
-                time_offset=dataclasses.replace(settings.time_offset, estimate=True),
-            )
-        if getattr(args, "estimate_lever_arm", False):
-            settings = dataclasses.replace(
-                settings, lever_arm=dataclasses.replace(settings.lever_arm, estimate=True)
-            )
+        if getattr(args, "no_defect_model", False):
+            settings = dataclasses.replace(settings, joint=without_defect_model(settings.joint))
         if getattr(args, "paper_exact", False):
             staged = dataclasses.replace(
                 settings.staged, heading_correction="paper", estimate_start_poses=False
@@ -681,17 +683,10 @@ def build_parser() -> argparse.ArgumentParser:
         "poses held in Steps 3 and 5 (graphcal's defaults are measured to be more accurate)",
     )
     p.add_argument(
-        "--estimate-time-offset",
+        "--no-defect-model",
         action="store_true",
-        help="estimate how late the wheel signals are against the pose (χ² profile of the "
-        "joint solve, about 12 extra whole-log solves) and correct them before calibrating",
-    )
-    p.add_argument(
-        "--estimate-lever-arm",
-        action="store_true",
-        help="estimate the GNSS antenna's lever arm (ahead, left of the centre of gravity; χ² "
-        "profiles of the joint solve, about 20 extra whole-log solves) and move the positions "
-        "by it before calibrating",
+        help="estimate theta alone: no wheel time offset, antenna lever arm, heading biases "
+        "or outlier weights (the joint solve models them by default)",
     )
     recording_options(p)
     vehicle_option(p)

@@ -58,7 +58,7 @@ class VehicleProfile:
         wheel_noise: standard deviation [rev] of a measured wheel rotation per sample interval,
             beyond the encoder's quantization.
         ticks_per_revolution: encoder counts per wheel revolution, or ``None`` when the
-            rotations are not quantized noticeably (:meth:`effective_wheel_noise`).
+            rotations are not quantized noticeably (:meth:`tick_quantization`).
     """
 
     name: str = "paper car"
@@ -99,24 +99,26 @@ class VehicleProfile:
             raise ValueError(
                 f"vehicle.ticks_per_revolution must be a whole number >= 1, got {ticks!r}"
             )
-        if self.effective_wheel_noise() <= 0:
+        if self.white_wheel_noise() <= 0:
             raise ValueError(
                 "vehicle.wheel_noise must be positive unless ticks_per_revolution is given, "
                 f"got {self.wheel_noise!r}"
             )
 
-    def effective_wheel_noise(self) -> float:
-        """Standard deviation [rev] of a measured per-interval wheel rotation.
-
-        An encoder with ``ticks_per_revolution`` counts rounds each reading to ``1 / tpr``
-        rev; the difference of two readings (the rotation during an interval) then has the
-        variance ``1 / (6 tpr²)`` rev², added to ``wheel_noise²``. Successive intervals' errors
-        cancel in a sum (they telescope), so treating them as independent, as the corrections'
-        prior does, overstates the noise over a segment: a conservative choice.
-        """
+    def tick_quantization(self) -> float:
+        """Rounding error sigma [rev] of a cumulative encoder count, ``1 / (tpr √12)`` (0
+        without ``ticks_per_revolution``): ``[joint] tick_quantization``. A rotation during
+        an interval is the difference of two counts, so errors of successive intervals
+        cancel in a sum; the joint solve models exactly that
+        (:func:`graphcal.factors.chunk_correction_prior`)."""
         if self.ticks_per_revolution is None:
-            return float(self.wheel_noise)
-        return math.sqrt(self.wheel_noise**2 + 1.0 / (6.0 * self.ticks_per_revolution**2))
+            return 0.0
+        return 1.0 / (self.ticks_per_revolution * math.sqrt(12.0))
+
+    def white_wheel_noise(self) -> float:
+        """``wheel_noise`` [rev], or a tenth of the tick quantization when it is 0 (counts with
+        no noise of their own): ``[joint] wheel_noise``."""
+        return float(self.wheel_noise) if self.wheel_noise > 0 else 0.1 * self.tick_quantization()
 
     def pose_weights(self) -> tuple[float, float, float]:
         """The pose weights ``W = (1, 1, (position_sigma / heading_sigma)²)`` (§4.4).

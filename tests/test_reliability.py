@@ -116,14 +116,18 @@ def test_frozen_fixes_are_masked_reported_and_do_not_bias_theta(drive, tmp_path)
     assert plainly[0] and np.all(error[plainly] < 3 * sigma[plainly]), (error, sigma, verdicts)
 
 
-def test_position_spikes_are_masked(table, tmp_path, capsys):
-    table.loc[3000:3004, "px"] += 30.0  # a multipath fix for 0.125 s
+def test_isolated_position_spikes_are_flagged_and_jumps_masked(table, tmp_path, capsys):
+    table.loc[3000:3004, "px"] += 30.0  # a multipath fix for 0.125 s, then back on track
+    table.loc[6000:, "py"] += 20.0  # a jump that stays
     path = _write(table, tmp_path / "log.csv")
     log = load_drive_log(path)
-    assert log.masked[3000:3005].all() and len(log.mask_notes) == 1
+    assert np.flatnonzero(log.outlying).tolist() == list(range(3000, 3005))
+    assert not log.masked[2990:3010].any()  # segments keep the spike's neighbourhood
+    assert log.masked[5999:6001].all() and len(log.mask_notes) == 1
     assert "spike" in log.mask_notes[0]
     assert main(["check", str(path)]) == 0
-    assert "masked" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "1 isolated position spike(s), 5 sample(s)" in printed and "masked" in printed
 
 
 def test_heading_spikes_are_masked(table, tmp_path):

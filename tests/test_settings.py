@@ -92,7 +92,6 @@ def test_sections_and_keys_are_the_field_names():
         "staged",
         "joint",
         "vehicle",
-        "time_offset",
         "lever_arm",
     ]
     assert set(data["calibration"]) == {f.name for f in dataclasses.fields(BatchSettings)}

@@ -44,7 +44,7 @@ def test_the_car_file_is_the_default_vehicle():
     car = load_vehicle(VEHICLES / "car.toml")
     assert settings_to_dict(car) == settings_to_dict(VehicleProfile())
     assert car.pose_weights() == (1.0, 1.0, 50.0)
-    assert car.effective_wheel_noise() == 0.0005
+    assert car.white_wheel_noise() == 0.0005 and car.tick_quantization() == 0.0
 
 
 def test_the_robot_file(robot):
@@ -52,8 +52,9 @@ def test_the_robot_file(robot):
     np.testing.assert_array_equal(robot.theta_nominal, [0.5, 0.0, 0.2, 0.0])
     assert robot.ticks_per_revolution == 64
     assert robot.pose_weights()[2] == pytest.approx((0.05 / 0.0175) ** 2)
-    # 64 counts per revolution: 1 / (6 · 64²) rev² of quantization next to 0.0005² rev².
-    assert robot.effective_wheel_noise() == pytest.approx(np.sqrt(0.0005**2 + 1 / 24576))
+    # 64 counts per revolution: each count rounded by up to half a tick.
+    assert robot.tick_quantization() == pytest.approx(1 / (64 * np.sqrt(12)))
+    assert robot.white_wheel_noise() == 0.0005
 
 
 def test_the_default_vehicle_gives_todays_defaults():
@@ -63,7 +64,8 @@ def test_the_default_vehicle_gives_todays_defaults():
     for section in (BatchSettings(), JointSettings()):
         assert section.pose_weights == car.pose_weights()
         assert section.position_sigma == car.position_sigma
-    assert JointSettings().wheel_noise == car.effective_wheel_noise()
+    assert JointSettings().wheel_noise == car.white_wheel_noise()
+    assert JointSettings().tick_quantization == car.tick_quantization()
     default = Settings()
     assert settings_to_dict(apply_vehicle(default, car)) == settings_to_dict(default)
     assert default.to_dict()["vehicle"]["name"] == "paper car"

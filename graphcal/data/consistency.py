@@ -7,7 +7,11 @@ calibration changes distances by far less than the factors checked here):
 * **absurd positions** (beyond :data:`MAX_POSITION` from the origin) and **unit mistakes**
   (GNSS distance over the whole log far from the wheels' distance: positions in km, cm or
   degrees, rotations per second instead of per sample) reject the log with one line;
-* **spikes** (a position step far longer than the wheels allow, e.g. a multipath fix; a
+* **isolated spikes** (fixes off the track, the next fix back on it within
+  :data:`SPIKE_RETURN_S`, e.g. multipath) are flagged as outlying (``DriveLog.outlying``):
+  segments keep them and calibration gives them no weight, so many spikes do not cut the
+  log into pieces;
+* **jumps** (a position step far longer than the wheels allow that does not return; a
   heading step far from the yaw the wheels imply) and **frozen fixes** (a receiver repeating
   its last fix during an outage while the wheels roll) are masked: :func:`screen` returns
   the log with a per-sample mask and a note per span, and
@@ -35,12 +39,17 @@ SPIKE_EXCESS = 3.0
 #: A heading step that differs from the wheels' yaw by more than this [rad], or by ten times
 #: the log's own heading-step noise if that is larger, is a heading spike.
 HEADING_EXCESS = 0.25
-#: Samples masked on each side of a spike [s] (the fix before and after a multipath jump).
+#: Samples masked on each side of a jump [s] (the fix before and after it).
 SPIKE_MARGIN_S = 0.5
+#: Fixes off the track for at most this long [s], the next fix back on it, are an isolated
+#: spike: flagged outlying, not masked.
+SPIKE_RETURN_S = 1.0
 #: A fix repeated for at least this long [s] while the wheels travel ...
 FROZEN_MIN_S = 1.0
 #: ... at least this far [m] is frozen.
 FROZEN_MIN_DISTANCE = 2.0
+#: Above this share of jumping steps no spike counts as isolated.
+MAX_SPIKE_SHARE = 0.05
 #: A log with more than this share of its samples masked is rejected.
 MAX_MASKED_SHARE = 0.5
 
@@ -79,7 +88,8 @@ def position_problem(
     wheels = np.diff(travelled[ends])
     chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
     if masked is None:
-        masked, _ = inconsistent_samples(log, nominal=nominal)
+        masked, _, outlying = inconsistent_samples(log, nominal=nominal)
+        masked = masked | outlying
     clean = np.add.reduceat(masked.astype(int), ends)[: len(wheels)] == 0
     usable = clean & (wheels >= 5.0)
     if wheels[usable].sum() < 50.0:
@@ -99,22 +109,26 @@ def position_problem(
 
 def inconsistent_samples(
     log, *, nominal: np.ndarray = THETA_NOMINAL
-) -> tuple[np.ndarray, list[str]]:
-    """Samples whose position disagrees with the wheels, ``(N,)`` bool, and one note per span.
+) -> tuple[np.ndarray, list[str], np.ndarray]:
+    """Samples whose position disagrees with the wheels, ``(N,)`` bool, one note per span,
+    and the isolated spikes' samples ``(N,)`` bool (outlying fixes, not masked).
 
     The wheel rotations become distance and yaw with ``nominal``, the vehicle's nominal theta.
 
     Spikes: a distinct fix farther from the previous one than the wheels travelled between
-    them by :data:`SPIKE_EXCESS` (or ten times the log's own noise), masked with
-    :data:`SPIKE_MARGIN_S` on each side. Frozen fixes: the same position for at least
+    them by :data:`SPIKE_EXCESS` (or ten times the log's own noise). If a later fix within
+    :data:`SPIKE_RETURN_S` is back on the track (as far from the last good fix as the wheels
+    travelled, within the same tolerance), the fixes between are outlying; otherwise the jump
+    is masked with :data:`SPIKE_MARGIN_S` on each side. Frozen fixes: the same position for at least
     :data:`FROZEN_MIN_S` (or five of the receiver's fix intervals, for a receiver slower than
     the log whose fixes are held) while the wheels travel :data:`FROZEN_MIN_DISTANCE`.
     """
     n = len(log)
     mask = np.zeros(n, dtype=bool)
+    outlying = np.zeros(n, dtype=bool)
     notes: list[str] = []
     if n < 3:
-        return mask, notes
+        return mask, notes, outlying
     wheels = wheel_steps(log, nominal=nominal)
     travelled = np.concatenate([[0.0], np.cumsum(wheels)])
     margin = max(1, round(SPIKE_MARGIN_S / log.dt))
@@ -141,8 +155,19 @@ def inconsistent_samples(
     rolled = np.diff(travelled[fixes])
     excess = jump - rolled
     noise = 1.4826 * np.median(np.abs(excess - np.median(excess))) if len(excess) else 0.0
+    tolerance = max(SPIKE_EXCESS, 10.0 * noise)
     spikes = np.zeros(n, dtype=bool)
-    for i in np.flatnonzero(excess > max(SPIKE_EXCESS, 10.0 * noise)):
+    jumps = np.flatnonzero(excess > tolerance)
+    returned = _returns(log, fixes, travelled, jumps, tolerance)
+    handled = np.zeros(len(excess), dtype=bool)  # steps explained by an isolated spike
+    for i in jumps:
+        if handled[i]:
+            continue
+        j = returned.get(int(i))
+        if j is not None:  # fixes i+1 .. j are off the track, fix j+1 is back on it
+            outlying[fixes[i + 1] : fixes[j + 1]] = True
+            handled[i : j + 1] = True
+            continue
         a, b = fixes[i], fixes[i + 1]
         spikes[max(0, a - margin + 1) : min(n, b + margin)] = True
     for a, b in runs(spikes):
@@ -166,22 +191,50 @@ def inconsistent_samples(
             f"{np.degrees(yaw_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
         )
     mask = frozen | spikes | turns
-    return mask, notes
+    return mask, notes, outlying & ~mask
+
+
+def _returns(
+    log, fixes: np.ndarray, travelled: np.ndarray, jumps: np.ndarray, tolerance: float
+) -> dict[int, int]:
+    """Per jump step ``i`` (fix i → i+1) that an isolated spike explains: the step ``j`` whose
+    end fix ``j+1`` is back on the track (as far from fix ``i`` as the wheels travelled,
+    within ``tolerance``), at most :data:`SPIKE_RETURN_S` after fix ``i+1``. A log where
+    more than :data:`MAX_SPIKE_SHARE` of the steps jump has no isolated spikes (its
+    positions are wrong throughout: masked, and refused as mostly masked)."""
+    found = {}
+    if len(jumps) > MAX_SPIKE_SHARE * len(fixes):
+        return found
+    for i in jumps:
+        start = fixes[i]
+        for j in range(i + 1, len(fixes) - 1):
+            end = fixes[j + 1]
+            if log.t[fixes[j]] - log.t[fixes[i + 1]] > SPIKE_RETURN_S:
+                break
+            gap = np.hypot(log.px[end] - log.px[start], log.py[end] - log.py[start])
+            if abs(gap - (travelled[end] - travelled[start])) <= tolerance:
+                found[int(i)] = j
+                break
+    return found
 
 
 def screen(log, *, nominal: np.ndarray = THETA_NOMINAL):
-    """``log`` with its inconsistent samples masked (:func:`inconsistent_samples`), after
+    """``log`` with its inconsistent samples masked and its isolated spikes flagged outlying
+    (:func:`inconsistent_samples`), after
     :func:`position_problem` found nothing to refuse it for (else ``ValueError`` with that
     line). The samples are screened once for both, with the vehicle's nominal theta
     ``nominal``. Samples already masked in ``log`` (gaps an import marked) stay masked, their
     notes first."""
-    mask, notes = inconsistent_samples(log, nominal=nominal)
+    mask, notes, outlying = inconsistent_samples(log, nominal=nominal)
     if log.masked is not None:
         mask = mask | log.masked
         notes = [*log.mask_notes, *notes]
-    problem = position_problem(log, mask, nominal=nominal)
+    problem = position_problem(log, mask | outlying, nominal=nominal)
     if problem is not None:
         raise ValueError(problem)
-    if not mask.any():
-        return log
-    return dataclasses.replace(log, masked=mask, mask_notes=tuple(notes))
+    changes = {}
+    if mask.any():
+        changes.update(masked=mask, mask_notes=tuple(notes))
+    if outlying.any():
+        changes["outlying"] = outlying
+    return dataclasses.replace(log, **changes) if changes else log

@@ -57,9 +57,11 @@ class DriveLog:
     """A validated drive log: equally long float arrays, SI units, heading unwrapped.
 
     Use :func:`load_drive_log` to read one from CSV, :meth:`to_dataframe` for a pandas view.
-    ``masked`` marks samples whose position disagrees with the wheels (spikes, frozen fixes;
+    ``masked`` marks samples whose position disagrees with the wheels (jumps, frozen fixes;
     :mod:`graphcal.data.consistency`), ``mask_notes`` says where and why; no segment spans a
-    masked sample.
+    masked sample. ``outlying`` marks isolated position spikes (a fix off the track and the
+    next one back on it, e.g. multipath): segments keep them, calibration gives them no
+    weight.
     """
 
     t: np.ndarray
@@ -73,13 +75,16 @@ class DriveLog:
     source: str = field(default="<memory>", compare=False)
     masked: np.ndarray | None = field(default=None, compare=False)
     mask_notes: tuple[str, ...] = field(default=(), compare=False)
+    outlying: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
         if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:
             raise ValueError(f"DriveLog columns must be equally long 1-D arrays, got {lengths}")
-        if self.masked is not None and np.shape(self.masked) != lengths["t"]:
-            raise ValueError("DriveLog.masked must have one entry per sample")
+        for name in ("masked", "outlying"):
+            flags = getattr(self, name)
+            if flags is not None and np.shape(flags) != lengths["t"]:
+                raise ValueError(f"DriveLog.{name} must have one entry per sample")
 
     def __len__(self) -> int:
         return len(self.t)

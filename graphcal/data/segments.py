@@ -56,6 +56,10 @@ class SegmentData:
         n_steps: true number of steps of each segment, ``(S,)``.
         valid: ``(S, K+1)`` mask of real (not padded) samples.
         dt: the log's sampling interval [s].
+        sample_index: ``(S, K+1)`` row of each sample in the log (padding repeats the last),
+            or ``None`` when not gathered from a log.
+        fix_weights: ``(S, K+1)`` weight in (0, 1] of each measured pose (robust
+            down-weighting of outlying fixes), or ``None`` for all 1.
     """
 
     poses: np.ndarray
@@ -63,6 +67,8 @@ class SegmentData:
     n_steps: np.ndarray
     valid: np.ndarray
     dt: float = 0.025
+    sample_index: np.ndarray | None = None
+    fix_weights: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.n_steps)
@@ -88,13 +94,25 @@ class SegmentData:
     def take(self, index: np.ndarray) -> SegmentData:
         """The segments at ``index`` (trimmed to their own longest length)."""
         k = int(self.n_steps[index].max())
+
+        def rows(array: np.ndarray | None) -> np.ndarray | None:
+            return None if array is None else array[index, : k + 1]
+
         return SegmentData(
             self.poses[index, : k + 1],
             self.inputs[index, :k],
             self.n_steps[index],
             self.valid[index, : k + 1],
             self.dt,
+            rows(self.sample_index),
+            rows(self.fix_weights),
         )
+
+    def weights_of(self, index: int) -> np.ndarray | None:
+        """Fix weights ``(k+1,)`` of segment ``index`` without padding, or ``None``."""
+        if self.fix_weights is None:
+            return None
+        return self.fix_weights[index, : int(self.n_steps[index]) + 1]
 
 
 def split_segments(
@@ -219,12 +237,16 @@ def _sample_index(segments: Segments) -> tuple[np.ndarray, np.ndarray]:
     return np.minimum(index, segments.stop[:, None]), valid
 
 
-def gather_segments(log: DriveLog, segments: Segments) -> SegmentData:
-    """Measured poses and inputs of ``segments``, padded to a common number of steps."""
+def gather_segments(
+    log: DriveLog, segments: Segments, fix_weights: np.ndarray | None = None
+) -> SegmentData:
+    """Measured poses and inputs of ``segments``, padded to a common number of steps, with
+    the log's per-sample ``fix_weights`` ``(N,)`` if given."""
     if len(segments) == 0:
         raise ValueError("no segments to gather")
     index, valid = _sample_index(segments)
     poses = log.poses[index]
     inputs = log.inputs[index[:, :-1]]
     inputs[~valid[:, 1:]] = 0.0
-    return SegmentData(poses, inputs, segments.n_steps.copy(), valid, log.dt)
+    weights = None if fix_weights is None else np.asarray(fix_weights, float)[index]
+    return SegmentData(poses, inputs, segments.n_steps.copy(), valid, log.dt, index, weights)

@@ -39,3 +39,33 @@ def shift_wheel_rotations(log: DriveLog, offset: float) -> DriveLog:
         at[after] = cumulative[-1] + (ends[after] + offset - ends[-1]) * rate_last
         shifted[name] = np.diff(at)
     return dataclasses.replace(log, **shifted)
+
+
+#: Half-width [s] of the moving mean that smooths the wheel speeds of
+#: :func:`rotation_rate_changes`: the speed changes over ~1 s, the rotation noise per step.
+RATE_SMOOTHING_S = 0.25
+
+
+def rotation_rate_changes(rotations: np.ndarray, dt: float) -> np.ndarray:
+    """How each step's rotation changes per second of wheel time offset, ``(K, W)`` [rev/s].
+
+    The rotation over ``[t_k + τ, t_k+1 + τ]`` is ``n_k + τ · (ṅ(t_k+1) − ṅ(t_k))`` to first
+    order, with ``ṅ`` the wheel speed [rev/s] at the step boundaries: here from the rotations
+    ``(K, W)`` per step averaged over a centred window of :data:`RATE_SMOOTHING_S` on each
+    side (narrower near the ends), so that the rotation noise is not differenced.
+    """
+    rotations = np.asarray(rotations, float)
+    k = len(rotations)
+    if k < 2:
+        return np.zeros_like(rotations)
+    half = max(1, round(RATE_SMOOTHING_S / dt))
+    total = np.concatenate([np.zeros((1, *rotations.shape[1:])), np.cumsum(rotations, axis=0)])
+    steps = np.arange(k)
+    width = np.minimum(np.minimum(steps, k - 1 - steps), half)
+    speed = (total[steps + width + 1] - total[steps - width]) / ((2 * width + 1)[:, None] * dt)
+    # At the boundaries: between step centres, extrapolated linearly at the two ends.
+    inner = 0.5 * (speed[1:] + speed[:-1])
+    first = 1.5 * speed[0] - 0.5 * speed[1]
+    last = 1.5 * speed[-1] - 0.5 * speed[-2]
+    boundary = np.concatenate([first[None], inner, last[None]])
+    return np.diff(boundary, axis=0)

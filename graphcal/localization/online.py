@@ -34,6 +34,7 @@ from graphcal.graph.keyframes import gnss_keyframes
 from graphcal.graph.keys import keyframe as _pose_key
 from graphcal.graph.keys import theta as _theta_key
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
+from graphcal.localization.smoothing import gnss_noise, gnss_usable
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate
 
 
@@ -51,6 +52,10 @@ class OnlineSettings:
         initial_heading_sigma: prior [rad] on the first keyframe's heading (from the log).
         wheel_noise: wheel-rotation noise [rev] propagated into the odometry factors.
         relinearize_threshold: iSAM2 relinearization threshold on variable updates.
+        gnss_huber: Huber threshold [in σ] of the GNSS factors (0: Gaussian). Keyframes at
+            masked or flagged samples get no GNSS factor. Correct a time offset or lever arm
+            beforehand with the calibration's estimates
+            (:func:`graphcal.pipeline.sensor_estimates.correct_log`).
     """
 
     gnss_rate_hz: float = 5.0
@@ -66,6 +71,7 @@ class OnlineSettings:
     initial_heading_sigma: float = 0.1
     wheel_noise: float = DEFAULT_WHEEL_NOISE
     relinearize_threshold: float = 1e-5
+    gnss_huber: float = 3.0
 
     def __post_init__(self) -> None:
         if not (self.lag_s > 0 and self.theta_slice_s > 0):
@@ -122,7 +128,8 @@ def run_online(
     params = gtsam.ISAM2Params()
     params.setRelinearizeThreshold(settings.relinearize_threshold)
     smoother = gtsam.IncrementalFixedLagSmoother(settings.lag_s, params)
-    position_noise = gtsam.noiseModel.Isotropic.Sigma(2, settings.gnss_sigma)
+    position_noise = gnss_noise(settings.gnss_sigma, settings.gnss_huber)
+    usable = dict(zip(keyframes.tolist(), gnss_usable(log, keyframes).tolist(), strict=True))
     heading_noise = (
         None
         if settings.heading_sigma is None
@@ -134,9 +141,10 @@ def run_online(
     inputs = log.inputs
 
     def measurement_factors(key: int, k: int) -> list:
-        out = [
-            gtsam.PoseTranslationPrior2D(key, gtsam.Point2(log.px[k], log.py[k]), position_noise)
-        ]
+        out = []
+        if usable[int(k)]:
+            point = gtsam.Point2(log.px[k], log.py[k])
+            out.append(gtsam.PoseTranslationPrior2D(key, point, position_noise))
         if heading_noise is not None:
             out.append(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
         return out

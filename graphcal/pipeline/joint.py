@@ -20,25 +20,34 @@ likelihood estimate of theta, start poses and true rotations together.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
+import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import check_settings
+from graphcal.errors import GraphcalError, check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
+from graphcal.graph import keys
 from graphcal.graph.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
+from graphcal.graph.robust import solve_segment_graph_robust
 from graphcal.graph.segment_graph import (
     CorrectionPrior,
     SegmentGraphSpec,
+    SegmentSolution,
     ThetaEstimate,
     solve_segment_graph,
+    with_covariance,
 )
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
+
+#: ``JointSettings.slip``: model slow wheel slip when the log shows it, always, or never.
+SLIP_MODES = ("auto", "on", "off")
 
 
 @dataclass(frozen=True)
@@ -50,6 +59,9 @@ class JointSettings:
         pose_weights, position_sigma: the paper's W with the position noise give the pose
             sigmas of the measurement and tracking residuals.
         wheel_noise: sigma [rev] of the measured wheel rotations: the corrections' prior.
+        tick_quantization: sigma [rev] of the rounding error of each wheel's cumulative
+            encoder count, ``1 / (ticks per revolution · √12)`` (from the vehicle profile, or
+            detected in the log), or 0 for none.
         smoothness_weight: R on the change of corrected rotations; 0 leaves it out (with
             white rotation noise it adds nothing measurable, ``docs/method.md``).
         chunk_steps: steps per Python factor.
@@ -57,9 +69,26 @@ class JointSettings:
         max_iterations: Levenberg–Marquardt iteration limit.
         max_sigma_ratio: a parameter counts as calibrated when the data shrink its prior
             sigma to at most this fraction (:mod:`graphcal.graph.observability`).
-        slip_sigma: stationary sigma of a relative slip scale of each rear wheel per chunk
-            (slow, coloured slip; e.g. 0.0015 = 0.15 %), or 0 for none (the default).
+        slip: ``"auto"`` (model slow wheel slip when the log shows it: see
+            :func:`calibrate_joint`), ``"on"`` or ``"off"``.
+        slip_sigma: stationary sigma of the modelled relative slip scale of each rear wheel
+            per chunk (slow, coloured slip; 0.0015 = 0.15 %).
         slip_time: correlation time [s] of the slip scales from chunk to chunk.
+        slip_detection: with ``slip = "auto"``, slip is modelled when adding it lowers the
+            whole solve's χ² by more than this per chunk (measured 0.55–0.59 on drives
+            without slip, about 1.0 with 10 Hz fixes interpolated to 40 Hz, 1.1 with 0.05 %
+            slip and 4–5.6 with 0.15 %, ``docs/defects.md``).
+        time_offset_sigma: prior sigma [s] of the wheels' time offset against the pose,
+            estimated with theta (0: not estimated).
+        lever_arm_sigma: prior sigma [m] of each component of the GNSS antenna's lever arm,
+            estimated with theta (0: not estimated).
+        heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading
+            (a fused heading's slow bias; 0: none).
+        robust_threshold: fixes whose position residual exceeds this many times the
+            residuals' scale are down-weighted (:mod:`graphcal.graph.robust`; 0: off).
+        heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
+            white noise measured in the log (:mod:`graphcal.data.noise`) instead of the
+            vehicle's ``heading_sigma``.
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
@@ -67,15 +96,27 @@ class JointSettings:
     pose_weights: tuple[float, float, float] = PAPER_POSE_WEIGHTS
     position_sigma: float = 0.2
     wheel_noise: float = 0.0005
+    tick_quantization: float = 0.0
     smoothness_weight: float = 0.0
     chunk_steps: int = 50
     continuity_sigmas: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
     max_iterations: int = 30
     max_sigma_ratio: float = DEFAULT_MAX_SIGMA_RATIO
-    slip_sigma: float = 0.0
+    slip: str = "auto"
+    slip_sigma: float = 0.0015
     slip_time: float = 5.0
+    slip_detection: float = 1.3
+    time_offset_sigma: float = 0.5
+    lever_arm_sigma: float = 2.0
+    heading_bias_sigma: float = 0.02
+    robust_threshold: float = 5.0
+    heading_noise_from_log: bool = True
 
     def __post_init__(self) -> None:
+        if self.slip not in SLIP_MODES:
+            raise GraphcalError(
+                f"joint.slip must be one of {', '.join(SLIP_MODES)}, got {self.slip!r}"
+            )
         check_settings(
             "joint",
             positive_vectors={
@@ -88,18 +129,27 @@ class JointSettings:
                 "position_sigma": self.position_sigma,
                 "wheel_noise": self.wheel_noise,
                 "slip_time": self.slip_time,
+                "slip_sigma": self.slip_sigma,
+                "slip_detection": self.slip_detection,
                 "max_sigma_ratio": self.max_sigma_ratio,
             },
             non_negative={
                 "smoothness_weight": self.smoothness_weight,
-                "slip_sigma": self.slip_sigma,
+                "tick_quantization": self.tick_quantization,
+                "time_offset_sigma": self.time_offset_sigma,
+                "lever_arm_sigma": self.lever_arm_sigma,
+                "heading_bias_sigma": self.heading_bias_sigma,
+                "robust_threshold": self.robust_threshold,
             },
             at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
         )
 
-    def graph_spec(self, theta_prior: bool = True) -> SegmentGraphSpec:
+    def graph_spec(self, theta_prior: bool = True, slip: bool | None = None) -> SegmentGraphSpec:
         """The joint segment graph; ``theta_prior=False`` leaves out the weak prior on theta
-        (the measurements' information alone, as the Cramér–Rao bound needs)."""
+        (the measurements' information alone, as the Cramér–Rao bound needs); ``slip``
+        includes the slip scales (default: only with ``slip = "on"``)."""
+        if slip is None:
+            slip = self.slip == "on"
         sigmas = pose_sigmas(self.pose_weights, self.position_sigma)
         smooth = self.smoothness_weight > 0
         return SegmentGraphSpec(
@@ -112,10 +162,33 @@ class JointSettings:
             corrections=CorrectionPrior(
                 sigma=self.wheel_noise,
                 smoothness_sigma=1.0 / np.sqrt(self.smoothness_weight) if smooth else None,
+                quantization=self.tick_quantization,
             ),
-            slip_sigma=self.slip_sigma if self.slip_sigma > 0 else None,
+            slip_sigma=self.slip_sigma if slip else None,
             slip_time=self.slip_time,
+            time_offset_sigma=_optional(self.time_offset_sigma),
+            lever_arm_sigma=_optional(self.lever_arm_sigma),
+            heading_bias_sigma=_optional(self.heading_bias_sigma),
         )
+
+
+def without_defect_model(settings: JointSettings) -> JointSettings:
+    """``settings`` estimating theta alone: no time offset, lever arm, heading biases, slip
+    or robust weights (the model of a clean log)."""
+    return dataclasses.replace(
+        settings,
+        time_offset_sigma=0.0,
+        lever_arm_sigma=0.0,
+        heading_bias_sigma=0.0,
+        robust_threshold=0.0,
+        slip="off",
+        heading_noise_from_log=False,
+    )
+
+
+def _optional(sigma: float) -> float | None:
+    """A prior sigma, or ``None`` for 0 (the variable left out)."""
+    return float(sigma) if sigma > 0 else None
 
 
 @dataclass(frozen=True)
@@ -125,21 +198,42 @@ class JointCalibration(ThetaEstimate):
 
     Attributes:
         observability: which parameters the data determined (from ``covariance``).
+        fix_weights: ``(S, K+1)`` robust weight of each measured pose of the segments, or
+            ``None`` if every fix kept weight 1.
+        slip_modelled: the solve has slip scales.
+        slip_statistic: with ``slip = "auto"``, how much adding slip scales lowered χ², per
+            chunk (``None`` otherwise).
     """
 
     observability: Observability
+    fix_weights: np.ndarray | None = None
+    slip_modelled: bool = False
+    slip_statistic: float | None = None
 
 
 def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) -> JointCalibration:
-    """Estimate theta, start poses and wheel-rotation corrections of a batch in one solve.
+    """Estimate theta, start poses and wheel-rotation corrections of a batch in one solve
+    (with the time offset, lever arm and heading biases, and robust fix weights, if the
+    settings ask for them).
 
     Raises:
         CalibrationFailed: if the solve fails or gives an implausible theta.
     """
     settings = settings or JointSettings()
-    solved = solve_segment_graph(
-        data, settings.graph_spec(), settings.max_iterations, 1e-7, "joint solve"
+    auto = settings.slip == "auto"
+    label = "joint solve"
+    solved, weights = solve_segment_graph_robust(
+        data,
+        settings.graph_spec(),
+        settings.max_iterations,
+        1e-7,
+        label,
+        settings.robust_threshold,
+        covariance=not auto,
     )
+    statistic = None
+    if auto:
+        solved, statistic = _with_slip_if_shown(solved, data, weights, settings)
     observability = assess_observability(
         solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
     )
@@ -151,5 +245,41 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
         solved.initial_error,
         solved.final_error,
         observability,
+        weights,
+        solved.built.spec.slip_sigma is not None,
+        statistic,
         degrees_of_freedom=solved.degrees_of_freedom,
+        nuisance=solved.nuisance,
     )
+
+
+def _with_slip_if_shown(
+    solved: SegmentSolution,
+    data: SegmentData,
+    weights: np.ndarray | None,
+    settings: JointSettings,
+) -> tuple[SegmentSolution, float]:
+    """The solve with slip scales if the log shows slip, else ``solved``; both with their
+    covariance, and the statistic that decided.
+
+    Slip is a likelihood-ratio question: from the solution without slip (slip scales at
+    zero), one Levenberg–Marquardt iteration of the graph with slip scales lowers χ² by
+    about what the full solve would (the scales enter nearly linearly). Per chunk, that drop
+    is 0.55–0.59 on drives without slip; above ``settings.slip_detection`` the solve with
+    slip continues from there to convergence.
+    """
+    spec = settings.graph_spec(slip=True)
+    weighted = data if weights is None else dataclasses.replace(data, fix_weights=weights)
+    initial = gtsam.Values(solved.result)
+    for s, bounds in enumerate(solved.built.bounds):
+        for j in range(len(bounds) - 1):
+            initial.insert(keys.segment_slip(s, j), np.zeros(2))
+    probe = solve_segment_graph(weighted, spec, 1, 1e-7, "joint solve", False, initial)
+    chunks = sum(len(bounds) - 1 for bounds in solved.built.bounds)
+    statistic = 2.0 * (solved.final_error - probe.final_error) / chunks
+    if statistic <= settings.slip_detection:
+        return with_covariance(solved, "joint solve"), statistic
+    final = solve_segment_graph(
+        weighted, spec, settings.max_iterations, 1e-7, "joint solve", True, probe.result
+    )
+    return dataclasses.replace(final, iterations=final.iterations + solved.iterations), statistic

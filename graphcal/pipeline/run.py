@@ -25,6 +25,7 @@ also turns wheel rotations into the distances segments are cut by. Comparison wi
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
@@ -33,6 +34,8 @@ import numpy as np
 
 from graphcal.data.antenna import move_to_centre
 from graphcal.data.drive_log import DriveLog
+from graphcal.data.noise import heading_noise
+from graphcal.data.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.data.segments import (
     SegmentData,
     Segments,
@@ -47,14 +50,21 @@ from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
-from graphcal.pipeline.profile import APPLY, ProfileEstimate, profile_estimate
+from graphcal.pipeline.sensor_estimates import (
+    DownWeightedFixes,
+    SensorEstimate,
+    correct_log,
+    log_weights,
+    sensor_estimates,
+)
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
-from graphcal.pipeline.time_offset import estimate_time_offset
 from graphcal.pipeline.trust import TrustAssessment, assess_trust
 from graphcal.pipeline.validation import position_errors
 
 Progress = Callable[[str], None]
+#: Weight of a fix the loader flagged as an isolated spike (its sigma ×100).
+FLAGGED_WEIGHT = 1e-4
 Method = Literal["staged", "joint", "whole"]
 METHODS = ("staged", "joint", "whole")
 
@@ -90,9 +100,13 @@ class CalibrationRun:
             failed (never written to a file).
         warnings: what a user must know before trusting the result.
         trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
-        estimated: quantities estimated from χ² profiles and corrected in ``log`` before
-            calibrating (``"time_offset"`` [s], ``"lever_arm_longitudinal"``,
-            ``"lever_arm_lateral"`` [m]; :mod:`graphcal.pipeline.profile`).
+        estimated: sensor quantities the whole-log solve estimated with theta
+            (``"time_offset"`` [s], ``"lever_arm_longitudinal"``, ``"lever_arm_lateral"``
+            [m]; :mod:`graphcal.pipeline.sensor_estimates`); observable ones are corrected
+            in ``log`` for the batches and the validation.
+        down_weighted: the fixes the robust whole-log solve down-weighted as outliers.
+        whole: the whole-log joint solve (joint and whole methods, and staged when it
+            estimates sensor quantities or outliers), ``None`` otherwise.
     """
 
     log: DriveLog
@@ -116,7 +130,9 @@ class CalibrationRun:
     covariance: np.ndarray | None = None
     observability: Observability | None = None
     trust: TrustAssessment | None = None
-    estimated: dict[str, ProfileEstimate] = field(default_factory=dict)
+    estimated: dict[str, SensorEstimate] = field(default_factory=dict)
+    down_weighted: DownWeightedFixes | None = None
+    whole: JointCalibration | None = None
 
     def verdicts(self) -> dict[str, str]:
         """Per parameter: the observability verdict, or why it is not to be trusted
@@ -258,13 +274,14 @@ def run_calibration(
     segments, yaw, selected, validation_segments = select(
         log, settings, say, fall_back_to_all=method != "staged"
     )
-    original = log
-    log, estimated = _estimate_and_correct(log, selected, settings, workers, say)
-    if log is not original:  # the corrections move distances a little: cut anew
-        segments, yaw, selected, validation_segments = select(
-            log, settings, lambda _line: None, fall_back_to_all=method != "staged"
-        )
-    data = gather_segments(log, selected)
+    settings = _with_detected_ticks(log, settings, say)
+    settings = _with_heading_noise(log, settings, say)
+    arm = settings.lever_arm
+    log = move_to_centre(log, (arm.longitudinal, arm.lateral))  # a known arm
+    flagged = None  # spikes the loader flagged get (almost) no weight
+    if log.outlying is not None:
+        flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
+    data = gather_segments(log, selected, flagged)
     validation = gather_segments(log, validation_segments)
     staged = None
     batches = None
@@ -272,6 +289,8 @@ def run_calibration(
     batch_covariance: dict[str, np.ndarray] = {}
     batch_excluded: dict[str, np.ndarray] = {}
     covariance = observability = whole = None
+    estimated: dict[str, SensorEstimate] = {}
+    down_weighted = None
     warnings: list[str] = []
     if log.masked is not None:
         seconds = float(log.masked.sum() * log.dt)
@@ -279,6 +298,38 @@ def run_calibration(
             f"{seconds:.1f} s of the log masked where the positions disagree with the wheels "
             f"({len(log.mask_notes)} span(s); first: {log.mask_notes[0]}); no segment spans them"
         )
+    if method != "staged" or _models_sensors(settings.joint):
+        # The recommended theta (joint, whole) first; it also finds the time offset, the
+        # lever arm and the outliers, corrected for everything after it.
+        whole, log, data, offset = _solve_with_time_offset(
+            log, selected, flagged, settings.joint, say
+        )
+        if offset:
+            validation = gather_segments(log, validation_segments)
+        if method != "staged":
+            theta, covariance, observability = _conditioned(whole, settings.joint)
+            if observability.degenerate:
+                warnings.append(
+                    f"{', '.join(observability.not_calibrated)} not calibrated: "
+                    f"{observability.message()}; kept at the prior (nominal) value"
+                )
+        residual = sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio)
+        estimated = _with_total_offset(residual, offset)
+        for line in _estimate_lines(estimated):
+            say(line)
+        down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
+        if whole.fix_weights is not None:
+            say(down_weighted.summary())
+        if whole.slip_statistic is not None:
+            say(slip_line(whole, settings.joint))
+        corrected = correct_log(log, residual)  # the log is already shifted by ``offset``
+        weights = flagged
+        if whole.fix_weights is not None:
+            weights = log_weights(data, whole.fix_weights, len(log.t))
+        if corrected is not log or weights is not None:
+            log = corrected
+            data = gather_segments(log, selected, weights)
+            validation = gather_segments(log, validation_segments)
     if method in ("staged", "joint"):
         b = settings.batches
         size = min(b.size, len(selected))
@@ -294,32 +345,33 @@ def run_calibration(
         theta = staged.final_theta
         batch_theta = dict(staged.theta)
         warnings += staged.warnings
-    else:
-        if method == "joint":
-            tasks = [(data.take(batch), settings.joint) for batch in batches]
-            batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
-            step1_failed = int((~np.all(np.isfinite(batch_theta["step1"]), axis=1)).sum())
-            if step1_failed:
-                warnings.append(
-                    f"step1: {step1_failed} of {len(batches)} batch solves of the Step 1 "
-                    "baseline failed and are left out of its statistics"
-                )
-            solved = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
-            nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
-            batch_theta["joint"] = np.array([nan_theta if r is None else r.theta for r in solved])
-            batch_covariance["joint"] = np.array(
-                [nan_matrix if r is None else r.covariance for r in solved]
-            )
-            reasons = np.array([exclusion_reason(r) for r in solved], dtype=object)
-            # Step 1 is the baseline of the same batches: compare both on the batches kept.
-            batch_excluded["joint"] = batch_excluded["step1"] = reasons
-            warnings += _exclusion_warnings(reasons)
-        theta, covariance, observability, whole = _whole_log_solve(data, settings.joint, say)
-        if observability.degenerate:
+    elif method == "joint":
+        # The log is corrected and the fixes weighted: batches estimate theta alone.
+        batch_settings = dataclasses.replace(
+            settings.joint,
+            time_offset_sigma=0.0,
+            lever_arm_sigma=0.0,
+            robust_threshold=0.0,
+            slip="on" if whole is not None and whole.slip_modelled else "off",
+        )
+        tasks = [(data.take(batch), batch_settings) for batch in batches]
+        batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
+        step1_failed = int((~np.all(np.isfinite(batch_theta["step1"]), axis=1)).sum())
+        if step1_failed:
             warnings.append(
-                f"{', '.join(observability.not_calibrated)} not calibrated: "
-                f"{observability.message()}; kept at the prior (nominal) value"
+                f"step1: {step1_failed} of {len(batches)} batch solves of the Step 1 "
+                "baseline failed and are left out of its statistics"
             )
+        solved = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
+        nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
+        batch_theta["joint"] = np.array([nan_theta if r is None else r.theta for r in solved])
+        batch_covariance["joint"] = np.array(
+            [nan_matrix if r is None else r.covariance for r in solved]
+        )
+        reasons = np.array([exclusion_reason(r) for r in solved], dtype=object)
+        # Step 1 is the baseline of the same batches: compare both on the batches kept.
+        batch_excluded["joint"] = batch_excluded["step1"] = reasons
+        warnings += _exclusion_warnings(reasons)
     batch_errors = {
         name: np.array(
             [
@@ -358,25 +410,6 @@ def run_calibration(
         validation_nominal=float(nominal),
     )
     warnings += [f"not to be trusted: {doubt}" for doubt in trust.doubts]
-    untried = [
-        flag
-        for flag, on in (
-            ("--estimate-time-offset", settings.time_offset.estimate),
-            ("--estimate-lever-arm", settings.lever_arm.estimate),
-        )
-        if not on
-    ]
-    if not trust.trusted and untried and whole is not None:
-        warnings.append(
-            f"wheels late against the pose or a GNSS antenna away from the centre of gravity "
-            f"cause such doubts: try {' and '.join(untried)}"
-        )
-    for name, estimate in estimated.items():
-        if estimate.at_edge:
-            warnings.append(
-                f"{name}: the smallest χ² lies at the end of the searched range "
-                f"({estimate.grid[0]:g} … {estimate.grid[-1]:g}); widen the search"
-            )
     solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
     if staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
         first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
@@ -409,6 +442,8 @@ def run_calibration(
         warnings=tuple(warnings),
         trust=trust,
         estimated=estimated,
+        down_weighted=down_weighted,
+        whole=whole,
         covariance=covariance,
         observability=observability,
     )
@@ -427,58 +462,140 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
     return out
 
 
-def _whole_log_solve(
-    data: SegmentData, settings: JointSettings, say: Progress
-) -> tuple[np.ndarray, np.ndarray, Observability, JointCalibration]:
-    """The joint solve over all ``data``: theta (unobservable parameters at their prior), its
-    covariance, observability and the solve itself."""
+def _whole_log_solve(data: SegmentData, settings: JointSettings, say: Progress) -> JointCalibration:
+    """The joint solve over all ``data``, with the progress lines a user waits for."""
     say(f"joint solve over all {len(data)} selected segments")
     result = calibrate_joint(data, settings)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
+    return result
+
+
+#: Whole-log solves at most, each after shifting the wheels exactly by the offset found so far.
+OFFSET_ROUNDS = 2
+
+
+def _solve_with_time_offset(
+    log: DriveLog,
+    selected: Segments,
+    flagged: np.ndarray | None,
+    settings: JointSettings,
+    say: Progress,
+) -> tuple[JointCalibration, DriveLog, SegmentData, float]:
+    """The whole-log solve; while it detects a wheel time offset, the wheels are shifted
+    exactly by the offset found so far (interpolating the cumulative rotation) and the solve
+    repeated, so that the graph's first-order shift only has to cover what is left.
+
+    Returns the last solve, the log and segments it solved, and the total shift [s]."""
+    data = gather_segments(log, selected, flagged)
+    whole = _whole_log_solve(data, settings, say)
+    total, shifted = 0.0, log
+    for _ in range(OFFSET_ROUNDS - 1):
+        found = sensor_estimates(whole.nuisance, settings.max_sigma_ratio).get("time_offset")
+        if found is None or not found.detected:
+            break
+        total += found.value
+        say(f"wheels shifted by {total * 1e3:+.1f} ms; solved again from the shifted log")
+        shifted = shift_wheel_rotations(log, total)
+        data = gather_segments(shifted, selected, flagged)
+        whole = _whole_log_solve(data, settings, say)
+    return whole, shifted, data, total
+
+
+def _with_total_offset(
+    estimates: dict[str, SensorEstimate], offset: float
+) -> dict[str, SensorEstimate]:
+    """``estimates`` with the time offset's value the total: ``offset`` the log was shifted
+    by, plus what the last solve found."""
+    found = estimates.get("time_offset")
+    if found is None or offset == 0.0:
+        return estimates
+    total = dataclasses.replace(found, value=found.value + offset)
+    return {**estimates, "time_offset": total}
+
+
+def _conditioned(
+    whole: JointCalibration, settings: JointSettings
+) -> tuple[np.ndarray, np.ndarray, Observability]:
+    """The whole-log theta with unobservable parameters at their prior, its covariance and
+    observability."""
     theta, covariance = condition_on_prior(
-        result.theta,
-        result.covariance,
-        result.observability.calibrated,
+        whole.theta,
+        whole.covariance,
+        whole.observability.calibrated,
         settings.theta_initial,
         settings.theta_prior_sigmas,
     )
-    return theta, covariance, result.observability, result
+    return theta, covariance, whole.observability
 
 
-def _estimate_and_correct(
-    log: DriveLog, selected: Segments, settings: Settings, workers: int, say: Progress
-) -> tuple[DriveLog, dict[str, ProfileEstimate]]:
-    """The log corrected by the time offset and the lever arm (given or estimated from χ²
-    profiles over ``selected``), and the estimates."""
-    estimated: dict[str, ProfileEstimate] = {}
-    o = settings.time_offset
-    if o.estimate:
-        found = estimate_time_offset(log, selected, settings.joint, o.search, o.step, workers, say)
-        estimated["time_offset"] = found
-        say(
-            f"time offset: wheels {found.value * 1e3:+.1f} ± {found.sigma * 1e3:.1f} ms late "
-            "against the pose; corrected"
+def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
+    """One line: whether the whole-log solve found slow wheel slip and modelled it."""
+    statistic = f"χ² lower by {whole.slip_statistic:.2f} per chunk with slip scales"
+    if whole.slip_modelled:
+        return (
+            f"slow wheel slip found ({statistic} > {settings.slip_detection:g}): modelled; "
+            "σ includes it"
         )
-        log = shift_wheel_rotations(log, found.value)
-    arm = settings.lever_arm
-    ahead, left = arm.longitudinal, arm.lateral
-    if arm.estimate:
-        for name, search in (
-            ("lever_arm_longitudinal", arm.search_longitudinal),
-            ("lever_arm_lateral", arm.search_lateral),
-        ):
-            grid = np.round(np.arange(-search, search + 0.5 * arm.step, arm.step), 9)
-            found = profile_estimate(name, log, selected, settings.joint, grid, workers, say)
-            estimated[name] = found
-            if found.observable:
-                say(f"{name}: {found.value:+.2f} ± {found.sigma:.2f} m; corrected")
-                log = APPLY[name](log, found.value)
-            else:
-                say(f"{name}: not observable from this drive; left at 0")
-        return log, estimated
-    return move_to_centre(log, (ahead, left)), estimated
+    return f"no slow wheel slip ({statistic} ≤ {settings.slip_detection:g})"
+
+
+def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Settings:
+    """``settings`` with the joint solve's tick quantization from the log's own resolution
+    (:mod:`graphcal.data.quantization`), unless the settings (or vehicle) give one."""
+    if settings.joint.tick_quantization > 0:
+        return settings
+    ticks = ticks_per_revolution(np.column_stack([log.n_rl, log.n_rr]))
+    if ticks is None:
+        return settings
+    say(f"wheel rotations are counts of {ticks} ticks per revolution: quantization modelled")
+    joint = dataclasses.replace(settings.joint, tick_quantization=quantization_sigma(ticks))
+    return dataclasses.replace(settings, joint=joint)
+
+
+def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Settings:
+    """``settings`` whose joint heading weight follows the log's own heading noise
+    (:mod:`graphcal.data.noise`), if ``heading_noise_from_log``."""
+    joint = settings.joint
+    if not joint.heading_noise_from_log:
+        return settings
+    sigma = heading_noise(log)
+    if sigma is None:
+        return settings
+    x, y, _ = joint.pose_weights
+    weight = float(f"{(joint.position_sigma / sigma) ** 2:.6g}")
+    say(f"heading noise {np.degrees(sigma):.2f}° (from the log): heading weight {weight:g}")
+    joint = dataclasses.replace(joint, pose_weights=(x, y, weight))
+    return dataclasses.replace(settings, joint=joint)
+
+
+def _models_sensors(settings: JointSettings) -> bool:
+    """The joint settings estimate a time offset or lever arm, or weight outliers."""
+    return max(settings.time_offset_sigma, settings.lever_arm_sigma, settings.robust_threshold) > 0
+
+
+#: How each sensor estimate is shown: label, unit, scale from SI, digits.
+_ESTIMATE_FORMAT = {
+    "time_offset": ("time offset: wheels late against the pose", "ms", 1e3, 1),
+    "lever_arm_longitudinal": ("GNSS antenna ahead of the centre of gravity", "m", 1.0, 3),
+    "lever_arm_lateral": ("GNSS antenna left of the centre of gravity", "m", 1.0, 3),
+}
+
+
+def _estimate_lines(estimated: dict[str, SensorEstimate]) -> list[str]:
+    """One progress line per sensor estimate."""
+    lines = []
+    for name, e in estimated.items():
+        label, unit, scale, digits = _ESTIMATE_FORMAT[name]
+        if e.observable:
+            lines.append(
+                f"{label}: {e.value * scale:+.{digits}f} ± {e.sigma * scale:.{digits}f} {unit}; "
+                f"{e.verdict}"
+            )
+        else:
+            lines.append(f"{label}: not observable from this drive")
+    return lines
 
 
 def _plural(count: int, one: str, many: str) -> str:

@@ -69,26 +69,25 @@ Every section and key, with the defaults::
     pose_weights = [1.0, 1.0, 50.0]                 # (v)
     position_sigma = 0.2        # (v) m
     wheel_noise = 0.0005        # (v) rev, sigma of the corrections' prior
+    tick_quantization = 0.0     # (v) rev, encoder count rounding (detected in the log if 0)
     smoothness_weight = 0.0     # R on the change of the corrections; 0 = off
     chunk_steps = 50
     continuity_sigmas = [0.001, 0.001, 0.0001]      # m, m, rad
     max_iterations = 30
     max_sigma_ratio = 0.1       # calibrated = data shrink the prior sigma to at most this
-    slip_sigma = 0.0            # wheel slip scale per chunk (0.0015 = 0.15 %); 0 = off
+    slip = "auto"               # slow wheel slip modelled: auto (when the log shows it) | on | off
+    slip_sigma = 0.0015         # its relative scale per wheel and chunk (0.15 %)
     slip_time = 5.0             # s, its correlation time from chunk to chunk
-
-    [time_offset]               # wheels late against the pose (--estimate-time-offset)
-    estimate = false
-    search = 0.2                # s, offsets tried from -search to +search ...
-    step = 0.05                 # s, ... in these steps; a parabola refines the best
+    slip_detection = 1.3        # auto: modelled when it lowers chi2 by more than this per chunk
+    time_offset_sigma = 0.5     # s, prior of the wheels' time offset (estimated); 0 = off
+    lever_arm_sigma = 2.0       # m, prior of the GNSS antenna's lever arm (estimated); 0 = off
+    heading_bias_sigma = 0.02   # rad, prior of a per-segment heading bias; 0 = off
+    robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
+    heading_noise_from_log = true  # heading weight from the log's own heading noise
 
     [lever_arm]                 # GNSS antenna ahead of / left of the centre of gravity
-    longitudinal = 0.0          # m, when known; the positions are moved by it
-    lateral = 0.0               # m
-    estimate = false            # --estimate-lever-arm: from chi2 profiles instead
-    search_longitudinal = 2.0   # m, +- range of the profile
-    search_lateral = 1.0        # m
-    step = 0.5                  # m
+    longitudinal = 0.0          # m, when known; the positions are moved by it (the
+    lateral = 0.0               # m   estimated arm is then what remains)
 
     [vehicle]                   # the paper's car; defaults of the keys marked (v) above
     name = "paper car"
@@ -97,7 +96,7 @@ Every section and key, with the defaults::
     position_sigma = 0.2        # m -> position_sigma
     heading_sigma = 0.0282842712474619  # rad -> pose_weights [1, 1, (0.2 / it)²] = [1, 1, 50]
     wheel_noise = 0.0005        # rev per sample interval -> [joint] wheel_noise
-    # ticks_per_revolution = 64 # encoder resolution; adds 1 / (6 ticks²) rev² to wheel_noise²
+    # ticks_per_revolution = 64 # encoder resolution -> [joint] tick_quantization 1/(ticks √12)
 """
 
 from __future__ import annotations
@@ -226,50 +225,23 @@ class StagedSettings:
 
 
 @dataclass(frozen=True)
-class TimeOffsetSettings:
-    """The wheel-vs-pose time offset (:mod:`graphcal.pipeline.time_offset`).
-
-    Attributes:
-        estimate: estimate it from the χ² profile of the joint solve and correct the wheels
-            by it before calibrating (about 12 extra whole-log solves; off by default).
-        search: offsets from ``-search`` to ``+search`` [s] are tried ...
-        step: ... every ``step`` [s]; a parabola refines the best.
-    """
-
-    estimate: bool = False
-    search: float = 0.2
-    step: float = 0.05
-
-    def __post_init__(self) -> None:
-        if not (self.search > 0 and 0 < self.step <= self.search):
-            raise ValueError("time_offset.search and step must be positive, step <= search")
-
-
-@dataclass(frozen=True)
 class LeverArmSettings:
     """The GNSS antenna's lever arm (:mod:`graphcal.data.antenna`), ahead of and left of the
     centre of gravity [m].
 
     Attributes:
         longitudinal, lateral: the arm, when known (from the vehicle's drawings); the
-            positions are moved to the centre of gravity by it.
-        estimate: estimate it from χ² profiles of the joint solve instead (about 20
-            extra whole-log solves; off by default); a component the drive cannot show (a
-            lateral arm on straight roads) is reported not observable and left at 0.
-        search_longitudinal, search_lateral, step: the profiles' ranges ±[m] and step [m].
+            positions are moved to the centre of gravity by it before calibrating. The
+            joint solve estimates what remains (``[joint] lever_arm_sigma``).
     """
 
     longitudinal: float = 0.0
     lateral: float = 0.0
-    estimate: bool = False
-    search_longitudinal: float = 2.0
-    search_lateral: float = 1.0
-    step: float = 0.5
 
     def __post_init__(self) -> None:
-        for name in ("search_longitudinal", "search_lateral", "step"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"lever_arm.{name} must be positive")
+        for name in ("longitudinal", "lateral"):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"lever_arm.{name} must be a finite number of metres")
 
 
 @dataclass(frozen=True)
@@ -287,7 +259,6 @@ class Settings:
     #: Changing it alone leaves the other sections as they are; :func:`apply_vehicle` makes
     #: the settings that depend on it follow.
     vehicle: VehicleProfile = field(default_factory=VehicleProfile)
-    time_offset: TimeOffsetSettings = field(default_factory=TimeOffsetSettings)
     lever_arm: LeverArmSettings = field(default_factory=LeverArmSettings)
 
     def to_dict(self) -> dict[str, Any]:
@@ -307,6 +278,17 @@ _MOVED = {
     ),
     "calibration.theta_nominal": "[calibration] theta_nominal is now theta_initial",
     "joint.theta_nominal": "[joint] theta_nominal is now theta_initial",
+    "time_offset": (
+        "[time_offset] is gone: the joint solve estimates the wheels' time offset with theta "
+        "([joint] time_offset_sigma, 0 = off)"
+    ),
+    **{
+        f"lever_arm.{key}": (
+            f"[lever_arm] {key} is gone: the joint solve estimates the lever arm with theta "
+            "([joint] lever_arm_sigma, 0 = off)"
+        )
+        for key in ("estimate", "search_longitudinal", "search_lateral", "step")
+    },
 }
 
 
@@ -388,7 +370,11 @@ _FROM_VEHICLE: dict[str, Callable[[VehicleProfile], Any]] = {
     "pose_weights": lambda v: v.pose_weights(),
     "position_sigma": lambda v: v.position_sigma,
 }
-_FROM_VEHICLE_JOINT = {**_FROM_VEHICLE, "wheel_noise": lambda v: v.effective_wheel_noise()}
+_FROM_VEHICLE_JOINT = {
+    **_FROM_VEHICLE,
+    "wheel_noise": lambda v: v.white_wheel_noise(),
+    "tick_quantization": lambda v: v.tick_quantization(),
+}
 _DERIVED_SECTIONS = (("calibration", _FROM_VEHICLE), ("joint", _FROM_VEHICLE_JOINT))
 
 
@@ -530,9 +516,8 @@ def for_derived_heading(settings: Settings) -> Settings:
         x, y, _ = section.pose_weights
         return dataclasses.replace(section, pose_weights=(x, y, DERIVED_HEADING_WEIGHT))
 
-    return dataclasses.replace(
-        settings, calibration=weights(settings.calibration), joint=weights(settings.joint)
-    )
+    joint = dataclasses.replace(weights(settings.joint), heading_noise_from_log=False)
+    return dataclasses.replace(settings, calibration=weights(settings.calibration), joint=joint)
 
 
 def vehicle_settings_in(path: str | os.PathLike[str]) -> set[str]:

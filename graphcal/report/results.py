@@ -19,7 +19,7 @@ from graphcal import __version__
 from graphcal.evaluation import Evaluation
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import CalibrationRun
+from graphcal.pipeline.run import CalibrationRun, slip_line
 from graphcal.report.figures import figures
 from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
@@ -251,6 +251,14 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
         doc["trust"] = run.trust.to_dict()
     if run.estimated:
         doc["estimated"] = {name: e.to_dict() for name, e in run.estimated.items()}
+    if run.down_weighted is not None:
+        doc["down_weighted_fixes"] = run.down_weighted.to_dict()
+    if run.whole is not None and run.whole.slip_statistic is not None:
+        doc["wheel_slip"] = {
+            "modelled": run.whole.slip_modelled,
+            "chi2_drop_per_chunk": run.whole.slip_statistic,
+            "detection_threshold": run.settings.joint.slip_detection,
+        }
     doc["warnings"] = list(run.warnings)
     doc["settings"] = run.settings.to_dict()
     doc["versions"] = {"graphcal": __version__, "gtsam": _gtsam_version()}
@@ -297,6 +305,10 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
         )
     if run.estimated:
         parts.append(estimates_table(run.estimated))
+    if run.down_weighted is not None:
+        parts.append(run.down_weighted.summary())
+    if run.whole is not None and run.whole.slip_statistic is not None:
+        parts.append(slip_line(run.whole, run.settings.joint))
     if run.covariance is not None and run.observability is not None:
         parts.append(
             f"recommended θ: joint solve over all {len(run.selected)} selected segments\n"

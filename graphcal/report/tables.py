@@ -165,16 +165,15 @@ _ESTIMATES = {
 
 
 def estimates_table(estimated: dict) -> str:
-    """The quantities estimated from χ² profiles (:mod:`graphcal.pipeline.profile`) with 1σ
-    and whether the drive showed them; each was corrected in the log before calibrating."""
-    rows = [["estimated and corrected", "value", "1σ", "verdict"]]
+    """The sensor quantities estimated with theta (:mod:`graphcal.pipeline.sensor_estimates`)
+    with 1σ and the verdict (detected ones are corrected in the log)."""
+    rows = [["sensors, estimated with θ", "value", "1σ", "verdict"]]
     for name, e in estimated.items():
         label, unit, scale, digits = _ESTIMATES.get(name, (name, "SI", 1.0, 4))
-        if e.observable:
-            value, sigma = f"{e.value * scale:+.{digits}f}", f"{e.sigma * scale:.{digits}f}"
-            rows.append([f"{label} [{unit}]", value, sigma, "estimated"])
-        else:
-            rows.append([f"{label} [{unit}]", "0", "", "not observable (left at 0)"])
+        value, sigma = f"{e.value * scale:+.{digits}f}", f"{e.sigma * scale:.{digits}f}"
+        if not e.observable:
+            value = ""
+        rows.append([f"{label} [{unit}]", value, sigma, e.verdict])
     return _render(rows)
 
 

@@ -1,0 +1,46 @@
+"""Noise levels read from the log itself, so that the σ graphcal reports matches the error.
+
+A fused heading's white noise varies by an order of magnitude between systems (the paper's
+1.5°, a good INS's 0.1–0.3°); weighting it wrongly leaves the heading's slow bias and the
+wheels' tick quantization to bias t_r and d (``docs/defects.md``). At 40 Hz the motion
+changes the heading smoothly (a yaw acceleration of 0.5 rad/s² moves a second difference by
+0.02°), so the second differences of the measured heading are its white noise:
+``Δ²ψ_k = ε_k+1 − 2 ε_k + ε_k−1``, variance ``6 σ²``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog
+
+#: White noise has second differences of the same spread over one and over two steps; a
+#: heading interpolated or held from a slower stream has much wider ones over two steps. Above
+#: this ratio the log's heading noise is not estimated.
+MAX_WIDE_RATIO = 1.5
+#: Smallest heading noise [rad] reported (a heading smoother than this is weighted as this).
+MIN_HEADING_SIGMA = np.deg2rad(0.01)
+
+
+def heading_noise(log: DriveLog) -> float | None:
+    """Robust sigma [rad] of the measured heading's white noise, from its second differences
+    away from masked samples (``1.4826 · MAD / √6``), or ``None`` for a log too short or
+    a heading interpolated or held from a slower stream (its noise is not white per sample;
+    the configured heading weight stays)."""
+    second = np.diff(log.psi, 2)
+    usable = np.ones(len(second), dtype=bool)
+    if log.masked is not None:
+        bad = np.asarray(log.masked)
+        usable &= ~(bad[:-2] | bad[1:-1] | bad[2:])
+    second = second[usable]
+    if len(second) < 100:
+        return None
+    wide = log.psi[4:] - 2.0 * log.psi[2:-2] + log.psi[:-4]  # over two steps each side
+    if _mad(wide) > MAX_WIDE_RATIO * _mad(second):
+        return None  # interpolated or held from a slower stream: not white per sample
+    return max(1.4826 * _mad(second) / np.sqrt(6.0), float(MIN_HEADING_SIGMA))
+
+
+def _mad(values: np.ndarray) -> float:
+    """Median absolute deviation."""
+    return float(np.median(np.abs(values - np.median(values))))

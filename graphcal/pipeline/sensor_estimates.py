@@ -1,0 +1,164 @@
+"""What the whole-log solve found out about the sensors: the wheels' time offset, the GNSS
+antenna's lever arm, and the fixes it down-weighted as outliers.
+
+The joint graph estimates the time offset and the lever arm with theta
+(:mod:`graphcal.graph.segment_graph`), each under a wide zero-mean prior; a component counts
+as observable when the drive shrinks that prior's sigma to at most the same fraction that
+theta's parameters need (:mod:`graphcal.graph.observability`), and as detected when it is
+observable and more than :data:`DETECTION_SIGMAS` σ from zero. Detected quantities are
+corrected in the log (:func:`correct_log`) for the batch solves and the validation (an
+estimate within noise of zero would only add its noise to every batch); a component the
+drive cannot show (a lateral arm on straight roads) is reported not observable.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from graphcal.data.antenna import move_to_centre
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.segments import SegmentData
+from graphcal.data.timing import shift_wheel_rotations
+from graphcal.graph.segment_graph import NuisanceEstimate
+
+#: Fixes with a robust weight below this are counted as down-weighted (an outlier's weight
+#: is ``(k σ̂ / |r|)²``: below 0.9 means more than ~5 % beyond the threshold).
+DOWN_WEIGHTED = 0.9
+#: An observable estimate farther than this many σ from zero is detected (and corrected).
+DETECTION_SIGMAS = 3.0
+#: Each estimated quantity's name per component of a nuisance variable.
+COMPONENTS = {
+    "time_offset": ("time_offset",),
+    "lever_arm": ("lever_arm_longitudinal", "lever_arm_lateral"),
+}
+
+
+@dataclass(frozen=True)
+class SensorEstimate:
+    """A sensor quantity estimated with theta (SI).
+
+    Attributes:
+        name: ``"time_offset"`` [s] (positive: wheels late against the pose),
+            ``"lever_arm_longitudinal"`` or ``"lever_arm_lateral"`` [m] (ahead, left).
+        value, sigma: the estimate and its standard deviation.
+        prior_sigma: the sigma of its zero-mean prior.
+        observable: the drive determined it.
+    """
+
+    name: str
+    value: float
+    sigma: float
+    prior_sigma: float
+    observable: bool
+
+    @property
+    def detected(self) -> bool:
+        """Observable and more than :data:`DETECTION_SIGMAS` σ from zero: corrected."""
+        return self.observable and abs(self.value) > DETECTION_SIGMAS * self.sigma
+
+    @property
+    def verdict(self) -> str:
+        """``"detected, corrected"``, ``"consistent with 0"`` or ``"not observable"``."""
+        if self.detected:
+            return "detected, corrected"
+        return "consistent with 0" if self.observable else "not observable"
+
+    def to_dict(self) -> dict:
+        """Plain data for ``calibration.json`` (``value`` is what the log was corrected by)."""
+        return {
+            "value": self.value if self.detected else 0.0,
+            "estimate": self.value,
+            "sigma": self.sigma,
+            "observable": self.observable,
+            "verdict": self.verdict,
+            "prior_sigma": self.prior_sigma,
+        }
+
+
+def sensor_estimates(
+    nuisance: dict[str, NuisanceEstimate], max_sigma_ratio: float
+) -> dict[str, SensorEstimate]:
+    """One :class:`SensorEstimate` per component of the nuisance variables of a solve."""
+    found = {}
+    for variable, estimate in nuisance.items():
+        observable = estimate.observable(max_sigma_ratio)
+        for i, name in enumerate(COMPONENTS[variable]):
+            found[name] = SensorEstimate(
+                name,
+                float(estimate.value[i]),
+                float(estimate.sigma[i]),
+                estimate.prior_sigma,
+                bool(observable[i]),
+            )
+    return found
+
+
+def correct_log(log: DriveLog, estimates: dict[str, SensorEstimate]) -> DriveLog:
+    """``log`` with the detected estimates undone: wheels shifted by the time offset,
+    positions moved from the antenna to the centre of gravity."""
+
+    def value(name: str) -> float:
+        e = estimates.get(name)
+        return e.value if e is not None and e.detected else 0.0
+
+    log = shift_wheel_rotations(log, value("time_offset"))
+    return move_to_centre(log, (value("lever_arm_longitudinal"), value("lever_arm_lateral")))
+
+
+@dataclass(frozen=True)
+class DownWeightedFixes:
+    """Fixes the robust solve gave a weight below :data:`DOWN_WEIGHTED` (outliers).
+
+    Attributes:
+        rows: their rows in the log; times: their times [s]; weights: their weights.
+        total: the fixes the solve used.
+    """
+
+    rows: np.ndarray
+    times: np.ndarray
+    weights: np.ndarray
+    total: int
+
+    @classmethod
+    def from_solve(
+        cls, data: SegmentData, weights: np.ndarray | None, times: np.ndarray
+    ) -> DownWeightedFixes:
+        """From a solve's per-segment ``weights`` ``(S, K+1)`` over ``data`` gathered from a
+        log with sample ``times``."""
+        total = int(data.valid.sum())
+        if weights is None or data.sample_index is None:
+            return cls(np.zeros(0, int), np.zeros(0), np.zeros(0), total)
+        per_row = log_weights(data, weights, len(times))
+        rows = np.flatnonzero(per_row < DOWN_WEIGHTED)
+        return cls(rows, times[rows], per_row[rows], total)
+
+    def summary(self) -> str:
+        """One line: how many fixes were down-weighted, and when the first few were."""
+        if not len(self.rows):
+            return f"no fix down-weighted as an outlier (of {self.total})"
+        shown = ", ".join(f"{t:.1f} s" for t in self.times[:5])
+        more = f" and {len(self.rows) - 5} more" if len(self.rows) > 5 else ""
+        return (
+            f"{len(self.rows)} of {self.total} fixes down-weighted as outliers "
+            f"(at {shown}{more}; calibration.json lists them)"
+        )
+
+    def to_dict(self) -> dict:
+        """Plain data for ``calibration.json``."""
+        return {
+            "count": len(self.rows),
+            "of": self.total,
+            "times_s": self.times.tolist(),
+            "weights": self.weights.tolist(),
+        }
+
+
+def log_weights(data: SegmentData, weights: np.ndarray, n_rows: int) -> np.ndarray:
+    """Per log row ``(n_rows,)``: the smallest weight any segment gave that row's fix (1 for
+    rows in no segment)."""
+    per_row = np.ones(n_rows)
+    index = data.sample_index[data.valid]
+    np.minimum.at(per_row, index, weights[data.valid])
+    return per_row

@@ -1,0 +1,153 @@
+"""The defects of real logs modelled in the joint solve: time offset, lever arm, heading bias,
+outlying fixes — each recovered on a short degraded drive, zero where absent, and reported
+not observable where the drive cannot show it."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+
+from graphcal.cli import main
+from graphcal.pipeline.joint import without_defect_model
+from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.settings import Settings
+from graphcal.simulate.defects import degrade, parse_defects
+from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
+
+SETTINGS = Settings()
+
+
+@pytest.fixture(scope="module")
+def clean():
+    return simulate_drive(4.0, 1)
+
+
+def _whole(drive, settings=SETTINGS):
+    return run_calibration(drive.measured, settings, "whole")
+
+
+def _errors_in_sigma(run, drive):
+    return (run.theta - drive.theta_true) / np.sqrt(np.diag(run.covariance))
+
+
+def test_absent_defects_are_estimated_as_zero(clean):
+    run = _whole(clean)
+    for name in ("time_offset", "lever_arm_longitudinal", "lever_arm_lateral"):
+        found = run.estimated[name]
+        assert found.observable
+        assert abs(found.value) < 2.5 * found.sigma, name
+    assert run.down_weighted.rows.size == 0
+    assert np.all(np.abs(_errors_in_sigma(run, clean)) < 3)
+
+
+def test_the_time_offset_is_recovered_and_theta_stays_unbiased(clean):
+    late = degrade(clean, parse_defects("latency=0.08"), 1)
+    run = _whole(late)
+    found = run.estimated["time_offset"]
+    assert abs(found.value - 0.08) < 0.010
+    assert abs(found.value - 0.08) < 3 * found.sigma + 1e-3
+    assert np.all(np.abs(_errors_in_sigma(run, late)) < 3)
+    plain = run_calibration(
+        late.measured,
+        dataclasses.replace(SETTINGS, joint=without_defect_model(SETTINGS.joint)),
+        "whole",
+    )
+    assert np.max(np.abs(_errors_in_sigma(plain, late))) > 5  # what the model prevents
+
+
+def test_the_lever_arm_is_recovered(clean):
+    moved = degrade(clean, parse_defects("lever_arm=1.2:0.5"), 1)
+    run = _whole(moved)
+    ahead, left = run.estimated["lever_arm_longitudinal"], run.estimated["lever_arm_lateral"]
+    assert ahead.observable and abs(ahead.value - 1.2) < 0.2
+    assert left.observable and abs(left.value - 0.5) < 0.2
+    assert abs(ahead.value - 1.2) < 3 * ahead.sigma + 0.02
+    assert np.all(np.abs(_errors_in_sigma(run, moved)) < 3)
+
+
+def test_a_straight_drive_cannot_show_the_lever_arm():
+    drive = degrade(simulate_drive(4.0, 1, route="straight"), parse_defects("lever_arm"), 1)
+    run = _whole(drive)
+    found = run.estimated["lever_arm_longitudinal"]
+    assert not found.observable
+    assert found.to_dict()["observable"] is False and found.to_dict()["value"] == 0.0
+
+
+def test_outlying_fixes_are_down_weighted_and_reported_with_their_times(clean):
+    spiked = degrade(clean, parse_defects("outliers=0.002"), 1)
+    truth = np.flatnonzero(
+        np.hypot(spiked.measured.px - clean.measured.px, spiked.measured.py - clean.measured.py)
+        > 5.0
+    )
+    run = _whole(spiked)
+    found = run.down_weighted
+    used = np.intersect1d(truth, run.data.sample_index[run.data.valid])
+    assert len(used) > 5
+    assert set(used) <= set(found.rows)  # every outlier the solve used is down-weighted
+    assert len(found.rows) < 2 * len(used) + 5  # and few good fixes with them
+    np.testing.assert_allclose(found.times, spiked.measured.t[found.rows])
+    assert np.all(np.abs(_errors_in_sigma(run, spiked)) < 3)
+
+
+def test_a_fused_heading_bias_is_absorbed_per_segment(clean):
+    biased = degrade(clean, parse_defects("heading_bias=0.0005"), 1)  # rad/s random walk
+    modelled = _whole(biased)
+    plain = _whole(
+        biased,
+        dataclasses.replace(
+            SETTINGS, joint=dataclasses.replace(SETTINGS.joint, heading_bias_sigma=0.0)
+        ),
+    )
+    assert np.all(np.abs(_errors_in_sigma(modelled, biased)) < 3)
+    assert np.max(np.abs(_errors_in_sigma(plain, biased))) > np.max(
+        np.abs(_errors_in_sigma(modelled, biased))
+    )
+
+
+def test_calibrate_reports_the_sensor_estimates(clean, tmp_path, capsys):
+    drive = degrade(clean, parse_defects("latency,lever_arm"), 1)
+    path = tmp_path / "drive.csv"
+    write_synthetic_drive(drive, path)
+    out = tmp_path / "r"
+    assert main(["calibrate", str(path), "--method", "whole", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "time offset (wheels late) [ms]" in printed
+    assert "lever arm, ahead [m]" in printed
+    result = json.loads((out / "calibration.json").read_text())
+    assert result["estimated"]["time_offset"]["value"] == pytest.approx(0.05, abs=0.01)
+    assert result["estimated"]["lever_arm_longitudinal"]["value"] == pytest.approx(1.2, abs=0.2)
+    assert result["down_weighted_fixes"]["count"] == 0
+
+
+def test_tick_counts_are_found_in_the_log_and_their_rounding_modelled(clean):
+    from graphcal.data.quantization import ticks_per_revolution
+
+    counted = degrade(clean, parse_defects("ticks=64"), 1)
+    rotations = np.column_stack([counted.measured.n_rl, counted.measured.n_rr])
+    assert ticks_per_revolution(rotations) == 64
+    assert ticks_per_revolution(np.column_stack([clean.measured.n_rl, clean.measured.n_rr])) is None
+    run = _whole(counted)
+    assert run.settings.joint.tick_quantization == pytest.approx(1 / (64 * np.sqrt(12)))
+    assert np.all(np.abs(_errors_in_sigma(run, counted)) < 3)
+
+
+def test_the_quantization_prior_has_the_covariance_of_differenced_counts():
+    import gtsam
+
+    from graphcal.factors import chunk_correction_prior
+
+    key, q, white = gtsam.symbol("c", 0), 0.004, 0.0005
+    measured = np.full((6, 2), 0.1)
+    factor = chunk_correction_prior(key, measured, np.full((6, 2), white), None, q)
+    values = gtsam.Values()
+    values.insert(key, np.zeros(12))
+    information = factor.linearize(values).information()
+    # Per wheel, a step's error is e_k+1 - e_k of counts rounded with sigma q, plus white noise.
+    difference = np.eye(7)[1:] - np.eye(7)[:-1]
+    per_wheel = q**2 * difference @ difference.T + white**2 * np.eye(6)
+    expected = np.zeros((12, 12))
+    expected[0::2, 0::2] = expected[1::2, 1::2] = per_wheel
+    np.testing.assert_allclose(np.linalg.inv(information), expected, rtol=1e-9, atol=1e-15)
