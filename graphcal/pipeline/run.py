@@ -473,7 +473,7 @@ def _whole_log_solve(data: SegmentData, settings: JointSettings, say: Progress) 
 
 
 #: Whole-log solves at most, each after shifting the wheels exactly by the offset found so far.
-OFFSET_ROUNDS = 2
+OFFSET_ROUNDS = 4
 
 
 def _solve_with_time_offset(
