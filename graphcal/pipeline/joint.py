@@ -100,7 +100,7 @@ class JointSettings:
     smoothness_weight: float = 0.0
     chunk_steps: int = 50
     continuity_sigmas: tuple[float, float, float] = (1e-3, 1e-3, 1e-4)
-    max_iterations: int = 30
+    max_iterations: int = 50
     max_sigma_ratio: float = DEFAULT_MAX_SIGMA_RATIO
     slip: str = "auto"
     slip_sigma: float = 0.0015

@@ -73,7 +73,7 @@ Every section and key, with the defaults::
     smoothness_weight = 0.0     # R on the change of the corrections; 0 = off
     chunk_steps = 50
     continuity_sigmas = [0.001, 0.001, 0.0001]      # m, m, rad
-    max_iterations = 30
+    max_iterations = 50
     max_sigma_ratio = 0.1       # calibrated = data shrink the prior sigma to at most this
     slip = "auto"               # slow wheel slip modelled: auto (when the log shows it) | on | off
     slip_sigma = 0.0015         # its relative scale per wheel and chunk (0.15 %)
