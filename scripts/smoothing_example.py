@@ -9,7 +9,7 @@ or reads ``--log``), builds the graph of
 position factor, a wheel-odometry factor between consecutive keyframes, theta as one
 variable under a weak prior — solves it with Levenberg–Marquardt and prints theta with its
 95 % interval (and the truth on synthetic drives) and the trajectory's error. The graph has
-robust GNSS factors and the antenna's lever arm as a variable; with
+robust GNSS factors (``--lever-arm-sigma`` makes the antenna's lever arm a variable); with
 ``--sensors-from-calibration`` the log is first corrected by the wheels' time offset and the
 lever arm that graphcal's whole-log calibration estimates (as a localization system would
 use its offline calibration). Writes the smoothed, GNSS and (synthetic) true trajectories as
@@ -47,6 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("results/smoothing"))
     parser.add_argument("--defects", default=None, help="degrade the simulated drive (LIST)")
     parser.add_argument("--sensors-from-calibration", action="store_true")
+    parser.add_argument("--lever-arm-sigma", type=float, default=0.0, help="m; 0: not estimated")
     args = parser.parse_args(argv)
 
     truth = theta_true = None
@@ -66,7 +67,10 @@ def main(argv: list[str] | None = None) -> int:
         found = ", ".join(f"{n} {e.value:+.3f} ({e.verdict})" for n, e in run.estimated.items())
         print(f"calibration: {found}; {time.perf_counter() - start:.1f} s")
     start = time.perf_counter()
-    result = smooth_drive(log, SmoothingSettings(gnss_rate_hz=args.gnss_rate_hz))
+    smoothing = SmoothingSettings(
+        gnss_rate_hz=args.gnss_rate_hz, lever_arm_sigma=args.lever_arm_sigma
+    )
+    result = smooth_drive(log, smoothing)
     seconds = time.perf_counter() - start
     if result.lever_arm is not None:
         arm, arm_cov = result.lever_arm

@@ -137,3 +137,20 @@ def test_tum_round_trip(tmp_path):
     with pytest.raises(GraphcalError, match="NaN"):
         write_tum(tmp_path / "bad.tum", t, states * np.nan)
     assert not (tmp_path / "bad.tum").exists()
+
+
+def test_smoothing_estimates_the_lever_arm_and_ignores_flagged_spikes():
+    from graphcal.data.drive_log import validate_frame
+    from graphcal.simulate.defects import degrade, parse_defects
+
+    drive = degrade(simulate_drive(2.0, 3), parse_defects("lever_arm,outliers"), 3)
+    log = validate_frame(drive.measured.to_dataframe(), "arm", 150.0)
+    assert log.outlying is not None and log.outlying.any()
+    result = smooth_drive(log, SmoothingSettings(lever_arm_sigma=2.0))
+    arm, covariance = result.lever_arm
+    assert abs(arm[0] - 1.2) < 0.2 and abs(arm[1]) < 0.2
+    assert abs(arm[0] - 1.2) < 3 * np.sqrt(covariance[0, 0]) + 0.02
+    sigma = np.sqrt(np.diag(result.covariance))
+    calibrated = result.observability.calibrated
+    error = np.abs(result.theta - drive.theta_true)
+    assert np.all(error[calibrated] < 3 * sigma[calibrated])
