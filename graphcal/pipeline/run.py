@@ -302,7 +302,7 @@ def run_calibration(
         # The recommended theta (joint, whole) first; it also finds the time offset, the
         # lever arm and the outliers, corrected for everything after it.
         whole, log, data, offset = _solve_with_time_offset(
-            log, selected, flagged, settings.joint, say
+            log, data, selected, flagged, settings.joint, say
         )
         if offset:
             validation = gather_segments(log, validation_segments)
@@ -478,6 +478,7 @@ OFFSET_ROUNDS = 4
 
 def _solve_with_time_offset(
     log: DriveLog,
+    data: SegmentData,
     selected: Segments,
     flagged: np.ndarray | None,
     settings: JointSettings,
@@ -487,8 +488,8 @@ def _solve_with_time_offset(
     exactly by the offset found so far (interpolating the cumulative rotation) and the solve
     repeated, so that the graph's first-order shift only has to cover what is left.
 
-    Returns the last solve, the log and segments it solved, and the total shift [s]."""
-    data = gather_segments(log, selected, flagged)
+    ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
+    the last solve, the log and segments it solved, and the total shift [s]."""
     whole = _whole_log_solve(data, settings, say)
     total, shifted = 0.0, log
     for _ in range(OFFSET_ROUNDS - 1):
