@@ -173,6 +173,7 @@ def test_settings_file_overrides_defaults_and_rejects_unknown_keys(tmp_path):
             "[staged.step4] tracking_weights must be a list of 3 finite numbers",
         ),
         ({"joint": {"pose_weights": 50.0}}, "[joint] pose_weights must be a list of 3"),
+        ({"joint": {"slip": "maybe"}}, "joint.slip must be one of auto, on, off, got 'maybe'"),
         ({"joint": {"lenght": 1}}, "unknown key(s) ['lenght'] in [joint]; known: ['theta_initial'"),
         ({"staged": {"step2": {"q": 1}}}, "unknown key(s) ['q'] in [staged.step2]; known:"),
         ({"calibraton": {}}, "unknown section(s) ['calibraton']; known: ['segments', 'batches'"),

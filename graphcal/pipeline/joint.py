@@ -27,7 +27,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import GraphcalError, check_settings
+from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph import keys
 from graphcal.graph.observability import (
@@ -114,7 +114,7 @@ class JointSettings:
 
     def __post_init__(self) -> None:
         if self.slip not in SLIP_MODES:
-            raise GraphcalError(
+            raise ValueError(
                 f"joint.slip must be one of {', '.join(SLIP_MODES)}, got {self.slip!r}"
             )
         check_settings(
