@@ -134,6 +134,20 @@ def test_tick_counts_are_found_in_the_log_and_their_rounding_modelled(clean):
     assert np.all(np.abs(_errors_in_sigma(run, counted)) < 3)
 
 
+def test_a_time_offset_between_samples_leaves_the_wheel_counts_whole(clean):
+    """62.5 ms is 2.5 samples: the solved wheels move by whole samples, so they stay tick
+    counts whose rounding the prior models; the graph's first order covers the rest."""
+    from graphcal.data.quantization import ticks_per_revolution
+
+    late = degrade(clean, parse_defects("latency=0.0625,ticks"), 1)
+    run = _whole(late)
+    found = run.estimated["time_offset"]
+    assert abs(found.value - 0.0625) < 3 * found.sigma + 1e-3
+    solved = run.data.inputs[..., :2][run.data.valid[:, 1:]]
+    assert ticks_per_revolution(solved) == 96
+    assert np.all(np.abs(_errors_in_sigma(run, late)) < 3)
+
+
 def test_the_quantization_prior_has_the_covariance_of_differenced_counts():
     import gtsam
 

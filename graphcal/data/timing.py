@@ -41,6 +41,12 @@ def shift_wheel_rotations(log: DriveLog, offset: float) -> DriveLog:
     return dataclasses.replace(log, **shifted)
 
 
+def whole_samples(offset: float, dt: float) -> float:
+    """``offset`` [s] rounded to a whole number of sample intervals ``dt`` [s]: the shifts
+    :func:`shift_wheel_rotations` makes without averaging neighbouring rotations."""
+    return float(np.round(offset / dt)) * dt
+
+
 #: Half-width [s] of the moving mean that smooths the wheel speeds of
 #: :func:`rotation_rate_changes`: the speed changes over ~1 s, the rotation noise per step.
 RATE_SMOOTHING_S = 0.25

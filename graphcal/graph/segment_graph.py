@@ -98,6 +98,7 @@ class SegmentGraphSpec:
         slip_time: that correlation time [s].
         time_offset_sigma: prior sigma [s] of the wheels' time offset (a variable,
             :data:`~graphcal.graph.keys.TIME_OFFSET`), or ``None`` for none.
+        time_offset_mean: that prior's mean [s] (and the variable's initial value).
         lever_arm_sigma: prior sigma [m] of each component of the antenna's lever arm (a
             variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
@@ -115,6 +116,7 @@ class SegmentGraphSpec:
     slip_sigma: float | None = None
     slip_time: float = 5.0
     time_offset_sigma: float | None = None
+    time_offset_mean: float = 0.0
     lever_arm_sigma: float | None = None
     heading_bias_sigma: float | None = None
 
@@ -228,16 +230,17 @@ def _insert_segment(
 
 
 def _insert_nuisance(values: gtsam.Values, spec: SegmentGraphSpec) -> None:
-    """Insert the graph-wide time offset and lever arm (at zero) if ``spec`` has them."""
+    """Insert the graph-wide time offset (at its prior mean) and lever arm (at zero) if
+    ``spec`` has them."""
     if spec.time_offset_sigma is not None:
-        values.insert(keys.TIME_OFFSET, np.zeros(1))
+        values.insert(keys.TIME_OFFSET, np.full(1, float(spec.time_offset_mean)))
     if spec.lever_arm_sigma is not None:
         values.insert(keys.LEVER_ARM, np.zeros(2))
 
 
-def _zero_prior(key: int, size: int, sigma: float) -> gtsam.PriorFactorVector:
+def _zero_prior(key: int, size: int, sigma: float, mean: float = 0.0) -> gtsam.PriorFactorVector:
     return gtsam.PriorFactorVector(
-        key, np.zeros(size), gtsam.noiseModel.Isotropic.Sigma(size, float(sigma))
+        key, np.full(size, float(mean)), gtsam.noiseModel.Isotropic.Sigma(size, float(sigma))
     )
 
 
@@ -260,7 +263,7 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
     time_offset_key = lever_arm_key = None
     if spec.time_offset_sigma is not None:
         time_offset_key = keys.TIME_OFFSET
-        graph.add(_zero_prior(time_offset_key, 1, spec.time_offset_sigma))
+        graph.add(_zero_prior(time_offset_key, 1, spec.time_offset_sigma, spec.time_offset_mean))
     if spec.lever_arm_sigma is not None:
         lever_arm_key = keys.LEVER_ARM
         graph.add(_zero_prior(lever_arm_key, 2, spec.lever_arm_sigma))

@@ -80,6 +80,8 @@ class JointSettings:
             slip and 4–5.6 with 0.15 %, ``docs/defects.md``).
         time_offset_sigma: prior sigma [s] of the wheels' time offset against the pose,
             estimated with theta (0: not estimated).
+        time_offset_mean: that prior's mean [s]: the offset left in the log's wheels after
+            it was shifted by whole samples (the batches get the whole-log estimate's rest).
         lever_arm_sigma: prior sigma [m] of each component of the GNSS antenna's lever arm,
             estimated with theta (0: not estimated).
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading
@@ -107,6 +109,7 @@ class JointSettings:
     slip_time: float = 5.0
     slip_detection: float = 1.3
     time_offset_sigma: float = 0.5
+    time_offset_mean: float = 0.0
     lever_arm_sigma: float = 2.0
     heading_bias_sigma: float = 0.02
     robust_threshold: float = 5.0
@@ -167,6 +170,7 @@ class JointSettings:
             slip_sigma=self.slip_sigma if slip else None,
             slip_time=self.slip_time,
             time_offset_sigma=_optional(self.time_offset_sigma),
+            time_offset_mean=self.time_offset_mean,
             lever_arm_sigma=_optional(self.lever_arm_sigma),
             heading_bias_sigma=_optional(self.heading_bias_sigma),
         )

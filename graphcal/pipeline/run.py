@@ -44,7 +44,7 @@ from graphcal.data.segments import (
     split_segments,
     yaw_rate_statistic,
 )
-from graphcal.data.timing import shift_wheel_rotations
+from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import GraphcalError
 from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import PARAMETER_NAMES
@@ -301,11 +301,9 @@ def run_calibration(
     if method != "staged" or _models_sensors(settings.joint):
         # The recommended theta (joint, whole) first; it also finds the time offset, the
         # lever arm and the outliers, corrected for everything after it.
-        whole, log, data, offset = _solve_with_time_offset(
+        whole, data, offset = _solve_with_time_offset(
             log, data, selected, flagged, settings.joint, say
         )
-        if offset:
-            validation = gather_segments(log, validation_segments)
         if method != "staged":
             theta, covariance, observability = _conditioned(whole, settings.joint)
             if observability.degenerate:
@@ -313,8 +311,9 @@ def run_calibration(
                     f"{', '.join(observability.not_calibrated)} not calibrated: "
                     f"{observability.message()}; kept at the prior (nominal) value"
                 )
-        residual = sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio)
-        estimated = _with_total_offset(residual, offset)
+        estimated = _with_total_offset(
+            sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
+        )
         for line in _estimate_lines(estimated):
             say(line)
         down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
@@ -322,14 +321,19 @@ def run_calibration(
             say(down_weighted.summary())
         if whole.slip_statistic is not None:
             say(slip_line(whole, settings.joint))
-        corrected = correct_log(log, residual)  # the log is already shifted by ``offset``
         weights = flagged
         if whole.fix_weights is not None:
             weights = log_weights(data, whole.fix_weights, len(log.t))
-        if corrected is not log or weights is not None:
-            log = corrected
-            data = gather_segments(log, selected, weights)
-            validation = gather_segments(log, validation_segments)
+        # Validation and the staged steps (no time-offset variable) get the exact correction;
+        # the joint batches the whole-sample shift, and the rest as their offset's prior.
+        exact = correct_log(log, estimated)
+        batch_log = (
+            exact if method == "staged" else correct_log(log, estimated, in_whole_samples=True)
+        )
+        data = gather_segments(batch_log, selected, weights)
+        if exact is not log:
+            validation = gather_segments(exact, validation_segments)
+        log = exact
     if method in ("staged", "joint"):
         b = settings.batches
         size = min(b.size, len(selected))
@@ -349,7 +353,7 @@ def run_calibration(
         # The log is corrected and the fixes weighted: batches estimate theta alone.
         batch_settings = dataclasses.replace(
             settings.joint,
-            time_offset_sigma=0.0,
+            **_batch_time_offset(estimated, log.dt),
             lever_arm_sigma=0.0,
             robust_threshold=0.0,
             slip="on" if whole is not None and whole.slip_modelled else "off",
@@ -472,7 +476,7 @@ def _whole_log_solve(data: SegmentData, settings: JointSettings, say: Progress) 
     return result
 
 
-#: Whole-log solves at most, each after shifting the wheels exactly by the offset found so far.
+#: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
 
 
@@ -483,25 +487,43 @@ def _solve_with_time_offset(
     flagged: np.ndarray | None,
     settings: JointSettings,
     say: Progress,
-) -> tuple[JointCalibration, DriveLog, SegmentData, float]:
-    """The whole-log solve; while it detects a wheel time offset, the wheels are shifted
-    exactly by the offset found so far (interpolating the cumulative rotation) and the solve
-    repeated, so that the graph's first-order shift only has to cover what is left.
+) -> tuple[JointCalibration, SegmentData, float]:
+    """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
+    the offset found so far, rounded to whole samples, and the solve repeated, so that the
+    graph's first-order shift only covers the rest (at most about half a sample).
+
+    Whole samples because a shift is exact only for them: between samples it averages
+    neighbouring rotations, which smooths their noise (tick quantization above all) away
+    from what the correction prior assumes. On a 24 km drive with 96-tick encoders, slow slip
+    and 62.5 ms latency, fractional shifting moved t_r by 4.3σ (``docs/defects.md``).
 
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
-    the last solve, the log and segments it solved, and the total shift [s]."""
+    the last solve, the segments it solved and the shift [s] of their wheels."""
     whole = _whole_log_solve(data, settings, say)
-    total, shifted = 0.0, log
+    shift = 0.0
     for _ in range(OFFSET_ROUNDS - 1):
         found = sensor_estimates(whole.nuisance, settings.max_sigma_ratio).get("time_offset")
         if found is None or not found.detected:
             break
-        total += found.value
-        say(f"wheels shifted by {total * 1e3:+.1f} ms; solved again from the shifted log")
-        shifted = shift_wheel_rotations(log, total)
-        data = gather_segments(shifted, selected, flagged)
+        rounded = whole_samples(shift + found.value, log.dt)
+        if rounded == shift:
+            break  # what is left is less than a sample: the graph's first order covers it
+        shift = rounded
+        say(f"wheels shifted by {shift * 1e3:+.1f} ms; solved again from the shifted log")
+        data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
         whole = _whole_log_solve(data, settings, say)
-    return whole, shifted, data, total
+    return whole, data, shift
+
+
+def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict[str, float]:
+    """The joint batches' time-offset prior: what the whole-log estimate leaves beyond the
+    whole-sample shift of their log, with its σ (no variable if the whole-log solve had
+    none)."""
+    found = estimated.get("time_offset")
+    if found is None:
+        return {"time_offset_sigma": 0.0}
+    rest = found.value - (whole_samples(found.value, dt) if found.detected else 0.0)
+    return {"time_offset_sigma": found.sigma, "time_offset_mean": rest}
 
 
 def _with_total_offset(

@@ -20,7 +20,7 @@ import numpy as np
 from graphcal.data.antenna import move_to_centre
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData
-from graphcal.data.timing import shift_wheel_rotations
+from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.graph.segment_graph import NuisanceEstimate
 
 #: Fixes with a robust weight below this are counted as down-weighted (an outlier's weight
@@ -95,15 +95,21 @@ def sensor_estimates(
     return found
 
 
-def correct_log(log: DriveLog, estimates: dict[str, SensorEstimate]) -> DriveLog:
-    """``log`` with the detected estimates undone: wheels shifted by the time offset,
+def correct_log(
+    log: DriveLog, estimates: dict[str, SensorEstimate], in_whole_samples: bool = False
+) -> DriveLog:
+    """``log`` with the detected estimates undone: wheels shifted by the time offset (rounded
+    to whole samples with ``in_whole_samples``: the rest is then the graph's to model),
     positions moved from the antenna to the centre of gravity."""
 
     def value(name: str) -> float:
         e = estimates.get(name)
         return e.value if e is not None and e.detected else 0.0
 
-    log = shift_wheel_rotations(log, value("time_offset"))
+    offset = value("time_offset")
+    if in_whole_samples:
+        offset = whole_samples(offset, log.dt)
+    log = shift_wheel_rotations(log, offset)
     return move_to_centre(log, (value("lever_arm_longitudinal"), value("lever_arm_lateral")))
 
 

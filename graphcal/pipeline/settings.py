@@ -80,6 +80,7 @@ Every section and key, with the defaults::
     slip_time = 5.0             # s, its correlation time from chunk to chunk
     slip_detection = 1.3        # auto: modelled when it lowers chi2 by more than this per chunk
     time_offset_sigma = 0.5     # s, prior of the wheels' time offset (estimated); 0 = off
+    time_offset_mean = 0.0      # s, its prior mean (the offset known to remain in the log)
     lever_arm_sigma = 2.0       # m, prior of the GNSS antenna's lever arm (estimated); 0 = off
     heading_bias_sigma = 0.02   # rad, prior of a per-segment heading bias; 0 = off
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
