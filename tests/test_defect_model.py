@@ -137,15 +137,25 @@ def test_tick_counts_are_found_in_the_log_and_their_rounding_modelled(clean):
 def test_a_time_offset_between_samples_leaves_the_wheel_counts_whole(clean):
     """62.5 ms is 2.5 samples: the solved wheels move by whole samples, so they stay tick
     counts whose rounding the prior models; the graph's first order covers the rest."""
+    import re
+
     from graphcal.data.quantization import ticks_per_revolution
+    from graphcal.pipeline.sensor_estimates import correct_log
 
     late = degrade(clean, parse_defects("latency=0.0625,ticks"), 1)
-    run = _whole(late)
+    lines: list[str] = []
+    run = run_calibration(late.measured, SETTINGS, "whole", progress=lines.append)
     found = run.estimated["time_offset"]
     assert abs(found.value - 0.0625) < 3 * found.sigma + 1e-3
-    solved = run.data.inputs[..., :2][run.data.valid[:, 1:]]
-    assert ticks_per_revolution(solved) == 96
+    shifts = [
+        float(m) for line in lines for m in re.findall(r"wheels shifted by ([-+.\d]+) ms", line)
+    ]
+    assert shifts and all(abs(ms / 25.0 - round(ms / 25.0)) < 1e-6 for ms in shifts)
     assert np.all(np.abs(_errors_in_sigma(run, late)) < 3)
+    shifted = correct_log(late.measured, run.estimated, in_whole_samples=True)
+    assert ticks_per_revolution(np.column_stack([shifted.n_rl, shifted.n_rr])) == 96
+    exact = correct_log(late.measured, run.estimated)  # between samples: averaged neighbours
+    assert ticks_per_revolution(np.column_stack([exact.n_rl, exact.n_rr])) != 96
 
 
 def test_the_quantization_prior_has_the_covariance_of_differenced_counts():

@@ -20,13 +20,16 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
   fixed-lag update;
 * (h) ``graphcal import`` of a long recording (GNSS 10 Hz, wheels and IMU 100 Hz as CSV
   streams) in a child process: time and the child's own peak memory
-  (:mod:`graphcal.bench.importing`).
+  (:mod:`graphcal.bench.importing`);
+* (i) the whole-log solve of the drive with the defect model (the defaults) and without it
+  (``--no-defect-model``), and the ratio of their times.
 
 Ratios are taken within one run, never against figures from another machine.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 import json
 import resource
@@ -43,7 +46,7 @@ import numpy as np
 from graphcal.bench.importing import import_item
 from graphcal.bench.localization import solve_smoothing
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
-from graphcal.data.drive_log import load_drive_log
+from graphcal.data.drive_log import DriveLog, load_drive_log
 from graphcal.data.segments import (
     gather_segments,
     make_batches,
@@ -54,7 +57,7 @@ from graphcal.localization.online import run_online
 from graphcal.model import integrate, integrate_with_jacobians
 from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.input_estimation import estimate_inputs
-from graphcal.pipeline.joint import calibrate_joint
+from graphcal.pipeline.joint import calibrate_joint, without_defect_model
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
@@ -184,6 +187,7 @@ def run_benchmarks(
             workers=workers,
         )
 
+    defect_ratio = whole_log_items(record, log, repeats)
     localization = localization_items(record, repeats)
     importing = None
     if import_hours > 0:
@@ -206,6 +210,7 @@ def run_benchmarks(
         },
         "items": rows,
         "naive_over_graphcal_per_iteration": speedup,
+        "defect_model_over_plain_whole_log": defect_ratio,
         "localization": localization,
         "import": importing,
         "agreement": {
@@ -217,6 +222,20 @@ def run_benchmarks(
             "theta_naive_formulation": approx.tolist(),
         },
     }
+
+
+def whole_log_items(record: Callable[..., None], log: DriveLog, repeats: int) -> float:
+    """(i) The whole-log solve (the recommended theta) of ``log`` with the defect model (the
+    defaults) and without it (``--no-defect-model``), one after the other; returns the ratio
+    of their median times (issue 13 asks at most 1.5 on a clean 24 km drive)."""
+    settings = Settings()
+    plain = dataclasses.replace(settings, joint=without_defect_model(settings.joint))
+    plain_s, _ = timed(lambda: run_calibration(log, plain, "whole"), repeats)
+    record("(i) whole-log solve, no defect model", plain_s)
+    model_s, _ = timed(lambda: run_calibration(log, settings, "whole"), repeats)
+    ratio = model_s / plain_s
+    record("(i) whole-log solve, defect model (default)", model_s, over_plain=ratio)
+    return ratio
 
 
 def localization_items(

@@ -288,6 +288,7 @@ def run_calibration(
     batch_theta: dict[str, np.ndarray] = {}
     batch_covariance: dict[str, np.ndarray] = {}
     batch_excluded: dict[str, np.ndarray] = {}
+    batch_data = data
     covariance = observability = whole = None
     estimated: dict[str, SensorEstimate] = {}
     down_weighted = None
@@ -324,13 +325,14 @@ def run_calibration(
         weights = flagged
         if whole.fix_weights is not None:
             weights = log_weights(data, whole.fix_weights, len(log.t))
-        # Validation and the staged steps (no time-offset variable) get the exact correction;
-        # the joint batches the whole-sample shift, and the rest as their offset's prior.
+        # Validation, the staged steps and Step 1 (no time-offset or lever-arm variable) get
+        # the exact correction; the joint batches the whole-sample shift, with the rest as
+        # their offset's prior, and the antenna where it is, the lever arm a variable.
         exact = correct_log(log, estimated)
-        batch_log = (
-            exact if method == "staged" else correct_log(log, estimated, in_whole_samples=True)
-        )
-        data = gather_segments(batch_log, selected, weights)
+        data = gather_segments(exact, selected, weights)
+        if method == "joint":
+            batch_log = correct_log(log, estimated, in_whole_samples=True, move_antenna=False)
+            batch_data = gather_segments(batch_log, selected, weights)
         if exact is not log:
             validation = gather_segments(exact, validation_segments)
         log = exact
@@ -350,15 +352,14 @@ def run_calibration(
         batch_theta = dict(staged.theta)
         warnings += staged.warnings
     elif method == "joint":
-        # The log is corrected and the fixes weighted: batches estimate theta alone.
+        # The fixes weighted as the whole-log solve found: batches solve without robust rounds.
         batch_settings = dataclasses.replace(
             settings.joint,
             **_batch_time_offset(estimated, log.dt),
-            lever_arm_sigma=0.0,
             robust_threshold=0.0,
             slip="on" if whole is not None and whole.slip_modelled else "off",
         )
-        tasks = [(data.take(batch), batch_settings) for batch in batches]
+        tasks = [(batch_data.take(batch), batch_settings) for batch in batches]
         batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
         step1_failed = int((~np.all(np.isfinite(batch_theta["step1"]), axis=1)).sum())
         if step1_failed:

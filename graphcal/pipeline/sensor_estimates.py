@@ -96,11 +96,16 @@ def sensor_estimates(
 
 
 def correct_log(
-    log: DriveLog, estimates: dict[str, SensorEstimate], in_whole_samples: bool = False
+    log: DriveLog,
+    estimates: dict[str, SensorEstimate],
+    in_whole_samples: bool = False,
+    move_antenna: bool = True,
 ) -> DriveLog:
     """``log`` with the detected estimates undone: wheels shifted by the time offset (rounded
-    to whole samples with ``in_whole_samples``: the rest is then the graph's to model),
-    positions moved from the antenna to the centre of gravity."""
+    to whole samples with ``in_whole_samples``: the rest is then the graph's to model) and,
+    with ``move_antenna``, positions moved from the antenna to the centre of gravity (along
+    the measured heading: a graph that has the lever arm as a variable does better, with its
+    predicted heading)."""
 
     def value(name: str) -> float:
         e = estimates.get(name)
@@ -110,6 +115,8 @@ def correct_log(
     if in_whole_samples:
         offset = whole_samples(offset, log.dt)
     log = shift_wheel_rotations(log, offset)
+    if not move_antenna:
+        return log
     return move_to_centre(log, (value("lever_arm_longitudinal"), value("lever_arm_lateral")))
 
 
