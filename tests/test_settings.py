@@ -235,6 +235,7 @@ def test_solver_modules_do_not_import_the_settings():
         ('[staged]\nestimate_start_poses = "no"\n', "must be true or false"),
         ("[joint]\npose_weights = [1, 0, 50]\n", "joint.pose_weights must be positive"),
         ("[segments]\nlength = 5\n", "segments.length must be at least 10 m"),
+        ("[joint]\ntime_offset_mean = nan\n", "joint.time_offset_mean must be a number"),
         ("[input_estimation]\nestimations = 5\n", "[input_estimation] is now [staged]"),
     ],
 )

@@ -48,6 +48,9 @@ from graphcal.graph.segment_graph import (
 from graphcal.graph.solve import gauss_newton_decrement
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
+#: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
+#: order, which holds for tens of milliseconds, not for seconds.
+MAX_TIME_OFFSET_MEAN = 1.0
 #: ``JointSettings.slip``: model slow wheel slip when the log shows it, always, or never.
 SLIP_MODES = ("auto", "on", "off")
 
@@ -121,6 +124,11 @@ class JointSettings:
         if self.slip not in SLIP_MODES:
             raise ValueError(
                 f"joint.slip must be one of {', '.join(SLIP_MODES)}, got {self.slip!r}"
+            )
+        if not abs(self.time_offset_mean) <= MAX_TIME_OFFSET_MEAN:  # NaN fails too
+            raise ValueError(
+                f"joint.time_offset_mean must be a number of seconds within "
+                f"±{MAX_TIME_OFFSET_MEAN:g}, got {self.time_offset_mean!r}"
             )
         check_settings(
             "joint",
