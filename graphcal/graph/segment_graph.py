@@ -238,7 +238,7 @@ def _insert_nuisance(values: gtsam.Values, spec: SegmentGraphSpec) -> None:
         values.insert(keys.LEVER_ARM, np.zeros(2))
 
 
-def _zero_prior(key: int, size: int, sigma: float, mean: float = 0.0) -> gtsam.PriorFactorVector:
+def _vector_prior(key: int, size: int, sigma: float, mean: float = 0.0) -> gtsam.PriorFactorVector:
     return gtsam.PriorFactorVector(
         key, np.full(size, float(mean)), gtsam.noiseModel.Isotropic.Sigma(size, float(sigma))
     )
@@ -263,10 +263,10 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
     time_offset_key = lever_arm_key = None
     if spec.time_offset_sigma is not None:
         time_offset_key = keys.TIME_OFFSET
-        graph.add(_zero_prior(time_offset_key, 1, spec.time_offset_sigma, spec.time_offset_mean))
+        graph.add(_vector_prior(time_offset_key, 1, spec.time_offset_sigma, spec.time_offset_mean))
     if spec.lever_arm_sigma is not None:
         lever_arm_key = keys.LEVER_ARM
-        graph.add(_zero_prior(lever_arm_key, 2, spec.lever_arm_sigma))
+        graph.add(_vector_prior(lever_arm_key, 2, spec.lever_arm_sigma))
     free_start = spec.start_prior_sigmas is not None
     continuity = np.asarray(spec.continuity_sigmas, float)
     tracking = np.asarray(spec.tracking_sigmas, float)
@@ -284,7 +284,7 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
         bias_key = None
         if spec.heading_bias_sigma is not None:
             bias_key = keys.segment_heading_bias(s)
-            graph.add(_zero_prior(bias_key, 1, spec.heading_bias_sigma))
+            graph.add(_vector_prior(bias_key, 1, spec.heading_bias_sigma))
         if free_start:
             start_weight = 1.0 if weights is None else float(weights[0])
             _add_start_prior(graph, s, poses[0], spec, lever_arm_key, bias_key, start_weight)
@@ -518,10 +518,11 @@ def solve_segment_graph(
     label: str,
     covariance: bool = True,
     initial: gtsam.Values | None = None,
+    built: SegmentGraph | None = None,
 ) -> SegmentSolution:
-    """Build the graph of ``spec`` over ``data`` and solve it with Levenberg–Marquardt, from
-    the builder's initial values or from ``initial`` (values of the same graph, e.g. an
-    earlier solution: a warm start).
+    """Build the graph of ``spec`` over ``data`` (or take ``built``, that graph already
+    built) and solve it with Levenberg–Marquardt, from the builder's initial values or from
+    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start).
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
@@ -529,7 +530,8 @@ def solve_segment_graph(
     Raises:
         CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
     """
-    built = build_segment_graph(data, spec)
+    if built is None:
+        built = build_segment_graph(data, spec)
     start = built.values if initial is None else initial
     initial_error = float(built.graph.error(start))
     result, iterations = solve_lm(

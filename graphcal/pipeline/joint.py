@@ -296,6 +296,6 @@ def _with_slip_if_shown(
     if statistic <= settings.slip_detection:
         return with_covariance(solved, "joint solve"), statistic
     final = solve_segment_graph(
-        weighted, spec, settings.max_iterations, 1e-7, "joint solve", True, initial
+        weighted, spec, settings.max_iterations, 1e-7, "joint solve", True, initial, with_slip
     )
     return dataclasses.replace(final, iterations=final.iterations + solved.iterations), statistic
