@@ -9,7 +9,11 @@ point ``theta_linearization``, together with
 * ``d_delta_d_theta`` (3, 4) — first-order correction for a different theta (the role of the
   IMU bias Jacobians);
 * ``covariance`` (3, 3) — the wheel-rotation noise propagated to ``delta``
-  (``wheel_noise² J_n J_nᵀ``, ``J_n = d delta / d wheel rotations``);
+  (``wheel_noise² J_n J_nᵀ``, ``J_n = d delta / d wheel rotations``), and, for encoders that
+  count ticks, the rounding of the cumulative counts (``quantization``): step ``k``'s rotation
+  error is ``e_(k+1) − e_k`` with ``e`` the rounding error at the sample, so neighbouring steps'
+  errors cancel and the increment sees ``quantization² Σ_j D_j D_jᵀ``,
+  ``D_j = J_(j−1) − J_j`` (per wheel, ``J_(−1) = J_L = 0``);
 * optionally ``d_delta_d_corrections`` (3, 2L) — ``J_n`` itself, columns
   ``[n_rl_0, n_rr_0, n_rl_1, ...]``.
 
@@ -51,6 +55,19 @@ def _compose_jacobians(delta1: np.ndarray, delta2: np.ndarray) -> tuple[np.ndarr
     return composed, a, b
 
 
+def _wheel_covariance(d_wheels: np.ndarray, white: float, quantization: float) -> np.ndarray:
+    """``(G, 3, 3)`` covariance of the increments whose wheel-rotation Jacobians are
+    ``d_wheels (G, 3, 2L)`` (columns ``[n_rl_0, n_rr_0, n_rl_1, ...]``): white rotation noise
+    ``white`` [rev] per step plus count rounding ``quantization`` [rev] at every sample."""
+    covariance = white**2 * d_wheels @ d_wheels.transpose(0, 2, 1)
+    if quantization > 0:
+        per_wheel = d_wheels.reshape(*d_wheels.shape[:2], -1, 2)  # (G, 3, L, 2)
+        padded = np.pad(per_wheel, ((0, 0), (0, 0), (1, 1), (0, 0)))
+        rounding = (padded[:, :, :-1] - padded[:, :, 1:]).reshape(*d_wheels.shape[:2], -1)
+        covariance = covariance + quantization**2 * rounding @ rounding.transpose(0, 2, 1)
+    return covariance
+
+
 class PreintegratedWheelOdometry:
     """Wheel steps of eq. (1) integrated into one body-frame increment ``delta``.
 
@@ -58,6 +75,12 @@ class PreintegratedWheelOdometry:
         theta_linearization: ``(4,)`` ``[c_e, c_d, t_r, d]`` [m, m, m, s²] to integrate at.
         wheel_noise: standard deviation [rev] of one measured wheel rotation per step.
         keep_correction_jacobian: also keep ``d_delta_d_corrections`` (3, 2L).
+        quantization: standard deviation [rev] of the rounding error of each wheel's
+            cumulative tick count (``1 / (ticks √12)``,
+            :func:`graphcal.data.quantization.quantization_sigma`), or 0. Each integrated
+            block counts from its own start sample: blocks appended one after another (and
+            consecutive keyframe intervals) treat the count at their common sample as two
+            independent errors, which overstates the increment's variance a little.
     """
 
     def __init__(
@@ -65,14 +88,18 @@ class PreintegratedWheelOdometry:
         theta_linearization: np.ndarray,
         wheel_noise: float = DEFAULT_WHEEL_NOISE,
         keep_correction_jacobian: bool = False,
+        quantization: float = 0.0,
     ) -> None:
         theta = np.array(theta_linearization, dtype=float)
         if theta.shape != (4,) or not np.all(np.isfinite(theta)):
             raise ValueError(f"theta_linearization must be 4 finite numbers, got {theta}")
         if not (np.isfinite(wheel_noise) and wheel_noise >= 0):
             raise ValueError(f"wheel_noise must be a finite number >= 0 [rev], got {wheel_noise}")
+        if not (np.isfinite(quantization) and quantization >= 0):
+            raise ValueError(f"quantization must be a finite number >= 0 [rev], got {quantization}")
         self._theta = theta
         self.wheel_noise = float(wheel_noise)
+        self.quantization = float(quantization)
         self.keep_correction_jacobian = bool(keep_correction_jacobian)
         self.reset()
 
@@ -104,7 +131,7 @@ class PreintegratedWheelOdometry:
         """An independent copy (blocks are never modified in place, so they are shared)."""
         self._flush()
         other = PreintegratedWheelOdometry(
-            self._theta, self.wheel_noise, self.keep_correction_jacobian
+            self._theta, self.wheel_noise, self.keep_correction_jacobian, self.quantization
         )
         other._delta = self._delta.copy()
         other._d_theta = self._d_theta.copy()
@@ -197,7 +224,7 @@ class PreintegratedWheelOdometry:
         states, _, d_theta = integrate_with_jacobians(np.zeros(3), inputs, self._theta)
         d_wheels = end_wheel_rotation_jacobian(states, inputs, self._theta).reshape(3, -1)
         delta = states[-1]
-        covariance = self.wheel_noise**2 * (d_wheels @ d_wheels.T)
+        covariance = _wheel_covariance(d_wheels[None], self.wheel_noise, self.quantization)[0]
         g = h = None
         if self.keep_correction_jacobian:
             h = d_wheels[2]
@@ -243,7 +270,8 @@ class PreintegratedWheelOdometry:
     def merge(self, other: PreintegratedWheelOdometry) -> PreintegratedWheelOdometry:
         """Append the interval ``other`` (which starts where this one ends), in place.
 
-        Both must share theta_linearization, wheel_noise and keep_correction_jacobian
+        Both must share theta_linearization, wheel_noise, quantization and
+        keep_correction_jacobian
         (else ``ValueError``). Returns ``self``.
         """
         self._flush()
@@ -255,6 +283,8 @@ class PreintegratedWheelOdometry:
             )
         if self.wheel_noise != other.wheel_noise:
             raise ValueError("cannot merge intervals with different wheel_noise")
+        if self.quantization != other.quantization:
+            raise ValueError("cannot merge intervals with different quantization")
         if self.keep_correction_jacobian != other.keep_correction_jacobian:
             raise ValueError("cannot merge intervals with and without correction Jacobians")
         g = h = None
@@ -285,6 +315,7 @@ class PreintegratedWheelOdometry:
         intervals: Sequence[np.ndarray],
         theta_linearization: np.ndarray,
         wheel_noise: float = DEFAULT_WHEEL_NOISE,
+        quantization: float = 0.0,
     ) -> list[PreintegratedWheelOdometry]:
         """Preintegrate many intervals ``[(L_i, 4), ...]`` at once: one vectorized integration
         per distinct length (keyframe intervals mostly share one), so the cost is linear in
@@ -309,9 +340,9 @@ class PreintegratedWheelOdometry:
             start = np.zeros((len(members), 3))
             states, _, d_theta = integrate_with_jacobians(start, stacked, theta)
             flat = end_wheel_rotation_jacobian(states, stacked, theta).reshape(len(members), 3, -1)
-            covariance = wheel_noise**2 * flat @ flat.transpose(0, 2, 1)
+            covariance = _wheel_covariance(flat, wheel_noise, quantization)
             for g, i in enumerate(members):
-                preintegrated = cls(theta, wheel_noise)
+                preintegrated = cls(theta, wheel_noise, quantization=quantization)
                 block = stacked[g].copy()
                 block.setflags(write=False)
                 preintegrated._delta = states[g, -1].copy()

@@ -37,12 +37,16 @@ def preintegrate(
     theta: np.ndarray,
     wheel_noise: float = DEFAULT_WHEEL_NOISE,
     keep_correction_jacobian: bool = False,
+    quantization: float = 0.0,
 ) -> PreintegratedWheelOdometry:
     """Preintegrate ``inputs (L, 4)`` ``[n_rl, n_rr, beta, ay]`` at ``theta (4,)`` [SI] in one call.
 
-    ``wheel_noise`` [rev] is the standard deviation of one measured wheel rotation per step.
+    ``wheel_noise`` [rev] is the standard deviation of one measured wheel rotation per step,
+    ``quantization`` [rev] that of a cumulative tick count's rounding (0: not counted).
     """
-    preintegrated = PreintegratedWheelOdometry(theta, wheel_noise, keep_correction_jacobian)
+    preintegrated = PreintegratedWheelOdometry(
+        theta, wheel_noise, keep_correction_jacobian, quantization
+    )
     preintegrated.integrate_measurements(inputs)
     return preintegrated
 
@@ -102,6 +106,15 @@ class WheelOdometryFactor:
         floor_sigmas: model-error floor [m, m, rad] of the noise model (``None``: none).
         reintegration_thresholds: ``(4,)`` [SI]; when ``|theta − theta_lin|`` exceeds one of
             them the inputs are re-integrated at theta before the error is evaluated.
+        slip_key: optional 2-vector ``[s_rl, s_rr]`` of relative wheel-slip scales over the
+            interval (slow slip: the rotation of wheel w is ``n_w (1 + s_w)``). A scale acts as
+            a change of that wheel's circumference (eqs. 3a, 3b), so the factor evaluates at
+            ``theta + S s`` with ``S = d[c_e, c_d, t_r, d]/d s`` built from the circumferences
+            at the construction's linearization point (constant, so the Jacobian
+            ``d e/d s = d e/d theta · S`` is exact; the relative error of that reference,
+            ``d·a_y/c_e``, is about 1e-3 of the slip).
+        slip_noise: ``(2, 2)`` covariance of slip scales that are not estimated (no
+            ``slip_key``), added to the noise model through the same Jacobian, or ``None``.
 
     The noise model ``Gaussian.Covariance(tangent_covariance())`` is fixed at construction.
     """
@@ -114,6 +127,8 @@ class WheelOdometryFactor:
         preintegrated: PreintegratedWheelOdometry,
         floor_sigmas: Sequence[float] | None = DEFAULT_FLOOR_SIGMAS,
         reintegration_thresholds: np.ndarray = DEFAULT_REINTEGRATION_THRESHOLDS,
+        slip_key: int | None = None,
+        slip_noise: np.ndarray | None = None,
     ) -> None:
         if preintegrated.n_steps == 0 and floor_sigmas is None:
             raise ValueError("an empty preintegration needs floor_sigmas for its noise model")
@@ -123,22 +138,31 @@ class WheelOdometryFactor:
         self.pose_i_key = pose_i_key
         self.pose_j_key = pose_j_key
         self.theta_key = theta_key
+        self.slip_key = slip_key
+        self.slip_to_theta = slip_to_theta(preintegrated.theta_linearization)
         self.preintegrated = preintegrated.copy()
         self.floor_sigmas = None if floor_sigmas is None else tuple(map(float, floor_sigmas))
         self.reintegration_thresholds = thresholds
         self.n_reintegrations = 0
-        self.noise_model = gtsam.noiseModel.Gaussian.Covariance(
-            self.preintegrated.tangent_covariance(floor_sigmas=self.floor_sigmas)
-        )
+        covariance = self.preintegrated.tangent_covariance(floor_sigmas=self.floor_sigmas)
+        if slip_noise is not None:
+            pim = self.preintegrated
+            c, s = np.cos(pim.delta[2]), np.sin(pim.delta[2])
+            tangent = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            d_slip = tangent @ pim.d_delta_d_theta @ self.slip_to_theta
+            covariance = covariance + d_slip @ np.asarray(slip_noise, float) @ d_slip.T
+        self.noise_model = gtsam.noiseModel.Gaussian.Covariance(0.5 * (covariance + covariance.T))
 
     def factor(self) -> gtsam.CustomFactor:
-        """A ``gtsam.CustomFactor`` (keys ``[pose_i, pose_j, theta]``) to add to a graph.
+        """A ``gtsam.CustomFactor`` (keys ``[pose_i, pose_j, theta]``, then ``slip`` if
+        given) to add to a graph.
 
         Every call makes a new CustomFactor around this object (they share its state).
         """
-        return gtsam.CustomFactor(
-            self.noise_model, [self.pose_i_key, self.pose_j_key, self.theta_key], self
-        )
+        keys = [self.pose_i_key, self.pose_j_key, self.theta_key]
+        if self.slip_key is not None:
+            keys.append(self.slip_key)
+        return gtsam.CustomFactor(self.noise_model, keys, self)
 
     def between_factor(self, theta: np.ndarray) -> gtsam.BetweenFactorPose2:
         """This factor with theta fixed, as a C++ ``BetweenFactorPose2``
@@ -162,11 +186,24 @@ class WheelOdometryFactor:
         return False
 
     def evaluate(
-        self, pose_i: gtsam.Pose2, pose_j: gtsam.Pose2, theta: np.ndarray, jacobians: bool = False
+        self,
+        pose_i: gtsam.Pose2,
+        pose_j: gtsam.Pose2,
+        theta: np.ndarray,
+        jacobians: bool = False,
+        slip: np.ndarray | None = None,
     ) -> tuple[np.ndarray, list[np.ndarray] | None]:
-        """Error (3,) and, with ``jacobians``, ``[d e/d ξ_i, d e/d ξ_j, d e/d theta]``."""
+        """Error (3,) and, with ``jacobians``, ``[d e/d ξ_i, d e/d ξ_j, d e/d theta]``
+        (and ``d e/d slip`` when ``slip`` is given).
+
+        The inputs are re-integrated when theta moves beyond the thresholds; slip scales
+        always enter through the first-order correction (they are small and change from
+        interval to interval: re-integrating on them would make the error jump wherever a
+        scale crosses a threshold)."""
         theta = np.asarray(theta, dtype=float)
         self.relinearize_if_needed(theta)
+        if slip is not None:
+            theta = theta + self.slip_to_theta @ np.asarray(slip, dtype=float)
         pim = self.preintegrated
         predicted = pim.predict(theta)
         measured = gtsam.Pose2(predicted[0], predicted[1], predicted[2])
@@ -184,7 +221,11 @@ class WheelOdometryFactor:
             [c * d_theta[0] + s * d_theta[1], c * d_theta[1] - s * d_theta[0], d_theta[2]]
         )
         d_measured = -log_derivative @ residual_pose.inverse().AdjointMap()
-        return error, [log_derivative @ h1, log_derivative @ h2, d_measured @ tangent_d_theta]
+        d_theta_error = d_measured @ tangent_d_theta
+        out = [log_derivative @ h1, log_derivative @ h2, d_theta_error]
+        if slip is not None:
+            out.append(d_theta_error @ self.slip_to_theta)
+        return error, out
 
     def __call__(
         self, factor: gtsam.CustomFactor, values: gtsam.Values, H: list | None
@@ -194,7 +235,22 @@ class WheelOdometryFactor:
             values.atPose2(self.pose_j_key),
             values.atVector(self.theta_key),
             H is not None,
+            None if self.slip_key is None else values.atVector(self.slip_key),
         )
         if H is not None:
-            H[0], H[1], H[2] = jac
+            for i, block in enumerate(jac):
+                H[i] = block
         return error
+
+
+def slip_to_theta(theta: np.ndarray) -> np.ndarray:
+    """``(4, 2)`` change of ``[c_e, c_d, t_r, d]`` per relative slip scale ``[s_rl, s_rr]``
+    at ``theta``: a scale ``s_w`` stretches wheel w's circumference (eqs. 3a, 3b,
+    ``c_rl = c_e + c_d/2``, ``c_rr = c_e − c_d/2`` at zero lateral acceleration) by
+    ``c_w s_w``, i.e. ``c_e`` by the mean and ``c_d`` by the difference of the two."""
+    c_e, c_d = float(theta[0]), float(theta[1])
+    c_rl, c_rr = c_e + 0.5 * c_d, c_e - 0.5 * c_d
+    out = np.zeros((4, 2))
+    out[0] = 0.5 * c_rl, 0.5 * c_rr
+    out[1] = c_rl, -c_rr
+    return out

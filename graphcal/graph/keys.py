@@ -15,6 +15,7 @@ letter     variable            index
 ``a``      antenna lever arm   0 (a 2-vector [m]: ahead, left)
 ``h``      heading bias        segment (a 1-vector [rad])
 ``x``      keyframe Pose2      keyframe number (localization graphs)
+``w``      wheel slip scales   span number (localization graphs; a 2-vector)
 =========  ==================  =====================================================
 """
 
@@ -71,3 +72,9 @@ def segment_heading_bias(segment: int) -> int:
 def keyframe(index: int) -> int:
     """Key of keyframe ``index``'s Pose2 in a localization graph."""
     return gtsam.symbol("x", index)
+
+
+def keyframe_slip(span: int) -> int:
+    """Key of the 2-vector of relative wheel-slip scales of ``span`` of a localization graph
+    (a span is a run of consecutive keyframe intervals)."""
+    return gtsam.symbol("w", span)

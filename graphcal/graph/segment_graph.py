@@ -49,6 +49,7 @@ from graphcal.factors import (
 from graphcal.graph import keys
 from graphcal.graph.chunking import chunk_bounds
 from graphcal.graph.plausibility import check_plausible
+from graphcal.graph.slip import slip_prior_factor, slip_step_factor
 from graphcal.graph.solve import marginal_covariance, solve_lm
 from graphcal.model import integrate
 
@@ -359,32 +360,21 @@ def _add_slip(
     dt: float,
     spec: SegmentGraphSpec,
 ) -> None:
-    """Priors of segment ``s``'s slip scales: stationary (sigma ``spec.slip_sigma``) at the
-    first chunk, then a first-order Gauss–Markov step between consecutive chunks,
-    ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−chunk duration / slip_time)``,
-    so that every chunk's scale has the stationary sigma."""
+    """Priors of segment ``s``'s slip scales, one 2-vector per chunk
+    (:mod:`graphcal.graph.slip`: stationary at the first chunk, Gauss–Markov steps after)."""
     sigma = float(spec.slip_sigma)
-    graph.add(
-        gtsam.PriorFactorVector(
-            keys.segment_slip(s, 0), np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sigma)
-        )
-    )
-    zero = gtsam.Values()
-    for j in range(len(bounds) - 1):
-        zero.insert(keys.segment_slip(s, j), np.zeros(2))
+    graph.add(slip_prior_factor(keys.segment_slip(s, 0), sigma))
     for j in range(1, len(bounds) - 1):
-        phi = float(np.exp(-(bounds[j] - bounds[j - 1]) * dt / spec.slip_time))
-        step_sigma = sigma * np.sqrt(max(1.0 - phi**2, 1e-12))
-        linear = gtsam.JacobianFactor(
-            keys.segment_slip(s, j - 1),
-            -phi * np.eye(2),
-            keys.segment_slip(s, j),
-            np.eye(2),
-            np.zeros(2),
-            gtsam.noiseModel.Isotropic.Sigma(2, float(step_sigma)),
+        duration = float((bounds[j] - bounds[j - 1]) * dt)
+        graph.add(
+            slip_step_factor(
+                keys.segment_slip(s, j - 1),
+                keys.segment_slip(s, j),
+                duration,
+                sigma,
+                spec.slip_time,
+            )
         )
-        # Linear in the scales: linearized at zero, the container is exact everywhere.
-        graph.add(gtsam.LinearContainerFactor(linear, zero))
 
 
 def _add_corrections(

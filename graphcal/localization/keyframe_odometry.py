@@ -57,6 +57,9 @@ def keyframe_odometry_factor(
     theta: np.ndarray = THETA_NOMINAL,
     wheel_noise: float = DEFAULT_WHEEL_NOISE,
     floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
+    quantization: float = 0.0,
+    slip_key: int | None = None,
+    slip_noise: np.ndarray | None = None,
 ) -> gtsam.NonlinearFactor:
     """Wheel odometry over ``len(inputs)`` steps between two Pose2 keyframes.
 
@@ -68,14 +71,21 @@ def keyframe_odometry_factor(
         theta: the fixed theta (``theta_key=None``), or where the interval is preintegrated.
         wheel_noise: standard deviation [rev] of one measured wheel rotation.
         floor_sigmas: model-error floor [m, m, rad] added to the propagated covariance.
+        quantization: rounding sigma [rev] of the wheels' cumulative tick counts, or 0
+            (:func:`graphcal.data.quantization.quantization_sigma`).
+        slip_key: a 2-vector of relative wheel-slip scales for the interval (needs
+            ``theta_key``; see :class:`~graphcal.factors.WheelOdometryFactor`), or ``None``.
+        slip_noise: ``(2, 2)`` covariance of slip scales taken as noise instead, or ``None``.
     """
     inputs = np.asarray(inputs, float)
     if inputs.ndim != 2 or inputs.shape[1] != 4 or len(inputs) == 0:
         raise GraphcalError(
             f"keyframe odometry needs inputs (L, 4) with L >= 1, got {inputs.shape}"
         )
-    preintegrated = preintegrate(inputs, theta, wheel_noise)
-    return _factor(start_key, end_key, theta_key, preintegrated, theta, floor_sigmas)
+    preintegrated = preintegrate(inputs, theta, wheel_noise, quantization=quantization)
+    return _factor(
+        start_key, end_key, theta_key, preintegrated, theta, floor_sigmas, slip_key, slip_noise
+    )
 
 
 def _factor(
@@ -85,10 +95,22 @@ def _factor(
     preintegrated: PreintegratedWheelOdometry,
     theta: np.ndarray,
     floor_sigmas: Sequence[float],
+    slip_key: int | None = None,
+    slip_noise: np.ndarray | None = None,
 ) -> gtsam.NonlinearFactor:
     if theta_key is None:
+        if slip_key is not None or slip_noise is not None:
+            raise GraphcalError("wheel slip needs theta as a variable (theta_key)")
         return wheel_odometry_between_factor(start_key, end_key, preintegrated, theta, floor_sigmas)
-    return WheelOdometryFactor(start_key, end_key, theta_key, preintegrated, floor_sigmas).factor()
+    return WheelOdometryFactor(
+        start_key,
+        end_key,
+        theta_key,
+        preintegrated,
+        floor_sigmas,
+        slip_key=slip_key,
+        slip_noise=slip_noise,
+    ).factor()
 
 
 def keyframe_odometry_factors(
@@ -100,6 +122,9 @@ def keyframe_odometry_factors(
     theta: np.ndarray = THETA_NOMINAL,
     wheel_noise: float = DEFAULT_WHEEL_NOISE,
     floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
+    quantization: float = 0.0,
+    slip_keys: Sequence[int | None] | None = None,
+    slip_noise: Sequence[np.ndarray | None] | None = None,
 ) -> list[gtsam.NonlinearFactor]:
     """Odometry factors between consecutive keyframes of a slice of a drive log.
 
@@ -107,7 +132,12 @@ def keyframe_odometry_factors(
         log: the drive log (its wheel rotations, sideslip and lateral acceleration are used).
         keyframes: increasing sample indices of the keyframes, ``(M,)``.
         pose_keys: the Pose2 keys of the keyframes, ``(M,)``.
-        theta_key, theta, wheel_noise, floor_sigmas: as :func:`keyframe_odometry_factor`.
+        theta_key, theta, wheel_noise, floor_sigmas, quantization: as
+            :func:`keyframe_odometry_factor`.
+        slip_keys: per interval ``(M − 1,)``, the key of its slip scales (intervals may share
+            one; ``None`` for an interval without), or ``None`` for no slip scales.
+        slip_noise: per interval, a ``(2, 2)`` covariance of slip scales taken as noise
+            instead (for intervals without a slip key), or ``None``.
 
     Returns:
         ``M − 1`` factors; factor ``i`` joins keyframes ``i`` and ``i + 1``.
@@ -121,10 +151,26 @@ def keyframe_odometry_factors(
         raise GraphcalError("keyframes must be at least two strictly increasing sample indices")
     if keyframes[0] < 0 or keyframes[-1] >= len(log):
         raise GraphcalError(f"keyframes must lie within the log's {len(log)} samples")
+    for name, given in (("slip keys", slip_keys), ("slip noises", slip_noise)):
+        if given is not None and len(given) != len(keyframes) - 1:
+            raise GraphcalError(
+                f"{len(given)} {name} for {len(keyframes) - 1} intervals; give one each"
+            )
     inputs = log.inputs
     intervals = [inputs[a:b] for a, b in itertools.pairwise(keyframes)]
-    preintegrated = PreintegratedWheelOdometry.from_intervals(intervals, theta, wheel_noise)
+    preintegrated = PreintegratedWheelOdometry.from_intervals(
+        intervals, theta, wheel_noise, quantization
+    )
     return [
-        _factor(pose_keys[i], pose_keys[i + 1], theta_key, p, theta, floor_sigmas)
+        _factor(
+            pose_keys[i],
+            pose_keys[i + 1],
+            theta_key,
+            p,
+            theta,
+            floor_sigmas,
+            None if slip_keys is None else slip_keys[i],
+            None if slip_noise is None else slip_noise[i],
+        )
         for i, p in enumerate(preintegrated)
     ]

@@ -1,0 +1,55 @@
+"""Priors of slow wheel slip: relative scales ``[s_rl, s_rr]`` as a Gauss–Markov process.
+
+A rear wheel's slow slip (a tyre's load in a long bend, a wet patch) scales its rotation,
+``n_w (1 + s_w)``, for seconds. Per span of the drive (a chunk of a segment, or a few keyframe
+intervals of a localization graph) one 2-vector of scales has the stationary prior
+``N(0, sigma²)`` at the first span and a first-order Gauss–Markov step between consecutive
+spans, ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−duration / slip_time)``,
+so that every span's scale has the stationary sigma. Both factors are linear in the scales.
+
+Where scales are not estimated (a localization graph's GNSS gaps, the online smoother), the
+slip is noise of each interval instead: :func:`slip_noise_covariance` is the process's
+long-run variance per interval, so that a run of intervals carries the uncertainty of the
+correlated slip over its total.
+"""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+
+def slip_prior_factor(key: int, sigma: float) -> gtsam.PriorFactorVector:
+    """The stationary prior ``N(0, sigma²)`` of the first span's scales (dimensionless)."""
+    return gtsam.PriorFactorVector(key, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sigma))
+
+
+def slip_step_factor(
+    previous_key: int, key: int, duration: float, sigma: float, slip_time: float
+) -> gtsam.LinearContainerFactor:
+    """The Gauss–Markov step from the span ``previous_key`` to the next one ``key``, which
+    starts ``duration`` [s] later; ``sigma`` stationary, ``slip_time`` [s] correlation time."""
+    phi = float(np.exp(-duration / slip_time))
+    step_sigma = sigma * np.sqrt(max(1.0 - phi**2, 1e-12))
+    linear = gtsam.JacobianFactor(
+        previous_key,
+        -phi * np.eye(2),
+        key,
+        np.eye(2),
+        np.zeros(2),
+        gtsam.noiseModel.Isotropic.Sigma(2, float(step_sigma)),
+    )
+    zero = gtsam.Values()
+    zero.insert(previous_key, np.zeros(2))
+    zero.insert(key, np.zeros(2))
+    # Linear in the scales: linearized at zero, the container is exact everywhere.
+    return gtsam.LinearContainerFactor(linear, zero)
+
+
+def slip_noise_covariance(duration: float, sigma: float, slip_time: float) -> np.ndarray:
+    """``(2, 2)`` covariance of the slip scales of an interval of ``duration`` [s] taken as
+    noise: the long-run variance ``sigma² (1 + φ) / (1 − φ)``, ``φ = exp(−duration /
+    slip_time)``, of a Gauss–Markov process sampled once per interval (the variance of a sum
+    of N such intervals is N times it, as for the process itself over long runs)."""
+    phi = float(np.exp(-duration / slip_time))
+    return sigma**2 * (1.0 + phi) / max(1.0 - phi, 1e-12) * np.eye(2)
