@@ -10,6 +10,10 @@ as N². The items solve the same GNSS + wheel-odometry smoothing graph (5 Hz key
   graphcal's keyframe factor was before the preintegration);
 * ``"preintegrated"`` — :class:`~graphcal.factors.WheelOdometryFactor` (theta a variable);
 * ``"between"`` — theta fixed: built-in ``gtsam.BetweenFactorPose2`` from the preintegration.
+
+Each solve runs under GTSAM's own Levenberg–Marquardt optimizer (``driver="gtsam"``, where the
+``Values`` copies show) or driven from Python (``driver="python"``, what graphcal's smoothing
+uses; :func:`graphcal.graph.solve.solve_lm`).
 """
 
 from __future__ import annotations
@@ -26,7 +30,7 @@ from graphcal.factors import ChunkOdometryFactor, OdometryChunk, theta_prior_fac
 from graphcal.factors.preintegration import DEFAULT_FLOOR_SIGMAS
 from graphcal.graph.keyframes import gnss_keyframes
 from graphcal.graph.keys import THETA, keyframe
-from graphcal.graph.solve import solve_lm
+from graphcal.graph.solve import Driver, solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors, odometry_covariance
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.model import THETA_PRIOR_SIGMAS
@@ -69,8 +73,10 @@ def solve_smoothing(
     estimate_theta: bool,
     gnss_rate_hz: float = 5.0,
     gnss_sigma: float = 0.2,
+    driver: Driver = "gtsam",
 ) -> SmoothingTiming:
-    """Build and solve the smoothing graph with odometry factors of ``kind``; time it."""
+    """Build and solve the smoothing graph with odometry factors of ``kind`` under the
+    Levenberg–Marquardt ``driver``; time it."""
     if kind not in FACTOR_KINDS:
         raise ValueError(f"kind must be one of {FACTOR_KINDS}, got {kind!r}")
     if kind == "between" and estimate_theta:
@@ -95,7 +101,7 @@ def solve_smoothing(
     if estimate_theta:
         values.insert(THETA, theta)
         graph.add(theta_prior_factor(THETA, THETA_PRIOR_SIGMAS, theta))
-    result, iterations = solve_lm(graph, values, 50, 1e-8, f"smoothing ({kind})")
+    result, iterations = solve_lm(graph, values, 50, 1e-8, f"smoothing ({kind})", driver=driver)
     seconds = time.perf_counter() - start
     states = states_from_values(result, keys, float(log.psi[keyframes[0]]))
     solved_theta = np.asarray(result.atVector(THETA)) if estimate_theta else theta

@@ -16,8 +16,9 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
 * (f)–(g) the localization factors (:mod:`graphcal.bench.localization`): the smoothing
   example on a 4 km drive with theta fixed (a re-integrating Python factor per interval vs a
   built-in ``BetweenFactorPose2`` from the preintegration: time and trajectory difference)
-  and with theta a variable (re-integrating vs preintegrated Python factor), and the online
-  fixed-lag update;
+  and with theta a variable (re-integrating vs preintegrated Python factor), all under
+  GTSAM's optimizer; the preintegrated graph again with Levenberg–Marquardt driven from
+  Python (what ``smooth_drive`` uses); and the online fixed-lag update;
 * (h) ``graphcal import`` of a long recording (GNSS 10 Hz, wheels and IMU 100 Hz as CSV
   streams) in a child process: time and the child's own peak memory
   (:mod:`graphcal.bench.importing`);
@@ -266,6 +267,16 @@ def localization_items(
             iterations=solved.iterations,
             keyframes=len(solved.states),
         )
+    seconds, python_driven = timed(
+        lambda: solve_smoothing(log, "preintegrated", theta, True, driver="python"), repeats
+    )
+    medians["python-driven"] = seconds
+    record(
+        f"(f) smoothing {length_km:g} km, preintegrated, theta variable, LM driven from Python",
+        seconds,
+        iterations=python_driven.iterations,
+        keyframes=len(python_driven.states),
+    )
     fixed_old, fixed_new = solves["reintegrating, theta fixed"], solves["between, theta fixed"]
     var_old = solves["reintegrating, theta variable"]
     var_new = solves["preintegrated, theta variable"]
@@ -285,6 +296,9 @@ def localization_items(
         "theta_variable_reintegrating_over_preintegrated": medians["reintegrating, theta variable"]
         / medians["preintegrated, theta variable"],
         "theta_variable_max_theta_difference": (var_old.theta - var_new.theta).tolist(),
+        "theta_variable_gtsam_lm_over_python_lm": medians["preintegrated, theta variable"]
+        / medians["python-driven"],
+        "python_lm_theta_difference": (python_driven.theta - var_new.theta).tolist(),
         "online_mean_update_ms": float(online.update_seconds.mean() * 1e3),
         "online_ms_per_drive_second": online.seconds_per_drive_second() * 1e3,
     }

@@ -64,7 +64,7 @@ def pose_before_outage(
         graph.add(factor)
     values = gtsam.Values()
     insert_states(values, keys, log.poses[keyframes])
-    result, _ = solve_lm(graph, values, 20, 1e-8, "outage start pose")
+    result, _ = solve_lm(graph, values, 20, 1e-8, "outage start pose", driver="python")
     return states_from_values(result, keys, float(log.psi[keyframes[0]]))[-1]
 
 
