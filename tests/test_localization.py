@@ -90,6 +90,61 @@ def test_smoothing_with_5hz_gnss_recovers_theta_and_the_trajectory(short_drive):
     assert np.median(result.t[1:] - result.t[:-1]) == pytest.approx(0.2)
 
 
+@pytest.fixture(scope="module")
+def slipping_counted_log():
+    """4 km whose wheels slip slowly (0.15 %) and are counted in 96 ticks per revolution."""
+    from graphcal.data.drive_log import validate_frame
+    from graphcal.simulate.defects import degrade, parse_defects
+
+    drive = degrade(simulate_drive(4.0, 1), parse_defects("slip,ticks"), 1)
+    return drive, validate_frame(drive.measured.to_dataframe(), "slip", 150.0)
+
+
+def test_smoothing_models_tick_rounding_and_slow_slip(slipping_counted_log):
+    from graphcal.data.quantization import quantization_sigma
+
+    drive, log = slipping_counted_log
+    modelled = SmoothingSettings(tick_quantization=quantization_sigma(96), slip_sigma=0.0015)
+
+    def z(settings: SmoothingSettings) -> np.ndarray:
+        result = smooth_drive(log, settings)
+        assert np.all(result.observability.calibrated)
+        return np.abs(result.theta - drive.theta_true) / np.sqrt(np.diag(result.covariance))
+
+    assert z(modelled).max() < 3.0
+    assert z(SmoothingSettings()).max() > 5.0  # white wheel noise only: confidently wrong
+
+
+@pytest.mark.slow
+def test_online_covers_tick_rounding_and_slow_slip(slipping_counted_log):
+    from graphcal.data.quantization import quantization_sigma
+
+    drive, log = slipping_counted_log
+    modelled = OnlineSettings(tick_quantization=quantization_sigma(96), slip_sigma=0.0015)
+
+    def within_3_sigma(settings: OnlineSettings) -> np.ndarray:
+        result = run_online(log, settings)
+        settled = result.distance_m > 1000.0
+        z = (result.theta[settled] - drive.theta_true) / result.sigma[settled]
+        return np.mean(np.abs(z) <= 3.0, axis=0)  # share of theta slices, per parameter
+
+    assert within_3_sigma(modelled).min() >= 0.95
+    assert within_3_sigma(OnlineSettings()).min() < 0.8  # white wheel noise only
+
+
+def test_python_driven_lm_matches_gtsams_optimizer(short_drive):
+    from graphcal.graph.keys import THETA
+    from graphcal.graph.solve import solve_lm
+    from graphcal.localization.smoothing import build_smoothing_graph
+
+    graph, values, _ = build_smoothing_graph(short_drive.measured, SmoothingSettings())
+    ours, ours_iterations = solve_lm(graph, values, 50, 1e-8, "smoothing", driver="python")
+    theirs, their_iterations = solve_lm(graph, values, 50, 1e-8, "smoothing", driver="gtsam")
+    assert ours_iterations == their_iterations
+    assert graph.error(ours) == pytest.approx(graph.error(theirs), rel=1e-9)
+    np.testing.assert_allclose(ours.atVector(THETA), theirs.atVector(THETA), rtol=1e-9)
+
+
 def test_states_round_trip_through_values_with_unwrapped_heading():
     states = np.array([[0.0, 0.0, 3.0], [1.0, 0.5, 3.3], [2.0, 1.5, 3.6]])  # crosses +π
     keys = [gtsam.symbol("x", i) for i in range(3)]

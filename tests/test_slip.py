@@ -8,7 +8,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.run import run_calibration, wheel_model
 from graphcal.pipeline.settings import Settings
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
@@ -32,6 +32,7 @@ def slipping():
 def test_slip_is_detected_and_modelled(slipping):
     run = _run(slipping, "auto")
     assert run.whole.slip_modelled and run.whole.slip_statistic > 1.3
+    assert wheel_model(run)["slip_sigma"] == run.settings.joint.slip_sigma > 0  # for localization
     assert _z(run, slipping).max() < 3
     assert _z(_run(slipping, "off"), slipping).max() > 4  # white wheel noise only: wrong
 
@@ -40,6 +41,7 @@ def test_a_drive_without_slip_is_solved_without_slip_scales():
     clean = simulate_drive(4.0, 1)
     run = _run(clean, "auto")
     assert not run.whole.slip_modelled and run.whole.slip_statistic < 1.3
+    assert wheel_model(run) == {"tick_quantization": 0.0, "slip_sigma": 0.0, "slip_time": 5.0}
     off = _run(clean, "off")
     np.testing.assert_allclose(run.theta, off.theta, rtol=1e-9)
     np.testing.assert_allclose(run.covariance, off.covariance, rtol=1e-6)

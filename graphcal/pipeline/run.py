@@ -554,6 +554,23 @@ def _conditioned(
     return theta, covariance, whole.observability
 
 
+def wheel_model(run: CalibrationRun) -> dict[str, float]:
+    """The wheel noise a localization graph should carry after this calibration: the tick
+    rounding it used (given or detected) and, if it found slow slip, the slip scales' prior.
+
+    The keys are fields of :class:`~graphcal.localization.SmoothingSettings` and
+    :class:`~graphcal.localization.OnlineSettings`:
+    ``SmoothingSettings(**wheel_model(run))``.
+    """
+    joint = run.settings.joint
+    slip = run.whole is not None and run.whole.slip_modelled
+    return {
+        "tick_quantization": float(joint.tick_quantization),
+        "slip_sigma": float(joint.slip_sigma) if slip else 0.0,
+        "slip_time": float(joint.slip_time),
+    }
+
+
 def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
     """One line: whether the whole-log solve found slow wheel slip and modelled it."""
     statistic = f"χ² lower by {whole.slip_statistic:.2f} per chunk with slip scales"
