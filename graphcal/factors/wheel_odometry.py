@@ -143,6 +143,7 @@ class WheelOdometryFactor:
         self.preintegrated = preintegrated.copy()
         self.floor_sigmas = None if floor_sigmas is None else tuple(map(float, floor_sigmas))
         self.reintegration_thresholds = thresholds
+        self._set_window()
         self.n_reintegrations = 0
         covariance = self.preintegrated.tangent_covariance(floor_sigmas=self.floor_sigmas)
         if slip_noise is not None:
@@ -178,12 +179,22 @@ class WheelOdometryFactor:
 
     def relinearize_if_needed(self, theta: np.ndarray) -> bool:
         """Re-integrate at ``theta`` if it is beyond the thresholds; ``True`` if it did."""
-        pim = self.preintegrated
-        if _beyond(theta, pim.theta_linearization, self.reintegration_thresholds):
-            pim.reintegrate(theta)
-            self.n_reintegrations += 1
-            return True
-        return False
+        window = self._window
+        # Plain floats: called for every factor at every error evaluation, where numpy's
+        # per-call overhead on 4-vectors was an eighth of a smoothing solve.
+        inside = zip(window[0], theta.tolist(), window[1], strict=True)
+        if all(lo <= x <= hi for lo, x, hi in inside):
+            return False
+        self.preintegrated.reintegrate(theta)
+        self._set_window()
+        self.n_reintegrations += 1
+        return True
+
+    def _set_window(self) -> None:
+        """Theta range ``(low, high)`` in which the preintegration is used to first order."""
+        reference = self.preintegrated.theta_linearization
+        thresholds = self.reintegration_thresholds
+        self._window = ((reference - thresholds).tolist(), (reference + thresholds).tolist())
 
     def evaluate(
         self,

@@ -16,6 +16,7 @@ letter     variable            index
 ``h``      heading bias        segment (a 1-vector [rad])
 ``x``      keyframe Pose2      keyframe number (localization graphs)
 ``w``      wheel slip scales   span number (localization graphs; a 2-vector)
+``g``      wheel slip scales   GNSS gap number (localization graphs; a 2-vector)
 =========  ==================  =====================================================
 """
 
@@ -78,3 +79,9 @@ def keyframe_slip(span: int) -> int:
     """Key of the 2-vector of relative wheel-slip scales of ``span`` of a localization graph
     (a span is a run of consecutive keyframe intervals)."""
     return gtsam.symbol("w", span)
+
+
+def gap_slip(gap: int) -> int:
+    """Key of the 2-vector of relative wheel-slip scales over GNSS gap ``gap`` of a
+    localization graph (one scale for the whole gap)."""
+    return gtsam.symbol("g", gap)

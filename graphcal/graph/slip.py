@@ -7,10 +7,11 @@ intervals of a localization graph) one 2-vector of scales has the stationary pri
 spans, ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−duration / slip_time)``,
 so that every span's scale has the stationary sigma. Both factors are linear in the scales.
 
-Where scales are not estimated (a localization graph's GNSS gaps, the online smoother), the
-slip is noise of each interval instead: :func:`slip_noise_covariance` is the process's
-long-run variance per interval, so that a run of intervals carries the uncertainty of the
-correlated slip over its total.
+Where the process is too fine to resolve, coarser forms stand in for it: across a GNSS gap
+one scale whose prior is the variance of the process's mean over the gap
+(:func:`slip_mean_sigma`), and in the online smoother noise of each interval with the
+process's long-run variance (:func:`slip_noise_covariance`), so that a run of intervals
+carries the uncertainty of the correlated slip over its total.
 """
 
 from __future__ import annotations
@@ -53,3 +54,14 @@ def slip_noise_covariance(duration: float, sigma: float, slip_time: float) -> np
     of N such intervals is N times it, as for the process itself over long runs)."""
     phi = float(np.exp(-duration / slip_time))
     return sigma**2 * (1.0 + phi) / max(1.0 - phi, 1e-12) * np.eye(2)
+
+
+def slip_mean_sigma(duration: float, sigma: float, slip_time: float) -> float:
+    """Standard deviation of the Gauss–Markov process's mean over ``duration`` [s]:
+    ``sqrt(2 sigma² τ² (T/τ − 1 + e^(−T/τ)) / T²)`` (``τ = slip_time``); ``sigma`` for
+    ``T ≪ τ``, ``sigma sqrt(2τ/T)`` for ``T ≫ τ``. One scale with it over an interval
+    integrates to the process's variance of the interval's total slip."""
+    ratio = duration / slip_time
+    if ratio < 1e-6:
+        return float(sigma)
+    return float(sigma * np.sqrt(2.0 * (ratio - 1.0 + np.exp(-ratio)) / ratio**2))
