@@ -54,6 +54,7 @@ _PUBLIC = {
     "run_calibration": "graphcal.pipeline.run",
     "CalibrationRun": "graphcal.pipeline.run",
     "wheel_model": "graphcal.pipeline.run",
+    "prepare_localization": "graphcal.pipeline.run",
     "write_results": "graphcal.report.results",
     "calibrate_joint": "graphcal.pipeline.joint",
     "JointSettings": "graphcal.pipeline.joint",

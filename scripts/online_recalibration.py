@@ -31,9 +31,7 @@ from graphcal.data.drive_log import validate_frame
 from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.localization.online import OnlineResult, OnlineSettings, run_online
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import run_calibration, wheel_model
-from graphcal.pipeline.sensor_estimates import correct_log
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.run import prepare_localization
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaChange, simulate_drive
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS
@@ -97,15 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         log = validate_frame(drive.measured.to_dataframe(), "simulated", 150.0)
     wheels = {}
     if args.sensors_from_calibration:
-        run = run_calibration(log, Settings(), "whole")
-        log = correct_log(log, run.estimated)
-        wheels = {**wheel_model(run), "theta_initial": run.theta}  # start where it ended
-        found = ", ".join(f"{n} {e.value:+.3f} ({e.verdict})" for n, e in run.estimated.items())
-        print(
-            f"calibration: {found}; tick rounding σ {wheels['tick_quantization']:.2e} rev, "
-            f"slip σ {wheels['slip_sigma']:g}",
-            file=sys.stderr,
-        )
+        log, wheels, summary = prepare_localization(log)
+        print(summary, file=sys.stderr)
     result = run_online(
         log, OnlineSettings(**wheels), progress=lambda s: print(s, file=sys.stderr, flush=True)
     )

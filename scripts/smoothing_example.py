@@ -13,9 +13,9 @@ robust GNSS factors (``--lever-arm-sigma`` makes the antenna's lever arm a varia
 ``--sensors-from-calibration`` the log is first corrected by the wheels' time offset and the
 lever arm that graphcal's whole-log calibration estimates (as a localization system would
 use its offline calibration), and the graph takes over the calibration's findings about the
-wheels: the tick rounding of counted rotations and, if it found slow slip, slip scales
-(:func:`graphcal.pipeline.run.wheel_model`), and starts from its theta. Writes the smoothed,
-GNSS and (synthetic) true trajectories as TUM files for evo.
+wheels: the tick rounding of counted rotations and, if it found slow slip, slip scales, and
+starts from its theta (:func:`graphcal.pipeline.run.prepare_localization`). Writes the
+smoothed, GNSS and (synthetic) true trajectories as TUM files for evo.
 """
 
 from __future__ import annotations
@@ -31,9 +31,7 @@ from graphcal.data.drive_log import load_drive_log, validate_frame
 from graphcal.data.tum import write_tum
 from graphcal.localization.smoothing import SmoothingSettings, smooth_drive
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import run_calibration, wheel_model
-from graphcal.pipeline.sensor_estimates import correct_log
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.run import prepare_localization
 from graphcal.report.tables import Z95
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
@@ -65,14 +63,8 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     wheels = {}
     if args.sensors_from_calibration:
-        run = run_calibration(log, Settings(), "whole")
-        log = correct_log(log, run.estimated)
-        wheels = {**wheel_model(run), "theta_initial": run.theta}  # start where it ended
-        found = ", ".join(f"{n} {e.value:+.3f} ({e.verdict})" for n, e in run.estimated.items())
-        print(
-            f"calibration: {found}; tick rounding σ {wheels['tick_quantization']:.2e} rev, "
-            f"slip σ {wheels['slip_sigma']:g}; {time.perf_counter() - start:.1f} s"
-        )
+        log, wheels, summary = prepare_localization(log)
+        print(f"{summary}; {time.perf_counter() - start:.1f} s")
     start = time.perf_counter()
     smoothing = SmoothingSettings(
         gnss_rate_hz=args.gnss_rate_hz, lever_arm_sigma=args.lever_arm_sigma, **wheels

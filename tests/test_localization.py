@@ -132,6 +132,25 @@ def test_online_covers_tick_rounding_and_slow_slip(slipping_counted_log):
     assert within_3_sigma(OnlineSettings()).min() < 0.8  # white wheel noise only
 
 
+def test_prepare_localization_hands_over_the_calibrations_findings():
+    from dataclasses import fields
+
+    from graphcal.data.drive_log import validate_frame
+    from graphcal.simulate.defects import degrade, parse_defects
+
+    drive = degrade(simulate_drive(2.0, 3), parse_defects("latency,lever_arm"), 3)
+    log = validate_frame(drive.measured.to_dataframe(), "sensors", 150.0)
+    corrected, wheels, summary = graphcal.prepare_localization(log)
+    assert "time_offset" in summary and "(detected, corrected)" in summary
+    assert set(wheels) <= {f.name for f in fields(SmoothingSettings)}
+    assert set(wheels) <= {f.name for f in fields(OnlineSettings)}
+    assert np.abs(wheels["theta_initial"] - drive.theta_true)[0] < 1e-3  # c_e within 1 mm
+    # Positions moved to the centre of gravity: nearer the truth than the antenna's.
+    before = np.hypot(*(log.poses[:, :2] - drive.truth.poses[:, :2]).T).mean()
+    after = np.hypot(*(corrected.poses[:, :2] - drive.truth.poses[:, :2]).T).mean()
+    assert after < 0.5 * before
+
+
 def test_python_driven_lm_matches_gtsams_optimizer(short_drive):
     from graphcal.graph.keys import THETA
     from graphcal.graph.solve import solve_lm

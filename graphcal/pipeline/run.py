@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -569,6 +569,27 @@ def wheel_model(run: CalibrationRun) -> dict[str, float]:
         "slip_sigma": float(joint.slip_sigma) if slip else 0.0,
         "slip_time": float(joint.slip_time),
     }
+
+
+def prepare_localization(
+    log: DriveLog, settings: Settings | None = None
+) -> tuple[DriveLog, dict[str, Any], str]:
+    """What a localization graph takes from an offline calibration of ``log``: the log
+    corrected by the estimated time offset and lever arm, the settings that
+    :class:`~graphcal.localization.SmoothingSettings` and
+    :class:`~graphcal.localization.OnlineSettings` accept (:func:`wheel_model`, and the
+    calibrated theta as ``theta_initial``), and a one-line summary of what was found.
+
+    Runs the whole-log calibration (``settings``, default :class:`Settings`).
+    """
+    run = run_calibration(log, settings or Settings(), "whole")
+    wheels: dict[str, Any] = {**wheel_model(run), "theta_initial": run.theta}
+    found = ", ".join(f"{n} {e.value:+.3f} ({e.verdict})" for n, e in run.estimated.items())
+    summary = (
+        f"calibration: {found}; tick rounding σ {wheels['tick_quantization']:.2e} rev, "
+        f"slip σ {wheels['slip_sigma']:g}"
+    )
+    return correct_log(log, run.estimated), wheels, summary
 
 
 def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
