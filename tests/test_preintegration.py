@@ -94,10 +94,15 @@ def test_merging_intervals_at_different_theta_is_rejected(drive_inputs, turn_sta
 
 
 @pytest.mark.parametrize("read_every", [None, 1, 7], ids=["no-reads", "read-each", "read-7th"])
-def test_sample_by_sample_equals_one_block(drive_inputs, turn_start, read_every):
+@pytest.mark.parametrize("quantization", [0.0, 0.003], ids=["white", "ticks"])
+def test_sample_by_sample_equals_one_block(drive_inputs, turn_start, read_every, quantization):
     inputs = interval(drive_inputs, turn_start, 40)
-    block = preintegrate(inputs, THETA_NOMINAL, keep_correction_jacobian=True)
-    single = PreintegratedWheelOdometry(THETA_NOMINAL, keep_correction_jacobian=True)
+    block = preintegrate(
+        inputs, THETA_NOMINAL, keep_correction_jacobian=True, quantization=quantization
+    )
+    single = PreintegratedWheelOdometry(
+        THETA_NOMINAL, keep_correction_jacobian=True, quantization=quantization
+    )
     for i, row in enumerate(inputs):
         single.integrate_measurement(*row)
         if read_every is not None and i % read_every == 0:

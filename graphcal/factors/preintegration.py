@@ -77,10 +77,11 @@ class PreintegratedWheelOdometry:
         keep_correction_jacobian: also keep ``d_delta_d_corrections`` (3, 2L).
         quantization: standard deviation [rev] of the rounding error of each wheel's
             cumulative tick count (``1 / (ticks √12)``,
-            :func:`graphcal.data.quantization.quantization_sigma`), or 0. Each integrated
-            block counts from its own start sample: blocks appended one after another (and
-            consecutive keyframe intervals) treat the count at their common sample as two
-            independent errors, which overstates the increment's variance a little.
+            :func:`graphcal.data.quantization.quantization_sigma`), or 0. Its part of the
+            covariance is computed over the whole interval when read, so appending in pieces
+            gives the covariance of one block (consecutive keyframe intervals, separate
+            preintegrations, treat the count at their common sample as two independent
+            errors, which overstates their variance a little).
     """
 
     def __init__(
@@ -163,7 +164,18 @@ class PreintegratedWheelOdometry:
     def covariance(self) -> np.ndarray:
         """``(3, 3)`` [m², m², rad²] covariance of delta (state coordinates, no floor)."""
         self._flush()
-        return self._covariance.copy()
+        return self._covariance + self._rounding_covariance()
+
+    def _rounding_covariance(self) -> np.ndarray:
+        """The tick rounding's part of the covariance, over the whole interval (cached)."""
+        if self.quantization == 0 or self._n_steps == 0:
+            return np.zeros((3, 3))
+        if "rounding" not in self._cache:
+            inputs = self.inputs
+            states = integrate_with_jacobians(np.zeros(3), inputs, self._theta, False)[0]
+            d_wheels = end_wheel_rotation_jacobian(states, inputs, self._theta).reshape(3, -1)
+            self._cache["rounding"] = _wheel_covariance(d_wheels[None], 0.0, self.quantization)[0]
+        return self._cache["rounding"]
 
     @property
     def n_steps(self) -> int:
@@ -224,7 +236,7 @@ class PreintegratedWheelOdometry:
         states, _, d_theta = integrate_with_jacobians(np.zeros(3), inputs, self._theta)
         d_wheels = end_wheel_rotation_jacobian(states, inputs, self._theta).reshape(3, -1)
         delta = states[-1]
-        covariance = _wheel_covariance(d_wheels[None], self.wheel_noise, self.quantization)[0]
+        covariance = _wheel_covariance(d_wheels[None], self.wheel_noise, 0.0)[0]
         g = h = None
         if self.keep_correction_jacobian:
             h = d_wheels[2]
@@ -340,7 +352,8 @@ class PreintegratedWheelOdometry:
             start = np.zeros((len(members), 3))
             states, _, d_theta = integrate_with_jacobians(start, stacked, theta)
             flat = end_wheel_rotation_jacobian(states, stacked, theta).reshape(len(members), 3, -1)
-            covariance = _wheel_covariance(flat, wheel_noise, quantization)
+            covariance = _wheel_covariance(flat, wheel_noise, 0.0)
+            rounding = _wheel_covariance(flat, 0.0, quantization) if quantization > 0 else None
             for g, i in enumerate(members):
                 preintegrated = cls(theta, wheel_noise, quantization=quantization)
                 block = stacked[g].copy()
@@ -350,6 +363,8 @@ class PreintegratedWheelOdometry:
                 preintegrated._covariance = covariance[g]
                 preintegrated._n_steps = int(length)
                 preintegrated._input_blocks = [block]
+                if rounding is not None:
+                    preintegrated._cache["rounding"] = rounding[g]
                 out[i] = preintegrated
         return out  # type: ignore[return-value]
 
@@ -381,7 +396,7 @@ class PreintegratedWheelOdometry:
         self._flush()
         m = np.eye(3)
         m[:2, :2] = _rotation(self.predict(theta)[2]).T
-        out = m @ self._covariance @ m.T
+        out = m @ (self._covariance + self._rounding_covariance()) @ m.T
         if floor_sigmas is not None:
             out += np.diag(np.asarray(floor_sigmas, dtype=float) ** 2)
         return 0.5 * (out + out.T)

@@ -132,6 +132,10 @@ class WheelOdometryFactor:
     ) -> None:
         if preintegrated.n_steps == 0 and floor_sigmas is None:
             raise ValueError("an empty preintegration needs floor_sigmas for its noise model")
+        if slip_key is not None and slip_noise is not None:
+            raise ValueError(
+                "give slip_key (slip estimated) or slip_noise (slip as noise), not both"
+            )
         thresholds = np.array(reintegration_thresholds, dtype=float)
         if thresholds.shape != (4,) or not np.all(thresholds > 0):
             raise ValueError(f"reintegration_thresholds must be 4 values > 0, got {thresholds}")
@@ -183,8 +187,8 @@ class WheelOdometryFactor:
         # Plain floats: called for every factor at every error evaluation, where numpy's
         # per-call overhead on 4-vectors was an eighth of a smoothing solve.
         inside = zip(window[0], theta.tolist(), window[1], strict=True)
-        if all(lo <= x <= hi for lo, x, hi in inside):
-            return False
+        if all(lo <= x <= hi for lo, x, hi in inside) or not np.all(np.isfinite(theta)):
+            return False  # a non-finite theta gives a non-finite error, which LM rejects
         self.preintegrated.reintegrate(theta)
         self._set_window()
         self.n_reintegrations += 1

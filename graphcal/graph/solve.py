@@ -95,7 +95,13 @@ def _levenberg_marquardt(
                         key, np.diag(root[a : a + dim]), np.zeros(dim), _UNIT[int(dim)]
                     )
                 )
-            step = damped.optimize()
+            try:
+                step = damped.optimize()
+            except RuntimeError:  # indeterminate at this damping: damp more, as GTSAM does
+                if lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
+                    raise
+                lam *= LAMBDA_FACTOR
+                continue
             # The linearization's own decrease: with robust noise models its error at zero
             # differs from the nonlinear error (it weights with the square root).
             predicted = float(linear.error(step.scale(0.0))) - float(linear.error(step))
@@ -106,7 +112,9 @@ def _levenberg_marquardt(
             if predicted >= 0 and fidelity > MIN_MODEL_FIDELITY and change >= 0:
                 values, lam = candidate, max(lam / LAMBDA_FACTOR, 1e-12)
                 break
-            if abs(change) < 1e-12 or lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
+            # GTSAM stops searching λ when the error barely changes (relative tolerance).
+            small = max(relative_error_tol * error, 1e-12)
+            if abs(change) < small or lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
                 new_error = error  # no step lowers the error: at the minimum
                 break
             lam *= LAMBDA_FACTOR
