@@ -1,6 +1,7 @@
 """Benchmark graphcal's solves next to the naive GTSAM formulation (as ``graphcal bench``).
 
     python scripts/bench.py [--length-km 24] [--repeats 3] [--workers 2] [--out bench.json]
+    python scripts/bench.py --quick      # every item once on an 8 km drive: a fast check
 
 See :mod:`graphcal.bench.run` for the items. Prints a table and writes ``bench.json``.
 """

@@ -26,3 +26,16 @@ def test_naive_per_step_graph_agrees_with_the_segment_formulation():
     approx, iterations = solve_naive(small, settings)
     assert iterations > 3  # it really solved from nominal, not from the answer
     assert np.linalg.norm(approx - exact) / np.linalg.norm(exact) < 1e-6
+
+
+def test_quick_preset_and_explicit_sizes():
+    import argparse
+
+    from graphcal.bench.options import FULL, QUICK, add_bench_arguments, resolve_bench_options
+
+    parser = argparse.ArgumentParser()
+    add_bench_arguments(parser)
+    assert resolve_bench_options(parser.parse_args([])) == FULL
+    assert resolve_bench_options(parser.parse_args(["--quick"])) == QUICK
+    mixed = resolve_bench_options(parser.parse_args(["--quick", "--repeats", "2"]))
+    assert mixed == {**QUICK, "repeats": 2}  # what is given wins over the preset

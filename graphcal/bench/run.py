@@ -47,6 +47,7 @@ import numpy as np
 from graphcal.bench.importing import import_item
 from graphcal.bench.localization import solve_smoothing
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
+from graphcal.bench.options import resolve_bench_options
 from graphcal.data.drive_log import DriveLog, load_drive_log
 from graphcal.data.segments import (
     gather_segments,
@@ -305,23 +306,18 @@ def localization_items(
 
 
 def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
-    """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`;
-    returns the report (write it with :func:`write_report`)."""
+    """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`
+    (sizes resolved by :func:`~graphcal.bench.options.resolve_bench_options`); returns the
+    report (write it with :func:`write_report`)."""
+    sizes = resolve_bench_options(args)
     if getattr(args, "only_import", False):
         return {
-            "config": {"import_hours": args.import_hours, "python": sys.version.split()[0]},
-            "import": import_item(args.import_hours),
+            "config": {"import_hours": sizes["import_hours"], "python": sys.version.split()[0]},
+            "import": import_item(sizes["import_hours"]),
         }
-    return run_benchmarks(
-        length_km=args.length_km,
-        repeats=args.repeats,
-        workers=args.workers,
-        naive_iterations=args.naive_iterations,
-        pipeline_batches=args.pipeline_batches,
-        agreement_segments=args.agreement_segments,
-        import_hours=args.import_hours,
-        progress=progress,
-    )
+    report = run_benchmarks(workers=args.workers, progress=progress, **sizes)
+    report["config"]["quick"] = bool(getattr(args, "quick", False))
+    return report
 
 
 def write_report(report: dict[str, Any], path: str | Path) -> None:
