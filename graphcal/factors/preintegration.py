@@ -129,7 +129,8 @@ class PreintegratedWheelOdometry:
             self._integrate_block(rows)
 
     def copy(self) -> PreintegratedWheelOdometry:
-        """An independent copy (blocks are never modified in place, so they are shared)."""
+        """An independent copy (blocks and cached results are never modified in place, so
+        they are shared: a factor's copy keeps the tick rounding computed for its interval)."""
         self._flush()
         other = PreintegratedWheelOdometry(
             self._theta, self.wheel_noise, self.keep_correction_jacobian, self.quantization
@@ -141,6 +142,7 @@ class PreintegratedWheelOdometry:
         other._input_blocks = list(self._input_blocks)
         other._g_blocks = list(self._g_blocks)
         other._h_blocks = list(self._h_blocks)
+        other._cache = dict(self._cache)
         return other
 
     @property
