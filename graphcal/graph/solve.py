@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import Literal
 
 import gtsam
@@ -86,13 +87,16 @@ def _levenberg_marquardt(
         scale = np.clip(damping_scale, MIN_DIAGONAL, MAX_DIAGONAL)
         iterations += 1
         new_error = error
+        # The linearization's own error at zero: with robust noise models it differs from the
+        # nonlinear error (it weights with the square root). Constant over the λ trials.
+        linear_at_zero = float(linear.error(zero))
         while True:
             damped = linear.clone()
             root = np.sqrt(lam * scale)
             for key, a, dim in zip(keys, first_column[:-1], dims, strict=True):
                 damped.add(
                     gtsam.JacobianFactor(
-                        key, np.diag(root[a : a + dim]), np.zeros(dim), _UNIT[int(dim)]
+                        key, np.diag(root[a : a + dim]), np.zeros(dim), _unit(int(dim))
                     )
                 )
             try:
@@ -102,9 +106,7 @@ def _levenberg_marquardt(
                     raise
                 lam *= LAMBDA_FACTOR
                 continue
-            # The linearization's own decrease: with robust noise models its error at zero
-            # differs from the nonlinear error (it weights with the square root).
-            predicted = float(linear.error(step.scale(0.0))) - float(linear.error(step))
+            predicted = linear_at_zero - float(linear.error(step))
             candidate = values.retract(step)
             new_error = float(graph.error(candidate))
             change = error - new_error
@@ -126,15 +128,10 @@ def _levenberg_marquardt(
     return values, iterations
 
 
-class _UnitNoise(dict):
-    """``gtsam.noiseModel.Unit`` of each dimension, made once."""
-
-    def __missing__(self, dim: int) -> gtsam.noiseModel.Unit:
-        self[dim] = gtsam.noiseModel.Unit.Create(dim)
-        return self[dim]
-
-
-_UNIT = _UnitNoise()
+@functools.cache
+def _unit(dim: int) -> gtsam.noiseModel.Unit:
+    """``gtsam.noiseModel.Unit`` of dimension ``dim``, made once."""
+    return gtsam.noiseModel.Unit.Create(dim)
 
 
 def _hessian_diagonal(linear: gtsam.GaussianFactorGraph, n_columns: int) -> np.ndarray:
