@@ -10,6 +10,7 @@ from numerical import retract_jacobian
 from graphcal.data.segments import gather_segments, split_segments
 from graphcal.data.timing import rotation_rate_changes
 from graphcal.factors import (
+    ChunkBatch,
     ChunkOdometryFactor,
     MeasuredPoseFactor,
     OdometryChunk,
@@ -139,6 +140,56 @@ def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, track
     values.insert(A, np.array([1.2, -0.4]))
     values.insert(B, np.array([0.01]))
     assert_jacobians(factor, values)
+
+
+def test_chunks_in_one_batch_give_what_each_gives_alone(segment, rng):
+    # Chunks of two shapes (30 steps with an end, 20 steps without) share one batch; each
+    # answer must equal the chunk's own evaluation, also after the values change and when a
+    # Values holds only one chunk's variables.
+    poses, inputs = segment
+    OFFSET, A = gtsam.symbol("o", 0), gtsam.symbol("a", 0)
+    rates = rotation_rate_changes(inputs[:, :2], 0.025)
+    bounds = [0, 30, 60, 80]
+    batch = ChunkBatch()
+    pairs = []
+    for j in range(3):
+        a, b = bounds[j], bounds[j + 1]
+        end = None if j == 2 else gtsam.symbol("x", j + 1)
+        kwargs = dict(
+            corrections=C(j), end=end, time_offset=OFFSET, lever_arm=A, tracking_sigmas=None
+        )
+        chunk = OdometryChunk(inputs[a:b], poses[a : b + 1], None, rates[a:b])
+        start = gtsam.symbol("x", j)
+        shared = ChunkOdometryFactor(chunk, start, T, batch=batch, **kwargs).factor()
+        alone = ChunkOdometryFactor(chunk, start, T, **kwargs).factor()
+        pairs.append((shared, alone, bounds[j], b))
+    values = gtsam.Values()
+    for j in range(4):
+        values.insert(gtsam.symbol("x", j), pose2_from_state(poses[bounds[j]] + [0.1, 0.2, 0.01]))
+    for j in range(3):
+        values.insert(C(j), rng.normal(0, 1e-3, 2 * (bounds[j + 1] - bounds[j])))
+    values.insert(T, THETA)
+    values.insert(OFFSET, np.array([0.03]))
+    values.insert(A, np.array([1.0, 0.2]))
+    for trial in range(2):
+        for shared, alone, _, _ in pairs:
+            assert np.array_equal(shared.unwhitenedError(values), alone.unwhitenedError(values))
+            np.testing.assert_allclose(
+                shared.linearize(values).jacobian()[0],
+                alone.linearize(values).jacobian()[0],
+                rtol=1e-12,
+                atol=1e-12,
+            )
+        values.update(T, THETA * (1 + 1e-3 * (trial + 1)))
+    assert_jacobians(pairs[0][0], values)
+    only_first = gtsam.Values()
+    for key in pairs[0][0].keys():
+        only_first.insert(
+            key,
+            values.atPose2(key) if gtsam.Symbol(key).chr() == ord("x") else values.atVector(key),
+        )
+    shared, alone = pairs[0][0], pairs[0][1]
+    assert np.array_equal(shared.unwhitenedError(only_first), alone.unwhitenedError(only_first))
 
 
 def test_time_offset_is_the_shifted_rotation_to_first_order(segment):

@@ -8,7 +8,9 @@ a small factor class that consumes it, its error with the Jacobians beside it.
   with theta fixed, :func:`wheel_odometry_between_factor` gives a built-in
   ``BetweenFactorPose2``;
 * :class:`OdometryChunk` + :class:`ChunkOdometryFactor` — a chunk of steps tracking measured
-  poses, for the calibration graphs; :func:`segment_odometry_factor` for a whole segment;
+  poses, for the calibration graphs (a graph's chunk factors share a :class:`ChunkBatch`
+  that evaluates them in one vectorized pass); :func:`segment_odometry_factor` for a whole
+  segment;
 * :func:`pose_measurement_factor` — a measured pose with the paper's weights;
   :class:`MeasuredPoseFactor` — a measured pose through the antenna's lever arm
   and a heading bias;
@@ -16,13 +18,9 @@ a small factor class that consumes it, its error with the Jacobians beside it.
 * :func:`theta_prior_factor` — a prior on theta.
 """
 
-from graphcal.factors.chunk import (
-    CONTINUITY_SIGMAS,
-    ChunkError,
-    ChunkOdometryFactor,
-    OdometryChunk,
-    segment_odometry_factor,
-)
+from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk, chunk_errors
+from graphcal.factors.chunk_batch import ChunkBatch
+from graphcal.factors.chunk_factor import ChunkOdometryFactor, segment_odometry_factor
 from graphcal.factors.corrections import (
     chunk_boundary_smoothness,
     chunk_correction_prior,
@@ -47,6 +45,7 @@ from graphcal.factors.wheel_odometry import (
 __all__ = [
     "CONTINUITY_SIGMAS",
     "PAPER_POSE_WEIGHTS",
+    "ChunkBatch",
     "ChunkError",
     "ChunkOdometryFactor",
     "MeasuredPoseFactor",
@@ -56,6 +55,7 @@ __all__ = [
     "body_to_world",
     "chunk_boundary_smoothness",
     "chunk_correction_prior",
+    "chunk_errors",
     "pose2_from_state",
     "pose_measurement_factor",
     "pose_sigmas",

@@ -34,9 +34,10 @@ import numpy as np
 
 from graphcal.data.segments import SegmentData
 from graphcal.data.timing import rotation_rate_changes
-from graphcal.errors import CalibrationFailed
+from graphcal.errors import CalibrationFailed, first_line
 from graphcal.factors import (
     CONTINUITY_SIGMAS,
+    ChunkBatch,
     ChunkOdometryFactor,
     MeasuredPoseFactor,
     OdometryChunk,
@@ -49,8 +50,8 @@ from graphcal.factors import (
 from graphcal.graph import keys
 from graphcal.graph.chunking import chunk_bounds
 from graphcal.graph.plausibility import check_plausible
+from graphcal.graph.segmented import SegmentedGraph, solve_segmented
 from graphcal.graph.slip import slip_prior_factor, slip_step_factor
-from graphcal.graph.solve import marginal_covariance, solve_lm
 from graphcal.model import integrate
 
 
@@ -293,6 +294,7 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
         if time_offset_key is not None:
             rates = rotation_rate_changes(inputs[:, :2], data.dt)
         n_chunks = len(bounds) - 1
+        batch = ChunkBatch()  # the segment's chunk factors evaluated together, vectorized
         for j in range(n_chunks):
             a, b = int(bounds[j]), int(bounds[j + 1])
             last = j == n_chunks - 1
@@ -321,6 +323,7 @@ def build_segment_graph(data: SegmentData, spec: SegmentGraphSpec) -> SegmentGra
                 lever_arm=lever_arm_key,
                 heading_bias=bias_key,
                 fix_weights=None if weights is None else weights[a + 1 : b + 1],
+                batch=batch,
             )
             slots.append(ChunkFactorSlot(int(graph.size()), s, a, b))
             graph.add(factor.factor())
@@ -480,11 +483,13 @@ class ThetaEstimate:
 
 @dataclass(frozen=True)
 class SegmentSolution(ThetaEstimate):
-    """A solved segment graph: the estimate with the solution's values (``result``) and the
-    graph that was solved (``built``)."""
+    """A solved segment graph: the estimate with the solution's values (``result``), the
+    graph that was solved (``built``) and its split into segments at the solution
+    (``segmented``, :class:`~graphcal.graph.segmented.SegmentedGraph`)."""
 
     result: gtsam.Values
     built: SegmentGraph
+    segmented: SegmentedGraph | None = field(default=None, kw_only=True)
 
     def estimate(self) -> ThetaEstimate:
         """The estimate alone (picklable: no GTSAM objects)."""
@@ -523,40 +528,59 @@ def solve_segment_graph(
     if built is None:
         built = build_segment_graph(data, spec)
     start = built.values if initial is None else initial
-    initial_error = float(built.graph.error(start))
-    result, iterations = solve_lm(
-        built.graph, start, max_iterations, relative_error_tol, label, CalibrationFailed
+    segmented, iterations = solve_segmented(
+        built.graph,
+        start,
+        shared_keys(spec),
+        max_iterations,
+        relative_error_tol,
+        label,
+        CalibrationFailed,
     )
+    result = segmented.values()
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
         check_plausible(theta, label, reference=spec.theta)
         if covariance:
-            marginal, nuisance = _marginals(built, result, label)
+            marginal, nuisance = _marginals(segmented, result, spec, label)
     return SegmentSolution(
         theta=theta,
         covariance=marginal,
         start_states=built.start_states(result),
         iterations=iterations,
-        initial_error=initial_error,
-        final_error=float(built.graph.error(result)),
+        initial_error=segmented.initial_error,
+        final_error=segmented.error(),
         result=result,
         built=built,
-        degrees_of_freedom=degrees_of_freedom(built.graph, result),
+        degrees_of_freedom=segmented.factor_dims() - segmented.dim(),
         nuisance=nuisance,
+        segmented=segmented,
     )
+
+
+def shared_keys(spec: SegmentGraphSpec) -> list[int]:
+    """The variables every segment of ``spec``'s graph shares: theta (if estimated), then
+    the time offset and the lever arm (if present)."""
+    found = [keys.THETA] if spec.estimate_theta else []
+    return [*found, *spec.nuisance_keys().values()]
 
 
 def _marginals(
-    built: SegmentGraph, result: gtsam.Values, label: str
+    segmented: SegmentedGraph, result: gtsam.Values, spec: SegmentGraphSpec, label: str
 ) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
-    """Theta's marginal covariance and the graph-wide nuisance estimates at ``result``."""
-    spec = built.spec
+    """Theta's marginal covariance and the graph-wide nuisance estimates at ``result``: the
+    inverse of the shared variables' information, every segment's variables marginalized."""
     extra = spec.nuisance_keys()
-    joint = marginal_covariance(
-        built.graph, result, [keys.THETA, *extra.values()], label, CalibrationFailed
-    )
+    try:
+        information = segmented.shared_information()
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise CalibrationFailed(f"{label} failed: covariance: {reason}") from exc
+    joint = _inverse(0.5 * (information + information.T))
+    if joint is None:
+        raise CalibrationFailed(f"{label} failed: covariance: the information is singular")
     priors = {"time_offset": spec.time_offset_sigma, "lever_arm": spec.lever_arm_sigma}
     nuisance, at = {}, 4
     for name, key in extra.items():
@@ -567,11 +591,27 @@ def _marginals(
     return joint[:4, :4], nuisance
 
 
+def _inverse(information: np.ndarray) -> np.ndarray | None:
+    """The inverse of a symmetric positive definite ``information``, or ``None`` if it is
+    not (or the inverse is not finite)."""
+    try:
+        root = np.linalg.cholesky(information)
+    except np.linalg.LinAlgError:
+        return None
+    inverse_root = np.linalg.inv(root)
+    covariance = inverse_root.T @ inverse_root
+    return covariance if np.all(np.isfinite(covariance)) else None
+
+
 def with_covariance(solution: SegmentSolution, label: str) -> SegmentSolution:
     """``solution`` with theta's marginal covariance and the nuisance estimates computed."""
     if solution.covariance is not None or not solution.built.spec.estimate_theta:
         return solution
-    marginal, nuisance = _marginals(solution.built, solution.result, label)
+    segmented = solution.segmented
+    if segmented is None:
+        spec = solution.built.spec
+        segmented = SegmentedGraph(solution.built.graph, solution.result, shared_keys(spec))
+    marginal, nuisance = _marginals(segmented, solution.result, solution.built.spec, label)
     return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
 
 

@@ -96,7 +96,7 @@ def _levenberg_marquardt(
             for key, a, dim in zip(keys, first_column[:-1], dims, strict=True):
                 damped.add(
                     gtsam.JacobianFactor(
-                        key, np.diag(root[a : a + dim]), np.zeros(dim), _unit(int(dim))
+                        key, np.diag(root[a : a + dim]), np.zeros(dim), unit_noise(int(dim))
                     )
                 )
             try:
@@ -129,7 +129,7 @@ def _levenberg_marquardt(
 
 
 @functools.cache
-def _unit(dim: int) -> gtsam.noiseModel.Unit:
+def unit_noise(dim: int) -> gtsam.noiseModel.Unit:
     """``gtsam.noiseModel.Unit`` of dimension ``dim``, made once."""
     return gtsam.noiseModel.Unit.Create(dim)
 
@@ -141,28 +141,6 @@ def _hessian_diagonal(linear: gtsam.GaussianFactorGraph, n_columns: int) -> np.n
     return np.bincount(
         columns[inside].astype(int) - 1, weights=entries[inside] ** 2, minlength=n_columns
     )
-
-
-def gauss_newton_decrement(
-    graph: gtsam.NonlinearFactorGraph,
-    values: gtsam.Values,
-    label: str,
-    error_type: type[GraphcalError] = GraphcalError,
-) -> float:
-    """How much one Gauss–Newton step from ``values`` would lower ``graph``'s error (half the
-    whitened squared residual) on its linearization: ``½ gᵀ H⁻¹ g``.
-
-    For variables that enter almost linearly this is what a full solve gains, at the cost of
-    one linearization and one sparse solve (no optimizer, no nonlinear error evaluations).
-    Raises ``error_type`` (``"<label> failed: <reason>"``) if the system cannot be solved.
-    """
-    try:
-        linear = graph.linearize(values)
-        step = linear.optimize()
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise error_type(f"{label} failed: {reason}") from exc
-    return float(linear.error(step.scale(0.0)) - linear.error(step))
 
 
 def marginal_covariance(

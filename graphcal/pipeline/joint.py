@@ -27,7 +27,7 @@ import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import CalibrationFailed, check_settings
+from graphcal.errors import CalibrationFailed, check_settings, first_line
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph import keys
 from graphcal.graph.observability import (
@@ -42,10 +42,11 @@ from graphcal.graph.segment_graph import (
     SegmentSolution,
     ThetaEstimate,
     build_segment_graph,
+    shared_keys,
     solve_segment_graph,
     with_covariance,
 )
-from graphcal.graph.solve import gauss_newton_decrement
+from graphcal.graph.segmented import SegmentedGraph
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
@@ -290,7 +291,11 @@ def _with_slip_if_shown(
         for j in range(len(bounds) - 1):
             initial.insert(keys.segment_slip(s, j), np.zeros(2))
     with_slip = build_segment_graph(weighted, spec)
-    drop = gauss_newton_decrement(with_slip.graph, initial, "joint solve", CalibrationFailed)
+    try:
+        drop = SegmentedGraph(with_slip.graph, initial, shared_keys(spec)).gauss_newton_decrement()
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise CalibrationFailed(f"joint solve failed: {reason}") from exc
     chunks = sum(len(bounds) - 1 for bounds in solved.built.bounds)
     statistic = 2.0 * drop / chunks
     if statistic <= settings.slip_detection:

@@ -1,0 +1,273 @@
+"""The chunk factor: an :class:`~graphcal.factors.chunk.OdometryChunk` between graph variables.
+
+Python factors cost ~50 µs per call plus a copy of the optimizer's values
+(``docs/performance.md``), so graphcal integrates many 40 Hz steps per factor, vectorized, and
+the chunk factors of one graph share a :class:`~graphcal.factors.chunk_batch.ChunkBatch` that
+evaluates them all in one numpy pass.
+
+Each of a :class:`ChunkOdometryFactor`'s slots is named: the start (a Pose2 key, or a held
+state), theta (a 4-vector key, or a fixed value), the chunk's wheel-rotation corrections (one
+``2L``-vector key, laid out ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``, or none), the end (the
+Pose2 key of the next chunk's start, or none for a segment's last chunk) and the defects of
+real logs, each an optional key: relative wheel-slip scales, the wheels' time offset against
+the pose, the GNSS antenna's lever arm and a heading bias of the measured (fused) heading.
+Headings of Pose2 variables are unwrapped against the chunk's reference heading.
+
+:func:`segment_odometry_factor` is the whole-segment case (the batch residual of eqs. 6–11).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk
+from graphcal.factors.chunk_batch import ChunkBatch
+from graphcal.factors.poses import pose_sigmas, state_from_pose2
+
+
+@dataclass(frozen=True)
+class ChunkArguments:
+    """What a chunk factor reads from a ``Values`` (states, not Pose2; ``None``: no slot)."""
+
+    start: np.ndarray
+    theta: np.ndarray
+    corrections: np.ndarray | None
+    end: np.ndarray | None
+    slip: np.ndarray | None
+    time_offset: np.ndarray | None
+    lever_arm: np.ndarray | None
+    heading_bias: np.ndarray | None
+
+    def flat(self) -> np.ndarray:
+        """Every given argument in one vector (to tell whether two reads are equal)."""
+        parts = [self.start, self.theta]
+        for part in (
+            self.corrections,
+            self.end,
+            self.slip,
+            self.time_offset,
+            self.lever_arm,
+            self.heading_bias,
+        ):
+            if part is not None:
+                parts.append(part.ravel())
+        return np.concatenate(parts)
+
+
+class ChunkOdometryFactor:
+    """An :class:`~graphcal.factors.chunk.OdometryChunk` between graph variables (the
+    ``gtsam.CustomFactor`` callable).
+
+    Args:
+        chunk: the measurements.
+        start: the start's Pose2 key, or a held start state ``(3,)``.
+        theta: theta's 4-vector key, or a fixed theta ``(4,)`` (SI).
+        corrections: key of the chunk's ``2L``-vector of wheel-rotation corrections, or ``None``.
+        end: key of the Pose2 the chunk must reach (the next chunk's start), or ``None``.
+        tracking_sigmas: ``[m, m, rad]`` of the tracking residuals (default
+            :func:`~graphcal.factors.poses.pose_sigmas`).
+        continuity_sigmas: ``[m, m, rad]`` of the continuity residual
+            (default :data:`CONTINUITY_SIGMAS`).
+        slip: key of the chunk's 2-vector of relative wheel-slip scales, or ``None``.
+        time_offset: key of the 1-vector wheel time offset [s], or ``None``.
+        lever_arm: key of the 2-vector antenna lever arm [m], or ``None``.
+        heading_bias: key of the 1-vector heading bias [rad], or ``None``.
+        fix_weights: ``(L,)`` weight in (0, 1] of each tracked position (robust
+            down-weighting: its sigmas are divided by the weight's square root), or ``None``
+            for all 1.
+        batch: the :class:`~graphcal.factors.chunk_batch.ChunkBatch` this factor is
+            evaluated in, shared by the chunk factors of a graph (default: one of its own).
+
+    Keys, in order: start, end, corrections, theta, slip, time_offset, lever_arm,
+    heading_bias — each only if it is a key.
+    """
+
+    def __init__(
+        self,
+        chunk: OdometryChunk,
+        start: int | np.ndarray,
+        theta: int | np.ndarray,
+        corrections: int | None = None,
+        end: int | None = None,
+        tracking_sigmas: np.ndarray | None = None,
+        continuity_sigmas: np.ndarray | None = None,
+        slip: int | None = None,
+        time_offset: int | None = None,
+        lever_arm: int | None = None,
+        heading_bias: int | None = None,
+        fix_weights: np.ndarray | None = None,
+        batch: ChunkBatch | None = None,
+    ):
+        self.chunk = chunk
+        self.slip_key = slip
+        self.time_offset_key = time_offset
+        self.lever_arm_key = lever_arm
+        self.heading_bias_key = heading_bias
+        self.start_key, self.start_state = _slot(start, 3, "start")
+        self.theta_key, self.theta = _slot(theta, 4, "theta")
+        self.corrections_key = corrections
+        self.end_key = end
+        if chunk.measured_poses is None and end is None:
+            raise ValueError("a chunk needs measured poses to track or an end to reach")
+        sigmas = []
+        if chunk.measured_poses is not None:
+            track = pose_sigmas() if tracking_sigmas is None else np.asarray(tracking_sigmas, float)
+            track = np.tile(track, (chunk.n_steps, 1))
+            if fix_weights is not None:
+                weights = np.asarray(fix_weights, float)
+                if weights.shape != (chunk.n_steps,) or not np.all(weights > 0):
+                    raise ValueError(f"fix weights must be ({chunk.n_steps},) positive numbers")
+                track[:, :2] /= np.sqrt(weights)[:, None]
+            sigmas.append(track.reshape(-1))
+        if end is not None:
+            cont = CONTINUITY_SIGMAS if continuity_sigmas is None else continuity_sigmas
+            sigmas.append(np.asarray(cont, float))
+        self.sigmas = np.concatenate(sigmas)
+        self.batch = ChunkBatch() if batch is None else batch
+        self.batch_index = self.batch.add(self)
+
+    def _slot_keys(self) -> tuple[int | None, ...]:
+        return (
+            self.start_key,
+            self.end_key,
+            self.corrections_key,
+            self.theta_key,
+            self.slip_key,
+            self.time_offset_key,
+            self.lever_arm_key,
+            self.heading_bias_key,
+        )
+
+    @property
+    def keys(self) -> list[int]:
+        """The factor's keys in slot order (those slots that are keys)."""
+        return [k for k in self._slot_keys() if k is not None]
+
+    def factor(self) -> gtsam.CustomFactor:
+        """The ``gtsam.CustomFactor`` of this chunk."""
+        noise = gtsam.noiseModel.Diagonal.Sigmas(self.sigmas)
+        return gtsam.CustomFactor(noise, self.keys, self)
+
+    def read(self, values: gtsam.Values) -> ChunkArguments:
+        """The factor's arguments at ``values``."""
+        reference = self.chunk.reference_heading
+        start = (
+            self.start_state
+            if self.start_key is None
+            else state_from_pose2(values.atPose2(self.start_key), reference)
+        )
+        theta = self.theta if self.theta_key is None else values.atVector(self.theta_key)
+        corrections = None
+        if self.corrections_key is not None:
+            corrections = values.atVector(self.corrections_key).reshape(self.chunk.n_steps, 2)
+        end = None
+        if self.end_key is not None:  # its heading branch does not matter: the gap is wrapped
+            end = state_from_pose2(values.atPose2(self.end_key), start[2])
+
+        def vector(key: int | None) -> np.ndarray | None:
+            return None if key is None else values.atVector(key)
+
+        def scalar(key: int | None) -> np.ndarray | None:
+            return None if key is None else np.asarray(values.atVector(key)[0])
+
+        return ChunkArguments(
+            start,
+            np.asarray(theta, float),
+            corrections,
+            end,
+            vector(self.slip_key),
+            scalar(self.time_offset_key),
+            vector(self.lever_arm_key),
+            scalar(self.heading_bias_key),
+        )
+
+    def shape_signature(self) -> tuple:
+        """Chunks with equal signatures stack into one vectorized evaluation."""
+        return (
+            self.chunk.n_steps,
+            self.chunk.measured_poses is None,
+            self.chunk.rotation_rates is None,
+            *(key is None for key in self._slot_keys()),
+        )
+
+    def jacobian_blocks(
+        self, result: ChunkError, start: np.ndarray, end: np.ndarray | None
+    ) -> list[np.ndarray]:
+        """GTSAM's Jacobian blocks ``(C, dim, key dim)`` in key order from a batched
+        :func:`~graphcal.factors.chunk.chunk_errors` of ``C`` chunks shaped like this one,
+        Pose2 slots in their tangent spaces (start ``(C, 3)``, end ``(C, 3)`` states)."""
+        count, dim = result.error.shape
+        blocks = []
+        if self.start_key is not None:
+            blocks.append(_in_tangent(result.start, start[:, 2]))
+        if self.end_key is not None:
+            blocks.append(_in_tangent(result.end, end[:, 2]))
+        if self.corrections_key is not None:
+            blocks.append(result.corrections.reshape(count, dim, -1))
+        if self.theta_key is not None:
+            blocks.append(result.theta)
+        for key, block in (
+            (self.slip_key, result.slip),
+            (self.time_offset_key, result.time_offset),
+            (self.lever_arm_key, result.lever_arm),
+            (self.heading_bias_key, result.heading_bias),
+        ):
+            if key is not None:
+                blocks.append(block)
+        return blocks
+
+    def __call__(
+        self, factor: gtsam.CustomFactor, values: gtsam.Values, H: list | None
+    ) -> np.ndarray:
+        error, blocks = self.batch.evaluate(self.batch_index, values, H is not None)
+        if H is not None:
+            for i, block in enumerate(blocks):
+                H[i] = block
+        return error
+
+
+def _in_tangent(block: np.ndarray, heading: np.ndarray) -> np.ndarray:
+    """``(C, dim, 3)`` Jacobians by states turned into Jacobians by Pose2 tangents at
+    ``heading (C,)`` (Pose2 retracts in its body frame:
+    :func:`~graphcal.factors.poses.body_to_world`)."""
+    cos, sin = np.cos(heading)[:, None], np.sin(heading)[:, None]
+    out = block.copy()
+    out[..., 0] = block[..., 0] * cos + block[..., 1] * sin
+    out[..., 1] = -block[..., 0] * sin + block[..., 1] * cos
+    return out
+
+
+def _slot(value: int | np.ndarray, size: int, name: str) -> tuple[int | None, np.ndarray | None]:
+    """``(key, None)`` for a key, ``(None, fixed value)`` for an array."""
+    if isinstance(value, int | np.integer):
+        return int(value), None
+    array = np.asarray(value, float)
+    if array.shape != (size,):
+        raise ValueError(f"{name} must be a key or a ({size},) array, got shape {array.shape}")
+    return None, array
+
+
+def segment_odometry_factor(
+    theta_key: int,
+    measured_poses: np.ndarray,
+    inputs: np.ndarray,
+    sigmas: np.ndarray | None = None,
+    start_key: int | None = None,
+) -> gtsam.CustomFactor:
+    """A factor tying theta (and optionally the segment's start pose) to a measured segment.
+
+    Args:
+        theta_key: key of the 4-vector theta ``[c_e, c_d, t_r, d]`` (SI).
+        measured_poses: measured states ``(K+1, 3)`` ``[px, py, psi]``, heading unwrapped.
+        inputs: measured inputs ``(K, 4)`` ``[n_rl, n_rr, beta, ay]``.
+        sigmas: per-component pose sigmas ``[m, m, rad]``; default :func:`pose_sigmas`.
+        start_key: key of the start ``Pose2``; ``None`` holds the start at its measurement
+            (the paper's state initialization, Step 1).
+    """
+    measured_poses = np.asarray(measured_poses, dtype=float)
+    chunk = OdometryChunk(inputs, measured_poses)
+    start = measured_poses[0] if start_key is None else start_key
+    return ChunkOdometryFactor(chunk, start, theta_key, tracking_sigmas=sigmas).factor()

@@ -1,0 +1,72 @@
+"""The segment-by-segment solve gives the single graph's estimate and covariance."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import gtsam
+import numpy as np
+
+from graphcal.data.drive_log import load_drive_log
+from graphcal.data.segments import gather_segments, select_segments, split_segments
+from graphcal.graph import keys
+from graphcal.graph.segment_graph import build_segment_graph, shared_keys, solve_segment_graph
+from graphcal.graph.segmented import SegmentedGraph
+from graphcal.graph.solve import marginal_covariance, solve_lm
+from graphcal.pipeline.joint import JointSettings
+
+SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
+
+
+def _sample_segments():
+    log = load_drive_log(SAMPLE)
+    return gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+
+
+def test_segmented_solve_matches_the_single_graph_on_the_sample_drive():
+    data = _sample_segments()
+    spec = JointSettings(slip="on").graph_spec()  # theta, time offset, lever arm and slip
+    built = build_segment_graph(data, spec)
+    shared = shared_keys(spec)
+    single, _ = solve_lm(built.graph, built.values, 50, 1e-9, "single graph")
+    single_covariance = marginal_covariance(built.graph, single, shared, "single graph")
+
+    solution = solve_segment_graph(data, spec, 50, 1e-9, "segmented")
+
+    theta = solution.theta
+    reference = single.atVector(keys.THETA)
+    assert np.max(np.abs(theta - reference) / np.abs(reference)) < 1e-6
+    segmented = np.linalg.inv(solution.segmented.shared_information())
+    scale = np.sqrt(np.outer(np.diag(single_covariance), np.diag(single_covariance)))
+    assert np.max(np.abs(segmented - single_covariance) / scale) < 1e-4
+    assert np.allclose(solution.covariance, single_covariance[:4, :4], rtol=1e-4, atol=0)
+    # Every segment is its own part; the error is the single graph's at the same values.
+    assert len(solution.segmented.parts) == len(data)
+    assert np.isclose(solution.final_error, built.graph.error(solution.result), rtol=1e-12)
+
+
+def test_segmented_graph_splits_at_the_shared_keys_only():
+    # Two chains a-b and c-d tied by a shared key s: two parts; the prior on s alone is shared.
+    graph = gtsam.NonlinearFactorGraph()
+    values = gtsam.Values()
+    a, b, c, d, s = (gtsam.symbol("x", i) for i in range(5))
+    noise = gtsam.noiseModel.Isotropic.Sigma(1, 1.0)
+    for key in (a, b, c, d, s):
+        values.insert(key, np.array([float(key % 7)]))
+    graph.add(gtsam.BetweenFactorVector(a, b, np.array([1.0]), noise))
+    graph.add(gtsam.BetweenFactorVector(b, s, np.array([1.0]), noise))
+    graph.add(gtsam.BetweenFactorVector(c, d, np.array([2.0]), noise))
+    graph.add(gtsam.BetweenFactorVector(d, s, np.array([-1.0]), noise))
+    graph.add(gtsam.PriorFactorVector(s, np.array([0.5]), noise))
+    graph.add(gtsam.PriorFactorVector(a, np.array([0.0]), noise))
+    segmented = SegmentedGraph(graph, values, [s])
+    assert sorted(sorted(p.local) for p in segmented.parts) == [[a, b], [c, d]]
+    assert segmented.shared_graph.size() == 1
+    iterations = segmented.optimize(20, 1e-12)
+    result = segmented.values()
+    # The linear problem's exact optimum, solved as one graph.
+    exact = graph.linearize(values).optimize()
+    for key in (a, b, c, d, s):
+        expected = values.atVector(key) + exact.at(key)
+        assert np.allclose(result.atVector(key), expected, atol=1e-9)
+    assert iterations <= 3
