@@ -39,3 +39,16 @@ def test_quick_preset_and_explicit_sizes():
     assert resolve_bench_options(parser.parse_args(["--quick"])) == QUICK
     mixed = resolve_bench_options(parser.parse_args(["--quick", "--repeats", "2"]))
     assert mixed == {**QUICK, "repeats": 2}  # what is given wins over the preset
+
+
+def test_segmented_bench_item_agrees_with_the_single_graph():
+    from graphcal.bench.run import segmented_items
+
+    log = simulate_drive(3.0, seed=4).measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+    rows = []
+    report = segmented_items(lambda name, seconds, **extra: rows.append(name), data, 1)
+    assert len(rows) == 3 and report["segments"] == len(data)
+    for workers in (1, 2):
+        assert report[f"theta_rel_difference_{workers}"] < 1e-6
+        assert report[f"covariance_rel_difference_{workers}"] < 1e-4

@@ -23,7 +23,10 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
   streams) in a child process: time and the child's own peak memory
   (:mod:`graphcal.bench.importing`);
 * (i) the whole-log solve of the drive with the defect model (the defaults) and without it
-  (``--no-defect-model``), and the ratio of their times.
+  (``--no-defect-model``), and the ratio of their times;
+* (j) the joint solve of all selected segments with its covariance as one graph under GTSAM's
+  optimizer (the formulation before issue 14) and segment by segment in one and two
+  processes, with the differences of theta and covariance.
 
 Ratios are taken within one run, never against figures from another machine.
 """
@@ -50,16 +53,20 @@ from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
 from graphcal.bench.options import resolve_bench_options
 from graphcal.data.drive_log import DriveLog, load_drive_log
 from graphcal.data.segments import (
+    SegmentData,
     gather_segments,
     make_batches,
     select_segments,
     split_segments,
 )
+from graphcal.graph import keys
+from graphcal.graph.segment_graph import build_segment_graph, shared_keys, solve_segment_graph
+from graphcal.graph.solve import marginal_covariance, solve_lm
 from graphcal.localization.online import run_online
 from graphcal.model import integrate, integrate_with_jacobians
 from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.input_estimation import estimate_inputs
-from graphcal.pipeline.joint import calibrate_joint, without_defect_model
+from graphcal.pipeline.joint import JointSettings, calibrate_joint, without_defect_model
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
@@ -189,6 +196,7 @@ def run_benchmarks(
             workers=workers,
         )
 
+    segmented = segmented_items(record, data, repeats)
     defect_ratio = whole_log_items(record, log, repeats)
     localization = localization_items(record, repeats)
     importing = None
@@ -213,6 +221,7 @@ def run_benchmarks(
         "items": rows,
         "naive_over_graphcal_per_iteration": speedup,
         "defect_model_over_plain_whole_log": defect_ratio,
+        "segmented": segmented,
         "localization": localization,
         "import": importing,
         "agreement": {
@@ -224,6 +233,47 @@ def run_benchmarks(
             "theta_naive_formulation": approx.tolist(),
         },
     }
+
+
+def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int) -> dict[str, Any]:
+    """(j) The joint solve of all selected segments with its covariance (the defaults' graph:
+    theta, time offset, lever arm, heading biases), as one graph under GTSAM's
+    Levenberg–Marquardt optimizer with GTSAM's marginals (the formulation before issue 14),
+    and segment by segment (:mod:`graphcal.graph.segmented`) in one and two processes, one
+    after the other; returns the ratios and the largest relative theta and covariance
+    differences to the single graph."""
+    spec = JointSettings().graph_spec()
+    shared = shared_keys(spec)
+
+    def single_graph() -> tuple[np.ndarray, np.ndarray]:
+        built = build_segment_graph(data, spec)
+        result, _ = solve_lm(built.graph, built.values, 50, 1e-7, "single graph")
+        covariance = marginal_covariance(built.graph, result, shared, "single graph")
+        return np.asarray(result.atVector(keys.THETA)), covariance[:4, :4]
+
+    single_s, (theta, covariance) = timed(single_graph, repeats)
+    record("(j) whole-log joint solve, one graph (GTSAM LM)", single_s, segments=len(data))
+    out: dict[str, Any] = {"segments": len(data), "single_graph_s": single_s}
+    for workers in (1, 2):
+        seconds, solution = timed(
+            lambda w=workers: solve_segment_graph(data, spec, 50, 1e-7, "segmented", workers=w),
+            repeats,
+        )
+        scale = np.sqrt(np.outer(np.diag(covariance), np.diag(covariance)))
+        theta_difference = float(np.max(np.abs(solution.theta - theta) / np.abs(theta)))
+        covariance_difference = float(np.max(np.abs(solution.covariance - covariance) / scale))
+        record(
+            f"(j) whole-log joint solve, segment by segment, {workers} process(es)",
+            seconds,
+            over_single=seconds / single_s,
+            theta_rel_difference=theta_difference,
+            covariance_rel_difference=covariance_difference,
+        )
+        out[f"segmented_{workers}_s"] = seconds
+        out[f"single_over_segmented_{workers}"] = single_s / seconds
+        out[f"theta_rel_difference_{workers}"] = theta_difference
+        out[f"covariance_rel_difference_{workers}"] = covariance_difference
+    return out
 
 
 def whole_log_items(record: Callable[..., None], log: DriveLog, repeats: int) -> float:

@@ -86,7 +86,7 @@ def solve_robust(
     solution = solve(data, None)
     weights = data.fix_weights
     for _ in range(rounds - 1):
-        residuals = solution.built.fix_residuals(solution.result)
+        residuals = solution.built.fix_residuals(solution.result, solution.segmented)
         usable = data.valid & (given >= 1.0)  # the scale from fixes not flagged already
         scale = residual_scale(residuals, usable, floor)
         new = np.where(data.valid, np.minimum(given, fix_weights(residuals, scale, threshold)), 1.0)
@@ -106,17 +106,26 @@ def solve_segment_graph_robust(
     label: str,
     threshold: float,
     covariance: bool = True,
+    workers: int = 1,
 ) -> tuple[SegmentSolution, np.ndarray | None]:
     """:func:`~graphcal.graph.segment_graph.solve_segment_graph` with robust fix weights
-    (:func:`solve_robust`); ``threshold`` 0 solves once without them."""
+    (:func:`solve_robust`); ``threshold`` 0 solves once without them. ``workers``: processes
+    the segments are shared out among."""
 
     def solve(segments: SegmentData, initial) -> SegmentSolution:
         return solve_segment_graph(
-            segments, spec, max_iterations, relative_error_tol, label, False, initial
+            segments,
+            spec,
+            max_iterations,
+            relative_error_tol,
+            label,
+            False,
+            initial,
+            workers=workers,
         )
 
     if threshold <= 0:
         solution, weights = solve(data, None), data.fix_weights
     else:
         solution, weights = solve_robust(data, spec, solve, threshold)
-    return (with_covariance(solution, label) if covariance else solution), weights
+    return (with_covariance(solution, label, workers) if covariance else solution), weights

@@ -50,7 +50,7 @@ from graphcal.factors import (
 from graphcal.graph import keys
 from graphcal.graph.chunking import chunk_bounds
 from graphcal.graph.plausibility import check_plausible
-from graphcal.graph.segmented import SegmentedGraph, solve_segmented
+from graphcal.graph.segmented import SegmentedGraph, optimize_segmented
 from graphcal.graph.slip import slip_prior_factor, slip_step_factor
 from graphcal.model import integrate
 
@@ -154,15 +154,21 @@ class SegmentGraph:
     data: SegmentData
     chunk_factors: tuple[ChunkFactorSlot, ...] = ()
 
-    def fix_residuals(self, result: gtsam.Values) -> np.ndarray:
+    def fix_residuals(
+        self, result: gtsam.Values, segmented: SegmentedGraph | None = None
+    ) -> np.ndarray:
         """Position residuals ``(S, K+1, 2)`` [m] of every measured pose at ``result`` (the
         predicted antenna position minus the measured one; zero at padding and at held
-        starts), for robust reweighting."""
+        starts), for robust reweighting. With ``segmented`` (this graph split at the same
+        values) each chunk is evaluated on its segment's own ``Values``: GTSAM copies the
+        ``Values`` for every Python factor call."""
         data = self.data
         out = np.zeros((len(data), data.poses.shape[1], 2))
+        values_of = {} if segmented is None else segmented.values_by_key()
         for slot in self.chunk_factors:
             factor = self.graph.at(slot.index)
-            error = np.asarray(factor.unwhitenedError(result))
+            values = values_of.get(int(factor.keys()[0]), result)
+            error = np.asarray(factor.unwhitenedError(values))
             n = slot.end - slot.first
             out[slot.segment, slot.first + 1 : slot.end + 1] = error[: 3 * n].reshape(n, 3)[:, :2]
         if self.spec.start_prior_sigmas is not None:
@@ -514,10 +520,13 @@ def solve_segment_graph(
     covariance: bool = True,
     initial: gtsam.Values | None = None,
     built: SegmentGraph | None = None,
+    workers: int = 1,
 ) -> SegmentSolution:
     """Build the graph of ``spec`` over ``data`` (or take ``built``, that graph already
     built) and solve it with Levenberg–Marquardt, from the builder's initial values or from
-    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start).
+    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start), segment by
+    segment (:class:`~graphcal.graph.segmented.SegmentedGraph`), the segments shared out among
+    ``workers`` processes (the result does not depend on it).
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
@@ -528,23 +537,19 @@ def solve_segment_graph(
     if built is None:
         built = build_segment_graph(data, spec)
     start = built.values if initial is None else initial
-    segmented, iterations = solve_segmented(
-        built.graph,
-        start,
-        shared_keys(spec),
-        max_iterations,
-        relative_error_tol,
-        label,
-        CalibrationFailed,
-    )
-    result = segmented.values()
+    segmented = SegmentedGraph(built.graph, start, shared_keys(spec))
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
-    if spec.estimate_theta:
-        theta = np.asarray(result.atVector(keys.THETA))
-        check_plausible(theta, label, reference=spec.theta)
-        if covariance:
-            marginal, nuisance = _marginals(segmented, result, spec, label)
+    with segmented.parallel(workers):
+        iterations = optimize_segmented(
+            segmented, max_iterations, relative_error_tol, label, CalibrationFailed
+        )
+        if spec.estimate_theta:
+            theta = np.asarray(segmented.shared_values.atVector(keys.THETA))
+            check_plausible(theta, label, reference=spec.theta)
+            if covariance:
+                marginal, nuisance = _marginals(segmented, spec, label)
+    result = segmented.values()
     return SegmentSolution(
         theta=theta,
         covariance=marginal,
@@ -568,10 +573,11 @@ def shared_keys(spec: SegmentGraphSpec) -> list[int]:
 
 
 def _marginals(
-    segmented: SegmentedGraph, result: gtsam.Values, spec: SegmentGraphSpec, label: str
+    segmented: SegmentedGraph, spec: SegmentGraphSpec, label: str
 ) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
-    """Theta's marginal covariance and the graph-wide nuisance estimates at ``result``: the
-    inverse of the shared variables' information, every segment's variables marginalized."""
+    """Theta's marginal covariance and the graph-wide nuisance estimates at ``segmented``'s
+    values: the inverse of the shared variables' information, every segment's variables
+    marginalized."""
     extra = spec.nuisance_keys()
     try:
         information = segmented.shared_information()
@@ -584,7 +590,7 @@ def _marginals(
     priors = {"time_offset": spec.time_offset_sigma, "lever_arm": spec.lever_arm_sigma}
     nuisance, at = {}, 4
     for name, key in extra.items():
-        value = np.asarray(result.atVector(key))
+        value = np.asarray(segmented.shared_values.atVector(key))
         n = len(value)
         nuisance[name] = NuisanceEstimate(value, joint[at : at + n, at : at + n], priors[name])
         at += n
@@ -603,15 +609,17 @@ def _inverse(information: np.ndarray) -> np.ndarray | None:
     return covariance if np.all(np.isfinite(covariance)) else None
 
 
-def with_covariance(solution: SegmentSolution, label: str) -> SegmentSolution:
-    """``solution`` with theta's marginal covariance and the nuisance estimates computed."""
+def with_covariance(solution: SegmentSolution, label: str, workers: int = 1) -> SegmentSolution:
+    """``solution`` with theta's marginal covariance and the nuisance estimates computed
+    (segment by segment, in ``workers`` processes)."""
     if solution.covariance is not None or not solution.built.spec.estimate_theta:
         return solution
     segmented = solution.segmented
     if segmented is None:
         spec = solution.built.spec
         segmented = SegmentedGraph(solution.built.graph, solution.result, shared_keys(spec))
-    marginal, nuisance = _marginals(segmented, solution.result, solution.built.spec, label)
+    with segmented.parallel(workers):
+        marginal, nuisance = _marginals(segmented, solution.built.spec, label)
     return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
 
 

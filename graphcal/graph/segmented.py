@@ -23,6 +23,12 @@ The steps are those of :func:`graphcal.graph.solve.solve_lm`'s Python driver on 
 
 from __future__ import annotations
 
+import contextlib
+import itertools
+import math
+import multiprocessing
+import multiprocessing.context
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import gtsam
@@ -55,22 +61,162 @@ def copy_value(target: gtsam.Values, source: gtsam.Values, key: int) -> None:
 
 @dataclass
 class GraphPart:
-    """One part: its factors, its own variables (``local``) and a ``Values`` holding them
-    with the shared variables."""
+    """One part: its factors, its own variables (``local``), a ``Values`` holding them with
+    the shared variables, and its damping scale (the largest Hessian diagonal seen, per
+    local key)."""
 
     graph: gtsam.NonlinearFactorGraph
     local: list[int]
     values: gtsam.Values
+    scale: dict[int, np.ndarray] | None = None
 
 
 @dataclass
-class PartStep:
-    """A part's linearization and, for one damping, its elimination to the shared keys."""
+class _Eliminated:
+    """A part's damped system eliminated to the shared keys: what the step needs."""
 
-    linear: gtsam.GaussianFactorGraph
-    diagonal: dict[int, np.ndarray]
-    bayes_net: gtsam.GaussianBayesNet | None = None
-    reduced: gtsam.GaussianFactorGraph | None = None
+    bayes_net: gtsam.GaussianBayesNet
+    gradient: gtsam.VectorValues
+    root: dict[int, np.ndarray]
+
+
+class PartGroup:
+    """Parts of a :class:`SegmentedGraph` and the messages the optimizer sends them; every
+    answer is small (shared-size arrays and floats), so a group can live in another process.
+
+    Between :meth:`eliminate` and :meth:`step` a group keeps each part's Bayes net (its
+    conditionals given the shared keys), not its linear system: a rejected step
+    re-linearizes, which Levenberg–Marquardt rarely needs, and the memory of the linear
+    systems (two thirds of it on segment graphs) is not held for the whole log at once.
+    """
+
+    def __init__(self, parts: list[GraphPart], shared: list[int], dims: dict[int, int]):
+        self.parts = parts
+        self.shared = shared
+        self.dims = dims
+        self._eliminated: list[_Eliminated] = []
+        self._candidates: list[gtsam.Values] = []
+
+    def errors(self) -> list[float]:
+        """Each part's error at its values."""
+        return [float(p.graph.error(p.values)) for p in self.parts]
+
+    def eliminate(self, lam: float | None) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Linearize every part, damp its local keys by ``λ · scale`` (``None``: undamped)
+        and eliminate them; per part, its reduced system as an augmented Hessian
+        ``(n+1, n+1)`` on the shared keys and its Hessian diagonal on them ``(n,)``."""
+        out = []
+        self._eliminated = []
+        for part in self.parts:
+            linear = part.graph.linearize(part.values)
+            dims = {k: self.dims[k] for k in (*part.local, *self.shared)}
+            diagonal = _hessian_diagonal(linear, dims)
+            local = {k: diagonal[k] for k in part.local}
+            part.scale = local if part.scale is None else _maximum(part.scale, local)
+            shared_diagonal = np.concatenate([diagonal[k] for k in self.shared] or [np.zeros(0)])
+            root = {} if lam is None else _root(part.scale, lam)
+            gradient = linear.gradientAtZero()
+            _add_damping(linear, self.dims, root)  # the linear system is not kept: damp it
+            bayes_net, reduced = linear.eliminatePartialSequential(gtsam.KeyVector(part.local))
+            out.append((augmented_hessian(reduced, self.shared, self.dims), shared_diagonal))
+            self._eliminated.append(_Eliminated(bayes_net, gradient, root))
+        return out
+
+    def step(self, shared_step: dict[int, np.ndarray], evaluate: bool = True) -> list:
+        """Back-substitute every part given the shared step; per part, what the step lowers
+        its linearized error by (undamped) and, with ``evaluate``, its error after the step
+        (else 0). The candidate values are kept for :meth:`accept`."""
+        given = gtsam.VectorValues()
+        for key, value in shared_step.items():
+            given.insert(key, value)
+        out = []
+        self._candidates = []
+        for part, done in zip(self.parts, self._eliminated, strict=True):
+            delta = done.bayes_net.optimize(given)
+            for key in self.shared:
+                if not delta.exists(key):
+                    delta.insert(key, given.at(key))
+            keys = [*part.local, *self.shared]
+            predicted = _predicted_decrease(done.gradient, delta, done.root, keys)
+            error = 0.0
+            if evaluate:
+                candidate = part.values.retract(delta)
+                error = float(part.graph.error(candidate))
+                self._candidates.append(candidate)
+            out.append((predicted, error))
+        return out
+
+    def accept(self) -> None:
+        """Move every part to its candidate values."""
+        for part, candidate in zip(self.parts, self._candidates, strict=True):
+            part.values = candidate
+        self._candidates = []
+
+    def release(self) -> None:
+        """Drop the eliminations and candidates (memory)."""
+        self._eliminated, self._candidates = [], []
+
+    def local_values(self) -> list[dict[int, tuple[str, np.ndarray]]]:
+        """Each part's local variables, picklable: ``key -> ("pose2" | "vector", array)``."""
+        return [{key: _portable(part.values, key) for key in part.local} for part in self.parts]
+
+
+class _RemoteGroup:
+    """A :class:`PartGroup` served by a forked process (it inherits the group, Python
+    factors included, without pickling); calls are sent, then received, so that several
+    groups work at once."""
+
+    def __init__(self, group: PartGroup, context: multiprocessing.context.BaseContext):
+        self.size = len(group.parts)
+        parent, child = context.Pipe()
+        self.process = context.Process(target=_serve, args=(child, group), daemon=True)
+        self.process.start()
+        child.close()
+        self.connection = parent
+
+    def send(self, method: str, *args) -> None:
+        self.connection.send((method, args))
+
+    def receive(self):
+        status, value = self.connection.recv()
+        if status == "error":
+            raise RuntimeError(value)
+        return value
+
+    def stop(self) -> list[dict[int, tuple[str, np.ndarray]]]:
+        """End the process; returns its parts' local values."""
+        self.send("stop")
+        values = self.receive()
+        self.process.join()
+        self.connection.close()
+        return values
+
+
+def _serve(connection, group: PartGroup) -> None:
+    """A worker's loop: call the group's methods until ``stop``."""
+    while True:
+        method, args = connection.recv()
+        if method == "stop":
+            connection.send(("ok", group.local_values()))
+            return
+        try:
+            connection.send(("ok", getattr(group, method)(*args)))
+        except Exception as exc:  # reported to the optimizer, which raises it
+            connection.send(("error", f"{first_line(str(exc)) or type(exc).__name__}"))
+
+
+def _portable(values: gtsam.Values, key: int) -> tuple[str, np.ndarray]:
+    try:
+        pose = values.atPose2(key)
+    except RuntimeError:
+        return "vector", np.asarray(values.atVector(key))
+    return "pose2", np.array([pose.x(), pose.y(), pose.theta()])
+
+
+def _restore(values: gtsam.Values, key: int, portable: tuple[str, np.ndarray]) -> None:
+    kind, array = portable
+    value = gtsam.Pose2(*array) if kind == "pose2" else array
+    values.update(key, value)
 
 
 class SegmentedGraph:
@@ -111,18 +257,71 @@ class SegmentedGraph:
         local_keys: dict[int, list[int]] = {}
         for key in parent:
             local_keys.setdefault(find(key), []).append(key)
-        self.parts = []
+        parts = []
         for root, part_graph in by_root.items():
             local = sorted(local_keys[root])
             part_values = gtsam.Values()
             for key in local + self.shared:
                 copy_value(part_values, values, key)
-            self.parts.append(GraphPart(part_graph, local, part_values))
+            parts.append(GraphPart(part_graph, local, part_values))
         self.shared_values = gtsam.Values()
         for key in self.shared:
             copy_value(self.shared_values, values, key)
         self.dims = _dims(values)
+        self.group = PartGroup(parts, self.shared, self.dims)
+        self._remote: list[_RemoteGroup] = []
         self.initial_error = self.error()
+
+    @property
+    def parts(self) -> list[GraphPart]:
+        """The parts."""
+        return self.group.parts
+
+    @contextlib.contextmanager
+    def parallel(self, workers: int) -> Iterator[None]:
+        """Within the block, the parts are shared out among this process and ``workers - 1``
+        forked processes (contiguous runs of parts, balanced by factor count) that work at
+        once. The per-part answers are combined in part order, so the results do not depend
+        on ``workers``. On leaving, the workers' values come back and they end."""
+        if workers <= 1 or len(self.parts) < 2 or self._remote:
+            yield
+            return
+        everything = self.group
+        runs = _balanced_runs([p.graph.size() for p in everything.parts], workers)
+        context = multiprocessing.get_context("fork")
+        groups = [PartGroup(everything.parts[a:b], self.shared, self.dims) for a, b in runs]
+        try:
+            self._remote = [_RemoteGroup(g, context) for g in groups[1:]]
+            self.group = groups[0]
+            yield
+        finally:
+            remote, self._remote = self._remote, []
+            self.group = everything
+            at = len(groups[0].parts)
+            for worker in remote:
+                mine = everything.parts[at : at + worker.size]
+                for part, values in zip(mine, worker.stop(), strict=True):
+                    for key, portable in values.items():
+                        _restore(part.values, key, portable)
+                    for key in self.shared:  # this copy of the part still has the old ones
+                        copy_value(part.values, self.shared_values, key)
+                at += worker.size
+
+    def _each(self, method: str, *args) -> list:
+        """``method`` of every group (the workers' at once), per-part answers in part order."""
+        for worker in self._remote:
+            worker.send(method, *args)
+        answers = getattr(self.group, method)(*args)
+        answers = list(answers) if answers is not None else []
+        for worker in self._remote:
+            received = worker.receive()
+            if received is not None:
+                answers += received
+        return answers
+
+    def values_by_key(self) -> dict[int, gtsam.Values]:
+        """For every local key, the ``Values`` of its part."""
+        return {key: part.values for part in self.parts for key in part.local}
 
     def values(self) -> gtsam.Values:
         """Every variable's current value in one ``Values``."""
@@ -134,9 +333,7 @@ class SegmentedGraph:
 
     def error(self) -> float:
         """The graph's error (half the whitened squared residual) at the current values."""
-        return float(self.shared_graph.error(self.shared_values)) + sum(
-            float(p.graph.error(p.values)) for p in self.parts
-        )
+        return float(self.shared_graph.error(self.shared_values)) + math.fsum(self._each("errors"))
 
     def dim(self) -> int:
         """Dimension of all variables."""
@@ -149,130 +346,98 @@ class SegmentedGraph:
         graphs = [self.shared_graph, *(p.graph for p in self.parts)]
         return sum(g.at(i).dim() for g in graphs for i in range(g.size()))
 
-    def linearize(self) -> tuple[gtsam.GaussianFactorGraph, list[PartStep]]:
-        """The shared factors' and each part's linearization at the current values."""
+    def _system(
+        self, lam: float | None
+    ) -> tuple[np.ndarray, np.ndarray, gtsam.GaussianFactorGraph]:
+        """Every part eliminated to the shared keys with the shared factors added: the
+        augmented Hessian on the shared keys, their Hessian diagonal and the shared factors'
+        linearization."""
+        reduced = self._each("eliminate", lam)
+        total = sum((r for r, _ in reduced), np.zeros((self._n + 1, self._n + 1)))
+        diagonal = sum((d for _, d in reduced), np.zeros(self._n))
         shared_linear = self.shared_graph.linearize(self.shared_values)
-        steps = []
-        for part in self.parts:
-            linear = part.graph.linearize(part.values)
-            steps.append(PartStep(linear, _hessian_diagonal(linear, self._part_dims(part))))
-        return shared_linear, steps
+        total = total + augmented_hessian(shared_linear, self.shared, self.dims)
+        own = _hessian_diagonal(shared_linear, {k: self.dims[k] for k in self.shared})
+        diagonal = diagonal + np.concatenate([own[k] for k in self.shared] or [np.zeros(0)])
+        return total, diagonal, shared_linear
 
-    def _part_dims(self, part: GraphPart) -> dict[int, int]:
-        return {k: self.dims[k] for k in (*part.local, *self.shared)}
-
-    def eliminate(
-        self, steps: list[PartStep], damping: list[dict[int, np.ndarray]] | None = None
-    ) -> gtsam.GaussianFactorGraph:
-        """Eliminate each part's (damped) linear system to the shared keys; returns the
-        reduced factors of all parts."""
-        reduced = gtsam.GaussianFactorGraph()
-        for i, (part, step) in enumerate(zip(self.parts, steps, strict=True)):
-            system = step.linear
-            if damping is not None:
-                system = system.clone()
-                _add_damping(system, self.dims, damping[i])
-            step.bayes_net, step.reduced = system.eliminatePartialSequential(
-                gtsam.KeyVector(part.local)
-            )
-            for j in range(step.reduced.size()):
-                reduced.push_back(step.reduced.at(j))
-        return reduced
+    @property
+    def _n(self) -> int:
+        return sum(self.dims[k] for k in self.shared)
 
     def shared_information(self) -> np.ndarray:
         """The shared variables' information matrix at the current values (every part's
         variables marginalized), in the order of :attr:`shared`."""
-        shared_linear, steps = self.linearize()
-        total = self.eliminate(steps)
-        for j in range(shared_linear.size()):
-            total.push_back(shared_linear.at(j))
-        ordering = gtsam.Ordering()
-        for key in self.shared:
-            ordering.push_back(key)
-        hessian = total.augmentedHessian(ordering)
-        return hessian[:-1, :-1]
+        total, _, _ = self._system(None)
+        self._each("release")
+        return total[:-1, :-1]
 
     def gauss_newton_decrement(self) -> float:
         """How much one Gauss–Newton step from the current values would lower the error on
         the linearization: ``½ gᵀ H⁻¹ g``. For variables that enter almost linearly this is
         what a full solve gains, at the cost of one linearization and one elimination."""
-        shared_linear, steps = self.linearize()
-        _, predicted, _ = self._step(shared_linear, steps, None)
+        total, _, shared_linear = self._system(None)
+        step = self._by_key(self._solve(total, np.zeros(self._n)))
+        answers = self._each("step", step, False)
+        predicted = math.fsum(p for p, _ in answers) + _predicted_decrease(
+            shared_linear.gradientAtZero(), _vector_values(step), {}, self.shared
+        )
+        self._each("release")
         return predicted
 
-    def _step(
-        self,
-        shared_linear: gtsam.GaussianFactorGraph,
-        steps: list[PartStep],
-        damping: tuple[dict[int, np.ndarray], list[dict[int, np.ndarray]]] | None,
-    ) -> tuple[list[gtsam.VectorValues], float, gtsam.VectorValues]:
-        """Solve the (damped) linear system: each part's step (with the shared step), the
-        decrease the linearization predicts and the shared step."""
-        total = self.eliminate(steps, None if damping is None else damping[1])
-        for j in range(shared_linear.size()):
-            total.push_back(shared_linear.at(j))
-        if damping is not None:
-            _add_damping(total, self.dims, damping[0])
-        shared_step = total.optimize()
-        predicted = _decrease(shared_linear, shared_step)
-        part_steps = []
-        for step in steps:
-            delta = step.bayes_net.optimize(shared_step)
-            for key in self.shared:
-                if not delta.exists(key):
-                    delta.insert(key, shared_step.at(key))
-            predicted += _decrease(step.linear, delta)
-            part_steps.append(delta)
-        return part_steps, predicted, shared_step
+    def _solve(self, total: np.ndarray, damping: np.ndarray) -> np.ndarray:
+        """The shared step from the augmented Hessian and a diagonal damping."""
+        if self._n == 0:
+            return np.zeros(0)
+        return np.linalg.solve(total[:-1, :-1] + np.diag(damping), total[:-1, -1])
+
+    def _by_key(self, vector: np.ndarray) -> dict[int, np.ndarray]:
+        return dict(zip(self.shared, _split(vector, self.shared, self.dims), strict=True))
 
     def optimize(self, max_iterations: int, relative_error_tol: float) -> int:
         """Levenberg–Marquardt to convergence from the current values (updated in place);
-        returns the iterations used. Raises ``RuntimeError`` from GTSAM if a system cannot
-        be solved at any damping."""
+        returns the iterations used. Raises ``RuntimeError`` from GTSAM (or numpy's
+        ``LinAlgError``) if a system cannot be solved at any damping."""
         error = self.error()
-        shared_scale: dict[int, np.ndarray] | None = None
-        part_scales: list[dict[int, np.ndarray]] = []
+        shared_scale: np.ndarray | None = None
         lam = LAMBDA_INITIAL
         iterations = 0
         while iterations < max_iterations:
-            shared_linear, steps = self.linearize()
-            shared_dims = {k: self.dims[k] for k in self.shared}
-            diagonal = _hessian_diagonal(shared_linear, shared_dims)
-            for step in steps:
-                for key in self.shared:
-                    diagonal[key] = diagonal[key] + step.diagonal[key]
-            local = [
-                {k: s.diagonal[k] for k in p.local} for p, s in zip(self.parts, steps, strict=True)
-            ]
-            if shared_scale is None:
-                shared_scale, part_scales = diagonal, local
-            else:
-                shared_scale = _maximum(shared_scale, diagonal)
-                part_scales = [_maximum(a, b) for a, b in zip(part_scales, local, strict=True)]
             iterations += 1
             new_error = error
             while True:
-                damping = (_root(shared_scale, lam), [_root(s, lam) for s in part_scales])
                 try:
-                    part_steps, predicted, shared_step = self._step(shared_linear, steps, damping)
-                except RuntimeError:  # indeterminate at this damping: damp more
+                    total, diagonal, shared_linear = self._system(lam)
+                    shared_scale = (
+                        diagonal if shared_scale is None else np.maximum(shared_scale, diagonal)
+                    )
+                    root = np.sqrt(lam * np.clip(shared_scale, MIN_DIAGONAL, MAX_DIAGONAL))
+                    shared_step = self._solve(total, root**2)
+                    if not np.all(np.isfinite(shared_step)):
+                        raise np.linalg.LinAlgError("non-finite step")
+                except (RuntimeError, np.linalg.LinAlgError):
+                    # indeterminate at this damping: damp more, as GTSAM does
                     if lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
                         raise
                     lam *= LAMBDA_FACTOR
                     continue
-                candidate_shared = self.shared_values.retract(shared_step)
-                candidates = [
-                    p.values.retract(d) for p, d in zip(self.parts, part_steps, strict=True)
-                ]
-                new_error = float(self.shared_graph.error(candidate_shared)) + sum(
-                    float(p.graph.error(c)) for p, c in zip(self.parts, candidates, strict=True)
+                step = self._by_key(shared_step)
+                answers = self._each("step", step, True)
+                predicted = math.fsum(p for p, _ in answers) + _predicted_decrease(
+                    shared_linear.gradientAtZero(),
+                    _vector_values(step),
+                    self._by_key(root),
+                    self.shared,
+                )
+                candidate_shared = self.shared_values.retract(_vector_values(step))
+                new_error = float(self.shared_graph.error(candidate_shared)) + math.fsum(
+                    e for _, e in answers
                 )
                 change = error - new_error
                 fidelity = change / predicted if predicted > 1e-20 else 1.0
                 if predicted >= 0 and fidelity > MIN_MODEL_FIDELITY and change >= 0:
                     self.shared_values = candidate_shared
-                    for part, candidate in zip(self.parts, candidates, strict=True):
-                        part.values = candidate
+                    self._each("accept")
                     lam = max(lam / LAMBDA_FACTOR, 1e-12)
                     break
                 small = max(relative_error_tol * error, 1e-12)
@@ -280,6 +445,7 @@ class SegmentedGraph:
                     new_error = error
                     break
                 lam *= LAMBDA_FACTOR
+            self._each("release")
             decrease = error - new_error
             converged = decrease <= 1e-12 or decrease <= relative_error_tol * error
             error = new_error
@@ -288,32 +454,84 @@ class SegmentedGraph:
         return iterations
 
 
-def solve_segmented(
-    graph: gtsam.NonlinearFactorGraph,
-    values: gtsam.Values,
-    shared: list[int],
+def _vector_values(by_key: dict[int, np.ndarray]) -> gtsam.VectorValues:
+    out = gtsam.VectorValues()
+    for key, value in by_key.items():
+        out.insert(key, value)
+    return out
+
+
+def _balanced_runs(sizes: list[int], count: int) -> list[tuple[int, int]]:
+    """``count`` contiguous runs ``[a, b)`` of items with about equal total size."""
+    bounds = np.cumsum([0, *sizes])
+    targets = bounds[-1] * np.arange(1, count) / count
+    cuts = [0, *np.searchsorted(bounds, targets).tolist(), len(sizes)]
+    cuts = sorted(set(min(max(c, 0), len(sizes)) for c in cuts))
+    return [(a, b) for a, b in itertools.pairwise(cuts) if b > a]
+
+
+def optimize_segmented(
+    segmented: SegmentedGraph,
     max_iterations: int,
     relative_error_tol: float,
     label: str,
     error_type: type[GraphcalError] = GraphcalError,
-) -> tuple[SegmentedGraph, int]:
-    """Split ``graph`` at the ``shared`` keys (:class:`SegmentedGraph`) and optimize it from
-    ``values``; returns the solved graph (its values are the solution) and the iterations.
-
-    GTSAM's exceptions become ``error_type`` with the message ``"<label> failed: <reason>"``.
-    """
-    segmented = SegmentedGraph(graph, values, shared)
+) -> int:
+    """:meth:`SegmentedGraph.optimize`, GTSAM's and numpy's exceptions turned into
+    ``error_type`` with the message ``"<label> failed: <reason>"``; returns the iterations."""
     try:
-        iterations = segmented.optimize(max_iterations, relative_error_tol)
-    except RuntimeError as exc:
+        return segmented.optimize(max_iterations, relative_error_tol)
+    except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise error_type(f"{label} failed: {reason}") from exc
-    return segmented, iterations
 
 
-def _decrease(linear: gtsam.GaussianFactorGraph, step: gtsam.VectorValues) -> float:
-    """The decrease of ``linear``'s error from zero to ``step``."""
-    return float(linear.error(step.scale(0.0)) - linear.error(step))
+def _split(vector: np.ndarray, keys: list[int], dims: dict[int, int]) -> list[np.ndarray]:
+    """``vector`` cut into the blocks of ``keys``."""
+    out, at = [], 0
+    for key in keys:
+        out.append(vector[at : at + dims[key]])
+        at += dims[key]
+    return out
+
+
+def _predicted_decrease(
+    gradient: gtsam.VectorValues,
+    step: gtsam.VectorValues,
+    root: dict[int, np.ndarray],
+    keys: list[int],
+) -> float:
+    """This system's share of the decrease its linearization predicts for a step of the
+    damped normal equations ``(H + Λ) δ = −g`` (``Λ = diag(root²)`` on its damped keys):
+    ``−½ gᵀδ + ½ δᵀΛδ`` (as ``δᵀHδ = −gᵀδ − δᵀΛδ``)."""
+    total = 0.0
+    for key in keys:
+        if gradient.exists(key):
+            total -= 0.5 * float(np.dot(gradient.at(key), step.at(key)))
+    for key, r in root.items():
+        total += 0.5 * float(np.sum((r * step.at(key)) ** 2))
+    return total
+
+
+def augmented_hessian(
+    linear: gtsam.GaussianFactorGraph, keys: list[int], dims: dict[int, int]
+) -> np.ndarray:
+    """``[AᵀA Aᵀb; bᵀA bᵀb]`` of ``linear`` on ``keys`` (zero blocks for keys it lacks)."""
+    n = sum(dims[k] for k in keys)
+    out = np.zeros((n + 1, n + 1))
+    if linear.size() == 0:
+        return out
+    present = [k for k in keys if k in set(linear.keyVector())]
+    ordering = gtsam.Ordering()
+    for key in present:
+        ordering.push_back(key)
+    hessian = linear.augmentedHessian(ordering)
+    starts = dict(zip(keys, np.cumsum([0] + [dims[k] for k in keys])[:-1], strict=True))
+    index = np.concatenate(
+        [np.arange(starts[k], starts[k] + dims[k]) for k in present] + [np.array([n])]
+    ).astype(int)
+    out[np.ix_(index, index)] = hessian
+    return out
 
 
 def _maximum(a: dict[int, np.ndarray], b: dict[int, np.ndarray]) -> dict[int, np.ndarray]:

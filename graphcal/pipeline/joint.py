@@ -226,10 +226,13 @@ class JointCalibration(ThetaEstimate):
     slip_statistic: float | None = None
 
 
-def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) -> JointCalibration:
+def calibrate_joint(
+    data: SegmentData, settings: JointSettings | None = None, workers: int = 1
+) -> JointCalibration:
     """Estimate theta, start poses and wheel-rotation corrections of a batch in one solve
     (with the time offset, lever arm and heading biases, and robust fix weights, if the
-    settings ask for them).
+    settings ask for them). ``workers``: processes the segments are shared out among (the
+    result does not depend on it).
 
     Raises:
         CalibrationFailed: if the solve fails or gives an implausible theta.
@@ -245,10 +248,11 @@ def calibrate_joint(data: SegmentData, settings: JointSettings | None = None) ->
         label,
         settings.robust_threshold,
         covariance=not auto,
+        workers=workers,
     )
     statistic = None
     if auto:
-        solved, statistic = _with_slip_if_shown(solved, data, weights, settings)
+        solved, statistic = _with_slip_if_shown(solved, data, weights, settings, workers)
     observability = assess_observability(
         solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
     )
@@ -273,6 +277,7 @@ def _with_slip_if_shown(
     data: SegmentData,
     weights: np.ndarray | None,
     settings: JointSettings,
+    workers: int = 1,
 ) -> tuple[SegmentSolution, float]:
     """The solve with slip scales if the log shows slip, else ``solved``; both with their
     covariance, and the statistic that decided.
@@ -291,16 +296,26 @@ def _with_slip_if_shown(
         for j in range(len(bounds) - 1):
             initial.insert(keys.segment_slip(s, j), np.zeros(2))
     with_slip = build_segment_graph(weighted, spec)
+    screening = SegmentedGraph(with_slip.graph, initial, shared_keys(spec))
     try:
-        drop = SegmentedGraph(with_slip.graph, initial, shared_keys(spec)).gauss_newton_decrement()
+        with screening.parallel(workers):
+            drop = screening.gauss_newton_decrement()
     except RuntimeError as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise CalibrationFailed(f"joint solve failed: {reason}") from exc
     chunks = sum(len(bounds) - 1 for bounds in solved.built.bounds)
     statistic = 2.0 * drop / chunks
     if statistic <= settings.slip_detection:
-        return with_covariance(solved, "joint solve"), statistic
+        return with_covariance(solved, "joint solve", workers), statistic
     final = solve_segment_graph(
-        weighted, spec, settings.max_iterations, 1e-7, "joint solve", True, initial, with_slip
+        weighted,
+        spec,
+        settings.max_iterations,
+        1e-7,
+        "joint solve",
+        True,
+        initial,
+        with_slip,
+        workers=workers,
     )
     return dataclasses.replace(final, iterations=final.iterations + solved.iterations), statistic

@@ -303,7 +303,7 @@ def run_calibration(
         # The recommended theta (joint, whole) first; it also finds the time offset, the
         # lever arm and the outliers, corrected for everything after it.
         whole, data, offset = _solve_with_time_offset(
-            log, data, selected, flagged, settings.joint, say
+            log, data, selected, flagged, settings.joint, say, workers
         )
         if method != "staged":
             theta, covariance, observability = _conditioned(whole, settings.joint)
@@ -467,10 +467,13 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
     return out
 
 
-def _whole_log_solve(data: SegmentData, settings: JointSettings, say: Progress) -> JointCalibration:
-    """The joint solve over all ``data``, with the progress lines a user waits for."""
+def _whole_log_solve(
+    data: SegmentData, settings: JointSettings, say: Progress, workers: int
+) -> JointCalibration:
+    """The joint solve over all ``data`` (its segments shared out among ``workers``
+    processes), with the progress lines a user waits for."""
     say(f"joint solve over all {len(data)} selected segments")
-    result = calibrate_joint(data, settings)
+    result = calibrate_joint(data, settings, workers)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
@@ -488,6 +491,7 @@ def _solve_with_time_offset(
     flagged: np.ndarray | None,
     settings: JointSettings,
     say: Progress,
+    workers: int = 1,
 ) -> tuple[JointCalibration, SegmentData, float]:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
     the offset found so far, rounded to whole samples, and the solve repeated, so that the
@@ -500,7 +504,7 @@ def _solve_with_time_offset(
 
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
     the last solve, the segments it solved and the shift [s] of their wheels."""
-    whole = _whole_log_solve(data, settings, say)
+    whole = _whole_log_solve(data, settings, say, workers)
     shift = 0.0
     for _ in range(OFFSET_ROUNDS - 1):
         found = sensor_estimates(whole.nuisance, settings.max_sigma_ratio).get("time_offset")
@@ -512,7 +516,7 @@ def _solve_with_time_offset(
         shift = rounded
         say(f"wheels shifted by {shift * 1e3:+.1f} ms; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole = _whole_log_solve(data, settings, say)
+        whole = _whole_log_solve(data, settings, say, workers)
     return whole, data, shift
 
 
