@@ -52,6 +52,7 @@ from graphcal.graph.chunking import chunk_bounds
 from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.segmented import SegmentedGraph, optimize_segmented
 from graphcal.graph.slip import slip_prior_factor, slip_step_factor
+from graphcal.graph.solve import marginal_covariance, solve_lm
 from graphcal.model import integrate
 
 
@@ -538,6 +539,10 @@ def solve_segment_graph(
         built = build_segment_graph(data, spec)
     start = built.values if initial is None else initial
     segmented = SegmentedGraph(built.graph, start, shared_keys(spec))
+    if len(segmented.parts) < 2:  # nothing to split: one graph under GTSAM's optimizer
+        return _solve_whole_graph(
+            built, start, max_iterations, relative_error_tol, label, covariance
+        )
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
     with segmented.parallel(workers):
@@ -565,6 +570,54 @@ def solve_segment_graph(
     )
 
 
+def _solve_whole_graph(
+    built: SegmentGraph,
+    start: gtsam.Values,
+    max_iterations: int,
+    relative_error_tol: float,
+    label: str,
+    covariance: bool,
+) -> SegmentSolution:
+    """:func:`solve_segment_graph` for a graph that does not split into segments (theta
+    alone, as in the batch solve of Step 1, or one segment with theta fixed, as in input
+    estimation): GTSAM's optimizer and marginals, cheaper than the split machinery there."""
+    spec = built.spec
+    initial_error = float(built.graph.error(start))
+    result, iterations = solve_lm(
+        built.graph, start, max_iterations, relative_error_tol, label, CalibrationFailed
+    )
+    theta = np.asarray(spec.theta, float)
+    marginal, nuisance = None, {}
+    if spec.estimate_theta:
+        theta = np.asarray(result.atVector(keys.THETA))
+        check_plausible(theta, label, reference=spec.theta)
+        if covariance:
+            marginal, nuisance = _whole_graph_marginals(built, result, label)
+    return SegmentSolution(
+        theta=theta,
+        covariance=marginal,
+        start_states=built.start_states(result),
+        iterations=iterations,
+        initial_error=initial_error,
+        final_error=float(built.graph.error(result)),
+        result=result,
+        built=built,
+        degrees_of_freedom=degrees_of_freedom(built.graph, result),
+        nuisance=nuisance,
+    )
+
+
+def _whole_graph_marginals(
+    built: SegmentGraph, result: gtsam.Values, label: str
+) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
+    """Theta's marginal covariance and the nuisance estimates from GTSAM's marginals."""
+    extra = built.spec.nuisance_keys()
+    joint = marginal_covariance(
+        built.graph, result, [keys.THETA, *extra.values()], label, CalibrationFailed
+    )
+    return joint[:4, :4], _nuisance(built.spec, result, joint)
+
+
 def shared_keys(spec: SegmentGraphSpec) -> list[int]:
     """The variables every segment of ``spec``'s graph shares: theta (if estimated), then
     the time offset and the lever arm (if present)."""
@@ -578,7 +631,6 @@ def _marginals(
     """Theta's marginal covariance and the graph-wide nuisance estimates at ``segmented``'s
     values: the inverse of the shared variables' information, every segment's variables
     marginalized."""
-    extra = spec.nuisance_keys()
     try:
         information = segmented.shared_information()
     except RuntimeError as exc:
@@ -587,14 +639,22 @@ def _marginals(
     joint = _inverse(0.5 * (information + information.T))
     if joint is None:
         raise CalibrationFailed(f"{label} failed: covariance: the information is singular")
+    return joint[:4, :4], _nuisance(spec, segmented.shared_values, joint)
+
+
+def _nuisance(
+    spec: SegmentGraphSpec, values: gtsam.Values, joint: np.ndarray
+) -> dict[str, NuisanceEstimate]:
+    """The graph-wide nuisance estimates from ``values`` and the joint covariance of theta
+    and them (in :meth:`SegmentGraphSpec.nuisance_keys` order after theta)."""
     priors = {"time_offset": spec.time_offset_sigma, "lever_arm": spec.lever_arm_sigma}
     nuisance, at = {}, 4
-    for name, key in extra.items():
-        value = np.asarray(segmented.shared_values.atVector(key))
+    for name, key in spec.nuisance_keys().items():
+        value = np.asarray(values.atVector(key))
         n = len(value)
         nuisance[name] = NuisanceEstimate(value, joint[at : at + n, at : at + n], priors[name])
         at += n
-    return joint[:4, :4], nuisance
+    return nuisance
 
 
 def _inverse(information: np.ndarray) -> np.ndarray | None:
@@ -615,9 +675,9 @@ def with_covariance(solution: SegmentSolution, label: str, workers: int = 1) -> 
     if solution.covariance is not None or not solution.built.spec.estimate_theta:
         return solution
     segmented = solution.segmented
-    if segmented is None:
-        spec = solution.built.spec
-        segmented = SegmentedGraph(solution.built.graph, solution.result, shared_keys(spec))
+    if segmented is None:  # solved as one graph
+        marginal, nuisance = _whole_graph_marginals(solution.built, solution.result, label)
+        return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
     with segmented.parallel(workers):
         marginal, nuisance = _marginals(segmented, solution.built.spec, label)
     return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
