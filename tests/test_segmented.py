@@ -82,6 +82,7 @@ def test_segments_shared_out_among_workers_give_the_same_result():
     assert np.array_equal(one.covariance, two.covariance)
     assert one.iterations == two.iterations
     assert one.final_error == two.final_error
+    assert one.degrees_of_freedom == two.degrees_of_freedom
     assert np.array_equal(one.start_states, two.start_states)
     for name, estimate in one.nuisance.items():
         assert np.array_equal(estimate.value, two.nuisance[name].value)

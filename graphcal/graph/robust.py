@@ -107,6 +107,7 @@ def solve_segment_graph_robust(
     threshold: float,
     covariance: bool = True,
     workers: int = 1,
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[SegmentSolution, np.ndarray | None]:
     """:func:`~graphcal.graph.segment_graph.solve_segment_graph` with robust fix weights
     (:func:`solve_robust`); ``threshold`` 0 solves once without them. ``workers``: processes
@@ -122,6 +123,7 @@ def solve_segment_graph_robust(
             False,
             initial,
             workers=workers,
+            progress=progress,
         )
 
     if threshold <= 0:

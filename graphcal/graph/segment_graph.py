@@ -27,6 +27,7 @@ and the naive per-step benchmark (chunks of one step).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import gtsam
@@ -522,12 +523,14 @@ def solve_segment_graph(
     initial: gtsam.Values | None = None,
     built: SegmentGraph | None = None,
     workers: int = 1,
+    progress: Callable[[str], None] | None = None,
 ) -> SegmentSolution:
     """Build the graph of ``spec`` over ``data`` (or take ``built``, that graph already
     built) and solve it with Levenberg–Marquardt, from the builder's initial values or from
     ``initial`` (values of the same graph, e.g. an earlier solution: a warm start), segment by
     segment (:class:`~graphcal.graph.segmented.SegmentedGraph`), the segments shared out among
-    ``workers`` processes (the result does not depend on it).
+    ``workers`` processes (the result does not depend on it); ``progress`` gets a line per
+    iteration of a long solve.
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
@@ -547,7 +550,7 @@ def solve_segment_graph(
     marginal, nuisance = None, {}
     with segmented.parallel(workers):
         iterations = optimize_segmented(
-            segmented, max_iterations, relative_error_tol, label, CalibrationFailed
+            segmented, max_iterations, relative_error_tol, label, CalibrationFailed, progress
         )
         if spec.estimate_theta:
             theta = np.asarray(segmented.shared_values.atVector(keys.THETA))

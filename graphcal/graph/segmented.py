@@ -28,7 +28,8 @@ import itertools
 import math
 import multiprocessing
 import multiprocessing.context
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import gtsam
@@ -57,6 +58,10 @@ def copy_value(target: gtsam.Values, source: gtsam.Values, key: int) -> None:
         target.update(key, value)
     else:
         target.insert(key, value)
+
+
+#: Seconds after which :meth:`SegmentedGraph.optimize` reports each iteration.
+PROGRESS_AFTER_S = 2.0
 
 
 @dataclass
@@ -268,14 +273,15 @@ class SegmentedGraph:
         for key in self.shared:
             copy_value(self.shared_values, values, key)
         self.dims = _dims(values)
-        self.group = PartGroup(parts, self.shared, self.dims)
+        self._all = PartGroup(parts, self.shared, self.dims)
+        self.group = self._all  # the parts this process works on (all, unless parallel)
         self._remote: list[_RemoteGroup] = []
         self.initial_error = self.error()
 
     @property
     def parts(self) -> list[GraphPart]:
-        """The parts."""
-        return self.group.parts
+        """All parts (also while some are worked on in other processes)."""
+        return self._all.parts
 
     @contextlib.contextmanager
     def parallel(self, workers: int) -> Iterator[None]:
@@ -286,7 +292,7 @@ class SegmentedGraph:
         if workers <= 1 or len(self.parts) < 2 or self._remote:
             yield
             return
-        everything = self.group
+        everything = self._all
         runs = _balanced_runs([p.graph.size() for p in everything.parts], workers)
         context = multiprocessing.get_context("fork")
         groups = [PartGroup(everything.parts[a:b], self.shared, self.dims) for a, b in runs]
@@ -394,10 +400,21 @@ class SegmentedGraph:
     def _by_key(self, vector: np.ndarray) -> dict[int, np.ndarray]:
         return dict(zip(self.shared, _split(vector, self.shared, self.dims), strict=True))
 
-    def optimize(self, max_iterations: int, relative_error_tol: float) -> int:
+    def optimize(
+        self,
+        max_iterations: int,
+        relative_error_tol: float,
+        progress: Callable[[str], None] | None = None,
+    ) -> int:
         """Levenberg–Marquardt to convergence from the current values (updated in place);
         returns the iterations used. Raises ``RuntimeError`` from GTSAM (or numpy's
-        ``LinAlgError``) if a system cannot be solved at any damping."""
+        ``LinAlgError``) if a system cannot be solved at any damping.
+
+        ``progress`` gets a line per iteration (χ²/dof, damping λ, elapsed time) once the
+        solve has run for :data:`PROGRESS_AFTER_S` (a long log's solve shows it is moving;
+        a short one prints nothing)."""
+        started = time.perf_counter()
+        dof = max(1, self.factor_dims() - self.dim())
         error = self.error()
         shared_scale: np.ndarray | None = None
         lam = LAMBDA_INITIAL
@@ -449,6 +466,12 @@ class SegmentedGraph:
             decrease = error - new_error
             converged = decrease <= 1e-12 or decrease <= relative_error_tol * error
             error = new_error
+            elapsed = time.perf_counter() - started
+            if progress is not None and elapsed >= PROGRESS_AFTER_S:
+                progress(
+                    f"  iteration {iterations}: χ²/dof {2.0 * error / dof:.4f}, "
+                    f"λ {lam:.0e} ({elapsed:.0f} s)"
+                )
             if converged:
                 break
         return iterations
@@ -476,11 +499,12 @@ def optimize_segmented(
     relative_error_tol: float,
     label: str,
     error_type: type[GraphcalError] = GraphcalError,
+    progress: Callable[[str], None] | None = None,
 ) -> int:
     """:meth:`SegmentedGraph.optimize`, GTSAM's and numpy's exceptions turned into
     ``error_type`` with the message ``"<label> failed: <reason>"``; returns the iterations."""
     try:
-        return segmented.optimize(max_iterations, relative_error_tol)
+        return segmented.optimize(max_iterations, relative_error_tol, progress)
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise error_type(f"{label} failed: {reason}") from exc

@@ -21,6 +21,7 @@ likelihood estimate of theta, start poses and true rotations together.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import gtsam
@@ -227,12 +228,15 @@ class JointCalibration(ThetaEstimate):
 
 
 def calibrate_joint(
-    data: SegmentData, settings: JointSettings | None = None, workers: int = 1
+    data: SegmentData,
+    settings: JointSettings | None = None,
+    workers: int = 1,
+    progress: Callable[[str], None] | None = None,
 ) -> JointCalibration:
     """Estimate theta, start poses and wheel-rotation corrections of a batch in one solve
     (with the time offset, lever arm and heading biases, and robust fix weights, if the
     settings ask for them). ``workers``: processes the segments are shared out among (the
-    result does not depend on it).
+    result does not depend on it); ``progress`` gets a line per iteration of a long solve.
 
     Raises:
         CalibrationFailed: if the solve fails or gives an implausible theta.
@@ -249,10 +253,11 @@ def calibrate_joint(
         settings.robust_threshold,
         covariance=not auto,
         workers=workers,
+        progress=progress,
     )
     statistic = None
     if auto:
-        solved, statistic = _with_slip_if_shown(solved, data, weights, settings, workers)
+        solved, statistic = _with_slip_if_shown(solved, data, weights, settings, workers, progress)
     observability = assess_observability(
         solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
     )
@@ -278,6 +283,7 @@ def _with_slip_if_shown(
     weights: np.ndarray | None,
     settings: JointSettings,
     workers: int = 1,
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[SegmentSolution, float]:
     """The solve with slip scales if the log shows slip, else ``solved``; both with their
     covariance, and the statistic that decided.
@@ -317,5 +323,6 @@ def _with_slip_if_shown(
         initial,
         with_slip,
         workers=workers,
+        progress=progress,
     )
     return dataclasses.replace(final, iterations=final.iterations + solved.iterations), statistic

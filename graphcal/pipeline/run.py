@@ -473,7 +473,7 @@ def _whole_log_solve(
     """The joint solve over all ``data`` (its segments shared out among ``workers``
     processes), with the progress lines a user waits for."""
     say(f"joint solve over all {len(data)} selected segments")
-    result = calibrate_joint(data, settings, workers)
+    result = calibrate_joint(data, settings, workers, say)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
