@@ -52,3 +52,15 @@ def test_segmented_bench_item_agrees_with_the_single_graph():
     for workers in (1, 2):
         assert report[f"theta_rel_difference_{workers}"] < 1e-6
         assert report[f"covariance_rel_difference_{workers}"] < 1e-4
+
+
+def test_scaling_item_fits_the_growth_exponent():
+    from graphcal.bench.scaling import growth_exponent, scaling_item
+
+    assert abs(growth_exponent([50, 100, 200], [4.0, 8.0, 16.0]) - 1.0) < 1e-12
+    assert abs(growth_exponent([50, 100, 200], [1.0, 4.0, 16.0]) - 2.0) < 1e-12
+    report = scaling_item((3.0,), workers=2)
+    (run,) = report["runs"]
+    assert run["length_km"] == 3.0 and run["seconds"] > 0 and run["iterations"] >= 1
+    assert run["samples"] > 1000 and run["peak_mb"] > 0
+    assert report["exponent"] is None  # one length: nothing to fit

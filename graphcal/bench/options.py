@@ -22,6 +22,7 @@ FULL = {
     "pipeline_batches": 20,
     "agreement_segments": 3,
     "import_hours": 3.0,
+    "scaling_km": (50.0, 100.0, 200.0),
 }
 #: ``--quick``: every item once, on an 8 km drive, with a short recording.
 QUICK = {
@@ -31,6 +32,7 @@ QUICK = {
     "pipeline_batches": 4,
     "agreement_segments": 2,
     "import_hours": 0.25,
+    "scaling_km": (4.0, 8.0, 16.0),
 }
 
 
@@ -70,6 +72,13 @@ def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
         type=at_least(0.0, "h"),
         default=None,
         help="duration of the recording of the import item (h) [h] (3; 0 skips it)",
+    )
+    parser.add_argument(
+        "--scaling-km",
+        type=at_least(1.0, "km"),
+        nargs="*",
+        default=None,
+        help="drive lengths [km] of the whole-log scaling item (k) (50 100 200; none skips it)",
     )
     parser.add_argument(
         "--only-import",

@@ -26,7 +26,9 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
   (``--no-defect-model``), and the ratio of their times;
 * (j) the joint solve of all selected segments with its covariance as one graph under GTSAM's
   optimizer (the formulation before issue 14) and segment by segment in one and two
-  processes, with the differences of theta and covariance.
+  processes, with the differences of theta and covariance;
+* (k) the whole-log calibration of drives of several lengths (``--scaling-km``) in child
+  processes, and the exponent of its time's growth (:mod:`graphcal.bench.scaling`).
 
 Ratios are taken within one run, never against figures from another machine.
 """
@@ -51,6 +53,7 @@ from graphcal.bench.importing import import_item
 from graphcal.bench.localization import solve_smoothing
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
 from graphcal.bench.options import resolve_bench_options
+from graphcal.bench.scaling import scaling_item
 from graphcal.data.drive_log import DriveLog, load_drive_log
 from graphcal.data.segments import (
     SegmentData,
@@ -95,6 +98,7 @@ def run_benchmarks(
     pipeline_batches: int = 20,
     agreement_segments: int = 3,
     import_hours: float = 3.0,
+    scaling_km: tuple[float, ...] = (),
     progress: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run every item; return ``{"config": ..., "items": [...], "agreement": ...}``."""
@@ -208,6 +212,21 @@ def run_benchmarks(
             **{k: v for k, v in importing.items() if k != "seconds"},
         )
 
+    scaling = None
+    if scaling_km:
+        scaling = scaling_item(tuple(scaling_km), workers)
+        for run in scaling["runs"]:
+            record(
+                f"(k) whole-log calibration, {run['length_km']:g} km",
+                run["seconds"],
+                workers=workers,
+                child_peak_mb=run["peak_mb"],
+                worker_peak_mb=run["worker_peak_mb"],
+                iterations=run["iterations"],
+            )
+        if scaling["exponent"] is not None:
+            say(f"(k) time grows as length^{scaling['exponent']:.2f}")
+
     return {
         "config": {
             "length_km": length_km,
@@ -216,12 +235,14 @@ def run_benchmarks(
             "naive_iterations": naive_iterations,
             "pipeline_batches": pipeline_batches,
             "import_hours": import_hours,
+            "scaling_km": list(scaling_km),
             "python": sys.version.split()[0],
         },
         "items": rows,
         "naive_over_graphcal_per_iteration": speedup,
         "defect_model_over_plain_whole_log": defect_ratio,
         "segmented": segmented,
+        "scaling": scaling,
         "localization": localization,
         "import": importing,
         "agreement": {
