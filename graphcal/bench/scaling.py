@@ -29,7 +29,10 @@ seconds = time.perf_counter() - start
 print(json.dumps({
     "seconds": seconds,
     "samples": len(log.t),
-    "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    # VmHWM, not ru_maxrss: Linux keeps ru_maxrss across exec, so a child of a large
+    # benchmark process would report the parent's peak.
+    "peak_mb": next(int(line.split()[1]) for line in open("/proc/self/status")
+                    if line.startswith("VmHWM")) / 1024,
     "worker_peak_mb": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024,
     "iterations": run.whole.iterations,
 }))
