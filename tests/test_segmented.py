@@ -86,3 +86,31 @@ def test_segments_shared_out_among_workers_give_the_same_result():
     assert np.array_equal(one.start_states, two.start_states)
     for name, estimate in one.nuisance.items():
         assert np.array_equal(estimate.value, two.nuisance[name].value)
+
+
+def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
+    # An elimination that fails in this process (as an indeterminate system does, which the
+    # optimizer answers with more damping) must still read the workers' answers to the same
+    # call, or every later answer would belong to the call before it.
+    data = _sample_segments()
+    spec = JointSettings().graph_spec()
+    one = solve_segment_graph(data, spec, 50, 1e-7, "one process")
+    built = build_segment_graph(data, spec)
+    segmented = SegmentedGraph(built.graph, built.values, shared_keys(spec))
+    with segmented.parallel(2):
+        local = segmented.group
+        original = local.eliminate
+        calls = []
+
+        def failing_once(lam):
+            calls.append(lam)
+            if len(calls) == 1:
+                raise RuntimeError("indeterminate linear system")
+            return original(lam)
+
+        local.eliminate = failing_once
+        segmented.optimize(50, 1e-7)
+    theta = segmented.shared_values.atVector(keys.THETA)
+    assert len(calls) > 1 and calls[1] > calls[0]  # damped more after the failure
+    # The same optimum from another damping path: within a thousandth of a sigma.
+    assert np.all(np.abs(theta - one.theta) < 1e-3 * one.theta_sigma)

@@ -317,12 +317,18 @@ class SegmentedGraph:
         """``method`` of every group (the workers' at once), per-part answers in part order."""
         for worker in self._remote:
             worker.send(method, *args)
-        answers = getattr(self.group, method)(*args)
-        answers = list(answers) if answers is not None else []
-        for worker in self._remote:
-            received = worker.receive()
-            if received is not None:
-                answers += received
+        failure: Exception | None = None
+        try:
+            answers = list(getattr(self.group, method)(*args) or [])
+        except (RuntimeError, np.linalg.LinAlgError) as exc:
+            failure, answers = exc, []
+        for worker in self._remote:  # every worker's answer is read, so the pipes stay in step
+            try:
+                answers += worker.receive() or []
+            except RuntimeError as exc:
+                failure = failure or exc
+        if failure is not None:
+            raise failure
         return answers
 
     def values_by_key(self) -> dict[int, gtsam.Values]:
@@ -545,7 +551,8 @@ def augmented_hessian(
     out = np.zeros((n + 1, n + 1))
     if linear.size() == 0:
         return out
-    present = [k for k in keys if k in set(linear.keyVector())]
+    in_linear = set(linear.keyVector())
+    present = [k for k in keys if k in in_linear]
     ordering = gtsam.Ordering()
     for key in present:
         ordering.push_back(key)
