@@ -6,10 +6,10 @@
 
 * the error of the recommended theta and the reachable validation error (odometry with the
   true theta, the limit of eq. 16);
-* the Cramér–Rao bound of the recommended theta and of up to :data:`CRB_BATCHES` evenly
-  spaced joint batches (needs the noise-free signals): the theta block of the inverse Fisher
-  information of the measurements, the joint graph without the weak prior on theta
-  linearized at the true values of every variable;
+* the Cramér–Rao bound of the recommended theta and of every joint batch (needs the
+  noise-free signals): the theta block of the inverse Fisher information of the
+  measurements, the joint graph without the weak prior on theta linearized at the true
+  values of every variable (each segment's information computed once and summed per batch);
 * per batch, the normalized estimation error squared (NEES) ``eᵀ Σ⁻¹ e`` of each method that
   reports a covariance: 4 on average when the reported covariance matches the actual errors.
 """
@@ -23,17 +23,13 @@ import numpy as np
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData, gather_segments
-from graphcal.errors import GraphcalError
-from graphcal.graph import keys
-from graphcal.graph.segment_graph import build_segment_graph
-from graphcal.graph.solve import marginal_covariance
+from graphcal.errors import GraphcalError, first_line
+from graphcal.graph.segment_graph import build_segment_graph, shared_keys
+from graphcal.graph.segment_systems import SegmentSystems, segment_systems
+from graphcal.graph.segmented import SegmentedGraph
 from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.pipeline.validation import position_errors
-
-#: At most this many batches of a joint run get their Cramér–Rao bound.
-CRB_BATCHES = 100
 
 
 @dataclass(frozen=True)
@@ -95,24 +91,63 @@ def cramer_rao_bound(
         GraphcalError: if theta is not identifiable from ``data`` (e.g. a straight drive):
             the information matrix is singular and there is no finite bound.
     """
+    bound = cramer_rao_bounds(data, truth, theta_true, np.arange(len(data))[None], settings)[0]
+    if not np.all(np.isfinite(bound)):
+        raise GraphcalError(
+            "Cramér–Rao bound: the information matrix of theta is singular (a parameter "
+            "is not identifiable from these segments)"
+        )
+    return bound
+
+
+def cramer_rao_bounds(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    batches: np.ndarray,
+    settings: JointSettings | None = None,
+    workers: int = 1,
+) -> np.ndarray:
+    """The Cramér–Rao bound of theta of each batch of ``data``'s segments: ``(B, 4, 4)``, SI;
+    NaN for a batch from which theta is not identifiable. ``batches`` ``(B, N)`` index
+    ``data``; as :func:`cramer_rao_bound`, from one pass over the segments for all batches
+    (:func:`cramer_rao_systems`)."""
+    systems = cramer_rao_systems(data, truth, theta_true, settings, workers)
+    return systems.solve(batches).covariance[:, :4, :4]
+
+
+def cramer_rao_systems(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    settings: JointSettings | None = None,
+    workers: int = 1,
+) -> SegmentSystems:
+    """The measurements' information of every segment of ``data`` at the truth, reduced to
+    the shared variables (:mod:`graphcal.graph.segment_systems`): the joint graph without
+    the prior on theta linearized as :func:`cramer_rao_bound` does, each segment eliminated
+    once (in ``workers`` processes). A batch's bound is the theta block of the inverse of
+    its members' summed information: exactly the bound of the batch's own graph.
+
+    Raises:
+        GraphcalError: if a segment's own variables are indeterminate.
+    """
     settings = settings or JointSettings()
-    built = build_segment_graph(data, settings.graph_spec(theta_prior=False))
+    spec = settings.graph_spec(theta_prior=False)
+    built = build_segment_graph(data, spec)
     states, corrections = [], []
     for s in range(len(data)):
         true_poses, true_inputs = truth.segment(s)
         states.append(true_poses)
         corrections.append(true_inputs[:, :2] - data.segment(s)[1][:, :2])
     values = built.values_at(states, corrections, theta_true)
-    return marginal_covariance(built.graph, values, keys.THETA, "Cramér–Rao bound")
-
-
-def _bound_task(
-    data: SegmentData, truth: SegmentData, theta_true: np.ndarray, settings: JointSettings
-) -> np.ndarray | None:
+    segmented = SegmentedGraph(built.graph, values, shared_keys(spec))
     try:
-        return cramer_rao_bound(data, truth, theta_true, settings)
-    except GraphcalError:
-        return None
+        with segmented.parallel(workers):
+            return segment_systems(segmented, len(data))
+    except (RuntimeError, np.linalg.LinAlgError) as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise GraphcalError(f"Cramér–Rao bound failed: {reason}") from exc
 
 
 def nees(theta: np.ndarray, covariance: np.ndarray, theta_true: np.ndarray) -> np.ndarray:
@@ -148,33 +183,22 @@ def evaluate(
     if truth.log is not None:
         true_data = gather_segments(truth.log, run.selected)
         settings = run.settings.joint
+        joint_batches = run.batches is not None and "joint" in run.batch_theta
+        if run.covariance is not None or joint_batches:
+            say("Cramér–Rao bounds: every segment's information at the truth")
+            systems = cramer_rao_systems(run.data, true_data, theta_true, settings, workers)
         if run.covariance is not None:
-            crb = _bound_task(run.data, true_data, theta_true, settings)
-            if crb is None:
+            crb = systems.solve(np.arange(len(run.data))[None]).covariance[0, :4, :4]
+            if not np.all(np.isfinite(crb)):
+                crb = None
                 say(
                     "no Cramér–Rao bound: the measurements' information matrix of theta is "
                     "singular (a parameter is not identifiable from this drive)"
                 )
-        if run.batches is not None and "joint" in run.batch_theta:
-            # Up to CRB_BATCHES evenly spaced batches estimate the bound's mean over batches.
-            n = len(run.batches)
-            spaced = np.arange(n) % -(-n // CRB_BATCHES) == 0
+        if joint_batches:
             solved = np.all(np.isfinite(run.batch_theta["joint"]), axis=1)
-            bounded = np.flatnonzero(spaced & solved)
-            tasks = [
-                (
-                    run.data.take(run.batches[b]),
-                    true_data.take(run.batches[b]),
-                    theta_true,
-                    settings,
-                )
-                for b in bounded
-            ]
-            bounds = map_tasks(_bound_task, tasks, workers, say, "Cramér–Rao bounds")
-            batch_crb["joint"] = np.full((n, 4, 4), np.nan)
-            for b, bound in zip(bounded, bounds, strict=True):
-                if bound is not None:
-                    batch_crb["joint"][b] = bound
+            bounds = systems.solve(run.batches).covariance[:, :4, :4]
+            batch_crb["joint"] = np.where(solved[:, None, None], bounds, np.nan)
     batch_nees = {
         name: nees(run.batch_estimates(name), covariances, theta_true)
         for name, covariances in run.batch_covariance.items()

@@ -43,6 +43,11 @@ def _packed(segment: int, position: int) -> int:
     return segment * SEGMENT_STRIDE + position
 
 
+def segment_of(key: int) -> int:
+    """The segment a segment variable's key belongs to (the inverse of the packing)."""
+    return int(gtsam.Symbol(key).index()) // SEGMENT_STRIDE
+
+
 def segment_pose(segment: int, boundary: int = 0) -> int:
     """Key of the Pose2 at chunk boundary ``boundary`` of ``segment`` (0: the segment's start)."""
     return gtsam.symbol("p", _packed(segment, boundary))

@@ -384,6 +384,22 @@ class SegmentedGraph:
         self._each("release")
         return total[:-1, :-1]
 
+    def part_systems(self) -> tuple[list[np.ndarray], np.ndarray]:
+        """At the current values, undamped: each part's linearized system eliminated down to
+        the shared keys, as an augmented Hessian ``(n+1, n+1)`` in part order, and the shared
+        factors' own augmented Hessian. The system of any subset of parts is the sum of its
+        members' and the shared one (:mod:`graphcal.graph.segment_systems`)."""
+        reduced = self._each("eliminate", None)
+        self._each("release")
+        shared_linear = self.shared_graph.linearize(self.shared_values)
+        return [r for r, _ in reduced], augmented_hessian(shared_linear, self.shared, self.dims)
+
+    def shared_vector(self) -> np.ndarray:
+        """The shared variables' current values stacked ``(n,)`` in the order of
+        :attr:`shared` (they are vectors in graphcal's graphs)."""
+        blocks = [np.asarray(self.shared_values.atVector(k), float) for k in self.shared]
+        return np.concatenate(blocks or [np.zeros(0)])
+
     def gauss_newton_decrement(self) -> float:
         """How much one Gauss–Newton step from the current values would lower the error on
         the linearization: ``½ gᵀ H⁻¹ g``. For variables that enter almost linearly this is
