@@ -57,6 +57,8 @@ _PUBLIC = {
     "prepare_localization": "graphcal.pipeline.run",
     "write_results": "graphcal.report.results",
     "calibrate_joint": "graphcal.pipeline.joint",
+    "solve_joint": "graphcal.pipeline.joint",
+    "solve_joint_batches": "graphcal.pipeline.joint_batches",
     "JointSettings": "graphcal.pipeline.joint",
     "assess_observability": "graphcal.graph.observability",
     "Observability": "graphcal.graph.observability",
@@ -65,6 +67,7 @@ _PUBLIC = {
     "Evaluation": "graphcal.evaluation",
     "Truth": "graphcal.evaluation",
     "cramer_rao_bound": "graphcal.evaluation",
+    "cramer_rao_bounds": "graphcal.evaluation",
     # Factors and values for your own GTSAM graphs.
     "PreintegratedWheelOdometry": "graphcal.factors",
     "WheelOdometryFactor": "graphcal.factors",

@@ -39,7 +39,8 @@ def report_joint(
     uncertainty = uncertainty_summary(run, evaluation)["joint"]
     print(
         f"\n{args.length_km:g} km, {len(run.batches)} batches of {run.batches.shape[1]}, "
-        f"{len(run.selected)} selected segments, {args.workers} workers, joint: "
+        f"{len(run.selected)} selected segments, {args.workers} workers, joint "
+        f"({args.batch_solve} batches): "
         f"{seconds / 60:.1f} min\n"
     )
     header = ["parameter", "Step 1 IQR", "joint bias", "joint IQR", "joint RMSE"]
@@ -104,11 +105,20 @@ def main(argv: list[str] | None = None) -> int:
         default="staged",
         help="both: staged then joint on the same drive, compared (writes methods.png)",
     )
+    parser.add_argument(
+        "--batch-solve",
+        choices=["linearized", "exact"],
+        default="linearized",
+        help="joint batches from the segments' systems at the whole-log solution (default) "
+        "or one solve per batch",
+    )
     args = parser.parse_args(argv)
 
     drive = simulate_drive(args.length_km, seed=args.seed)
     write_synthetic_drive(drive, args.out / "drive.csv")
-    settings = Settings(batches=BatchingSettings(count=args.batches, seed=args.seed))
+    settings = Settings(
+        batches=BatchingSettings(count=args.batches, seed=args.seed, joint_solve=args.batch_solve)
+    )
     runs, evaluations, stats, seconds = {}, {}, {}, {}
     say = lambda line: print(line, file=sys.stderr, flush=True)  # noqa: E731
     methods = ("staged", "joint") if args.method == "both" else (args.method,)

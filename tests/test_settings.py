@@ -104,8 +104,8 @@ def test_sections_and_keys_are_the_field_names():
 def test_paper_defaults_are_the_settings_defaults():
     d = Settings().to_dict()
     # The batch count departs from the paper's 1000 (issue 14: a fast default run);
-    # docs/method.md lists it among the departures.
-    assert d["batches"] == {"size": 9, "count": 100, "seed": 0}
+    # docs/method.md lists it among the departures, with the linearized joint batches.
+    assert d["batches"] == {"size": 9, "count": 100, "seed": 0, "joint_solve": "linearized"}
     assert d["calibration"]["pose_weights"] == [1.0, 1.0, 50.0]
     assert d["calibration"]["theta_initial"] == [2.0, 0.0, 1.55, 0.0]
     assert d["calibration"]["max_iterations"] == 5

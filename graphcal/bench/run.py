@@ -28,7 +28,9 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
   optimizer (the formulation before issue 14) and segment by segment in one and two
   processes, with the differences of theta and covariance;
 * (k) the whole-log calibration of drives of several lengths (``--scaling-km``) in child
-  processes, and the exponent of its time's growth (:mod:`graphcal.bench.scaling`).
+  processes, and the exponent of its time's growth (:mod:`graphcal.bench.scaling`);
+* (l) a joint batch of the batch study solved on its own and from the segments' systems at
+  the whole-log solution (:mod:`graphcal.pipeline.joint_batches`), per batch.
 
 Ratios are taken within one run, never against figures from another machine.
 """
@@ -69,7 +71,13 @@ from graphcal.localization.online import run_online
 from graphcal.model import integrate, integrate_with_jacobians
 from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.input_estimation import estimate_inputs
-from graphcal.pipeline.joint import JointSettings, calibrate_joint, without_defect_model
+from graphcal.pipeline.joint import (
+    JointSettings,
+    calibrate_joint,
+    solve_joint,
+    without_defect_model,
+)
+from graphcal.pipeline.joint_batches import solve_joint_batches
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
@@ -201,6 +209,7 @@ def run_benchmarks(
         )
 
     segmented = segmented_items(record, data, repeats)
+    batch_study = batch_study_items(record, data, max(pipeline_batches, 100), workers)
     defect_ratio = whole_log_items(record, log, repeats)
     localization = localization_items(record, repeats)
     importing = None
@@ -242,6 +251,7 @@ def run_benchmarks(
         "naive_over_graphcal_per_iteration": speedup,
         "defect_model_over_plain_whole_log": defect_ratio,
         "segmented": segmented,
+        "batch_study": batch_study,
         "scaling": scaling,
         "localization": localization,
         "import": importing,
@@ -295,6 +305,49 @@ def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int
         out[f"theta_rel_difference_{workers}"] = theta_difference
         out[f"covariance_rel_difference_{workers}"] = covariance_difference
     return out
+
+
+def batch_study_items(
+    record: Callable[..., None], data: SegmentData, count: int, workers: int
+) -> dict[str, Any]:
+    """(l) The joint batch study of ``count`` batches of 9: solved one batch after the other
+    (``"exact"``, the formulation before issue 14, timed on the first ``min(count, 10)``)
+    and from the segments' systems at the whole-log solution (``"linearized"``, all
+    ``count``), each per batch; with the largest theta difference in the exact solves' σ."""
+    settings = dataclasses.replace(JointSettings(), robust_threshold=0.0, slip="off")
+    batches = make_batches(len(data), min(9, len(data)), count, seed=0)
+    start = time.perf_counter()
+    _, values = solve_joint(data, settings, workers)
+    whole_s = time.perf_counter() - start
+    start = time.perf_counter()
+    linearized = solve_joint_batches(data, batches, settings, "linearized", values, workers)
+    linearized_s = (time.perf_counter() - start) / len(batches)
+    few = batches[: min(len(batches), 10)]
+    start = time.perf_counter()
+    exact = solve_joint_batches(data, few, settings, "exact", workers=workers)
+    exact_s = (time.perf_counter() - start) / len(few)
+    difference = max(
+        float(np.max(np.abs(lin.theta - ex.theta) / np.sqrt(np.diag(ex.covariance))))
+        for lin, ex in zip(linearized, exact, strict=False)
+        if lin is not None and ex is not None
+    )
+    record("(l) joint batch, solved on its own (exact)", exact_s, batches=len(few))
+    record(
+        "(l) joint batch, from the segments' systems",
+        linearized_s,
+        batches=len(batches),
+        exact_over_linearized=exact_s / linearized_s,
+        max_theta_difference_sigma=difference,
+        whole_log_solve_s=whole_s,
+    )
+    return {
+        "batches": len(batches),
+        "exact_per_batch_s": exact_s,
+        "linearized_per_batch_s": linearized_s,
+        "whole_log_solve_s": whole_s,
+        "exact_over_linearized": exact_s / linearized_s,
+        "max_theta_difference_sigma": difference,
+    }
 
 
 def whole_log_items(record: Callable[..., None], log: DriveLog, repeats: int) -> float:

@@ -241,6 +241,18 @@ def calibrate_joint(
     Raises:
         CalibrationFailed: if the solve fails or gives an implausible theta.
     """
+    return solve_joint(data, settings, workers, progress)[0]
+
+
+def solve_joint(
+    data: SegmentData,
+    settings: JointSettings | None = None,
+    workers: int = 1,
+    progress: Callable[[str], None] | None = None,
+) -> tuple[JointCalibration, gtsam.Values]:
+    """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
+    point to linearize other graphs of the same segments at (the joint batches,
+    :mod:`graphcal.pipeline.joint_batches`)."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
     label = "joint solve"
@@ -261,7 +273,7 @@ def calibrate_joint(
     observability = assess_observability(
         solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
     )
-    return JointCalibration(
+    calibration = JointCalibration(
         solved.theta,
         solved.covariance,
         solved.start_states,
@@ -275,6 +287,7 @@ def calibrate_joint(
         degrees_of_freedom=solved.degrees_of_freedom,
         nuisance=solved.nuisance,
     )
+    return calibration, solved.result
 
 
 def _with_slip_if_shown(

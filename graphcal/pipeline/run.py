@@ -9,7 +9,9 @@ Methods:
   observability verdict; the recommended theta is the joint solve over *all* selected
   segments at once (the maximum-likelihood estimate from all the data, with its covariance).
   The batches show the spread and check the covariance; batches where a parameter is not
-  observable are left out of the batch statistics, with the reason.
+  observable are left out of the batch statistics, with the reason. By default the batches
+  are solved from each segment's system at the whole-log solution
+  (:mod:`graphcal.pipeline.joint_batches`), at the cost of one whole-log iteration.
 * ``"whole"`` — only the joint solve over all selected segments: quick, no batches.
 
 With the joint and whole methods, parameters the data do not determine
@@ -30,6 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+import gtsam
 import numpy as np
 
 from graphcal.data.antenna import move_to_centre
@@ -48,8 +51,8 @@ from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import GraphcalError
 from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.joint import JointCalibration, JointSettings, calibrate_joint
-from graphcal.pipeline.parallel import map_tasks
+from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
+from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import (
     DownWeightedFixes,
     SensorEstimate,
@@ -170,15 +173,7 @@ def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
     return float(np.mean(position_errors(validation, theta)))
 
 
-def _joint_task(data: SegmentData, settings: JointSettings) -> JointCalibration | None:
-    """One joint solve; ``None`` if it failed."""
-    try:
-        return calibrate_joint(data, settings)
-    except GraphcalError:
-        return None
-
-
-def exclusion_reason(result: JointCalibration | None) -> str:
+def exclusion_reason(result: BatchEstimate | None) -> str:
     """Why a batch's joint solve is left out of the batch statistics (``""``: it is not)."""
     if result is None:
         return "solve failed"
@@ -289,7 +284,7 @@ def run_calibration(
     batch_covariance: dict[str, np.ndarray] = {}
     batch_excluded: dict[str, np.ndarray] = {}
     batch_data = data
-    covariance = observability = whole = None
+    covariance = observability = whole = whole_values = None
     estimated: dict[str, SensorEstimate] = {}
     down_weighted = None
     warnings: list[str] = []
@@ -302,9 +297,11 @@ def run_calibration(
     if method != "staged" or _models_sensors(settings.joint):
         # The recommended theta (joint, whole) first; it also finds the time offset, the
         # lever arm and the outliers, corrected for everything after it.
-        whole, data, offset = _solve_with_time_offset(
+        whole, whole_values, data, offset = _solve_with_time_offset(
             log, data, selected, flagged, settings.joint, say, workers
         )
+        if method != "joint":  # only the joint batches linearize at the solution
+            whole_values = None
         if method != "staged":
             theta, covariance, observability = _conditioned(whole, settings.joint)
             if observability.degenerate:
@@ -359,7 +356,6 @@ def run_calibration(
             robust_threshold=0.0,
             slip="on" if whole is not None and whole.slip_modelled else "off",
         )
-        tasks = [(batch_data.take(batch), batch_settings) for batch in batches]
         batch_theta["step1"] = step1_thetas(data, batches, settings, workers, say)
         step1_failed = int((~np.all(np.isfinite(batch_theta["step1"]), axis=1)).sum())
         if step1_failed:
@@ -367,7 +363,16 @@ def run_calibration(
                 f"step1: {step1_failed} of {len(batches)} batch solves of the Step 1 "
                 "baseline failed and are left out of its statistics"
             )
-        solved = map_tasks(_joint_task, tasks, workers, say, "joint batch solves")
+        solved = solve_joint_batches(
+            batch_data,
+            batches,
+            batch_settings,
+            settings.batches.joint_solve,
+            whole_values,
+            workers,
+            say,
+        )
+        whole_values = None
         nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
         batch_theta["joint"] = np.array([nan_theta if r is None else r.theta for r in solved])
         batch_covariance["joint"] = np.array(
@@ -469,15 +474,15 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
 
 def _whole_log_solve(
     data: SegmentData, settings: JointSettings, say: Progress, workers: int
-) -> JointCalibration:
+) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
-    processes), with the progress lines a user waits for."""
+    processes), with the progress lines a user waits for, and the solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
-    result = calibrate_joint(data, settings, workers, say)
+    result, values = solve_joint(data, settings, workers, say)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
-    return result
+    return result, values
 
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
@@ -492,7 +497,7 @@ def _solve_with_time_offset(
     settings: JointSettings,
     say: Progress,
     workers: int = 1,
-) -> tuple[JointCalibration, SegmentData, float]:
+) -> tuple[JointCalibration, gtsam.Values, SegmentData, float]:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
     the offset found so far, rounded to whole samples, and the solve repeated, so that the
     graph's first-order shift only covers the rest (at most about half a sample).
@@ -503,8 +508,8 @@ def _solve_with_time_offset(
     and 62.5 ms latency, fractional shifting moved t_r by 4.3σ (``docs/defects.md``).
 
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
-    the last solve, the segments it solved and the shift [s] of their wheels."""
-    whole = _whole_log_solve(data, settings, say, workers)
+    the last solve, its values, the segments it solved and the shift [s] of their wheels."""
+    whole, values = _whole_log_solve(data, settings, say, workers)
     shift = 0.0
     for _ in range(OFFSET_ROUNDS - 1):
         found = sensor_estimates(whole.nuisance, settings.max_sigma_ratio).get("time_offset")
@@ -516,8 +521,8 @@ def _solve_with_time_offset(
         shift = rounded
         say(f"wheels shifted by {shift * 1e3:+.1f} ms; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole = _whole_log_solve(data, settings, say, workers)
-    return whole, data, shift
+        whole, values = _whole_log_solve(data, settings, say, workers)
+    return whole, values, data, shift
 
 
 def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict[str, float]:

@@ -1,0 +1,161 @@
+"""The joint method's batch study: every batch's theta with its covariance and verdict.
+
+Two ways to solve the batches (``[batches] joint_solve``):
+
+* ``"linearized"`` (the default): the joint graph over all selected segments, with the
+  batches' settings, is linearized once at the whole-log solution and every segment is
+  eliminated down to the shared variables (:mod:`graphcal.graph.segment_systems`); each batch
+  is then one Gauss–Newton step on the sum of its members' systems. One elimination of the
+  log serves all batches, so the study costs about one whole-log iteration whatever the
+  number of batches. The whole-log solution has every segment's variables at their optimum
+  for its theta, and a batch's theta lies within a few of its σ of it, where the model is
+  nearly linear: on the synthetic drives the batches' thetas are within 0.01σ and their σ
+  within 0.4 % of the exact solves (``docs/performance.md``).
+* ``"exact"``: one joint Levenberg–Marquardt solve per batch from the nominal theta, in
+  worker processes (1–2 s a batch): the paper's study as it was run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphcal.data.segments import SegmentData
+from graphcal.errors import CalibrationFailed, GraphcalError, first_line
+from graphcal.graph import keys
+from graphcal.graph.observability import Observability, assess_observability
+from graphcal.graph.plausibility import check_plausible
+from graphcal.graph.segment_graph import build_segment_graph, shared_keys
+from graphcal.graph.segment_systems import segment_systems
+from graphcal.graph.segmented import SegmentedGraph, copy_value
+from graphcal.pipeline.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.parallel import map_tasks
+
+#: ``[batches] joint_solve``: how the joint method solves its batches.
+JOINT_BATCH_SOLVES = ("linearized", "exact")
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class BatchEstimate:
+    """One batch's joint estimate (SI).
+
+    Attributes:
+        theta: ``[c_e, c_d, t_r, d]``.
+        covariance: its 4×4 marginal covariance.
+        observability: which parameters the batch determined.
+    """
+
+    theta: np.ndarray
+    covariance: np.ndarray
+    observability: Observability
+
+
+def solve_joint_batches(
+    data: SegmentData,
+    batches: np.ndarray,
+    settings: JointSettings,
+    how: str = "linearized",
+    start: gtsam.Values | None = None,
+    workers: int = 1,
+    progress: Progress | None = None,
+) -> list[BatchEstimate | None]:
+    """Each batch's joint estimate, ``None`` where its solve failed (see the module
+    docstring for ``how``).
+
+    Args:
+        data: the selected segments; ``batches`` ``(B, N)`` index them.
+        settings: the batches' joint settings.
+        how: ``"linearized"`` or ``"exact"``.
+        start: for ``"linearized"``, the whole-log solution's values (the linearization
+            point; its keys as in the graph of ``data``); ``None`` linearizes at the
+            builder's initial values, which only suits a log where those are the solution.
+        workers: processes (the results do not depend on it).
+        progress: gets the progress lines.
+
+    Raises:
+        ValueError: for an unknown ``how``.
+        CalibrationFailed: if the linearized systems cannot be formed (a segment's own
+            variables indeterminate).
+    """
+    if how not in JOINT_BATCH_SOLVES:
+        raise ValueError(f"joint_solve must be one of {', '.join(JOINT_BATCH_SOLVES)}, got {how!r}")
+    if how == "exact":
+        tasks = [(data.take(batch), settings) for batch in batches]
+        solved = map_tasks(_exact_task, tasks, workers, progress, "joint batch solves")
+        return [
+            None if r is None else BatchEstimate(r.theta, r.covariance, r.observability)
+            for r in solved
+        ]
+    return _linearized(data, np.asarray(batches, int), settings, start, workers, progress)
+
+
+def _exact_task(data: SegmentData, settings: JointSettings):
+    """One joint solve; ``None`` if it failed."""
+    try:
+        return calibrate_joint(data, settings)
+    except GraphcalError:
+        return None
+
+
+def _linearized(
+    data: SegmentData,
+    batches: np.ndarray,
+    settings: JointSettings,
+    start: gtsam.Values | None,
+    workers: int,
+    progress: Progress | None,
+) -> list[BatchEstimate | None]:
+    """The ``"linearized"`` batch solves."""
+    say = progress or (lambda _line: None)
+    spec = settings.graph_spec()
+    built = build_segment_graph(data, spec)
+    values = built.values if start is None else _completed(start, built.values)
+    if spec.time_offset_sigma is not None:  # the batches' frame: their prior's mean
+        values.update(keys.TIME_OFFSET, np.array([spec.time_offset_mean]))
+    segmented = SegmentedGraph(built.graph, values, shared_keys(spec))
+    say(f"joint batches: {len(data)} segments linearized at the whole-log solution")
+    try:
+        with segmented.parallel(workers):
+            systems = segment_systems(segmented, len(data))
+    except (RuntimeError, np.linalg.LinAlgError) as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise CalibrationFailed(f"joint batches failed: {reason}") from exc
+    solution = systems.solve(batches)
+    out: list[BatchEstimate | None] = []
+    for theta, covariance in zip(
+        solution.values[:, :4], solution.covariance[:, :4, :4], strict=True
+    ):
+        out.append(_estimate(theta, covariance, settings, spec.theta))
+    say(f"joint batches: {len(batches)} solved from the segments' systems")
+    return out
+
+
+def _completed(start: gtsam.Values, initial: gtsam.Values) -> gtsam.Values:
+    """``start`` with the variables it lacks taken from ``initial``."""
+    values = gtsam.Values(start)
+    for key in initial.keys():
+        if not values.exists(key):
+            copy_value(values, initial, key)
+    return values
+
+
+def _estimate(
+    theta: np.ndarray, covariance: np.ndarray, settings: JointSettings, reference: np.ndarray
+) -> BatchEstimate | None:
+    """A batch's estimate, or ``None`` if its information was singular or its theta is
+    implausible (what a failed exact solve gives)."""
+    if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))):
+        return None
+    try:
+        check_plausible(theta, "joint batch", reference=reference)
+    except CalibrationFailed:
+        return None
+    observability = assess_observability(
+        covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
+    )
+    return BatchEstimate(theta, covariance, observability)
