@@ -44,12 +44,9 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
     candidates = candidates[candidates * np.std(n) >= MIN_SPREAD_TICKS]
     if not len(candidates):
         return None
-    resultant = np.empty(len(candidates))
-    for start in range(0, len(candidates), 256):
-        block = candidates[start : start + 256]
-        phase = 2.0 * np.pi * np.outer(block, n)
-        resultant[start : start + 256] = np.hypot(np.cos(phase).mean(1), np.sin(phase).mean(1))
-    best = int(np.argmax(resultant))
+    resultant = _resultants(n, candidates)
+    # Multiples of the resolution fit exact counts as well as it does: take the smallest.
+    best = int(np.argmax(resultant >= resultant.max() - 1e-9))
     if resultant[best] < MIN_RESULTANT:
         return None
     ticks = int(candidates[best])
@@ -60,6 +57,25 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
     if np.mean(np.diff(counts) != 0) < MIN_COUNT_CHANGES:
         return None
     return ticks
+
+
+def _resultants(n: np.ndarray, candidates: np.ndarray, block: int = 256) -> np.ndarray:
+    """``|mean(exp(2πi n T))|`` for every ``T`` of ``candidates`` (consecutive integers).
+
+    Per block of candidates, the first row is ``exp(2πi n T₀)`` and each next one the row
+    before times ``exp(2πi n)`` (a running product instead of a sine and cosine per
+    element: a tenth of the time; its rounding error after a block, ~10⁻¹⁴, is far below
+    the resultants' differences)."""
+    step = np.exp(2j * np.pi * n)
+    out = np.empty(len(candidates))
+    for start in range(0, len(candidates), block):
+        size = min(block, len(candidates) - start)
+        rows = np.empty((size, len(n)), complex)
+        rows[0] = np.exp(2j * np.pi * n * candidates[start])
+        rows[1:] = step
+        np.cumprod(rows, axis=0, out=rows)
+        out[start : start + size] = np.abs(rows.mean(axis=1))
+    return out
 
 
 def quantization_sigma(ticks: int) -> float:
