@@ -62,6 +62,11 @@ _PUBLIC = {
     "JointSettings": "graphcal.pipeline.joint",
     "assess_observability": "graphcal.graph.observability",
     "Observability": "graphcal.graph.observability",
+    # Fleets: many vehicles' daily logs on Dask (the ``fleet`` extra).
+    "run_fleet": "graphcal.fleet.run",
+    "FleetRun": "graphcal.fleet.run",
+    "discover_fleet": "graphcal.fleet.sources",
+    "simulate_fleet": "graphcal.simulate.fleet",
     # Evaluation against a known truth (synthetic drives).
     "evaluate": "graphcal.evaluation",
     "Evaluation": "graphcal.evaluation",

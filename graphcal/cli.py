@@ -86,11 +86,14 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             defects = parse_defects(args.defects)
         except ValueError as exc:
             raise GraphcalError(f"--defects {args.defects}: {exc}") from None
+    if args.fleet is not None:
+        return _simulate_fleet(args, say)
+    length_km = 24.0 if args.length_km is None else args.length_km
     if args.streams is not None:
         return _simulate_streams(args, theta_true, say)
     if args.out is None:
         raise GraphcalError("simulate needs --out FILE.csv (or --streams DIR)")
-    drive = simulate_drive(args.length_km, args.seed, theta_true, noise, args.dt, route=args.route)
+    drive = simulate_drive(length_km, args.seed, theta_true, noise, args.dt, route=args.route)
     say(f"simulated {len(drive.measured)} samples ({drive.measured.t[-1]:.0f} s)")
     if defects is not None and defects.names:
         from graphcal.simulate.defects import degrade
@@ -106,6 +109,68 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
     for path in written:
         say(f"wrote {path}")
+    return 0
+
+
+def _simulate_fleet(args: argparse.Namespace, say: Callable[[str], None]) -> int:
+    """``simulate --fleet DIR``: a synthetic fleet with per-vehicle truths and one change."""
+    from graphcal.simulate.fleet import FleetChange, simulate_fleet
+
+    change = None
+    if args.change.lower() != "none":
+        try:
+            vehicle, day, millimetres = args.change.split(":")
+            change = FleetChange(
+                int(vehicle.lstrip("v")),
+                int(day.removeprefix("day")),
+                np.array([float(millimetres) * 1e-3, 0.0, 0.0, 0.0]),
+            )
+        except ValueError:
+            raise GraphcalError(
+                f"--change {args.change}: expected VEHICLE:DAY:C_E_MM (e.g. 3:3:-3 or "
+                "v3:day3:-3) or none"
+            ) from None
+    length_km = 4.0 if args.length_km is None else args.length_km
+    try:
+        truth = simulate_fleet(args.fleet, args.vehicles, args.days, length_km, args.seed, change)
+    except ValueError as exc:
+        raise GraphcalError(f"--fleet: {exc}") from None
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {args.fleet}: {exc.strerror or exc}") from exc
+    what = (
+        "no change"
+        if change is None
+        else f"c_e {args.change.split(':')[2]} mm on v{change.vehicle} from day{change.day}"
+    )
+    say(
+        f"wrote a fleet of {args.vehicles} vehicles × {args.days} days of {length_km:g} km "
+        f"({what}) to {args.fleet}; truths in {truth.name}"
+    )
+    return 0
+
+
+def cmd_fleet(args: argparse.Namespace) -> int:
+    """Calibrate every log of a fleet on Dask; per vehicle, changes of theta over days."""
+    from graphcal.fleet.run import run_fleet
+    from graphcal.pipeline.settings import vehicle_settings_in
+
+    settings = settings_from_args(args)
+    keep = vehicle_settings_in(args.config) if args.config else set()
+    say = _timed_progress()
+    run = run_fleet(
+        args.source,
+        args.out,
+        settings,
+        workers=args.workers or default_workers(),
+        scheduler=args.scheduler,
+        alpha=args.alpha,
+        keep=keep,
+        progress=say,
+        bar=not args.no_progress_bar,
+    )
+    say(f"wrote {', '.join(p.name for p in run.written)} to {Path(args.out)}")
+    for line in run.summary():
+        print(line)
     return 0
 
 
@@ -233,8 +298,9 @@ def _simulate_streams(
         sideslip_noise=float(np.deg2rad(args.sideslip_noise_deg)),
         wheel_kind=args.wheel_kind_sim,
     )
-    sim = simulate_streams(args.length_km, args.seed, theta_true, stream_settings, route=args.route)
-    say(f"simulated {args.length_km:g} km as GNSS, wheel and IMU streams")
+    length_km = 24.0 if args.length_km is None else args.length_km
+    sim = simulate_streams(length_km, args.seed, theta_true, stream_settings, route=args.route)
+    say(f"simulated {length_km:g} km as GNSS, wheel and IMU streams")
     try:
         written = write_streams(sim, directory)
         if args.bag is not None:
@@ -460,7 +526,10 @@ def build_parser() -> argparse.ArgumentParser:
         description=cmd_simulate.__doc__,
     )
     p.add_argument(
-        "--length-km", type=_at_least(0.1, "km"), default=24.0, help="route length [km] (24)"
+        "--length-km",
+        type=_at_least(0.1, "km"),
+        default=None,
+        help="route length [km] (24; with --fleet, 4 per day)",
     )
     p.add_argument("--seed", type=_whole(0), default=0, help="seed of every random choice (0)")
     p.add_argument(
@@ -552,6 +621,22 @@ def build_parser() -> argparse.ArgumentParser:
         "outliers: share; outages/dropouts: count; heading_bias: rad/√s; latency: s; "
         "lever_arm: LONG[:LAT] m; ticks: per revolution; slip: relative σ), e.g. "
         "all,latency=0.1 or outliers=0.01,lever_arm=1.5:0.2 (docs/results.md)",
+    )
+    p.add_argument(
+        "--fleet",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="instead of one drive, a synthetic fleet in DIR (VEHICLE/DAY.csv, each with its "
+        "truth, and fleet_truth.csv) for `graphcal fleet`",
+    )
+    p.add_argument("--vehicles", type=_whole(1), default=6, help="with --fleet: vehicles (6)")
+    p.add_argument("--days", type=_whole(1), default=3, help="with --fleet: days (3)")
+    p.add_argument(
+        "--change",
+        default="3:3:-3",
+        metavar="V:DAY:MM",
+        help="with --fleet: vehicle V's c_e changes by MM mm from day DAY on (3:3:-3), or none",
     )
     p.set_defaults(func=cmd_simulate)
 
@@ -704,6 +789,51 @@ def build_parser() -> argparse.ArgumentParser:
     recording_options(p)
     vehicle_option(p)
     p.set_defaults(func=cmd_calibrate)
+
+    p = sub.add_parser(
+        "fleet",
+        help="calibrate a fleet's logs on Dask and find changes of theta",
+        description=cmd_fleet.__doc__,
+    )
+    p.add_argument(
+        "source",
+        type=Path,
+        help="a directory VEHICLE/DAY.csv (VEHICLE/vehicle.toml: that vehicle's profile) or a "
+        "CSV manifest with columns vehicle, day, path (and optionally profile)",
+    )
+    p.add_argument(
+        "--out", type=Path, required=True, help="result directory (kept between runs: resumable)"
+    )
+    p.add_argument(
+        "--workers",
+        type=_whole(1),
+        default=None,
+        metavar="N",
+        help="worker processes of the local Dask cluster (default: one per core)",
+    )
+    p.add_argument(
+        "--scheduler",
+        default=None,
+        metavar="ADDRESS",
+        help="a running Dask scheduler (tcp://HOST:8786) instead of a local cluster",
+    )
+    p.add_argument(
+        "--alpha",
+        type=_in_range(1e-12, 0.5, "probability"),
+        default=1e-3,
+        help="false-alarm probability of each day's test for a change of theta (0.001)",
+    )
+    p.add_argument(
+        "--config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="TOML settings file for every log (see graphcal/pipeline/settings.py)",
+    )
+    p.add_argument("--no-progress-bar", action="store_true", help="progress lines instead of a bar")
+    segment_options(p)
+    vehicle_option(p)
+    p.set_defaults(func=cmd_fleet)
     return parser
 
 

@@ -117,3 +117,12 @@ def test_no_import_cycle_between_packages():
 
     for unit in sorted(edges):
         visit(unit, [])
+
+
+def test_fleet_sits_on_the_pipeline_and_never_sees_a_truth():
+    below = {"model", "factors", "graph", "pipeline", "localization", "data", "report", "simulate"}
+    for module, imports in MODULES.items():
+        if _unit(module) in below | {"evaluation"}:
+            assert "fleet" not in _graphcal_units(imports), module
+        if _unit(module) == "fleet":
+            assert not {"evaluation", "localization", "simulate"} & _graphcal_units(imports), module

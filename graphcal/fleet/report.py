@@ -1,0 +1,148 @@
+"""A fleet run's result files: ``fleet.csv`` (one row per log), ``vehicles.csv`` (one row per
+vehicle), ``fleet.parquet`` (if ``pyarrow`` is installed) and ``fleet.png``.
+
+Columns are SI, as in ``batches.csv``: ``c_e``, ``c_d``, ``t_r`` [m], ``d`` [s²] and their
+``sigma_*``; empty where a log failed or a parameter was not calibrated.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from graphcal.files import atomic_save_figure, atomic_write_csv
+from graphcal.fleet.history import VehicleHistory
+from graphcal.graph.observability import DEFAULT_MAX_SIGMA_RATIO as MAX_SIGMA_RATIO
+from graphcal.model import PARAMETER_NAMES
+from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
+
+
+def fleet_table(results: list[dict[str, Any]]) -> pd.DataFrame:
+    """One row per log: vehicle, day, status, reason, the recommended theta and σ (SI; no σ
+    for a parameter the log did not determine, which keeps its prior value), the parameters
+    not calibrated, χ²/dof, trusted, distance, segments, warnings, seconds, path, key."""
+    rows = []
+    for r in results:
+        row = {k: r.get(k) for k in ("vehicle", "day", "status", "reason")}
+        theta, covariance = r.get("theta"), r.get("covariance")
+        calibrated = r.get("calibrated") or [False] * len(PARAMETER_NAMES)
+        for i, name in enumerate(PARAMETER_NAMES):
+            ok = theta is not None and calibrated[i]
+            row[name] = float(theta[i]) if theta is not None else None
+            row[f"sigma_{name}"] = float(np.sqrt(covariance[i][i])) if ok else None
+        row["not_calibrated"] = " ".join(
+            n for n, ok in zip(PARAMETER_NAMES, calibrated, strict=True) if not ok
+        )
+        row |= {k: r.get(k) for k in ("chi2_per_dof", "trusted", "distance_m", "segments")}
+        row["warnings"] = len(r.get("warnings") or [])
+        row |= {k: r.get(k) for k in ("seconds", "path", "key")}
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def vehicles_table(histories: list[VehicleHistory]) -> pd.DataFrame:
+    """One row per vehicle: days calibrated, changes, the current theta and σ (SI: the
+    posterior of the days since the last change), the parameters those days do not
+    determine, flags."""
+    rows = []
+    for h in histories:
+        row: dict[str, Any] = {
+            "vehicle": h.vehicle,
+            "days": len(h.days),
+            "changes": "; ".join(c.describe() for c in h.changes),
+            "current_since": h.current_days[0] if h.current_days else None,
+            "current_days": len(h.current_days),
+        }
+        for i, name in enumerate(PARAMETER_NAMES):
+            row[name] = None if h.theta is None else float(h.theta[i])
+            row[f"sigma_{name}"] = (
+                None if h.covariance is None else float(np.sqrt(h.covariance[i, i]))
+            )
+        row["not_calibrated"] = ""
+        if h.covariance is not None:
+            ratio = np.sqrt(np.diag(h.covariance)) / h.days[-1].prior_sigmas
+            row["not_calibrated"] = " ".join(
+                n for n, r in zip(PARAMETER_NAMES, ratio, strict=True) if r > MAX_SIGMA_RATIO
+            )
+        row["flags"] = "; ".join(h.flags)
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def write_fleet_report(
+    results: list[dict[str, Any]], histories: list[VehicleHistory], out: str | os.PathLike[str]
+) -> list[Path]:
+    """Write ``fleet.csv``, ``vehicles.csv``, ``fleet.parquet`` (with ``pyarrow``) and
+    ``fleet.png`` into ``out``, each atomically; returns the paths."""
+    out = Path(out)
+    table = fleet_table(results)
+    written = [
+        atomic_write_csv(table, out / "fleet.csv"),
+        atomic_write_csv(vehicles_table(histories), out / "vehicles.csv"),
+    ]
+    if importlib.util.find_spec("pyarrow") is not None:
+        parquet = out / "fleet.parquet"
+        tmp = parquet.with_name(f".{parquet.name}.tmp")
+        table.to_parquet(tmp, index=False)
+        os.replace(tmp, parquet)
+        written.append(parquet)
+    written.append(atomic_save_figure(fleet_figure(histories), out / "fleet.png"))
+    return written
+
+
+def fleet_figure(histories: list[VehicleHistory]):
+    """c_e and c_d of every vehicle over its days with ±2σ, changes marked (red line at the
+    first day of the new theta)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    shown = [0, 1]  # c_e, c_d
+    count = max(1, len(histories))
+    figure, axes = plt.subplots(
+        len(shown), count, figsize=(2.2 * count + 1.5, 5.5), squeeze=False, sharey="row"
+    )
+    for column, h in enumerate(histories):
+        days = [d.day for d in h.days]
+        x = np.arange(len(days))
+        for row, i in enumerate(shown):
+            ax = axes[row, column]
+            if days:
+                values = np.array([d.theta[i] for d in h.days]) * DISPLAY_SCALE[i]
+                sigma = np.sqrt([d.covariance[i, i] for d in h.days]) * DISPLAY_SCALE[i]
+                ax.errorbar(x, values, yerr=2 * sigma, fmt="o", capsize=3, color="C0")
+                for change in h.changes:
+                    at = days.index(change.day)
+                    ax.axvline(at - 0.5, color="red", lw=1.5)
+            ax.set_xticks(x, days, rotation=45, fontsize=7)
+            if row == 0:
+                title = h.vehicle + (" ⚑" if h.flags else "")
+                ax.set_title(title, fontsize=9, color="red" if h.changes or h.flags else "black")
+            if column == 0:
+                ax.set_ylabel(f"{PARAMETER_NAMES[i]} [{DISPLAY_UNITS[i]}]")
+    figure.suptitle(
+        "Per vehicle over days, ±2σ; red line: theta changed "
+        f"(c_e in {DISPLAY_UNITS[0]}, c_d in {DISPLAY_UNITS[1]})",
+        fontsize=10,
+    )
+    figure.tight_layout()
+    return figure
+
+
+def summary_lines(histories: list[VehicleHistory]) -> list[str]:
+    """The end-of-run summary: changes and flags per vehicle (display units)."""
+    lines = []
+    for h in histories:
+        for change in h.changes:
+            lines.append(f"{h.vehicle}: theta changed on {change.describe()}")
+        for flag in h.flags:
+            lines.append(f"{h.vehicle}: flagged: {flag}")
+    if not lines:
+        lines.append("no vehicle's theta changed; no vehicle flagged")
+    return lines

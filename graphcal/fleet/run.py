@@ -1,0 +1,317 @@
+"""A fleet run: every log calibrated as a Dask task, results written as they arrive.
+
+* **Where**: a ``LocalCluster`` of ``workers`` single-threaded processes on this machine, or
+  any running Dask scheduler by address (``tcp://HOST:8786``), whose workers must have
+  graphcal installed and see the logs' paths.
+* **Resumable**: each log's result is written atomically to ``OUT/logs/VEHICLE/DAY.json``
+  with its key (:func:`graphcal.fleet.task.result_key`); a run skips every log whose result
+  on disk has the key it would compute, so an interrupted run loses nothing that finished.
+  A result lost with its worker (the process died) is reported but not written, so the next
+  run tries again.
+* **Isolated failures**: a log that cannot be calibrated gives its one-line reason in its
+  row of ``fleet.csv`` and does not stop the others.
+* Then per vehicle, changes and the current theta (:mod:`graphcal.fleet.history`), and the
+  fleet report (:mod:`graphcal.fleet.report`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import time
+from collections.abc import Callable, Collection
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from graphcal.errors import GraphcalError, first_line
+from graphcal.files import atomic_write_text
+from graphcal.fleet.history import (
+    CHANGE_ALPHA,
+    DayEstimate,
+    VehicleHistory,
+    flag_fleet_outliers,
+    vehicle_history,
+)
+from graphcal.fleet.report import summary_lines, write_fleet_report
+from graphcal.fleet.sources import FleetLog, discover_fleet
+from graphcal.fleet.task import calibrate_fleet_log, content_hash, result_key
+from graphcal.pipeline.settings import Settings, apply_vehicle, load_vehicle
+
+Progress = Callable[[str], None]
+
+
+@dataclass(frozen=True)
+class FleetRun:
+    """A fleet run's outcome.
+
+    Attributes:
+        results: per log (vehicle, day order), the task's result dict
+            (:func:`graphcal.fleet.task.calibrate_fleet_log`).
+        histories: per vehicle, its days, changes, current theta and flags.
+        computed, reused: logs calibrated in this run, and results kept from an earlier one.
+        failed: logs whose calibration failed (in this run or kept).
+        seconds: wall time of the run.
+        written: the report files.
+    """
+
+    results: list[dict[str, Any]]
+    histories: list[VehicleHistory]
+    computed: int
+    reused: int
+    failed: int
+    seconds: float
+    written: list[Path]
+
+    def summary(self) -> list[str]:
+        """The lines a fleet operator reads at the end."""
+        head = (
+            f"{len(self.results)} logs of {len(self.histories)} vehicles: "
+            f"{self.computed} calibrated now, {self.reused} kept from an earlier run, "
+            f"{self.failed} failed ({self.seconds:.0f} s)"
+        )
+        failed = [
+            f"{r['vehicle']}/{r['day']}: failed: {r['reason']}"
+            for r in self.results
+            if r["status"] != "ok"
+        ]
+        return [head, *failed, *summary_lines(self.histories)]
+
+
+def run_fleet(
+    source: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    settings: Settings | None = None,
+    workers: int = 2,
+    scheduler: str | None = None,
+    alpha: float = CHANGE_ALPHA,
+    keep: Collection[str] = (),
+    progress: Progress | None = None,
+    bar: bool = False,
+) -> FleetRun:
+    """Calibrate every log of ``source`` (:func:`graphcal.fleet.sources.discover_fleet`)
+    into ``out`` (see the module docstring).
+
+    Args:
+        settings: the run's settings (a vehicle's ``vehicle.toml`` or manifest profile is
+            applied on top, keeping the settings named in ``keep``).
+        workers: worker processes of the local cluster (ignored with ``scheduler``).
+        scheduler: address of a running Dask scheduler, or ``None`` for a local cluster.
+        alpha: false-alarm probability of each day's change test.
+        progress: gets progress lines; ``bar`` shows a tqdm progress bar instead.
+
+    Raises:
+        GraphcalError: for a bad source, an unwritable ``out`` or an unreachable scheduler.
+    """
+    started = time.perf_counter()
+    say = progress or (lambda _line: None)
+    settings = settings or Settings()
+    out = Path(out)
+    logs = discover_fleet(source)
+    per_log = _settings_per_log(logs, settings, keep)
+    say(f"{len(logs)} logs of {len({log.vehicle for log in logs})} vehicles in {source}")
+    keys = [result_key(content_hash(log.path), s) for log, s in zip(logs, per_log, strict=True)]
+    results: list[dict[str, Any] | None] = [
+        _kept(result_path(out, log), key) for log, key in zip(logs, keys, strict=True)
+    ]
+    pending = [i for i, r in enumerate(results) if r is None]
+    reused = len(logs) - len(pending)
+    if reused:
+        say(f"{reused} logs already calibrated with these settings: kept")
+    if pending:
+        with _client(workers, scheduler) as client:
+            say(f"calibrating {len(pending)} logs on {_describe(client)}")
+            for i, result in _calibrate(client, out, logs, per_log, keys, pending, say, bar):
+                results[i] = result
+    final = [r for r in results if r is not None]
+    histories = _histories(final, alpha)
+    try:
+        written = write_fleet_report(final, histories, out)
+    except OSError as exc:
+        raise GraphcalError(f"cannot write the fleet report to {out}: {exc}") from exc
+    failed = sum(r["status"] != "ok" for r in final)
+    return FleetRun(
+        final, histories, len(pending), reused, failed, time.perf_counter() - started, written
+    )
+
+
+def result_path(out: Path, log: FleetLog) -> Path:
+    """Where a log's result lives: ``OUT/logs/VEHICLE/DAY.json`` (names made file-safe)."""
+    return out / "logs" / _safe(log.vehicle) / f"{_safe(log.day)}.json"
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", name) or "_"
+
+
+def _kept(path: Path, key: str) -> dict[str, Any] | None:
+    """The result at ``path`` if it has ``key`` (and reads), else ``None``."""
+    try:
+        result = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return result if isinstance(result, dict) and result.get("key") == key else None
+
+
+def _settings_per_log(
+    logs: list[FleetLog], settings: Settings, keep: Collection[str]
+) -> list[Settings]:
+    cache: dict[Path, Settings] = {}
+    out = []
+    for log in logs:
+        if log.profile is None:
+            out.append(settings)
+            continue
+        if log.profile not in cache:
+            try:
+                cache[log.profile] = apply_vehicle(settings, load_vehicle(log.profile), keep=keep)
+            except (GraphcalError, ValueError) as exc:
+                raise GraphcalError(f"{log.profile}: {first_line(str(exc))}") from exc
+        out.append(cache[log.profile])
+    return out
+
+
+@contextmanager
+def _client(workers: int, scheduler: str | None):
+    """A Dask client of a new local cluster or of the scheduler at ``scheduler``."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError as exc:
+        raise GraphcalError(
+            'graphcal fleet needs Dask: pip install -e ".[fleet]" (dask[distributed], tqdm)'
+        ) from exc
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=30)
+        except (OSError, TimeoutError) as exc:
+            raise GraphcalError(
+                f"cannot reach the Dask scheduler at {scheduler}: {first_line(str(exc))}"
+            ) from exc
+        with client:
+            yield client
+        return
+    cluster = LocalCluster(
+        n_workers=max(1, workers),
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        silence_logs=logging.ERROR,
+    )
+    with cluster, Client(cluster) as client:
+        yield client
+
+
+def _describe(client) -> str:
+    count = len(client.scheduler_info().get("workers", {}))
+    return f"{count} Dask worker{'s' if count != 1 else ''} ({client.scheduler.address})"
+
+
+def _calibrate(client, out: Path, logs, per_log, keys, pending, say: Progress, bar: bool):
+    """Submit the pending logs; yield ``(index, result)`` as each finishes, after writing it."""
+    from distributed import as_completed
+
+    futures = {
+        client.submit(calibrate_fleet_log, logs[i], per_log[i], keys[i], pure=False): i
+        for i in pending
+    }
+    meter = _meter(len(futures), say, bar)
+    try:
+        for future in as_completed(futures):
+            i = futures[future]
+            try:
+                result = future.result()
+            except Exception as exc:  # the worker died or the task was lost: retried next run
+                result = calibrate_failure(logs[i], keys[i], f"task lost: {first_line(str(exc))}")
+            else:
+                try:
+                    text = json.dumps(result, indent=1, allow_nan=False)
+                except ValueError:  # a non-finite number: never written
+                    result = calibrate_failure(logs[i], keys[i], "non-finite result")
+                else:
+                    atomic_write_text(result_path(out, logs[i]), text)
+            yield i, result
+            meter(result)
+    finally:
+        meter(None)
+
+
+def calibrate_failure(log: FleetLog, key: str, reason: str) -> dict[str, Any]:
+    """A result for a log whose task did not return (not written: the next run retries)."""
+    return {
+        "vehicle": log.vehicle,
+        "day": log.day,
+        "path": str(log.path),
+        "key": key,
+        "status": "failed",
+        "reason": reason,
+        "theta": None,
+        "covariance": None,
+        "calibrated": None,
+        "warnings": [],
+        "seconds": 0.0,
+    }
+
+
+def _meter(total: int, say: Progress, bar: bool):
+    """A callable advanced once per finished log (``None``: close)."""
+    if bar:
+        from tqdm import tqdm
+
+        progress_bar = tqdm(total=total, unit="log", desc="fleet")
+
+        def advance(result):
+            if result is None:
+                progress_bar.close()
+                return
+            progress_bar.update(1)
+            if result["status"] != "ok":
+                progress_bar.write(f"{result['vehicle']}/{result['day']}: {result['reason']}")
+
+        return advance
+    done = [0]
+    step = max(1, total // 10)
+
+    def report(result):
+        if result is None:
+            return
+        done[0] += 1
+        if result["status"] != "ok":
+            say(f"{result['vehicle']}/{result['day']}: failed: {result['reason']}")
+        if done[0] % step == 0 or done[0] == total:
+            say(f"fleet: {done[0]}/{total} logs")
+
+    return report
+
+
+def _histories(results: list[dict[str, Any]], alpha: float) -> list[VehicleHistory]:
+    by_vehicle: dict[str, list[dict[str, Any]]] = {}
+    for r in results:
+        by_vehicle.setdefault(r["vehicle"], []).append(r)
+    histories = []
+    for vehicle in sorted(by_vehicle):
+        rows = sorted(by_vehicle[vehicle], key=lambda r: r["day"])
+        days = [
+            DayEstimate(
+                r["day"],
+                np.asarray(r["posterior_theta"], float),
+                np.asarray(r["posterior_covariance"], float),
+                np.asarray(r["prior_mean"], float),
+                np.asarray(r["prior_sigmas"], float),
+            )
+            for r in rows
+            if r["status"] == "ok"
+        ]
+        history = vehicle_history(vehicle, days, alpha)
+        for r in rows:
+            if r["status"] != "ok":
+                history.flags.append(f"{r['day']}: calibration failed: {r['reason']}")
+            elif r.get("trusted") is False:
+                history.flags.append(f"{r['day']}: calibration not trusted")
+        histories.append(history)
+    flag_fleet_outliers(histories)
+    return histories

@@ -1,0 +1,230 @@
+"""Fleet calibration on Dask (issue 15): sources, change tests, resumable runs, schedulers."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from graphcal.cli import main
+from graphcal.errors import GraphcalError
+from graphcal.fleet.history import DayEstimate, chi2_survival, combine, vehicle_history
+from graphcal.fleet.sources import discover_fleet
+from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS
+
+pytest.importorskip("distributed")
+
+#: The acceptance fleet: 6 vehicles × 3 days of 4 km, v3's c_e 3 mm lower from day 3 on.
+VEHICLES, DAYS, LENGTH_KM = 6, 3, 4.0
+
+
+@pytest.fixture(scope="module")
+def fleet_dir(tmp_path_factory) -> Path:
+    from graphcal.simulate.fleet import FleetChange, simulate_fleet
+
+    root = tmp_path_factory.mktemp("fleet") / "fleet"
+    simulate_fleet(root, VEHICLES, DAYS, LENGTH_KM, seed=0, change=FleetChange(3, 3))
+    return root
+
+
+def _day(name, theta, sigmas):
+    return DayEstimate(
+        name,
+        np.asarray(theta, float),
+        np.diag(np.asarray(sigmas, float) ** 2),
+        THETA_NOMINAL,
+        THETA_PRIOR_SIGMAS,
+    )
+
+
+def test_chi2_survival_matches_tabulated_quantiles():
+    # 0.1 % quantiles of χ² with 1 to 4 degrees of freedom
+    for x, dof in ((10.828, 1), (13.816, 2), (16.266, 3), (18.467, 4)):
+        assert chi2_survival(x, dof) == pytest.approx(1e-3, rel=1e-3)
+    assert chi2_survival(0.0, 4) == 1.0
+
+
+def test_combined_days_count_the_prior_once():
+    sigmas = np.array([2e-4, 2e-4, 5e-3, 1e-4])
+    theta, covariance = combine([_day("a", THETA_NOMINAL, sigmas)] * 3)
+    one = 1.0 / sigmas**2 - 1.0 / THETA_PRIOR_SIGMAS**2  # the data's information of a day
+    expected = 1.0 / (3 * one + 1.0 / THETA_PRIOR_SIGMAS**2)
+    np.testing.assert_allclose(np.diag(covariance), expected, rtol=1e-9)
+    np.testing.assert_allclose(theta, THETA_NOMINAL, atol=1e-12)
+
+
+def test_a_step_in_c_e_is_found_on_its_day_and_named():
+    sigmas = np.array([2e-4, 2e-4, 5e-3, 1e-4])
+    base = THETA_NOMINAL + np.array([0.0, 1e-3, 0.03, 1e-3])
+    days = [
+        _day(f"day{i}", base + (i >= 3) * np.array([-3e-3, 0, 0, 0]), sigmas) for i in (1, 2, 3, 4)
+    ]
+    history = vehicle_history("v", days)
+    assert [(c.day, c.parameter) for c in history.changes] == [("day3", "c_e")]
+    assert history.current_days == ["day3", "day4"]
+    np.testing.assert_allclose(history.theta[0], base[0] - 3e-3, atol=1e-9)
+    steady = vehicle_history("w", [_day(f"d{i}", base, sigmas) for i in range(4)])
+    assert steady.changes == []
+
+
+def test_tree_discovery_skips_truth_files_and_orders_days(fleet_dir):
+    logs = discover_fleet(fleet_dir)
+    assert len(logs) == VEHICLES * DAYS
+    assert [(log.vehicle, log.day) for log in logs[:3]] == [
+        ("v1", "day1"),
+        ("v1", "day2"),
+        ("v1", "day3"),
+    ]
+    assert not any(log.path.name.endswith("_truth.csv") for log in logs)
+
+
+def test_bad_sources_give_one_line(tmp_path, capsys):
+    assert main(["fleet", str(tmp_path / "nowhere"), "--out", str(tmp_path / "o")]) == 2
+    manifest = tmp_path / "fleet.csv"
+    manifest.write_text("vehicle,path\nv1,a.csv\n")
+    with pytest.raises(GraphcalError, match="missing column"):
+        discover_fleet(manifest)
+    assert main(["fleet", str(manifest), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert all(line.startswith("graphcal: error:") for line in err) and len(err) == 2
+    assert not (tmp_path / "o").exists()
+
+
+def _wait_for_results(logs_dir: Path, count: int, process, timeout: float = 300.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if len(list(logs_dir.glob("*/*.json"))) >= count or process.poll() is not None:
+            return
+        time.sleep(0.2)
+    raise AssertionError(f"fewer than {count} results after {timeout:.0f} s")
+
+
+@pytest.mark.slow
+def test_fleet_interrupted_and_resumed_finds_the_change(fleet_dir, tmp_path):
+    """The acceptance run: interrupted after about half its logs, then restarted; nothing
+    finished is recomputed, every log's theta is within 3σ of its truth, and the change is
+    found on v3, day 3, and nowhere else."""
+    out = tmp_path / "out"
+    command = [
+        sys.executable,
+        "-m",
+        "graphcal.cli",
+        "fleet",
+        str(fleet_dir),
+        "--out",
+        str(out),
+        "--workers",
+        "2",
+        "--no-progress-bar",
+    ]
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        _wait_for_results(out / "logs", VEHICLES * DAYS // 2, process)
+        process.send_signal(signal.SIGINT)
+        process.wait(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    finished = {p: p.read_bytes() for p in (out / "logs").glob("*/*.json")}
+    assert 0 < len(finished) < VEHICLES * DAYS
+    assert not list((out / "logs").glob("*/.*"))  # no half-written file
+
+    from graphcal.fleet.run import run_fleet
+
+    run = run_fleet(fleet_dir, out, workers=2)
+    assert run.reused == len(finished)
+    assert run.computed == VEHICLES * DAYS - len(finished)
+    assert all(path.read_bytes() == text for path, text in finished.items())
+    assert run.failed == 0
+
+    truth = pd.read_csv(fleet_dir / "fleet_truth.csv").set_index(["vehicle", "day"])
+    for result in run.results:
+        true = truth.loc[(result["vehicle"], result["day"]), list(PARAMETER_NAMES)].to_numpy()
+        sigma = np.sqrt(np.diag(result["posterior_covariance"]))
+        assert np.all(np.abs(np.asarray(result["posterior_theta"]) - true) < 3 * sigma), result
+    changes = [(h.vehicle, c.day, c.parameter) for h in run.histories for c in h.changes]
+    assert changes == [("v3", "day3", "c_e")]
+    assert not any(h.flags for h in run.histories)
+    table = pd.read_csv(out / "fleet.csv")
+    assert len(table) == VEHICLES * DAYS and (table["status"] == "ok").all()
+    vehicles = pd.read_csv(out / "vehicles.csv").set_index("vehicle")
+    assert vehicles.loc["v3", "current_since"] == "day3"
+    assert (out / "fleet.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
+    """`dask scheduler` and two `dask worker` processes started by hand; the run reaches them
+    by address. The manifest also names a broken log: it fails alone, with its reason."""
+    broken = tmp_path / "broken.csv"
+    broken.write_text("t,px\n0,1\n")
+    manifest = tmp_path / "fleet.csv"
+    rows = [
+        "vehicle,day,path",
+        f"v1,day1,{fleet_dir / 'v1' / 'day1.csv'}",
+        f"v2,day1,{fleet_dir / 'v2' / 'day1.csv'}",
+        f"v9,day1,{broken}",
+    ]
+    manifest.write_text("\n".join(rows) + "\n")
+    dask = shutil.which("dask", path=str(Path(sys.executable).parent)) or shutil.which("dask")
+    assert dask is not None, "the dask command comes with dask[distributed]"
+    scheduler_file = tmp_path / "scheduler.json"
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
+    processes = [
+        subprocess.Popen(
+            [
+                dask,
+                "scheduler",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(scheduler_file),
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            env=env,
+        )
+    ]
+    try:
+        deadline = time.monotonic() + 60
+        while not scheduler_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        address = json.loads(scheduler_file.read_text())["address"]
+        for _ in range(2):
+            processes.append(
+                subprocess.Popen(
+                    [dask, "worker", address, "--nthreads", "1", "--no-dashboard"],
+                    stdout=subprocess.DEVNULL,
+                    stderr=subprocess.DEVNULL,
+                    env=env,
+                )
+            )
+        from distributed import Client
+
+        with Client(address, timeout=60) as client:
+            client.wait_for_workers(2, timeout=60)
+        from graphcal.fleet.run import run_fleet
+
+        run = run_fleet(manifest, tmp_path / "out", scheduler=address)
+    finally:
+        for process in processes[::-1]:
+            process.terminate()
+        for process in processes:
+            try:
+                process.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                process.kill()
+    status = {r["vehicle"]: (r["status"], r["reason"]) for r in run.results}
+    assert status["v1"][0] == status["v2"][0] == "ok"
+    assert status["v9"][0] == "failed" and status["v9"][1] and "\n" not in status["v9"][1]
+    assert run.computed == 3 and run.failed == 1
