@@ -23,6 +23,7 @@ FULL = {
     "agreement_segments": 3,
     "import_hours": 3.0,
     "scaling_km": (50.0, 100.0, 200.0),
+    "fleet_vehicles": 6,
 }
 #: ``--quick``: every item once, on an 8 km drive, with a short recording.
 QUICK = {
@@ -33,6 +34,7 @@ QUICK = {
     "agreement_segments": 2,
     "import_hours": 0.25,
     "scaling_km": (4.0, 8.0, 16.0),
+    "fleet_vehicles": 2,
 }
 
 
@@ -79,6 +81,12 @@ def add_bench_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="*",
         default=None,
         help="drive lengths [km] of the whole-log scaling item (k) (50 100 200; none skips it)",
+    )
+    parser.add_argument(
+        "--fleet-vehicles",
+        type=whole(0),
+        default=None,
+        help="vehicles (× 2 days of 4 km) of the fleet throughput item (m) (6; 0 skips it)",
     )
     parser.add_argument(
         "--only-import",

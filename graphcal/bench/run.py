@@ -30,7 +30,9 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
 * (k) the whole-log calibration of drives of several lengths (``--scaling-km``) in child
   processes, and the exponent of its time's growth (:mod:`graphcal.bench.scaling`);
 * (l) a joint batch of the batch study solved on its own and from the segments' systems at
-  the whole-log solution (:mod:`graphcal.pipeline.joint_batches`), per batch.
+  the whole-log solution (:mod:`graphcal.pipeline.joint_batches`), per batch;
+* (m) fleet throughput on Dask with 1 and 2 workers and Dask's overhead per log
+  (:mod:`graphcal.bench.fleet`).
 
 Ratios are taken within one run, never against figures from another machine.
 """
@@ -51,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from graphcal.bench.fleet import fleet_item
 from graphcal.bench.importing import import_item
 from graphcal.bench.localization import solve_smoothing
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
@@ -107,6 +110,7 @@ def run_benchmarks(
     agreement_segments: int = 3,
     import_hours: float = 3.0,
     scaling_km: tuple[float, ...] = (),
+    fleet_vehicles: int = 0,
     progress: Callable[[str], None] | None = None,
 ) -> dict[str, Any]:
     """Run every item; return ``{"config": ..., "items": [...], "agreement": ...}``."""
@@ -236,6 +240,23 @@ def run_benchmarks(
         if scaling["exponent"] is not None:
             say(f"(k) time grows as length^{scaling['exponent']:.2f}")
 
+    fleet = None
+    if fleet_vehicles > 0:
+        fleet = fleet_item(fleet_vehicles)
+        for workers in (1, 2):
+            entry = fleet[f"workers_{workers}"]
+            record(
+                f"(m) fleet of {fleet['logs']} logs on Dask, {workers} worker(s)",
+                entry["seconds"],
+                logs_per_minute=entry["logs_per_minute"],
+                task_mean_s=entry["task_mean_s"],
+                overhead_per_log_s=entry["overhead_per_log_s"],
+            )
+        say(
+            f"(m) fleet: 2 workers over 1 {fleet['scaling_2_over_1']:.2f}x; local cluster "
+            f"start and stop {fleet['cluster_start_stop_s']:.1f} s"
+        )
+
     return {
         "config": {
             "length_km": length_km,
@@ -245,6 +266,7 @@ def run_benchmarks(
             "pipeline_batches": pipeline_batches,
             "import_hours": import_hours,
             "scaling_km": list(scaling_km),
+            "fleet_vehicles": fleet_vehicles,
             "python": sys.version.split()[0],
         },
         "items": rows,
@@ -253,6 +275,7 @@ def run_benchmarks(
         "segmented": segmented,
         "batch_study": batch_study,
         "scaling": scaling,
+        "fleet": fleet,
         "localization": localization,
         "import": importing,
         "agreement": {
