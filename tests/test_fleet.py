@@ -228,3 +228,18 @@ def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
     assert status["v1"][0] == status["v2"][0] == "ok"
     assert status["v9"][0] == "failed" and status["v9"][1] and "\n" not in status["v9"][1]
     assert run.computed == 3 and run.failed == 1
+
+
+def test_a_vehicle_profile_in_the_tree_sets_that_vehicles_settings(tmp_path):
+    from graphcal.fleet.run import _settings_per_log
+    from graphcal.pipeline.settings import Settings
+
+    robot = Path(__file__).resolve().parents[1] / "data" / "vehicles" / "delivery_robot.toml"
+    for vehicle in ("car", "robot"):
+        (tmp_path / vehicle).mkdir()
+        (tmp_path / vehicle / "day1.csv").write_text("t\n")
+    shutil.copy(robot, tmp_path / "robot" / "vehicle.toml")
+    logs = discover_fleet(tmp_path)
+    car, bot = _settings_per_log(logs, Settings(), keep=())
+    np.testing.assert_allclose(car.joint.theta_initial, THETA_NOMINAL)
+    np.testing.assert_allclose(bot.joint.theta_initial, [0.5, 0.0, 0.2, 0.0])
