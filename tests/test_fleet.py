@@ -163,17 +163,15 @@ def test_fleet_interrupted_and_resumed_finds_the_change(fleet_dir, tmp_path):
 
 @pytest.mark.slow
 def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
-    """`dask scheduler` and two `dask worker` processes started by hand; the run reaches them
-    by address. The manifest also names a broken log: it fails alone, with its reason."""
+    """The same fleet through `dask scheduler` and two `dask worker` processes started by
+    hand, reached by address, from a CSV manifest that also names a broken log: it fails
+    alone, with its one-line reason, and the change is found as on the local cluster."""
     broken = tmp_path / "broken.csv"
     broken.write_text("t,px\n0,1\n")
     manifest = tmp_path / "fleet.csv"
-    rows = [
-        "vehicle,day,path",
-        f"v1,day1,{fleet_dir / 'v1' / 'day1.csv'}",
-        f"v2,day1,{fleet_dir / 'v2' / 'day1.csv'}",
-        f"v9,day1,{broken}",
-    ]
+    rows = ["vehicle,day,path"]
+    rows += [f"{log.vehicle},{log.day},{log.path}" for log in discover_fleet(fleet_dir)]
+    rows.append(f"v9,day1,{broken}")
     manifest.write_text("\n".join(rows) + "\n")
     dask = shutil.which("dask", path=str(Path(sys.executable).parent)) or shutil.which("dask")
     assert dask is not None, "the dask command comes with dask[distributed]"
@@ -224,10 +222,14 @@ def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
                 process.wait(timeout=30)
             except subprocess.TimeoutExpired:
                 process.kill()
-    status = {r["vehicle"]: (r["status"], r["reason"]) for r in run.results}
-    assert status["v1"][0] == status["v2"][0] == "ok"
-    assert status["v9"][0] == "failed" and status["v9"][1] and "\n" not in status["v9"][1]
-    assert run.computed == 3 and run.failed == 1
+    failed = [r for r in run.results if r["status"] != "ok"]
+    assert [r["vehicle"] for r in failed] == ["v9"]
+    assert failed[0]["reason"] and "\n" not in failed[0]["reason"]
+    assert run.computed == VEHICLES * DAYS + 1
+    changes = [(h.vehicle, c.day, c.parameter) for h in run.histories for c in h.changes]
+    assert changes == [("v3", "day3", "c_e")]
+    flagged = {h.vehicle for h in run.histories if h.flags}
+    assert flagged == {"v9"}  # its failed day, nothing else
 
 
 def test_a_vehicle_profile_in_the_tree_sets_that_vehicles_settings(tmp_path):

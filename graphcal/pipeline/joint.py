@@ -269,6 +269,9 @@ def solve_joint(
     )
     statistic = None
     if auto:
+        # The covariance now, and the solved graph freed before the graph with slip scales is
+        # built: the two are never held at once (on a 200 km log each is most of the memory).
+        solved = _released(with_covariance(solved, label, workers))
         solved, statistic = _with_slip_if_shown(solved, data, weights, settings, workers, progress)
     observability = assess_observability(
         solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
@@ -290,6 +293,15 @@ def solve_joint(
     return calibration, solved.result
 
 
+def _released(solution: SegmentSolution) -> SegmentSolution:
+    """``solution`` without its factors and its split graph (the values, estimates, spec
+    and chunking stay): what is left once nothing more is solved on that graph."""
+    built = dataclasses.replace(
+        solution.built, graph=gtsam.NonlinearFactorGraph(), chunk_factors=()
+    )
+    return dataclasses.replace(solution, built=built, segmented=None)
+
+
 def _with_slip_if_shown(
     solved: SegmentSolution,
     data: SegmentData,
@@ -298,8 +310,8 @@ def _with_slip_if_shown(
     workers: int = 1,
     progress: Callable[[str], None] | None = None,
 ) -> tuple[SegmentSolution, float]:
-    """The solve with slip scales if the log shows slip, else ``solved``; both with their
-    covariance, and the statistic that decided.
+    """The solve with slip scales if the log shows slip, else ``solved`` (solved with its
+    covariance); both with their covariance, and the statistic that decided.
 
     Slip is a likelihood-ratio question: from the solution without slip (slip scales at
     zero), one Gauss–Newton step of the graph with slip scales lowers χ² by about what the
@@ -325,7 +337,7 @@ def _with_slip_if_shown(
     chunks = sum(len(bounds) - 1 for bounds in solved.built.bounds)
     statistic = 2.0 * drop / chunks
     if statistic <= settings.slip_detection:
-        return with_covariance(solved, "joint solve", workers), statistic
+        return solved, statistic
     final = solve_segment_graph(
         weighted,
         spec,
