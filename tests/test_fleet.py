@@ -224,6 +224,7 @@ def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
                 process.kill()
     failed = [r for r in run.results if r["status"] != "ok"]
     assert [r["vehicle"] for r in failed] == ["v9"]
+    assert (tmp_path / "out" / "logs" / "v9" / "day1.json").exists()  # the log's own failure
     assert failed[0]["reason"] and "\n" not in failed[0]["reason"]
     assert run.computed == VEHICLES * DAYS + 1
     changes = [(h.vehicle, c.day, c.parameter) for h in run.histories for c in h.changes]
@@ -245,3 +246,13 @@ def test_a_vehicle_profile_in_the_tree_sets_that_vehicles_settings(tmp_path):
     car, bot = _settings_per_log(logs, Settings(), keep=())
     np.testing.assert_allclose(car.joint.theta_initial, THETA_NOMINAL)
     np.testing.assert_allclose(bot.joint.theta_initial, [0.5, 0.0, 0.2, 0.0])
+
+
+def test_a_log_the_worker_cannot_see_is_retried_not_kept(tmp_path):
+    from graphcal.fleet.sources import FleetLog
+    from graphcal.fleet.task import calibrate_fleet_log
+    from graphcal.pipeline.settings import Settings
+
+    result = calibrate_fleet_log(FleetLog("v", "d", tmp_path / "gone.csv"), Settings(), "k")
+    assert result["status"] == "failed" and result["retry"] is True
+    assert "not found" in result["reason"]

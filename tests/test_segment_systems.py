@@ -103,6 +103,10 @@ def test_a_batch_that_determines_nothing_is_not_solved():
     assert solution.solved.tolist() == [True, True, True]
     np.testing.assert_allclose(solution.values[1], [2.0, 3.0])  # point + (I + 4I)⁻¹ [5, 5]
     np.testing.assert_allclose(solution.covariance[0], np.diag([0.2, 1.0]))
+    broken = systems.segments.copy()
+    broken[0, 0, 0] = np.nan  # one segment's system broken: only its batches fail
+    nan_solution = dataclasses.replace(systems, segments=broken).solve(np.array([[0], [1]]))
+    assert nan_solution.solved.tolist() == [False, True]
     singular = dataclasses.replace(systems, shared=np.zeros((3, 3)))
     unsolved = singular.solve(np.array([[0], [1]]))
     assert unsolved.solved.tolist() == [False, True]

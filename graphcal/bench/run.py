@@ -350,9 +350,12 @@ def batch_study_items(
     exact = solve_joint_batches(data, few, settings, "exact", workers=workers)
     exact_s = (time.perf_counter() - start) / len(few)
     difference = max(
-        float(np.max(np.abs(lin.theta - ex.theta) / np.sqrt(np.diag(ex.covariance))))
-        for lin, ex in zip(linearized, exact, strict=False)
-        if lin is not None and ex is not None
+        (
+            float(np.max(np.abs(lin.theta - ex.theta) / np.sqrt(np.diag(ex.covariance))))
+            for lin, ex in zip(linearized, exact, strict=False)
+            if lin is not None and ex is not None
+        ),
+        default=None,
     )
     record("(l) joint batch, solved on its own (exact)", exact_s, batches=len(few))
     record(

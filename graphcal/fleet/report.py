@@ -87,22 +87,34 @@ def write_fleet_report(
     ]
     if importlib.util.find_spec("pyarrow") is not None:
         parquet = out / "fleet.parquet"
-        tmp = parquet.with_name(f".{parquet.name}.tmp")
-        table.to_parquet(tmp, index=False)
-        os.replace(tmp, parquet)
+        tmp = parquet.with_name(f".{parquet.name}.{os.getpid()}.tmp")
+        try:
+            table.to_parquet(tmp, index=False)
+            os.replace(tmp, parquet)
+        finally:
+            tmp.unlink(missing_ok=True)
         written.append(parquet)
     written.append(atomic_save_figure(fleet_figure(histories), out / "fleet.png"))
     return written
 
 
+#: Vehicles in ``fleet.png`` at most: those with changes or flags first, then the others.
+FIGURE_VEHICLES = 24
+
+
 def fleet_figure(histories: list[VehicleHistory]):
-    """c_e and c_d of every vehicle over its days with ±2σ, changes marked (red line at the
-    first day of the new theta)."""
+    """c_e and c_d of the vehicles over their days with ±2σ, changes marked (red line at the
+    first day of the new theta); at most :data:`FIGURE_VEHICLES`, those with changes or
+    flags first."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    total = len(histories)
+    noted = [h for h in histories if h.changes or h.flags]
+    rest = [h for h in histories if not (h.changes or h.flags)]
+    histories = sorted((noted + rest)[:FIGURE_VEHICLES], key=lambda h: h.vehicle)
     shown = [0, 1]  # c_e, c_d
     count = max(1, len(histories))
     figure, axes = plt.subplots(
@@ -126,8 +138,9 @@ def fleet_figure(histories: list[VehicleHistory]):
                 ax.set_title(title, fontsize=9, color="red" if h.changes or h.flags else "black")
             if column == 0:
                 ax.set_ylabel(f"{PARAMETER_NAMES[i]} [{DISPLAY_UNITS[i]}]")
+    which = "" if total <= FIGURE_VEHICLES else f"{count} of {total} vehicles; "
     figure.suptitle(
-        "Per vehicle over days, ±2σ; red line: theta changed "
+        f"{which}per vehicle over days, ±2σ; red line: theta changed "
         f"(c_e in {DISPLAY_UNITS[0]}, c_d in {DISPLAY_UNITS[1]})",
         fontsize=10,
     )

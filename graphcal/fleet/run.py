@@ -6,8 +6,9 @@
 * **Resumable**: each log's result is written atomically to ``OUT/logs/VEHICLE/DAY.json``
   with its key (:func:`graphcal.fleet.task.result_key`); a run skips every log whose result
   on disk has the key it would compute, so an interrupted run loses nothing that finished.
-  A result lost with its worker (the process died) is reported but not written, so the next
-  run tries again.
+  A result lost with its worker (the process died), or a failure that is not the log's own
+  (a path the worker cannot see, a bug), is reported but not written, so the next run tries
+  again.
 * **Isolated failures**: a log that cannot be calibrated gives its one-line reason in its
   row of ``fleet.csv`` and does not stop the others.
 * Then per vehicle, changes and the current theta (:mod:`graphcal.fleet.history`), and the
@@ -113,6 +114,14 @@ def run_fleet(
     settings = settings or Settings()
     out = Path(out)
     logs = discover_fleet(source)
+    paths: dict[Path, FleetLog] = {}
+    for log in logs:
+        other = paths.setdefault(result_path(out, log), log)
+        if other is not log:
+            raise GraphcalError(
+                f"{other.vehicle}/{other.day} and {log.vehicle}/{log.day} would share a result "
+                "file; rename one (names keep letters, digits, '.', '_' and '-')"
+            )
     per_log = _settings_per_log(logs, settings, keep)
     say(f"{len(logs)} logs of {len({log.vehicle for log in logs})} vehicles in {source}")
     keys = [result_key(content_hash(log.path), s) for log, s in zip(logs, per_log, strict=True)]
@@ -233,11 +242,19 @@ def _calibrate(client, out: Path, logs, per_log, keys, pending, say: Progress, b
                 except ValueError:  # a non-finite number: never written
                     result = calibrate_failure(logs[i], keys[i], "non-finite result")
                 else:
-                    atomic_write_text(result_path(out, logs[i]), text)
+                    if not result.get("retry"):
+                        _write(result_path(out, logs[i]), text)
             yield i, result
             meter(result)
     finally:
         meter(None)
+
+
+def _write(path: Path, text: str) -> None:
+    try:
+        atomic_write_text(path, text)
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {path}: {exc.strerror or exc}") from exc
 
 
 def calibrate_failure(log: FleetLog, key: str, reason: str) -> dict[str, Any]:
@@ -254,6 +271,7 @@ def calibrate_failure(log: FleetLog, key: str, reason: str) -> dict[str, Any]:
         "calibrated": None,
         "warnings": [],
         "seconds": 0.0,
+        "retry": True,
     }
 
 

@@ -51,7 +51,7 @@ def discover_fleet(source: str | os.PathLike[str]) -> list[FleetLog]:
         GraphcalError: if ``source`` does not exist, a manifest lacks a column or names a
             missing file, a vehicle has two logs for one day, or there is no log at all.
     """
-    source = Path(source)
+    source = Path(source).expanduser().resolve()  # workers elsewhere need whole paths
     if source.is_dir():
         logs = _from_tree(source)
     elif source.is_file():

@@ -67,7 +67,9 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
     ``graphcal calibrate`` reports it), ``calibrated, verdicts, posterior_theta,
     posterior_covariance`` (the whole-log posterior under the weak prior ``prior_mean,
     prior_sigmas``: what day-to-day comparisons use), ``chi2_per_dof, trusted, warnings,
-    distance_m, segments, seconds, graphcal`` (SI; ``None`` where a failed log has none)."""
+    distance_m, segments, seconds, graphcal`` (SI; ``None`` where a failed log has none);
+    ``retry: True`` marks a failure that is not the log's own (an ``OSError``, a bug), which
+    is not kept for the next run."""
     start = time.perf_counter()
     out: dict[str, Any] = {
         "vehicle": log.vehicle,
@@ -92,13 +94,18 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
         "seconds": 0.0,
         "graphcal": __version__,
     }
+    if not Path(log.path).exists():  # not this log's fault: another machine may see it
+        out["reason"] = f"{log.path} not found on the worker that ran it"
+        out["retry"] = True
+        return out
     try:
         out.update(_calibrate(log, settings))
         out["status"] = "ok"
-    except GraphcalError as exc:
+    except GraphcalError as exc:  # the log itself: the same again on every run
         out["reason"] = first_line(str(exc)) or type(exc).__name__
-    except (OSError, ValueError, RuntimeError, np.linalg.LinAlgError) as exc:
+    except Exception as exc:  # the machine (a path it cannot see, memory) or a bug: retried
         out["reason"] = f"{type(exc).__name__}: {first_line(str(exc))}"
+        out["retry"] = True
     out["seconds"] = time.perf_counter() - start
     return out
 

@@ -92,9 +92,9 @@ class SegmentSystems:
         covariance = np.full((len(systems), n, n), np.nan)
         if n == 0 or len(systems) == 0:
             return BatchSolution(values, covariance)
-        eigenvalues = np.linalg.eigvalsh(information)
-        good = np.all(np.isfinite(eigenvalues), axis=1)
-        good &= eigenvalues[:, 0] > SINGULAR_RATIO * np.abs(eigenvalues[:, -1])
+        good = np.all(np.isfinite(systems), axis=(1, 2))  # eigvalsh raises on a NaN
+        eigenvalues = np.linalg.eigvalsh(information[good])
+        good[good] = eigenvalues[:, 0] > SINGULAR_RATIO * np.abs(eigenvalues[:, -1])
         if np.any(good):
             inverse = np.linalg.inv(information[good])
             covariance[good] = 0.5 * (inverse + inverse.transpose(0, 2, 1))

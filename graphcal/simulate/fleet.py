@@ -39,9 +39,10 @@ def vehicle_name(index: int) -> str:
     return f"v{index}"
 
 
-def day_name(index: int) -> str:
-    """``"day1"``, ``"day2"``, ... (1-based; they sort up to day9)."""
-    return f"day{index}"
+def day_name(index: int, days: int = 9) -> str:
+    """``"day1"``, ``"day2"``, ... (1-based), zero-padded to the width of ``days`` so that
+    the names sort as the days do (``"day01"`` ... ``"day12"``)."""
+    return f"day{index:0{len(str(days))}d}"
 
 
 def fleet_truth(
@@ -60,7 +61,7 @@ def fleet_truth(
             rows.append(
                 {
                     "vehicle": vehicle_name(v),
-                    "day": day_name(d),
+                    "day": day_name(d, days),
                     **dict(zip(PARAMETER_NAMES, theta, strict=True)),
                 }
             )
@@ -91,7 +92,7 @@ def simulate_fleet(
     out = Path(out)
     truth = fleet_truth(vehicles, days, seed, change)
     for row in truth.itertuples(index=False):
-        v, d = int(row.vehicle[1:]), int(row.day[3:])
+        v, d = int(row.vehicle[1:]), int(row.day[3:])  # v1, day01
         theta = np.array([getattr(row, name) for name in PARAMETER_NAMES])
         drive = simulate_drive(length_km, seed=seed * 10_000 + v * 100 + d, theta_true=theta)
         write_synthetic_drive(drive, out / row.vehicle / f"{row.day}.csv")
