@@ -116,6 +116,12 @@ def _simulate_fleet(args: argparse.Namespace, say: Callable[[str], None]) -> int
     """``simulate --fleet DIR``: a synthetic fleet with per-vehicle truths and one change."""
     from graphcal.simulate.fleet import FleetChange, simulate_fleet
 
+    others = [name for name in ("out", "streams", "defects") if getattr(args, name) is not None]
+    if others:
+        raise GraphcalError(
+            f"--fleet writes a fleet of clean drives at the paper's noise; it does not take "
+            f"{', '.join('--' + n for n in others)}"
+        )
     change = None
     if args.change.lower() != "none":
         try:

@@ -178,7 +178,7 @@ def evaluate(
         raise GraphcalError(
             f"the truth has {len(truth.log)} samples, the log {len(run.log)}; they must match"
         )
-    crb = None
+    crb = systems = None
     batch_crb: dict[str, np.ndarray] = {}
     if truth.log is not None:
         true_data = gather_segments(truth.log, run.selected)
@@ -186,8 +186,11 @@ def evaluate(
         joint_batches = run.batches is not None and "joint" in run.batch_theta
         if run.covariance is not None or joint_batches:
             say("Cramér–Rao bounds: every segment's information at the truth")
-            systems = cramer_rao_systems(run.data, true_data, theta_true, settings, workers)
-        if run.covariance is not None:
+            try:
+                systems = cramer_rao_systems(run.data, true_data, theta_true, settings, workers)
+            except GraphcalError as exc:
+                say(f"no Cramér–Rao bound: {exc}")
+        if systems is not None and run.covariance is not None:
             crb = systems.solve(np.arange(len(run.data))[None]).covariance[0, :4, :4]
             if not np.all(np.isfinite(crb)):
                 crb = None
@@ -195,7 +198,7 @@ def evaluate(
                     "no Cramér–Rao bound: the measurements' information matrix of theta is "
                     "singular (a parameter is not identifiable from this drive)"
                 )
-        if joint_batches:
+        if systems is not None and joint_batches:
             solved = np.all(np.isfinite(run.batch_theta["joint"]), axis=1)
             bounds = systems.solve(run.batches).covariance[:, :4, :4]
             batch_crb["joint"] = np.where(solved[:, None, None], bounds, np.nan)
