@@ -208,16 +208,23 @@ def wheel_rotation_jacobian(
     """
     direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
     px, py = states[..., 0], states[..., 1]  # (..., K+1)
-    # lever[k, j] = p_k - p_{j+1}, used for k > j only.
-    lever_x = px[..., :, None] - px[..., None, 1:]
-    lever_y = py[..., :, None] - py[..., None, 1:]
-    k_index = np.arange(states.shape[-2])[:, None]
-    after = (k_index > np.arange(inputs.shape[-2])[None, :])[..., None]  # (K+1, K, 1)
+    n_states, n_steps = states.shape[-2], inputs.shape[-2]
+    batch = np.broadcast_shapes(states.shape[:-2], inputs.shape[:-2], direct_x.shape[:-2])
+    # Written in place into the result (no full-size temporaries: this runs for every
+    # segment at every linearization of a calibration).
+    out = np.empty((*batch, n_states, 3, n_steps, 2))
     d_om = domega_dn[..., None, :, :]  # (..., 1, K, 2)
-    jx = np.where(after, direct_x[..., None, :, :] - d_om * lever_y[..., None], 0.0)
-    jy = np.where(after, direct_y[..., None, :, :] + d_om * lever_x[..., None], 0.0)
-    jpsi = np.where(after, d_om, 0.0)
-    return np.stack([jx, jy, np.broadcast_to(jpsi, jx.shape)], axis=-3)
+    # lever[k, j] = p_k - p_{j+1}, used for k > j only.
+    lever_x = (px[..., :, None] - px[..., None, 1:])[..., None]  # (..., K+1, K, 1)
+    lever_y = (py[..., :, None] - py[..., None, 1:])[..., None]
+    np.multiply(d_om, lever_y, out=out[..., 0, :, :])
+    np.subtract(direct_x[..., None, :, :], out[..., 0, :, :], out=out[..., 0, :, :])
+    np.multiply(d_om, lever_x, out=out[..., 1, :, :])
+    out[..., 1, :, :] += direct_y[..., None, :, :]
+    out[..., 2, :, :] = d_om
+    after = np.arange(n_states)[:, None] > np.arange(n_steps)[None, :]  # (K+1, K)
+    out *= after[:, None, :, None]
+    return out
 
 
 def wheel_rotations_for_motion(
