@@ -41,7 +41,7 @@ from graphcal.fleet.history import (
 )
 from graphcal.fleet.report import summary_lines, write_fleet_report
 from graphcal.fleet.sources import FleetLog, discover_fleet
-from graphcal.fleet.task import calibrate_fleet_log, content_hash, result_key
+from graphcal.fleet.task import calibrate_fleet_log, content_hash, failed_result, result_key
 from graphcal.pipeline.settings import Settings, apply_vehicle, load_vehicle
 
 Progress = Callable[[str], None]
@@ -235,12 +235,12 @@ def _calibrate(client, out: Path, logs, per_log, keys, pending, say: Progress, b
             try:
                 result = future.result()
             except Exception as exc:  # the worker died or the task was lost: retried next run
-                result = calibrate_failure(logs[i], keys[i], f"task lost: {first_line(str(exc))}")
+                result = failed_result(logs[i], keys[i], f"task lost: {first_line(str(exc))}")
             else:
                 try:
                     text = json.dumps(result, indent=1, allow_nan=False)
                 except ValueError:  # a non-finite number: never written
-                    result = calibrate_failure(logs[i], keys[i], "non-finite result")
+                    result = failed_result(logs[i], keys[i], "non-finite result")
                 else:
                     if not result.get("retry"):
                         _write(result_path(out, logs[i]), text)
@@ -255,24 +255,6 @@ def _write(path: Path, text: str) -> None:
         atomic_write_text(path, text)
     except OSError as exc:
         raise GraphcalError(f"cannot write {path}: {exc.strerror or exc}") from exc
-
-
-def calibrate_failure(log: FleetLog, key: str, reason: str) -> dict[str, Any]:
-    """A result for a log whose task did not return (not written: the next run retries)."""
-    return {
-        "vehicle": log.vehicle,
-        "day": log.day,
-        "path": str(log.path),
-        "key": key,
-        "status": "failed",
-        "reason": reason,
-        "theta": None,
-        "covariance": None,
-        "calibrated": None,
-        "warnings": [],
-        "seconds": 0.0,
-        "retry": True,
-    }
 
 
 def _meter(total: int, say: Progress, bar: bool):

@@ -60,24 +60,16 @@ def result_key(content: str, settings: Settings) -> str:
     return hashlib.sha256(document.encode()).hexdigest()
 
 
-def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str, Any]:
-    """Calibrate one log (in one process) and describe the result; never raises for a bad
-    log. Fields: ``vehicle, day, path, key, status ("ok" | "failed"), reason, theta,
-    covariance`` (the recommended theta: unobservable parameters held at the prior, as
-    ``graphcal calibrate`` reports it), ``calibrated, verdicts, posterior_theta,
-    posterior_covariance`` (the whole-log posterior under the weak prior ``prior_mean,
-    prior_sigmas``: what day-to-day comparisons use), ``chi2_per_dof, trusted, warnings,
-    distance_m, segments, seconds, graphcal`` (SI; ``None`` where a failed log has none);
-    ``retry: True`` marks a failure that is not the log's own (an ``OSError``, a bug), which
-    is not kept for the next run."""
-    start = time.perf_counter()
+def failed_result(log: FleetLog, key: str, reason: str, retry: bool = True) -> dict[str, Any]:
+    """A failed log's result with every field of :func:`calibrate_fleet_log` (``None`` where
+    there is no value); ``retry`` marks a failure that is not the log's own."""
     out: dict[str, Any] = {
         "vehicle": log.vehicle,
         "day": log.day,
         "path": str(log.path),
         "key": key,
         "status": "failed",
-        "reason": "",
+        "reason": reason,
         "theta": None,
         "covariance": None,
         "calibrated": None,
@@ -94,6 +86,23 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
         "seconds": 0.0,
         "graphcal": __version__,
     }
+    if retry:
+        out["retry"] = True
+    return out
+
+
+def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str, Any]:
+    """Calibrate one log (in one process) and describe the result; never raises for a bad
+    log. Fields: ``vehicle, day, path, key, status ("ok" | "failed"), reason, theta,
+    covariance`` (the recommended theta: unobservable parameters held at the prior, as
+    ``graphcal calibrate`` reports it), ``calibrated, verdicts, posterior_theta,
+    posterior_covariance`` (the whole-log posterior under the weak prior ``prior_mean,
+    prior_sigmas``: what day-to-day comparisons use), ``chi2_per_dof, trusted, warnings,
+    distance_m, segments, seconds, graphcal`` (SI; ``None`` where a failed log has none);
+    ``retry: True`` marks a failure that is not the log's own (an ``OSError``, a bug), which
+    is not kept for the next run."""
+    start = time.perf_counter()
+    out = failed_result(log, key, "", retry=False)
     if not Path(log.path).exists():  # not this log's fault: another machine may see it
         out["reason"] = f"{log.path} not found on the worker that ran it"
         out["retry"] = True
