@@ -94,8 +94,10 @@ def test_bad_sources_give_one_line(tmp_path, capsys):
     with pytest.raises(GraphcalError, match="missing column"):
         discover_fleet(manifest)
     assert main(["fleet", str(manifest), "--out", str(tmp_path / "o")]) == 2
+    (tmp_path / "file").write_text("")
+    assert main(["fleet", str(tmp_path), "--out", str(tmp_path / "file")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert all(line.startswith("graphcal: error:") for line in err) and len(err) == 2
+    assert all(line.startswith("graphcal: error:") for line in err) and len(err) == 3
     assert not (tmp_path / "o").exists()
 
 

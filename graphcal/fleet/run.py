@@ -113,6 +113,8 @@ def run_fleet(
     say = progress or (lambda _line: None)
     settings = settings or Settings()
     out = Path(out)
+    if out.exists() and not out.is_dir():  # before minutes of computation, not after
+        raise GraphcalError(f"--out {out} is a file; give a directory (new or an earlier run's)")
     logs = discover_fleet(source)
     paths: dict[Path, FleetLog] = {}
     for log in logs:
