@@ -47,13 +47,16 @@ from graphcal.graph.solve import (
 )
 
 
-def copy_value(target: gtsam.Values, source: gtsam.Values, key: int) -> None:
-    """Insert (or update) ``key``'s value from ``source`` into ``target`` (a Pose2 or a
-    vector: the variables of graphcal's segment graphs)."""
+def copy_value(
+    target: gtsam.Values, source: gtsam.Values, key: int, target_key: int | None = None
+) -> None:
+    """Insert (or update) ``key``'s value from ``source`` into ``target``, as ``target_key``
+    if given (a Pose2 or a vector: the variables of graphcal's segment graphs)."""
     try:
         value = source.atPose2(key)
     except RuntimeError:
         value = source.atVector(key)
+    key = key if target_key is None else target_key
     if target.exists(key):
         target.update(key, value)
     else:
@@ -62,6 +65,9 @@ def copy_value(target: gtsam.Values, source: gtsam.Values, key: int) -> None:
 
 #: Seconds after which :meth:`SegmentedGraph.optimize` reports each iteration.
 PROGRESS_AFTER_S = 2.0
+#: After a step whose error decrease is within this fraction of its linearization's
+#: prediction, :meth:`SegmentedGraph.optimize` takes undamped (Gauss–Newton) steps.
+GAUSS_NEWTON_FIDELITY = 0.1
 
 
 @dataclass
@@ -100,6 +106,7 @@ class PartGroup:
         self.shared = shared
         self.dims = dims
         self._eliminated: list[_Eliminated] = []
+        self._deltas: list[gtsam.VectorValues] = []
         self._candidates: list[gtsam.Values] = []
 
     def errors(self) -> list[float]:
@@ -109,17 +116,23 @@ class PartGroup:
     def eliminate(self, lam: float | None) -> list[tuple[np.ndarray, np.ndarray]]:
         """Linearize every part, damp its local keys by ``λ · scale`` (``None``: undamped)
         and eliminate them; per part, its reduced system as an augmented Hessian
-        ``(n+1, n+1)`` on the shared keys and its Hessian diagonal on them ``(n,)``."""
+        ``(n+1, n+1)`` on the shared keys and its Hessian diagonal on them ``(n,)`` (zeros
+        when undamped: only damping needs it)."""
         out = []
         self._eliminated = []
+        n = sum(self.dims[k] for k in self.shared)
         for part in self.parts:
             linear = part.graph.linearize(part.values)
-            dims = {k: self.dims[k] for k in (*part.local, *self.shared)}
-            diagonal = _hessian_diagonal(linear, dims)
-            local = {k: diagonal[k] for k in part.local}
-            part.scale = local if part.scale is None else _maximum(part.scale, local)
-            shared_diagonal = np.concatenate([diagonal[k] for k in self.shared] or [np.zeros(0)])
-            root = {} if lam is None else _root(part.scale, lam)
+            shared_diagonal, root = np.zeros(n), {}
+            if lam is not None:  # the damping's scale: the largest diagonal seen (GTSAM's)
+                dims = {k: self.dims[k] for k in (*part.local, *self.shared)}
+                diagonal = _hessian_diagonal(linear, dims)
+                local = {k: diagonal[k] for k in part.local}
+                part.scale = local if part.scale is None else _maximum(part.scale, local)
+                shared_diagonal = np.concatenate(
+                    [diagonal[k] for k in self.shared] or [np.zeros(0)]
+                )
+                root = _root(part.scale, lam)
             gradient = linear.gradientAtZero()
             _add_damping(linear, self.dims, root)  # the linear system is not kept: damp it
             bayes_net, reduced = linear.eliminatePartialSequential(gtsam.KeyVector(part.local))
@@ -127,28 +140,33 @@ class PartGroup:
             self._eliminated.append(_Eliminated(bayes_net, gradient, root))
         return out
 
-    def step(self, shared_step: dict[int, np.ndarray], evaluate: bool = True) -> list:
+    def step(self, shared_step: dict[int, np.ndarray]) -> list[float]:
         """Back-substitute every part given the shared step; per part, what the step lowers
-        its linearized error by (undamped) and, with ``evaluate``, its error after the step
-        (else 0). The candidate values are kept for :meth:`accept`."""
+        its linearized error by (undamped). The steps are kept for :meth:`try_step`."""
         given = gtsam.VectorValues()
         for key, value in shared_step.items():
             given.insert(key, value)
         out = []
-        self._candidates = []
+        self._deltas = []
         for part, done in zip(self.parts, self._eliminated, strict=True):
             delta = done.bayes_net.optimize(given)
             for key in self.shared:
                 if not delta.exists(key):
                     delta.insert(key, given.at(key))
             keys = [*part.local, *self.shared]
-            predicted = _predicted_decrease(done.gradient, delta, done.root, keys)
-            error = 0.0
-            if evaluate:
-                candidate = part.values.retract(delta)
-                error = float(part.graph.error(candidate))
-                self._candidates.append(candidate)
-            out.append((predicted, error))
+            out.append(_predicted_decrease(done.gradient, delta, done.root, keys))
+            self._deltas.append(delta)
+        return out
+
+    def try_step(self) -> list[float]:
+        """Each part's error after the last :meth:`step`; the candidate values are kept for
+        :meth:`accept`."""
+        out = []
+        self._candidates = []
+        for part, delta in zip(self.parts, self._deltas, strict=True):
+            candidate = part.values.retract(delta)
+            out.append(float(part.graph.error(candidate)))
+            self._candidates.append(candidate)
         return out
 
     def accept(self) -> None:
@@ -158,8 +176,8 @@ class PartGroup:
         self._candidates = []
 
     def release(self) -> None:
-        """Drop the eliminations and candidates (memory)."""
-        self._eliminated, self._candidates = [], []
+        """Drop the eliminations, steps and candidates (memory)."""
+        self._eliminated, self._deltas, self._candidates = [], [], []
 
     def local_values(self) -> list[dict[int, tuple[str, np.ndarray]]]:
         """Each part's local variables, picklable: ``key -> ("pose2" | "vector", array)``."""
@@ -276,7 +294,19 @@ class SegmentedGraph:
         self._all = PartGroup(parts, self.shared, self.dims)
         self.group = self._all  # the parts this process works on (all, unless parallel)
         self._remote: list[_RemoteGroup] = []
-        self.initial_error = self.error()
+        self._groups: list[PartGroup] = []  # while parallel: this process's, then the workers'
+        self._pending = 0  # workers asked for by parallel() and not started yet
+        self._error: float | None = None  # at the current values, once known
+        self._information: np.ndarray | None = None  # likewise (see shared_information)
+        self._initial_error: float | None = None
+
+    @property
+    def initial_error(self) -> float:
+        """The error at the values the graph was made with (computed once, in the workers
+        if asked first within :meth:`parallel`)."""
+        if self._initial_error is None:
+            self._initial_error = self.error()
+        return self._initial_error
 
     @property
     def parts(self) -> list[GraphPart]:
@@ -287,23 +317,23 @@ class SegmentedGraph:
     def parallel(self, workers: int) -> Iterator[None]:
         """Within the block, the parts are shared out among this process and ``workers - 1``
         forked processes (contiguous runs of parts, balanced by factor count) that work at
-        once. The per-part answers are combined in part order, so the results do not depend
-        on ``workers``. On leaving, the workers' values come back and they end."""
-        if workers <= 1 or len(self.parts) < 2 or self._remote:
+        once; they start with the first call that needs the parts (a block that asks
+        nothing of them forks nothing). The per-part answers are combined in part order, so
+        the results do not depend on ``workers``. On leaving, the workers' values come back
+        and they end."""
+        if workers <= 1 or len(self.parts) < 2 or self._remote or self._pending:
             yield
             return
-        everything = self._all
-        runs = _balanced_runs([p.graph.size() for p in everything.parts], workers)
-        context = multiprocessing.get_context("fork")
-        groups = [PartGroup(everything.parts[a:b], self.shared, self.dims) for a, b in runs]
+        self._pending = workers
         try:
-            self._remote = [_RemoteGroup(g, context) for g in groups[1:]]
-            self.group = groups[0]
             yield
         finally:
+            self._pending = 0
             remote, self._remote = self._remote, []
+            everything = self._all
             self.group = everything
-            at = len(groups[0].parts)
+            at = len(self._groups[0].parts) if self._groups else 0
+            self._groups = []
             for worker in remote:
                 mine = everything.parts[at : at + worker.size]
                 for part, values in zip(mine, worker.stop(), strict=True):
@@ -313,8 +343,20 @@ class SegmentedGraph:
                         copy_value(part.values, self.shared_values, key)
                 at += worker.size
 
+    def _start_workers(self) -> None:
+        """Fork the workers :meth:`parallel` asked for."""
+        workers, self._pending = self._pending, 0
+        everything = self._all
+        runs = _balanced_runs([p.graph.size() for p in everything.parts], workers)
+        context = multiprocessing.get_context("fork")
+        self._groups = [PartGroup(everything.parts[a:b], self.shared, self.dims) for a, b in runs]
+        self._remote = [_RemoteGroup(g, context) for g in self._groups[1:]]
+        self.group = self._groups[0]
+
     def _each(self, method: str, *args) -> list:
         """``method`` of every group (the workers' at once), per-part answers in part order."""
+        if self._pending:
+            self._start_workers()
         for worker in self._remote:
             worker.send(method, *args)
         failure: Exception | None = None
@@ -345,7 +387,12 @@ class SegmentedGraph:
 
     def error(self) -> float:
         """The graph's error (half the whitened squared residual) at the current values."""
-        return float(self.shared_graph.error(self.shared_values)) + math.fsum(self._each("errors"))
+        if self._error is None:
+            shared = float(self.shared_graph.error(self.shared_values))
+            self._error = shared + math.fsum(self._each("errors"))
+            if self._initial_error is None:  # nothing has moved the values yet
+                self._initial_error = self._error
+        return self._error
 
     def dim(self) -> int:
         """Dimension of all variables."""
@@ -379,10 +426,14 @@ class SegmentedGraph:
 
     def shared_information(self) -> np.ndarray:
         """The shared variables' information matrix at the current values (every part's
-        variables marginalized), in the order of :attr:`shared`."""
-        total, _, _ = self._system(None)
-        self._each("release")
-        return total[:-1, :-1]
+        variables marginalized), in the order of :attr:`shared`. After :meth:`optimize`,
+        that of its last linearization (one final Gauss–Newton step, of at most the solve's
+        tolerance, before the current values)."""
+        if self._information is None:
+            total, _, _ = self._system(None)
+            self._each("release")
+            self._information = total[:-1, :-1].copy()
+        return self._information.copy()
 
     def part_systems(self) -> tuple[list[np.ndarray], np.ndarray]:
         """At the current values, undamped: each part's linearized system eliminated down to
@@ -406,8 +457,7 @@ class SegmentedGraph:
         what a full solve gains, at the cost of one linearization and one elimination."""
         total, _, shared_linear = self._system(None)
         step = self._by_key(self._solve(total, np.zeros(self._n)))
-        answers = self._each("step", step, False)
-        predicted = math.fsum(p for p, _ in answers) + _predicted_decrease(
+        predicted = math.fsum(self._each("step", step)) + _predicted_decrease(
             shared_linear.gradientAtZero(), _vector_values(step), {}, self.shared
         )
         self._each("release")
@@ -432,6 +482,16 @@ class SegmentedGraph:
         returns the iterations used. Raises ``RuntimeError`` from GTSAM (or numpy's
         ``LinAlgError``) if a system cannot be solved at any damping.
 
+        Once a step at no more than the first damping lowered the error by what its
+        linearization predicted (within :data:`GAUSS_NEWTON_FIDELITY`), the next steps are
+        undamped Gauss–Newton steps; if one fails or is not accepted, the solve damps again
+        and stays Levenberg–Marquardt (a log whose parameters are barely determined, such as
+        t_r and d on a straight road, needs the damping). The solve stops when an undamped step
+        would lower the error by at most ``relative_error_tol`` of it; that step is taken,
+        and its undamped linearization, a step this small from the solution, gives
+        :meth:`shared_information` without linearizing again (at the sample drive's
+        tolerance, within 5e-5 of the covariance at the solution itself).
+
         ``progress`` gets a line per iteration (χ²/dof, damping λ, elapsed time) once the
         solve has run for :data:`PROGRESS_AFTER_S` (a long log's solve shows it is moving;
         a short one prints nothing)."""
@@ -440,59 +500,88 @@ class SegmentedGraph:
         error = self.error()
         shared_scale: np.ndarray | None = None
         lam = LAMBDA_INITIAL
+        undamped = False  # this iteration's step is a Gauss–Newton step
+        gauss_newton = True  # until one fails
         iterations = 0
         while iterations < max_iterations:
             iterations += 1
             new_error = error
+            at_minimum = False
             while True:
                 try:
-                    total, diagonal, shared_linear = self._system(lam)
+                    total, diagonal, shared_linear = self._system(None if undamped else lam)
                     shared_scale = (
                         diagonal if shared_scale is None else np.maximum(shared_scale, diagonal)
                     )
                     root = np.sqrt(lam * np.clip(shared_scale, MIN_DIAGONAL, MAX_DIAGONAL))
+                    if undamped:
+                        root = np.zeros_like(root)
                     shared_step = self._solve(total, root**2)
                     if not np.all(np.isfinite(shared_step)):
                         raise np.linalg.LinAlgError("non-finite step")
                 except (RuntimeError, np.linalg.LinAlgError):
+                    self._each("release")
+                    if undamped:  # not determined without damping: damp, from now on
+                        undamped = gauss_newton = False
+                        continue
                     # indeterminate at this damping: damp more, as GTSAM does
                     if lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
                         raise
                     lam *= LAMBDA_FACTOR
                     continue
                 step = self._by_key(shared_step)
-                answers = self._each("step", step, True)
-                predicted = math.fsum(p for p, _ in answers) + _predicted_decrease(
+                predicted = math.fsum(self._each("step", step)) + _predicted_decrease(
                     shared_linear.gradientAtZero(),
                     _vector_values(step),
-                    self._by_key(root),
+                    {} if undamped else self._by_key(root),
                     self.shared,
                 )
+                small = max(relative_error_tol * error, 1e-12)
+                # A Gauss–Newton step that lowers the error by at most the tolerance is the
+                # last; its undamped linearization gives the covariance.
+                last = undamped and 0 <= predicted <= small
+                information = total[:-1, :-1].copy() if last else None
+                errors = self._each("try_step")
                 candidate_shared = self.shared_values.retract(_vector_values(step))
-                new_error = float(self.shared_graph.error(candidate_shared)) + math.fsum(
-                    e for _, e in answers
-                )
+                new_error = float(self.shared_graph.error(candidate_shared)) + math.fsum(errors)
                 change = error - new_error
                 fidelity = change / predicted if predicted > 1e-20 else 1.0
                 if predicted >= 0 and fidelity > MIN_MODEL_FIDELITY and change >= 0:
                     self.shared_values = candidate_shared
                     self._each("accept")
-                    lam = max(lam / LAMBDA_FACTOR, 1e-12)
+                    self._error, self._information = new_error, information
+                    at_minimum = last
+                    # Gauss–Newton next if this step was (or needed no more damping than the
+                    # first) and its linearization predicted its decrease well.
+                    mild = undamped or lam <= LAMBDA_INITIAL
+                    if not undamped:
+                        lam = max(lam / LAMBDA_FACTOR, 1e-12)
+                    undamped = (
+                        gauss_newton and mild and abs(fidelity - 1.0) <= GAUSS_NEWTON_FIDELITY
+                    )
                     break
-                small = max(relative_error_tol * error, 1e-12)
+                if last:  # the error did not fall (rounding, at the minimum): stay here
+                    new_error, at_minimum, self._information = error, True, information
+                    break
+                if undamped:  # the model was not good enough: damp, from now on
+                    undamped = gauss_newton = False
+                    continue
                 if abs(change) < small or lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
-                    new_error = error
+                    new_error, at_minimum = error, True
                     break
                 lam *= LAMBDA_FACTOR
             self._each("release")
             decrease = error - new_error
-            converged = decrease <= 1e-12 or decrease <= relative_error_tol * error
+            # Undamped, the next linearization decides (and serves the covariance).
+            small_decrease = decrease <= 1e-12 or decrease <= relative_error_tol * error
+            converged = at_minimum or (small_decrease and not undamped)
             error = new_error
             elapsed = time.perf_counter() - started
             if progress is not None and elapsed >= PROGRESS_AFTER_S:
+                how = "Gauss–Newton" if undamped else f"λ {lam:.0e}"
                 progress(
-                    f"  iteration {iterations}: χ²/dof {2.0 * error / dof:.4f}, "
-                    f"λ {lam:.0e} ({elapsed:.0f} s)"
+                    f"  iteration {iterations}: χ²/dof {2.0 * error / dof:.4f}, {how} "
+                    f"({elapsed:.0f} s)"
                 )
             if converged:
                 break
