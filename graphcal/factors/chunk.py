@@ -185,32 +185,31 @@ def chunk_errors(
         rotations[..., N_RL] += corrections[..., 0]
         rotations[..., N_RR] += corrections[..., 1]
     states, d_start, d_theta = integrate_with_jacobians(start, rotations, theta, jacobians)
-    # Error pieces, the state rows each piece differentiates, and per row the 3×3
-    # d piece / d state (None: identity).
-    parts, rows, transforms = [], [], []
+    # Error pieces, the state rows each piece differentiates, and per row how the piece's
+    # x and y move with the state's heading beyond the state's own (the lever arm turning
+    # with it, ``(C, rows, 2)``; None: not at all).
+    parts, rows, turns = [], [], []
     tracked = measured_poses is not None
     if tracked:
         residual = states[:, 1:] - measured_poses[:, 1:]
-        transform = None
+        turn = None
         if lever_arm is not None:
             cos, sin = np.cos(states[:, 1:, 2]), np.sin(states[:, 1:, 2])
             ahead, left = lever_arm[:, 0:1], lever_arm[:, 1:2]
             residual[..., 0] += cos * ahead - sin * left
             residual[..., 1] += sin * ahead + cos * left
-            transform = np.broadcast_to(np.eye(3), (count, n_steps, 3, 3)).copy()
-            transform[..., 0, 2] = -sin * ahead - cos * left
-            transform[..., 1, 2] = cos * ahead - sin * left
+            turn = np.stack([-sin * ahead - cos * left, cos * ahead - sin * left], axis=-1)
         if heading_bias is not None:
             residual[..., 2] += heading_bias[:, None]
         parts.append(residual.reshape(count, -1))
         rows.append(slice(1, None))
-        transforms.append(transform)
+        turns.append(turn)
     if end is not None:
         gap = states[:, -1] - end
         gap[:, 2] = wrap_angle(gap[:, 2])
         parts.append(gap)
         rows.append(slice(-1, None))
-        transforms.append(None)
+        turns.append(None)
     if not parts:
         raise ValueError("a chunk needs measured poses to track or an end to reach")
     error = np.concatenate(parts, axis=1)
@@ -219,10 +218,14 @@ def chunk_errors(
 
     def stack(full: np.ndarray) -> np.ndarray:  # (C, L+1, 3, ...) -> (C, dim, ...)
         blocks = []
-        for r, transform in zip(rows, transforms, strict=True):
+        for r, turn in zip(rows, turns, strict=True):
             block = full[:, r]
-            if transform is not None:
-                block = np.einsum("cnij,cnj...->cni...", transform, block)
+            if turn is not None:  # x and y gain the heading's derivative times the turn
+                block = block.copy()
+                heading = block[:, :, 2]
+                trailing = (...,) + (None,) * (block.ndim - 3)
+                block[:, :, 0] += turn[..., 0][trailing] * heading
+                block[:, :, 1] += turn[..., 1][trailing] * heading
             blocks.append(block.reshape(count, -1, *full.shape[3:]))
         return np.concatenate(blocks, axis=1)
 

@@ -26,7 +26,7 @@ import numpy as np
 from graphcal.factors.chunk import chunk_errors
 
 if TYPE_CHECKING:
-    from graphcal.factors.chunk_factor import ChunkArguments, ChunkOdometryFactor
+    from graphcal.factors.chunk_factor import ChunkOdometryFactor
 
 #: Chunks per vectorized evaluation: bounds the ``(C, L+1, 3, L, 2)`` rotation Jacobian
 #: (64 chunks of 50 steps: 8 MB).
@@ -67,12 +67,10 @@ class ChunkBatch:
     ) -> tuple[np.ndarray, list | None]:
         """Member ``index``'s unwhitened error at ``values`` and, with ``jacobians``, its
         Jacobian blocks in key order (as :meth:`ChunkOdometryFactor.__call__` returns them)."""
-        member = self.members[index]
-        arguments = member.read(values)
-        flat = arguments.flat()
+        raw = self.members[index].raw(values)
         answer = self._answers.get(index)
-        if not _answers_for(answer, flat, jacobians):
-            self._compute_all(values, jacobians, index, arguments)
+        if not _answers_for(answer, raw, jacobians):
+            self._compute_all(values, jacobians, index, raw)
             answer = self._answers[index]
         blocks = None
         if jacobians:
@@ -80,18 +78,18 @@ class ChunkBatch:
         return answer.error, blocks
 
     def _compute_all(
-        self, values: gtsam.Values, jacobians: bool, index: int, arguments: ChunkArguments
+        self, values: gtsam.Values, jacobians: bool, index: int, raw: np.ndarray
     ) -> None:
         """Compute every member at ``values`` (members whose variables ``values`` lacks are
-        left out; member ``index`` is computed from ``arguments``)."""
+        left out; member ``index`` from its ``raw`` read)."""
         self._answers.clear()
-        groups: dict[tuple, list[tuple[int, ChunkArguments]]] = defaultdict(list)
+        groups: dict[tuple, list[tuple[int, np.ndarray]]] = defaultdict(list)
         for i, member in enumerate(self.members):
             if i == index:
-                read = arguments
+                read = raw
             else:
                 try:
-                    read = member.read(values)
+                    read = member.raw(values)
                 except (RuntimeError, IndexError, KeyError):  # a Values lacking its variables
                     continue
             groups[member.shape_signature()].append((i, read))
@@ -99,9 +97,9 @@ class ChunkBatch:
             for first in range(0, len(group), BLOCK_CHUNKS):
                 self._compute_block(group[first : first + BLOCK_CHUNKS], jacobians)
 
-    def _compute_block(self, block: list[tuple[int, ChunkArguments]], jacobians: bool) -> None:
+    def _compute_block(self, block: list[tuple[int, np.ndarray]], jacobians: bool) -> None:
         members = [self.members[i] for i, _ in block]
-        args = [a for _, a in block]
+        args = [member.arguments(raw) for member, (_, raw) in zip(members, block, strict=True)]
         inputs, measured, rates = self._measurements(tuple(i for i, _ in block))
 
         def stacked(name: str) -> np.ndarray | None:
@@ -125,9 +123,9 @@ class ChunkBatch:
         blocks = None
         if jacobians:
             blocks = members[0].jacobian_blocks(result, stacked("start"), stacked("end"))
-        for n, (i, arguments) in enumerate(block):
+        for n, (i, raw) in enumerate(block):
             mine = None if blocks is None else [np.ascontiguousarray(b[n]) for b in blocks]
-            self._answers[i] = _Answer(arguments.flat(), result.error[n], mine)
+            self._answers[i] = _Answer(raw, result.error[n], mine)
 
     def _measurements(self, block: tuple[int, ...]) -> tuple:
         """The block's inputs, measured poses and rotation rates stacked (made once)."""
@@ -146,8 +144,8 @@ class ChunkBatch:
         return self._stacked[block]
 
 
-def _answers_for(answer: _Answer | None, flat: np.ndarray, jacobians: bool) -> bool:
-    """``answer`` was computed at the arguments ``flat`` and holds what is asked."""
+def _answers_for(answer: _Answer | None, raw: np.ndarray, jacobians: bool) -> bool:
+    """``answer`` was computed at the variables ``raw`` and holds what is asked."""
     if answer is None or (jacobians and answer.blocks is None):
         return False
-    return np.array_equal(answer.arguments, flat)
+    return np.array_equal(answer.arguments, raw)

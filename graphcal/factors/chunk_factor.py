@@ -18,6 +18,7 @@ Headings of Pose2 variables are unwrapped against the chunk's reference heading.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import gtsam
@@ -25,7 +26,7 @@ import numpy as np
 
 from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk
 from graphcal.factors.chunk_batch import ChunkBatch
-from graphcal.factors.poses import pose_sigmas, state_from_pose2
+from graphcal.factors.poses import pose_sigmas
 
 
 @dataclass(frozen=True)
@@ -40,21 +41,6 @@ class ChunkArguments:
     time_offset: np.ndarray | None
     lever_arm: np.ndarray | None
     heading_bias: np.ndarray | None
-
-    def flat(self) -> np.ndarray:
-        """Every given argument in one vector (to tell whether two reads are equal)."""
-        parts = [self.start, self.theta]
-        for part in (
-            self.corrections,
-            self.end,
-            self.slip,
-            self.time_offset,
-            self.lever_arm,
-            self.heading_bias,
-        ):
-            if part is not None:
-                parts.append(part.ravel())
-        return np.concatenate(parts)
 
 
 class ChunkOdometryFactor:
@@ -126,6 +112,16 @@ class ChunkOdometryFactor:
             cont = CONTINUITY_SIGMAS if continuity_sigmas is None else continuity_sigmas
             sigmas.append(np.asarray(cont, float))
         self.sigmas = np.concatenate(sigmas)
+        # The vector slots in read order: name, key (or None), size.
+        self._vector_slots = (
+            ("corrections", self.corrections_key, 2 * chunk.n_steps),
+            ("theta", self.theta_key, 4),
+            ("slip", self.slip_key, 2),
+            ("time_offset", self.time_offset_key, 1),
+            ("lever_arm", self.lever_arm_key, 2),
+            ("heading_bias", self.heading_bias_key, 1),
+        )
+        self._vector_keys = [key for _, key, _ in self._vector_slots if key is not None]
         self.batch = ChunkBatch() if batch is None else batch
         self.batch_index = self.batch.add(self)
 
@@ -151,38 +147,53 @@ class ChunkOdometryFactor:
         noise = gtsam.noiseModel.Diagonal.Sigmas(self.sigmas)
         return gtsam.CustomFactor(noise, self.keys, self)
 
-    def read(self, values: gtsam.Values) -> ChunkArguments:
-        """The factor's arguments at ``values``."""
-        reference = self.chunk.reference_heading
-        start = (
-            self.start_state
-            if self.start_key is None
-            else state_from_pose2(values.atPose2(self.start_key), reference)
-        )
-        theta = self.theta if self.theta_key is None else values.atVector(self.theta_key)
-        corrections = None
-        if self.corrections_key is not None:
-            corrections = values.atVector(self.corrections_key).reshape(self.chunk.n_steps, 2)
+    def raw(self, values: gtsam.Values) -> np.ndarray:
+        """The factor's variables at ``values`` as read, in one vector: Pose2 slots as
+        ``[x, y, θ]``, vectors as they are (what tells two reads apart, cheaply)."""
+        parts = []
+        for key in (self.start_key, self.end_key):
+            if key is not None:
+                pose = values.atPose2(key)
+                parts.append((pose.x(), pose.y(), pose.theta()))
+        for key in self._vector_keys:
+            parts.append(values.atVector(key))
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def arguments(self, raw: np.ndarray) -> ChunkArguments:
+        """The factor's arguments from a :meth:`raw` read (headings unwrapped: the start
+        against the chunk's reference heading, the end against the start)."""
+        at = 0
+        start = self.start_state
+        if self.start_key is not None:
+            start = _state(raw[0:3], self.chunk.reference_heading)
+            at = 3
         end = None
         if self.end_key is not None:  # its heading branch does not matter: the gap is wrapped
-            end = state_from_pose2(values.atPose2(self.end_key), start[2])
-
-        def vector(key: int | None) -> np.ndarray | None:
-            return None if key is None else values.atVector(key)
-
-        def scalar(key: int | None) -> np.ndarray | None:
-            return None if key is None else np.asarray(values.atVector(key)[0])
-
+            end = _state(raw[at : at + 3], float(start[2]))
+            at += 3
+        read = {}
+        for name, key, size in self._vector_slots:
+            if key is not None:
+                read[name] = raw[at : at + size]
+                at += size
+        corrections = read.get("corrections")
+        if corrections is not None:
+            corrections = corrections.reshape(self.chunk.n_steps, 2)
+        time_offset, bias = read.get("time_offset"), read.get("heading_bias")
         return ChunkArguments(
             start,
-            np.asarray(theta, float),
+            read.get("theta", self.theta),
             corrections,
             end,
-            vector(self.slip_key),
-            scalar(self.time_offset_key),
-            vector(self.lever_arm_key),
-            scalar(self.heading_bias_key),
+            read.get("slip"),
+            None if time_offset is None else time_offset[0],
+            read.get("lever_arm"),
+            None if bias is None else bias[0],
         )
+
+    def read(self, values: gtsam.Values) -> ChunkArguments:
+        """The factor's arguments at ``values``."""
+        return self.arguments(self.raw(values))
 
     def shape_signature(self) -> tuple:
         """Chunks with equal signatures stack into one vectorized evaluation."""
@@ -227,6 +238,13 @@ class ChunkOdometryFactor:
             for i, block in enumerate(blocks):
                 H[i] = block
         return error
+
+
+def _state(pose: np.ndarray, reference_heading: float) -> np.ndarray:
+    """State ``[px, py, psi]`` of a raw Pose2 ``[x, y, θ]``, the heading on the branch nearest
+    ``reference_heading`` (:func:`~graphcal.factors.poses.state_from_pose2`, in scalars)."""
+    psi = reference_heading + (float(pose[2]) - reference_heading + math.pi) % math.tau - math.pi
+    return np.array([pose[0], pose[1], psi])
 
 
 def _in_tangent(block: np.ndarray, heading: np.ndarray) -> np.ndarray:
