@@ -172,6 +172,34 @@ def integrate_with_jacobians(
     return states, d_start, d_theta
 
 
+def aligned_trajectory(
+    states: np.ndarray, measured: np.ndarray, weights: np.ndarray | None = None
+) -> np.ndarray:
+    """``states (K+1, 3)`` turned and shifted as one rigid body to fit the positions of
+    ``measured (K+1, 3)`` in weighted least squares (weights ``(K+1,)``, default 1): the
+    2-D Procrustes solution, headings turned with the positions. An integrated path that
+    starts at a measured pose inherits that pose's error (1.5° of heading is 4 m of drift
+    over 150 m); aligned, it is as close to the measurements as its shape allows."""
+    w = np.ones(len(states)) if weights is None else np.asarray(weights, float)
+    total = float(w.sum())
+    if total <= 0:
+        return states
+    a, b = states[:, :2], measured[:, :2]
+    # Elementwise sums, not BLAS: the same bits whatever the arrays' memory alignment.
+    a_mean = np.sum(w[:, None] * a, axis=0) / total
+    b_mean = np.sum(w[:, None] * b, axis=0) / total
+    da, db = (a - a_mean) * w[:, None], b - b_mean
+    h = np.sum(da[:, :, None] * db[:, None, :], axis=0)  # Σ w (a − ā)ᵀ (b − b̄)
+    angle = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
+    cos, sin = np.cos(angle), np.sin(angle)
+    out = np.empty_like(states)
+    dx, dy = a[:, 0] - a_mean[0], a[:, 1] - a_mean[1]
+    out[:, 0] = cos * dx - sin * dy + b_mean[0]
+    out[:, 1] = sin * dx + cos * dy + b_mean[1]
+    out[:, 2] = states[:, 2] + angle
+    return out
+
+
 def _direct_rotation_effects(
     states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -207,24 +235,35 @@ def wheel_rotation_jacobian(
                             + d omega_j * J (p_k - p_{j+1}),  J = 90° rotation
     """
     direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
-    px, py = states[..., 0], states[..., 1]  # (..., K+1)
     n_states, n_steps = states.shape[-2], inputs.shape[-2]
     batch = np.broadcast_shapes(states.shape[:-2], inputs.shape[:-2], direct_x.shape[:-2])
-    # Written in place into the result (no full-size temporaries: this runs for every
-    # segment at every linearization of a calibration).
-    out = np.empty((*batch, n_states, 3, n_steps, 2))
-    d_om = domega_dn[..., None, :, :]  # (..., 1, K, 2)
-    # lever[k, j] = p_k - p_{j+1}, used for k > j only.
-    lever_x = (px[..., :, None] - px[..., None, 1:])[..., None]  # (..., K+1, K, 1)
-    lever_y = (py[..., :, None] - py[..., None, 1:])[..., None]
-    np.multiply(d_om, lever_y, out=out[..., 0, :, :])
-    np.subtract(direct_x[..., None, :, :], out[..., 0, :, :], out=out[..., 0, :, :])
-    np.multiply(d_om, lever_x, out=out[..., 1, :, :])
-    out[..., 1, :, :] += direct_y[..., None, :, :]
-    out[..., 2, :, :] = d_om
-    after = np.arange(n_states)[:, None] > np.arange(n_steps)[None, :]  # (K+1, K)
-    out *= after[:, None, :, None]
-    return out
+    # Written in place into the result, with the last two axes (step j, wheel) as one of
+    # length 2K, so that numpy's inner loops run over 2K and not over the 2 wheels (2.1×
+    # faster than broadcasting over a wheel axis of 2): this runs for every segment at every
+    # linearization of a calibration.
+    after = _after_mask(n_states, n_steps)  # (K+1, 2K): 1 where k > j
+    flat = (*batch, 1, 2 * n_steps)
+    d_om = np.broadcast_to(domega_dn, (*batch, n_steps, 2)).reshape(flat)
+    out = np.empty((*batch, n_states, 3, 2 * n_steps))
+    # x row: direct_x - d omega * (py_k - py_j+1); y row: direct_y + d omega * (px_k - px_j+1)
+    for row, (position, direct) in enumerate(((1, direct_x), (0, direct_y))):
+        p = np.broadcast_to(states[..., position], (*batch, n_states))
+        lever = p[..., :, None] - np.repeat(p[..., 1:], 2, axis=-1)[..., None, :]
+        lever *= after
+        target = out[..., row, :]
+        np.multiply(d_om, lever, out=target)
+        if row == 0:
+            np.negative(target, out=target)
+        target += np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat) * after
+    np.multiply(d_om, after, out=out[..., 2, :])
+    return out.reshape(*batch, n_states, 3, n_steps, 2)
+
+
+def _after_mask(n_states: int, n_steps: int) -> np.ndarray:
+    """``(K+1, 2K)`` float mask, 1 where state k comes after step j (``k > j``), each step's
+    column repeated for the two wheels."""
+    mask = np.arange(n_states)[:, None] > np.arange(n_steps)[None, :]
+    return np.repeat(mask, 2, axis=-1).astype(float)
 
 
 def wheel_rotations_for_motion(

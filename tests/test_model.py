@@ -119,3 +119,31 @@ def test_wheel_rotation_jacobian_matches_finite_differences(rng):
 
     numeric = central_difference(trajectory, inputs[:, :2].ravel(), 1e-7)
     np.testing.assert_allclose(analytic.reshape(26, 3, 50), numeric, rtol=1e-6, atol=1e-7)
+
+
+def test_wheel_rotation_jacobian_of_a_batch_is_each_members(rng):
+    from graphcal.model import wheel_rotation_jacobian
+
+    inputs = random_inputs(rng, (4, 20))
+    thetas = THETA + rng.normal(0.0, 1e-3, (4, 4))
+    states = integrate(rng.normal(0.0, 1.0, (4, 3)), inputs, thetas)
+    batch = wheel_rotation_jacobian(states, inputs, thetas)
+    for i in range(4):
+        np.testing.assert_array_equal(
+            batch[i], wheel_rotation_jacobian(states[i], inputs[i], thetas[i])
+        )
+
+
+def test_aligned_trajectory_moves_a_rigidly_moved_path_back(rng):
+    from graphcal.model import aligned_trajectory
+
+    inputs = random_inputs(rng, (200,))
+    measured = integrate(np.array([12.0, -7.0, 2.5]), inputs, THETA)
+    at_origin = integrate(np.zeros(3), inputs, THETA)  # the same path, turned and shifted
+    np.testing.assert_allclose(aligned_trajectory(at_origin, measured), measured, atol=1e-9)
+    # A fix 50 m off with weight 0 does not move the fit.
+    spiked = measured.copy()
+    spiked[100, :2] += 50.0
+    weights = np.ones(len(spiked))
+    weights[100] = 0.0
+    np.testing.assert_allclose(aligned_trajectory(at_origin, spiked, weights), measured, atol=1e-9)

@@ -45,3 +45,23 @@ def test_a_drive_without_slip_is_solved_without_slip_scales():
     off = _run(clean, "off")
     np.testing.assert_allclose(run.theta, off.theta, rtol=1e-9)
     np.testing.assert_allclose(run.covariance, off.covariance, rtol=1e-6)
+
+
+def test_slip_screened_on_a_spread_sample_decides_as_the_whole_log(slipping, monkeypatch):
+    """A long log screens slip on segments spread over it; the sample's statistic is the
+    whole log's to within its sampling noise, and the solve with slip that follows covers
+    every segment."""
+    import graphcal.pipeline.joint as joint
+
+    whole = _run(slipping, "auto")
+    monkeypatch.setattr(joint, "SLIP_SCREEN_SEGMENTS", 5)
+    sampled = _run(slipping, "auto")
+    assert len(whole.data) > 5
+    assert sampled.whole.slip_modelled and sampled.whole.slip_statistic > 1.3
+    assert abs(sampled.whole.slip_statistic - whole.whole.slip_statistic) < 0.5 * (
+        whole.whole.slip_statistic
+    )
+    # Once slip is shown, the same solve with slip over all segments: the same theta.
+    np.testing.assert_allclose(sampled.theta, whole.theta, rtol=1e-7)
+    clean = _run(simulate_drive(4.0, 1), "auto")
+    assert not clean.whole.slip_modelled

@@ -228,6 +228,14 @@ def make_batches(
     return batches[:wanted]
 
 
+def spread(count: int, size: int) -> np.ndarray:
+    """Indices of ``min(size, count)`` of ``count`` segments spread evenly over them, first
+    and last included (a sample of a long log that sees all of its route)."""
+    if size >= count:
+        return np.arange(count)
+    return np.unique(np.round(np.linspace(0, count - 1, max(size, 1))).astype(np.int64))
+
+
 def _sample_index(segments: Segments) -> tuple[np.ndarray, np.ndarray]:
     """Sample indices ``(S, K+1)`` of each segment, clipped to its end, and the valid mask."""
     k = int(segments.n_steps.max()) if len(segments) else 0

@@ -48,6 +48,13 @@ def segment_of(key: int) -> int:
     return int(gtsam.Symbol(key).index()) // SEGMENT_STRIDE
 
 
+def in_segment(key: int, segment: int) -> int:
+    """The key of the same variable (letter and position) in another segment: a segment
+    graph's value moved to a graph of a subset of its segments."""
+    symbol = gtsam.Symbol(key)
+    return gtsam.symbol(chr(symbol.chr()), _packed(segment, int(symbol.index()) % SEGMENT_STRIDE))
+
+
 def segment_pose(segment: int, boundary: int = 0) -> int:
     """Key of the Pose2 at chunk boundary ``boundary`` of ``segment`` (0: the segment's start)."""
     return gtsam.symbol("p", _packed(segment, boundary))

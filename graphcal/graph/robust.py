@@ -108,10 +108,12 @@ def solve_segment_graph_robust(
     covariance: bool = True,
     workers: int = 1,
     progress: Callable[[str], None] | None = None,
+    shared_start: dict[int, np.ndarray] | None = None,
 ) -> tuple[SegmentSolution, np.ndarray | None]:
     """:func:`~graphcal.graph.segment_graph.solve_segment_graph` with robust fix weights
     (:func:`solve_robust`); ``threshold`` 0 solves once without them. ``workers``: processes
-    the segments are shared out among."""
+    the segments are shared out among; ``shared_start``: where the first solve starts the
+    graph-wide variables (e.g. :func:`~graphcal.graph.warm_start.warm_start`)."""
 
     def solve(segments: SegmentData, initial) -> SegmentSolution:
         return solve_segment_graph(
@@ -124,6 +126,7 @@ def solve_segment_graph_robust(
             initial,
             workers=workers,
             progress=progress,
+            shared_start=shared_start if initial is None else None,
         )
 
     if threshold <= 0:

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData
+from graphcal.data.segments import SegmentData, spread
 from graphcal.errors import CalibrationFailed, check_settings, first_line
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph import keys
@@ -47,7 +47,8 @@ from graphcal.graph.segment_graph import (
     solve_segment_graph,
     with_covariance,
 )
-from graphcal.graph.segmented import SegmentedGraph
+from graphcal.graph.segmented import SegmentedGraph, copy_value
+from graphcal.graph.warm_start import warm_start
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
@@ -55,6 +56,11 @@ from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 MAX_TIME_OFFSET_MEAN = 1.0
 #: ``JointSettings.slip``: model slow wheel slip when the log shows it, always, or never.
 SLIP_MODES = ("auto", "on", "off")
+#: Relative error tolerance of the joint solves.
+TOLERANCE = 1e-7
+#: Slip is screened on this many segments spread over the log (all of a shorter log): the
+#: statistic is a mean over chunks (about 550 of them in 48 segments).
+SLIP_SCREEN_SEGMENTS = 48
 
 
 @dataclass(frozen=True)
@@ -256,16 +262,19 @@ def solve_joint(
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
     label = "joint solve"
+    spec = settings.graph_spec()
+    start = warm_start(data, spec, settings.max_iterations, TOLERANCE, workers, progress)
     solved, weights = solve_segment_graph_robust(
         data,
-        settings.graph_spec(),
+        spec,
         settings.max_iterations,
-        1e-7,
+        TOLERANCE,
         label,
         settings.robust_threshold,
         covariance=not auto,
         workers=workers,
         progress=progress,
+        shared_start=start,
     )
     statistic = None
     if auto:
@@ -302,6 +311,19 @@ def _released(solution: SegmentSolution) -> SegmentSolution:
     return dataclasses.replace(solution, built=built, segmented=None)
 
 
+def _moved(
+    result: gtsam.Values, segments: np.ndarray, values: gtsam.Values, shared: list[int]
+) -> gtsam.Values:
+    """``values`` of a graph over ``segments`` of ``result``'s graph, with ``result``'s value
+    of every variable the two share (segment ``segments[i]``'s as segment ``i``'s)."""
+    moved = gtsam.Values(values)
+    for key in values.keys():
+        source = key if key in shared else keys.in_segment(key, segments[keys.segment_of(key)])
+        if result.exists(source):
+            copy_value(moved, result, source, key)
+    return moved
+
+
 def _with_slip_if_shown(
     solved: SegmentSolution,
     data: SegmentData,
@@ -318,31 +340,35 @@ def _with_slip_if_shown(
     full solve would (the scales enter nearly linearly; measured within 1 % of a
     Levenberg–Marquardt iteration, at a third of its cost). Per chunk, that drop is
     0.55–0.59 on drives without slip; above ``settings.slip_detection`` the solve with slip
-    continues from there to convergence.
+    continues from there to convergence. The step is taken on at most
+    :data:`SLIP_SCREEN_SEGMENTS` segments spread over the log: the statistic is a mean per
+    chunk, and a long log's screening then costs a fraction of one of its iterations.
     """
     spec = settings.graph_spec(slip=True)
     weighted = data if weights is None else dataclasses.replace(data, fix_weights=weights)
-    initial = gtsam.Values(solved.result)
-    for s, bounds in enumerate(solved.built.bounds):
-        for j in range(len(bounds) - 1):
-            initial.insert(keys.segment_slip(s, j), np.zeros(2))
-    with_slip = build_segment_graph(weighted, spec)
-    screening = SegmentedGraph(with_slip.graph, initial, shared_keys(spec))
+    screened = spread(len(data), SLIP_SCREEN_SEGMENTS)
+    screen = build_segment_graph(weighted.take(screened), spec)
+    at_solution = _moved(solved.result, screened, screen.values, shared_keys(spec))
+    screening = SegmentedGraph(screen.graph, at_solution, shared_keys(spec))
     try:
         with screening.parallel(workers):
             drop = screening.gauss_newton_decrement()
     except RuntimeError as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise CalibrationFailed(f"joint solve failed: {reason}") from exc
-    chunks = sum(len(bounds) - 1 for bounds in solved.built.bounds)
+    chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
     statistic = 2.0 * drop / chunks
     if statistic <= settings.slip_detection:
         return solved, statistic
+    with_slip, initial = screen, at_solution
+    if len(screened) < len(data):
+        with_slip = build_segment_graph(weighted, spec)
+        initial = _moved(solved.result, np.arange(len(data)), with_slip.values, shared_keys(spec))
     final = solve_segment_graph(
         weighted,
         spec,
         settings.max_iterations,
-        1e-7,
+        TOLERANCE,
         "joint solve",
         True,
         initial,

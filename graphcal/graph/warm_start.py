@@ -1,0 +1,59 @@
+"""Where a long log's whole-log solve starts: theta solved on a spread-out sample of it.
+
+From the nominal theta a whole-log solve needs two Levenberg–Marquardt iterations before its
+linearization is good (the datasheet theta is millimetres off, and the poses of every chunk
+boundary start on the odometry of that theta). Each iteration linearizes every segment. A
+sample of :data:`WARM_START_SEGMENTS` segments spread over the route determines theta to
+within a few of the whole log's σ, at a fraction of one whole-log iteration; from there, with
+the boundary poses on the odometry of that theta, the whole log's first step is already in
+its quadratic range. The optimum is the whole log's either way: only the path to it changes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from graphcal.data.segments import SegmentData, spread
+from graphcal.errors import GraphcalError
+from graphcal.graph.segment_graph import SegmentGraphSpec, shared_keys, solve_segment_graph
+
+#: Segments of the sample a warm start solves.
+WARM_START_SEGMENTS = 32
+#: Logs with fewer selected segments than this start from the nominal theta: the sample would
+#: not save a whole-log iteration's worth.
+WARM_START_MIN_SEGMENTS = 3 * WARM_START_SEGMENTS
+
+
+def warm_start(
+    data: SegmentData,
+    spec: SegmentGraphSpec,
+    max_iterations: int,
+    relative_error_tol: float,
+    workers: int = 1,
+    progress: Callable[[str], None] | None = None,
+) -> dict[int, np.ndarray] | None:
+    """The graph-wide variables (theta, time offset, lever arm, by key) solved on
+    :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, for the whole-log
+    solve to start from; ``None`` for a log shorter than :data:`WARM_START_MIN_SEGMENTS`, a
+    graph without theta, or a sample that cannot be solved (the whole log starts from
+    ``spec`` then)."""
+    if len(data) < WARM_START_MIN_SEGMENTS or not spec.estimate_theta:
+        return None
+    sample = spread(len(data), WARM_START_SEGMENTS)
+    if progress is not None:
+        progress(f"  start: theta from {len(sample)} segments spread over the log")
+    try:
+        solved = solve_segment_graph(
+            data.take(sample),
+            spec,
+            max_iterations,
+            relative_error_tol,
+            "warm start",
+            covariance=False,
+            workers=workers,
+        )
+    except GraphcalError:
+        return None
+    return {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}

@@ -1,0 +1,49 @@
+"""A long log's whole-log solve starts from theta solved on a spread-out sample of its
+segments: the same optimum, reached from closer."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+import graphcal.graph.warm_start as warm
+from graphcal.data.drive_log import load_drive_log
+from graphcal.data.segments import gather_segments, select_segments, split_segments, spread
+from graphcal.graph import keys
+from graphcal.pipeline.joint import JointSettings, solve_joint
+
+SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
+
+
+def _segments():
+    log = load_drive_log(SAMPLE)
+    return gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+
+
+def test_spread_takes_the_first_and_last_and_evenly_between():
+    assert spread(10, 4).tolist() == [0, 3, 6, 9]
+    assert spread(3, 8).tolist() == [0, 1, 2]
+
+
+def test_a_short_log_starts_from_the_nominal_theta():
+    data = _segments()
+    spec = JointSettings().graph_spec()
+    assert len(data) < warm.WARM_START_MIN_SEGMENTS
+    assert warm.warm_start(data, spec, 50, 1e-7) is None
+
+
+def test_the_warm_started_solve_reaches_the_same_optimum(monkeypatch):
+    data = _segments()
+    settings = JointSettings(slip="off")
+    cold, _ = solve_joint(data, settings)
+    monkeypatch.setattr(warm, "WARM_START_SEGMENTS", 4)
+    monkeypatch.setattr(warm, "WARM_START_MIN_SEGMENTS", 5)
+    start = warm.warm_start(data, settings.graph_spec(), 50, 1e-7)
+    assert start is not None
+    sigma = np.sqrt(np.diag(cold.covariance))
+    assert np.all(np.abs(start[keys.THETA] - cold.theta) < 10 * sigma)
+    warmed, _ = solve_joint(data, settings)
+    # The same optimum: within the solve's tolerance, a few thousandths of σ.
+    assert np.all(np.abs(warmed.theta - cold.theta) < 0.01 * sigma)
+    np.testing.assert_allclose(warmed.covariance, cold.covariance, rtol=1e-3)
