@@ -549,7 +549,8 @@ def solve_segment_graph(
     """Build the graph of ``spec`` over ``data`` (or take ``built``, that graph already
     built) and solve it with Levenberg–Marquardt, from the builder's initial values (with
     ``shared_start``'s graph-wide variables, :func:`build_segment_graph`) or from
-    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start), segment by
+    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start; from
+    ``shared_start`` the first step is an undamped Gauss–Newton step), segment by
     segment (:class:`~graphcal.graph.segmented.SegmentedGraph`), the segments shared out among
     ``workers`` processes (the result does not depend on it); ``progress`` gets a line per
     iteration of a long solve.
@@ -572,7 +573,13 @@ def solve_segment_graph(
     marginal, nuisance = None, {}
     with segmented.parallel(workers):
         iterations = optimize_segmented(
-            segmented, max_iterations, relative_error_tol, label, CalibrationFailed, progress
+            segmented,
+            max_iterations,
+            relative_error_tol,
+            label,
+            CalibrationFailed,
+            progress,
+            gauss_newton_first=bool(shared_start) and initial is None,
         )
         if spec.estimate_theta:
             theta = np.asarray(segmented.shared_values.atVector(keys.THETA))

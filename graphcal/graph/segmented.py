@@ -477,6 +477,7 @@ class SegmentedGraph:
         max_iterations: int,
         relative_error_tol: float,
         progress: Callable[[str], None] | None = None,
+        gauss_newton_first: bool = False,
     ) -> int:
         """Levenberg–Marquardt to convergence from the current values (updated in place);
         returns the iterations used. Raises ``RuntimeError`` from GTSAM (or numpy's
@@ -492,6 +493,9 @@ class SegmentedGraph:
         :meth:`shared_information` without linearizing again (at the sample drive's
         tolerance, within 5e-5 of the covariance at the solution itself).
 
+        ``gauss_newton_first``: the first step is already undamped (values near the optimum,
+        such as a warm start's: no damping to compute).
+
         ``progress`` gets a line per iteration (χ²/dof, damping λ, elapsed time) once the
         solve has run for :data:`PROGRESS_AFTER_S` (a long log's solve shows it is moving;
         a short one prints nothing)."""
@@ -500,7 +504,7 @@ class SegmentedGraph:
         error = self.error()
         shared_scale: np.ndarray | None = None
         lam = LAMBDA_INITIAL
-        undamped = False  # this iteration's step is a Gauss–Newton step
+        undamped = gauss_newton_first  # this iteration's step is a Gauss–Newton step
         gauss_newton = True  # until one fails
         iterations = 0
         while iterations < max_iterations:
@@ -611,11 +615,12 @@ def optimize_segmented(
     label: str,
     error_type: type[GraphcalError] = GraphcalError,
     progress: Callable[[str], None] | None = None,
+    gauss_newton_first: bool = False,
 ) -> int:
     """:meth:`SegmentedGraph.optimize`, GTSAM's and numpy's exceptions turned into
     ``error_type`` with the message ``"<label> failed: <reason>"``; returns the iterations."""
     try:
-        return segmented.optimize(max_iterations, relative_error_tol, progress)
+        return segmented.optimize(max_iterations, relative_error_tol, progress, gauss_newton_first)
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise error_type(f"{label} failed: {reason}") from exc
