@@ -17,8 +17,10 @@ a Schur complement does:
 * the shared variables' marginal covariance is the inverse of the summed reduced information
   at the solution.
 
-The steps are those of :func:`graphcal.graph.solve.solve_lm`'s Python driver on the whole graph
-(the same damping, acceptance and stopping rules), so the result is the same optimum.
+The damping and acceptance rules are those of :func:`graphcal.graph.solve.solve_lm`'s Python
+driver on the whole graph; once a step at the first damping matched its prediction, the
+steps are undamped (Gauss–Newton), and the last one, predicted to lower the error by at most
+the tolerance, leaves its linearization for the covariance. The optimum is the same.
 """
 
 from __future__ import annotations
@@ -158,14 +160,14 @@ class PartGroup:
             self._deltas.append(delta)
         return out
 
-    def try_step(self) -> list[float]:
-        """Each part's error after the last :meth:`step`; the candidate values are kept for
-        :meth:`accept`."""
+    def try_step(self, evaluate: bool = True) -> list[float]:
+        """Each part's error after the last :meth:`step` (with ``evaluate``; else 0); the
+        candidate values are kept for :meth:`accept`."""
         out = []
         self._candidates = []
         for part, delta in zip(self.parts, self._deltas, strict=True):
             candidate = part.values.retract(delta)
-            out.append(float(part.graph.error(candidate)))
+            out.append(float(part.graph.error(candidate)) if evaluate else 0.0)
             self._candidates.append(candidate)
         return out
 
@@ -488,10 +490,11 @@ class SegmentedGraph:
         undamped Gauss–Newton steps; if one fails or is not accepted, the solve damps again
         and stays Levenberg–Marquardt (a log whose parameters are barely determined, such as
         t_r and d on a straight road, needs the damping). The solve stops when an undamped step
-        would lower the error by at most ``relative_error_tol`` of it; that step is taken,
-        and its undamped linearization, a step this small from the solution, gives
-        :meth:`shared_information` without linearizing again (at the sample drive's
-        tolerance, within 5e-5 of the covariance at the solution itself).
+        would lower the error by at most ``relative_error_tol`` of it. That step is taken
+        without evaluating the error (the error after it is the one predicted, exact to
+        far below the tolerance), and its undamped linearization, a step this small from
+        the solution, gives :meth:`shared_information` without linearizing again (at the
+        sample drive's tolerance, within 5e-5 of the covariance at the solution itself).
 
         ``gauss_newton_first``: the first step is already undamped (values near the optimum,
         such as a warm start's: no damping to compute).
@@ -542,9 +545,16 @@ class SegmentedGraph:
                 )
                 small = max(relative_error_tol * error, 1e-12)
                 # A Gauss–Newton step that lowers the error by at most the tolerance is the
-                # last; its undamped linearization gives the covariance.
-                last = undamped and 0 <= predicted <= small
-                information = total[:-1, :-1].copy() if last else None
+                # last; its undamped linearization gives the covariance. It is taken without
+                # evaluating the error: at that size its decrease is its prediction.
+                if undamped and 0 <= predicted <= small:
+                    self._each("try_step", False)
+                    self.shared_values = self.shared_values.retract(_vector_values(step))
+                    self._each("accept")
+                    new_error = error - predicted
+                    self._error, self._information = new_error, total[:-1, :-1].copy()
+                    at_minimum = True
+                    break
                 errors = self._each("try_step")
                 candidate_shared = self.shared_values.retract(_vector_values(step))
                 new_error = float(self.shared_graph.error(candidate_shared)) + math.fsum(errors)
@@ -553,8 +563,7 @@ class SegmentedGraph:
                 if predicted >= 0 and fidelity > MIN_MODEL_FIDELITY and change >= 0:
                     self.shared_values = candidate_shared
                     self._each("accept")
-                    self._error, self._information = new_error, information
-                    at_minimum = last
+                    self._error, self._information = new_error, None
                     # Gauss–Newton next if this step was (or needed no more damping than the
                     # first) and its linearization predicted its decrease well.
                     mild = undamped or lam <= LAMBDA_INITIAL
@@ -563,9 +572,6 @@ class SegmentedGraph:
                     undamped = (
                         gauss_newton and mild and abs(fidelity - 1.0) <= GAUSS_NEWTON_FIDELITY
                     )
-                    break
-                if last:  # the error did not fall (rounding, at the minimum): stay here
-                    new_error, at_minimum, self._information = error, True, information
                     break
                 if undamped:  # the model was not good enough: damp, from now on
                     undamped = gauss_newton = False
