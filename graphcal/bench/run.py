@@ -239,6 +239,17 @@ def run_benchmarks(
             )
         if scaling["exponent"] is not None:
             say(f"(k) time grows as length^{scaling['exponent']:.2f}")
+        end_to_end = scaling["end_to_end"]
+        if end_to_end is not None:
+            for name, label in (("csv_alone", "CSV alone"), ("with_truth", "with its truth")):
+                entry = end_to_end[name]
+                record(
+                    f"(k) graphcal calibrate --method whole, {end_to_end['length_km']:g} km, "
+                    f"{label}",
+                    entry["seconds"],
+                    workers=workers,
+                    process_peak_mb=entry["peak_mb"],
+                )
 
     fleet = None
     if fleet_vehicles > 0:
