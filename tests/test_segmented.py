@@ -11,7 +11,7 @@ from graphcal.data.drive_log import load_drive_log
 from graphcal.data.segments import gather_segments, select_segments, split_segments
 from graphcal.graph import keys
 from graphcal.graph.segment_graph import build_segment_graph, shared_keys, solve_segment_graph
-from graphcal.graph.segmented import SegmentedGraph
+from graphcal.graph.segmented import PartGroup, SegmentedGraph
 from graphcal.graph.solve import marginal_covariance, solve_lm
 from graphcal.pipeline.joint import JointSettings
 
@@ -119,3 +119,48 @@ def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
     assert len(calls) > 1 and calls[1] > calls[0]  # damped more after the failure
     # The same optimum from another damping path: within a thousandth of a sigma.
     assert np.all(np.abs(theta - one.theta) < 1e-3 * one.theta_sigma)
+
+
+def _cubic_graph() -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, int]:
+    """Two parts ``x³ = 1`` tied to a shared key s, started at x = 0.1, where an undamped
+    step overshoots to x ≈ 33."""
+    graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+    s = gtsam.symbol("s", 0)
+    values.insert(s, np.array([1.0]))
+    graph.add(gtsam.PriorFactorVector(s, np.array([1.0]), gtsam.noiseModel.Unit.Create(1)))
+
+    def cubic(_factor, v, H):
+        x = v.atVector(_factor.keys()[0])[0]
+        if H is not None:
+            H[0] = np.array([[3.0 * x * x]])
+        return np.array([x**3 - 1.0])
+
+    for i in range(2):
+        x = gtsam.symbol("x", i)
+        values.insert(x, np.array([0.1]))
+        graph.add(gtsam.CustomFactor(gtsam.noiseModel.Unit.Create(1), [x], cubic))
+        graph.add(
+            gtsam.BetweenFactorVector(x, s, np.zeros(1), gtsam.noiseModel.Isotropic.Sigma(1, 10.0))
+        )
+    return graph, values, s
+
+
+def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
+    graph, values, s = _cubic_graph()
+    damped = SegmentedGraph(graph, values, [s])
+    damped.optimize(100, 1e-12)
+    dampings = []
+    eliminate = PartGroup.eliminate
+
+    def recording(self, lam):
+        dampings.append(lam)
+        return eliminate(self, lam)
+
+    monkeypatch.setattr(PartGroup, "eliminate", recording)
+    first = SegmentedGraph(graph, values, [s])
+    first.optimize(100, 1e-12, gauss_newton_first=True)
+    # The undamped first step overshoots and is not taken; every later step is damped.
+    assert dampings[0] is None and all(lam is not None for lam in dampings[1:])
+    for solved in (damped, first):
+        x = solved.values().atVector(gtsam.symbol("x", 0))[0]
+        assert abs(x - 1.0) < 1e-3

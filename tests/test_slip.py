@@ -58,6 +58,7 @@ def test_slip_screened_on_a_spread_sample_decides_as_the_whole_log(slipping, mon
     sampled = _run(slipping, "auto")
     assert len(whole.data) > 5
     assert sampled.whole.slip_modelled and sampled.whole.slip_statistic > 1.3
+    assert sampled.whole.slip_statistic != whole.whole.slip_statistic  # another sample
     assert abs(sampled.whole.slip_statistic - whole.whole.slip_statistic) < 0.5 * (
         whole.whole.slip_statistic
     )

@@ -44,6 +44,7 @@ def test_the_warm_started_solve_reaches_the_same_optimum(monkeypatch):
     sigma = np.sqrt(np.diag(cold.covariance))
     assert np.all(np.abs(start[keys.THETA] - cold.theta) < 10 * sigma)
     warmed, _ = solve_joint(data, settings)
+    assert warmed.initial_error < 0.5 * cold.initial_error  # it did start there
     # The same optimum: within the solve's tolerance, a few thousandths of σ.
     assert np.all(np.abs(warmed.theta - cold.theta) < 0.01 * sigma)
     np.testing.assert_allclose(warmed.covariance, cold.covariance, rtol=1e-3)

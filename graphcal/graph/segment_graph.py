@@ -296,6 +296,7 @@ def build_segment_graph(
     # 150 m. The nominal theta's path is bent (c_d), and fitting it moves the start away from
     # where the solve converges fast (31 → 50+ iterations on a straight road).
     align = free_start and keys.THETA in shared_start
+    arm = shared_start.get(keys.LEVER_ARM) if spec.lever_arm_sigma is not None else None
     continuity = np.asarray(spec.continuity_sigmas, float)
     tracking = np.asarray(spec.tracking_sigmas, float)
     all_bounds = []
@@ -305,7 +306,7 @@ def build_segment_graph(
         weights = data.weights_of(s)
         nominal = integrate(poses[0], inputs, integrate_with)
         if align:  # a solved theta's path, from where it fits the fixes best
-            nominal = aligned_trajectory(nominal, poses, weights)
+            nominal = aligned_trajectory(nominal, poses, weights, arm)
         bounds = chunk_bounds(len(inputs), spec.chunk_steps)
         all_bounds.append(bounds)
         _insert_segment(values, s, bounds, nominal, spec)
@@ -477,10 +478,13 @@ class ThetaEstimate:
     Attributes:
         theta: ``[c_e, c_d, t_r, d]`` (the fixed one if theta was not a variable).
         covariance: 4×4 marginal covariance of theta (every other variable marginalized),
-            from the graph's information at the solution; ``None`` if not computed.
+            from the graph's information at the solution (or at the linearization of the
+            solve's last Gauss–Newton step, :meth:`SegmentedGraph.optimize
+            <graphcal.graph.segmented.SegmentedGraph.optimize>`); ``None`` if not computed.
         start_states: ``(S, 3)`` estimated (or held) start states.
-        iterations, initial_error, final_error: of the Levenberg–Marquardt run (graph error is
-            half the whitened squared residual).
+        iterations, initial_error, final_error: of the solve (graph error is half the
+            whitened squared residual; after a last Gauss–Newton step, the error it
+            predicted, within far less than the solve's tolerance).
     """
 
     theta: np.ndarray
@@ -549,11 +553,12 @@ def solve_segment_graph(
     """Build the graph of ``spec`` over ``data`` (or take ``built``, that graph already
     built) and solve it with Levenberg–Marquardt, from the builder's initial values (with
     ``shared_start``'s graph-wide variables, :func:`build_segment_graph`) or from
-    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start; from
-    ``shared_start`` the first step is an undamped Gauss–Newton step), segment by
+    ``initial`` (values of the same graph, e.g. an earlier solution: a warm start), segment by
     segment (:class:`~graphcal.graph.segmented.SegmentedGraph`), the segments shared out among
     ``workers`` processes (the result does not depend on it); ``progress`` gets a line per
     iteration of a long solve.
+
+    From ``shared_start`` (graph built here) the first step is an undamped Gauss–Newton step.
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
@@ -561,6 +566,7 @@ def solve_segment_graph(
     Raises:
         CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
     """
+    from_shared_start = built is None and initial is None and bool(shared_start)
     if built is None:
         built = build_segment_graph(data, spec, shared_start)
     start = built.values if initial is None else initial
@@ -579,7 +585,7 @@ def solve_segment_graph(
             label,
             CalibrationFailed,
             progress,
-            gauss_newton_first=bool(shared_start) and initial is None,
+            gauss_newton_first=from_shared_start,
         )
         if spec.estimate_theta:
             theta = np.asarray(segmented.shared_values.atVector(keys.THETA))

@@ -17,10 +17,11 @@ a Schur complement does:
 * the shared variables' marginal covariance is the inverse of the summed reduced information
   at the solution.
 
-The damping and acceptance rules are those of :func:`graphcal.graph.solve.solve_lm`'s Python
-driver on the whole graph; once a step at the first damping matched its prediction, the
-steps are undamped (Gauss–Newton), and the last one, predicted to lower the error by at most
-the tolerance, leaves its linearization for the covariance. The optimum is the same.
+The damped steps follow the rules of :func:`graphcal.graph.solve.solve_lm`'s Python driver on
+the whole graph (the damping's scale: the largest Hessian diagonal seen at a damped
+linearization); once a step at the first damping matched its prediction, the steps are
+undamped (Gauss–Newton), and the last one, predicted to lower the error by at most the
+tolerance, leaves its linearization for the covariance. The optimum is the same.
 """
 
 from __future__ import annotations
@@ -364,7 +365,7 @@ class SegmentedGraph:
         failure: Exception | None = None
         try:
             answers = list(getattr(self.group, method)(*args) or [])
-        except (RuntimeError, np.linalg.LinAlgError) as exc:
+        except Exception as exc:  # raised below, once every worker's answer is read
             failure, answers = exc, []
         for worker in self._remote:  # every worker's answer is read, so the pipes stay in step
             try:
@@ -428,9 +429,9 @@ class SegmentedGraph:
 
     def shared_information(self) -> np.ndarray:
         """The shared variables' information matrix at the current values (every part's
-        variables marginalized), in the order of :attr:`shared`. After :meth:`optimize`,
-        that of its last linearization (one final Gauss–Newton step, of at most the solve's
-        tolerance, before the current values)."""
+        variables marginalized), in the order of :attr:`shared`. After :meth:`optimize`
+        stopped on a final Gauss–Newton step, that of its last linearization (one step, of at
+        most the solve's tolerance, before the current values); else computed at them."""
         if self._information is None:
             total, _, _ = self._system(None)
             self._each("release")
@@ -514,6 +515,7 @@ class SegmentedGraph:
             iterations += 1
             new_error = error
             at_minimum = False
+            how = ""
             while True:
                 try:
                     total, diagonal, shared_linear = self._system(None if undamped else lam)
@@ -547,13 +549,13 @@ class SegmentedGraph:
                 # A Gauss–Newton step that lowers the error by at most the tolerance is the
                 # last; its undamped linearization gives the covariance. It is taken without
                 # evaluating the error: at that size its decrease is its prediction.
-                if undamped and 0 <= predicted <= small:
+                if undamped and abs(predicted) <= small:  # (rounding: slightly below 0)
                     self._each("try_step", False)
                     self.shared_values = self.shared_values.retract(_vector_values(step))
                     self._each("accept")
                     new_error = error - predicted
                     self._error, self._information = new_error, total[:-1, :-1].copy()
-                    at_minimum = True
+                    at_minimum, how = True, "Gauss–Newton"
                     break
                 errors = self._each("try_step")
                 candidate_shared = self.shared_values.retract(_vector_values(step))
@@ -564,6 +566,7 @@ class SegmentedGraph:
                     self.shared_values = candidate_shared
                     self._each("accept")
                     self._error, self._information = new_error, None
+                    how = "Gauss–Newton" if undamped else f"λ {lam:.0e}"
                     # Gauss–Newton next if this step was (or needed no more damping than the
                     # first) and its linearization predicted its decrease well.
                     mild = undamped or lam <= LAMBDA_INITIAL
@@ -577,7 +580,7 @@ class SegmentedGraph:
                     undamped = gauss_newton = False
                     continue
                 if abs(change) < small or lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
-                    new_error, at_minimum = error, True
+                    new_error, at_minimum, how = error, True, f"λ {lam:.0e}"
                     break
                 lam *= LAMBDA_FACTOR
             self._each("release")
@@ -588,7 +591,6 @@ class SegmentedGraph:
             error = new_error
             elapsed = time.perf_counter() - started
             if progress is not None and elapsed >= PROGRESS_AFTER_S:
-                how = "Gauss–Newton" if undamped else f"λ {lam:.0e}"
                 progress(
                     f"  iteration {iterations}: χ²/dof {2.0 * error / dof:.4f}, {how} "
                     f"({elapsed:.0f} s)"

@@ -226,7 +226,8 @@ class JointCalibration(ThetaEstimate):
             ``None`` if every fix kept weight 1.
         slip_modelled: the solve has slip scales.
         slip_statistic: with ``slip = "auto"``, how much adding slip scales lowered χ², per
-            chunk (``None`` otherwise).
+            chunk, on the screened segments (all, or :data:`SLIP_SCREEN_SEGMENTS` spread over
+            a longer log; ``None`` otherwise).
     """
 
     observability: Observability
