@@ -172,6 +172,14 @@ def integrate_with_jacobians(
     return states, d_start, d_theta
 
 
+def lever_offset(heading: np.ndarray | float, arm: np.ndarray) -> np.ndarray:
+    """World offset ``R(ψ) · arm`` ``(..., 2)`` [m] of a point ``arm = [ahead, left]`` [m]
+    from the centre of gravity (a GNSS antenna) at ``heading`` [rad]."""
+    cos, sin = np.cos(heading), np.sin(heading)
+    ahead, left = float(arm[0]), float(arm[1])
+    return np.stack([cos * ahead - sin * left, sin * ahead + cos * left], axis=-1)
+
+
 def aligned_trajectory(
     states: np.ndarray,
     measured: np.ndarray,
@@ -193,11 +201,7 @@ def aligned_trajectory(
     p = states[:, :2]
     a = p
     if lever_arm is not None:
-        cos_psi, sin_psi = np.cos(states[:, 2]), np.sin(states[:, 2])
-        ahead, left = float(lever_arm[0]), float(lever_arm[1])
-        a = p + np.column_stack(
-            [cos_psi * ahead - sin_psi * left, sin_psi * ahead + cos_psi * left]
-        )
+        a = p + lever_offset(states[:, 2], lever_arm)
     b = measured[:, :2]
     # Elementwise sums, not BLAS: the same bits whatever the arrays' memory alignment.
     a_mean = np.sum(w[:, None] * a, axis=0) / total

@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
+from graphcal.model import lever_offset
 
 #: Window [s] of the centred mean of the heading used to rotate the arm: the heading's white
 #: noise (1.5° per 40 Hz sample in the paper) would otherwise move the positions by arm × noise.
@@ -36,10 +37,5 @@ def move_to_centre(log: DriveLog, arm: tuple[float, float]) -> DriveLog:
     ahead, left = float(arm[0]), float(arm[1])
     if ahead == 0.0 and left == 0.0:
         return log
-    heading = smoothed_heading(log)
-    cos, sin = np.cos(heading), np.sin(heading)
-    return dataclasses.replace(
-        log,
-        px=log.px - (cos * ahead - sin * left),
-        py=log.py - (sin * ahead + cos * left),
-    )
+    offset = lever_offset(smoothed_heading(log), np.array([ahead, left]))
+    return dataclasses.replace(log, px=log.px - offset[:, 0], py=log.py - offset[:, 1])

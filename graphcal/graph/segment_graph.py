@@ -54,7 +54,7 @@ from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.segmented import SegmentedGraph, optimize_segmented
 from graphcal.graph.slip import slip_prior_factor, slip_step_factor
 from graphcal.graph.solve import marginal_covariance, solve_lm
-from graphcal.model import aligned_trajectory, integrate
+from graphcal.model import aligned_trajectory, integrate, lever_offset
 
 
 @dataclass(frozen=True)
@@ -178,10 +178,7 @@ class SegmentGraph:
             arm = np.zeros(2)
             if self.spec.lever_arm_sigma is not None:
                 arm = np.asarray(result.atVector(keys.LEVER_ARM))
-            cos, sin = np.cos(starts[:, 2]), np.sin(starts[:, 2])
-            antenna = starts[:, :2] + np.column_stack(
-                [cos * arm[0] - sin * arm[1], sin * arm[0] + cos * arm[1]]
-            )
+            antenna = starts[:, :2] + lever_offset(starts[:, 2], arm)
             out[:, 0] = antenna - data.poses[:, 0, :2]
         return out
 
