@@ -50,7 +50,6 @@ _PUBLIC = {
     "VehicleProfile": "graphcal.vehicle",
     "load_vehicle": "graphcal.pipeline.settings",
     "apply_vehicle": "graphcal.pipeline.settings",
-    "for_derived_heading": "graphcal.pipeline.settings",
     "run_calibration": "graphcal.pipeline.run",
     "CalibrationRun": "graphcal.pipeline.run",
     "wheel_model": "graphcal.pipeline.run",

@@ -390,9 +390,7 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """Calibrate theta from a drive log and write results, figures and a summary."""
-    from graphcal.data.importer import heading_derived
     from graphcal.pipeline.run import run_calibration
-    from graphcal.pipeline.settings import for_derived_heading
     from graphcal.report.result_set import check_output_directory
     from graphcal.report.results import summary_text, write_results
 
@@ -409,12 +407,6 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     workers = args.workers or default_workers()
     say = _timed_progress()
     log, imported = _load(args, settings, min_distance=settings.segments.length)
-    if imported.resampled.heading_derived if imported else heading_derived(args.log):
-        settings = for_derived_heading(settings)
-        say(
-            "heading derived from the GNSS course, not measured: calibrating with heading "
-            f"weight {settings.joint.pose_weights[2]:g} (the positions carry the information)"
-        )
     what = "imported" if imported else "loaded"
     distance = log.travelled_distance(settings.vehicle.theta_nominal[0])[-1]
     say(f"{what} {args.log}: {len(log)} samples, {distance:.0f} m")

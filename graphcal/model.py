@@ -325,3 +325,64 @@ def end_wheel_rotation_jacobian(
     jy = direct_y + domega_dn * lever_x
     jx, jy, jpsi = np.broadcast_arrays(jx, jy, domega_dn)
     return np.stack([jx, jy, jpsi], axis=-3)
+
+
+def partial_steps(
+    states: np.ndarray,
+    inputs: np.ndarray,
+    theta: np.ndarray,
+    fraction: np.ndarray,
+    jacobians: bool = False,
+) -> tuple[np.ndarray, ...]:
+    """States part-way through each step: eq. (1) from state ``k`` with step ``k``'s wheel
+    rotations scaled by ``fraction`` — where a measurement taken between two samples is
+    predicted (a GNSS fix at its own time).
+
+    Args:
+        states: ``(..., K+1, 3)`` from :func:`integrate` (only rows ``0..K-1`` are read).
+        inputs: ``(..., K, 4)``, the steps' inputs (the sideslip and lateral acceleration are
+            held over the step; scaling the rotations scales ``v`` and ``omega`` of eq. 2).
+        theta: ``(4,)`` or ``(..., 4)``.
+        fraction: ``(..., K)`` in ``(0, 1]``: 1 is state ``k+1`` itself (returned exactly).
+
+    Returns:
+        ``partial (..., K, 3)``; with ``jacobians`` also ``d partial / d state_k
+        (..., K, 3, 3)``, the direct ``d partial / d theta (..., K, 3, 4)`` and the direct
+        ``d partial / d [n_rl, n_rr]_k (..., K, 3, 2)`` (through step k's own rotations; the
+        earlier steps act through ``state_k``). The course of the part-step is
+        ``psi_k + f omega_k / 2 + beta_k``, eq. (1)'s midpoint rule over the part.
+    """
+    states = np.asarray(states, dtype=float)
+    inputs = np.asarray(inputs, dtype=float)
+    f = np.asarray(fraction, dtype=float)
+    v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
+    start = states[..., :-1, :]
+    course = start[..., 2] + 0.5 * f * omega + inputs[..., BETA]
+    cos_c, sin_c = np.cos(course), np.sin(course)
+    fv = f * v
+    out = np.empty(start.shape)
+    out[..., 0] = start[..., 0] + fv * cos_c
+    out[..., 1] = start[..., 1] + fv * sin_c
+    out[..., 2] = start[..., 2] + f * omega
+    whole = f == 1.0
+    out[whole] = states[..., 1:, :][whole]
+    if not jacobians:
+        return (out,)
+    d_state = np.zeros((*out.shape, 3))
+    d_state[..., 0, 0] = d_state[..., 1, 1] = d_state[..., 2, 2] = 1.0
+    d_state[..., 0, 2] = -fv * sin_c
+    d_state[..., 1, 2] = fv * cos_c
+
+    def direct(dv: np.ndarray, domega: np.ndarray) -> np.ndarray:
+        g, c, s = f[..., None], cos_c[..., None], sin_c[..., None]
+        half_turn = 0.5 * g * domega
+        return np.stack(
+            [
+                g * (dv * c - v[..., None] * s * half_turn),
+                g * (dv * s + v[..., None] * c * half_turn),
+                g * domega,
+            ],
+            axis=-2,
+        )
+
+    return out, d_state, direct(dv_dth, domega_dth), direct(dv_dn, domega_dn)

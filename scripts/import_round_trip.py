@@ -25,7 +25,7 @@ from graphcal.data.importer import import_recording
 from graphcal.evaluation import Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings, for_derived_heading
+from graphcal.pipeline.settings import Settings
 from graphcal.simulate.drive import simulate_drive
 from graphcal.simulate.streams import simulate_streams, write_streams
 
@@ -72,10 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         with tempfile.TemporaryDirectory() as tmp:
             path = _source_path(source, sim, Path(tmp))
             imported = import_recording(path)
-        settings = Settings()
-        if imported.resampled.heading_derived:  # as `graphcal calibrate` does
-            settings = for_derived_heading(settings)
-        run = run_calibration(imported.log, settings, method="whole", workers=args.workers)
+        run = run_calibration(imported.log, Settings(), method="whole", workers=args.workers)
         sigma = np.sqrt(np.diag(run.covariance))
         z = evaluate(run, Truth(sim.drive.theta_true)).theta_error / sigma
         cells = "  ".join(

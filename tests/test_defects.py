@@ -77,8 +77,25 @@ def test_outliers_move_half_a_percent_of_the_fixes_by_10_to_50_m(short):
     assert np.ptp(direction) > np.pi  # all around, not one way
 
 
+def test_gnss_rate_writes_each_fix_once_at_its_own_time(short):
+    """gnss10hz: a 10 Hz fix in every 4th row of the 40 Hz log, at its own time within the
+    step before (``t_fix``), the other rows without a position; as a CSV and back alike."""
+    sparse = degrade(short, parse_defects("gnss10hz"), seed=4).measured
+    fixes = sparse.position_measured
+    assert fixes.mean() == pytest.approx(0.25, abs=0.01)
+    assert sparse.fix_lag is not None and np.all(sparse.fix_lag[fixes] < 0.025)
+    interpolated = degrade(short, parse_defects("interpolated"), seed=4).measured
+    assert interpolated.measured is None
+    # the same fixes: between them the track is the interpolated log itself, and a fix row
+    # holds the fix, not the interpolated value at the row (off by the travel within its lag
+    # and a share of the next fix's noise)
+    np.testing.assert_array_equal(sparse.px[~fixes], interpolated.px[~fixes])
+    apart = np.hypot(sparse.px - interpolated.px, sparse.py - interpolated.py)[fixes]
+    assert (apart > 0).mean() > 0.99 and np.all(apart < 1.0)
+
+
 def test_gnss_rate_interpolates_and_hold_repeats_the_fixes(short):
-    interpolated = degrade(short, parse_defects("gnss10hz"), seed=4).measured
+    interpolated = degrade(short, parse_defects("interpolated"), seed=4).measured
     held = degrade(short, parse_defects("hold"), seed=4).measured
     # Linear between 10 Hz fixes: of four 40 Hz steps, the one across a fix differs from the
     # steps before and after it, and the other two pairs of steps are equal.

@@ -183,3 +183,51 @@ def test_unrelated_json_next_to_the_log_is_not_a_sidecar(drive, tmp_path, capsys
         (tmp_path / "log.json").write_text(text)
         assert read_sidecar(path) is None
     assert main(["check", str(path)]) == 0
+
+
+def test_sparse_fixes_round_trip_through_the_csv(tmp_path):
+    """Rows without a fix leave px, py empty, rows without a heading psi; a fix between rows
+    keeps its time in t_fix: written and read back, the same measurements at the same times."""
+    from graphcal.simulate.defects import degrade, parse_defects
+    from graphcal.simulate.drive import simulate_drive
+
+    sparse = degrade(simulate_drive(1.0, seed=2), parse_defects("gnss10hz"), seed=3).measured
+    path = tmp_path / "sparse.csv"
+    write_drive_log(sparse, path)
+    frame = pd.read_csv(path)
+    assert frame["px"].isna().mean() == pytest.approx(0.75, abs=0.01)
+    assert "t_fix" in frame.columns
+    back = load_drive_log(path)
+    np.testing.assert_array_equal(back.measured, sparse.measured)
+    np.testing.assert_allclose(back.fix_lag, sparse.fix_lag, atol=1e-9)
+    fixes = back.position_measured
+    np.testing.assert_array_equal(back.px[fixes], sparse.px[fixes])
+
+
+@pytest.mark.parametrize(
+    "change, column, what",
+    [
+        ({"py": ""}, "py", "empty where the other coordinate is given"),
+        ({"t_fix": "0.2"}, "t_fix", "not after the previous row's t"),
+    ],
+)
+def test_sparse_fix_mistakes_are_one_line(tmp_path, change, column, what):
+    rows = ["t,px,py,psi,n_rl,n_rr,beta,ay,t_fix"]
+    for k in range(300):
+        t = 0.025 * k
+        fix = k % 4 == 0
+        cells = [f"{t:.3f}", f"{0.5 * k:.3f}" if fix else "", "0" if fix else "", ""]
+        cells += ["0.1", "0.1", "0", "0", f"{t - 0.01:.3f}" if fix and k else ""]
+        rows.append(",".join(cells))
+    line = 4 * 10 + 1  # row k = 40, a fix row
+    cells = rows[line].split(",")
+    names = rows[0].split(",")
+    for name, value in change.items():
+        cells[names.index(name)] = value
+    rows[line] = ",".join(cells)
+    path = tmp_path / "bad.csv"
+    path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(DriveLogError, match=what) as raised:
+        load_drive_log(path)
+    message = str(raised.value)
+    assert f"column '{column}', line {line + 1}" in message and "\n" not in message

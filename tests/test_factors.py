@@ -341,3 +341,60 @@ def test_chunk_factor_needs_something_to_compare_with(segment):
         ChunkOdometryFactor(chunk, segment[0][0], T)
     with pytest.raises(ValueError, match="theta must be a key"):
         ChunkOdometryFactor(OdometryChunk(segment[1][:5], segment[0][:6]), X0, np.zeros(3))
+
+
+@pytest.mark.parametrize("end", [True, False])
+def test_chunk_factor_with_fixes_between_samples_and_missing_components(segment, end, rng):
+    """Sparse fixes at their own times (part-way through steps), some samples without a
+    fix, no heading at most: Jacobians of every slot against numerical derivatives."""
+    poses, inputs = segment[0][:31], segment[1][:30]
+    OFFSET, A, S = gtsam.symbol("o", 0), gtsam.symbol("a", 0), gtsam.symbol("s", 0)
+    rates = rotation_rate_changes(inputs[:, :2], 0.025)
+    fractions = rng.uniform(0.05, 1.0, 30)
+    fractions[::7] = 1.0  # some fixes on the samples
+    measured = np.zeros((31, 2), bool)
+    measured[::4, 0] = True  # a position fix every 4th sample
+    measured[::8, 1] = True  # a heading every 8th
+    chunk = OdometryChunk(inputs, poses, float(poses[0, 2]), rates, fractions, measured)
+    factor = ChunkOdometryFactor(
+        chunk,
+        X0,
+        T,
+        corrections=C(0),
+        end=X1 if end else None,
+        slip=S,
+        time_offset=OFFSET,
+        lever_arm=A,
+    ).factor()
+    positions, headings = measured[1:, 0].sum(), measured[1:, 1].sum()
+    assert factor.dim() == 2 * positions + headings + (3 if end else 0)
+    values = gtsam.Values()
+    values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
+    if end:
+        values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
+    values.insert(C(0), rng.normal(0, 1e-3, 60))
+    values.insert(T, THETA)
+    values.insert(S, np.array([1e-3, -2e-3]))
+    values.insert(OFFSET, np.array([0.04]))
+    values.insert(A, np.array([1.2, -0.4]))
+    assert_jacobians(factor, values)
+
+
+def test_a_fix_part_way_through_a_step_is_eq_1_with_the_rotation_scaled(segment):
+    """The prediction of a fix at fraction f of step k is eq. (1) from state k with the
+    step's rotations times f: at f = 1 exactly state k+1, between the two in between."""
+    from graphcal.model import integrate, partial_steps
+
+    poses, inputs = segment[0][:11], segment[1][:10]
+    states = integrate(poses[0], inputs, THETA)
+    whole = partial_steps(states, inputs, THETA, np.ones(10))[0]
+    np.testing.assert_array_equal(whole, states[1:])
+    half = partial_steps(states, inputs, THETA, np.full(10, 0.5))[0]
+    scaled = inputs.copy()
+    scaled[:, :2] *= 0.5
+    for k in range(10):
+        expected = integrate(states[k], scaled[k : k + 1], THETA)[1]
+        np.testing.assert_allclose(half[k], expected, atol=1e-12)
+    travelled = np.linalg.norm(half[:, :2] - states[:-1, :2], axis=1)
+    step = np.linalg.norm(states[1:, :2] - states[:-1, :2], axis=1)
+    np.testing.assert_allclose(travelled, 0.5 * step, rtol=1e-4)

@@ -46,11 +46,16 @@ def csv_sigma():
 
 
 def _within_3_sigma_and_as_tight_as_csv(log, theta_true, csv_sigma) -> None:
+    """Within 3σ of the truth, with the σ that a quarter of the fixes allows: the 10 Hz fixes
+    count once each (not four times, as interpolated to 40 Hz they did), so c_e, which the
+    positions determine, has up to √4 = 2× the 40 Hz CSV's σ (measured 2.10×, the fixes
+    also carry no heading row where they fall between samples); the others, which the wheels
+    and the heading carry, at most 1.25×."""
     run = run_calibration(log, method="whole", workers=1)
     error = evaluate(run, Truth(theta_true)).theta_error
     sigma = np.sqrt(np.diag(run.covariance))
     assert np.all(np.abs(error) < 3 * sigma), error / sigma
-    assert np.all(sigma <= 1.2 * csv_sigma), sigma / csv_sigma
+    assert np.all(sigma <= np.array([2.3, 1.25, 1.25, 1.25]) * csv_sigma), sigma / csv_sigma
 
 
 @pytest.fixture()
@@ -210,21 +215,24 @@ def test_calibrate_takes_a_manifest_and_compares_with_its_truth(streams_dir, tmp
     assert "true" in printed and (out / "calibration.json").exists()
 
 
-def test_a_heading_derived_from_the_course_is_not_weighted_as_a_measurement(
-    recording, tmp_path, capsys
-):
+def test_without_a_logged_heading_only_positions_are_measured(recording, tmp_path, capsys):
+    """No heading is derived as a measurement: the CSV leaves psi empty, each fix is in the
+    log once at its own time, and the calibration is within 3σ with unchanged weights."""
     text = (recording / "manifest.toml").read_text()
     for line in ('heading = "heading"', 'heading_unit = "deg"', 'heading_convention = "compass"'):
         text = text.replace(line + "\n", "")
     (recording / "manifest.toml").write_text(text)
     out = tmp_path / "drive.csv"
     assert main(["import", str(recording / "manifest.toml"), "--out", str(out)]) == 0
-    assert "derived from the GNSS course" in capsys.readouterr().out
+    assert "heading not logged: positions only" in capsys.readouterr().out
+    frame = pd.read_csv(out)
+    assert frame["psi"].isna().all()
+    fixes = frame["px"].notna()
+    gnss = pd.read_csv(recording / "gnss.csv")
+    assert abs(int(fixes.sum()) - len(gnss)) <= 2  # each fix once (the overlap's ends aside)
     assert main(["calibrate", str(out), "--method", "whole", "--out", str(tmp_path / "r")]) == 0
-    captured = capsys.readouterr()
-    assert "calibrating with heading weight 0.01" in captured.err
     result = json.loads((tmp_path / "r" / "calibration.json").read_text())
-    assert result["settings"]["joint"]["pose_weights"] == [1.0, 1.0, 0.01]
+    assert result["settings"]["joint"]["pose_weights"] == [1.0, 1.0, 50.0]
     error = np.array([result["theta_error"][n] for n in ("c_e", "c_d", "t_r", "d")])
     sigma = np.array([result["parameters"][n]["sigma"] for n in ("c_e", "c_d", "t_r", "d")])
     assert np.all(np.abs(error) < 3 * sigma), error / sigma
@@ -369,11 +377,13 @@ def test_a_heading_offset_warns_or_is_refused(recording, tmp_path, capsys, degre
         )
 
 
-def test_slow_gnss_and_short_overlap_are_warned_about(recording):
+def test_slow_gnss_is_fixes_at_their_times_and_short_overlap_is_warned_about(recording):
+    """A 1 Hz GNSS needs no warning: each fix is in the log once, at its own time."""
     gnss = pd.read_csv(recording / "gnss.csv")
     gnss.iloc[::10].to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
-    warnings = " | ".join(import_recording(recording / "manifest.toml").warnings)
-    assert "the pose stream runs at 1.0 Hz" in warnings
+    imported = import_recording(recording / "manifest.toml")
+    assert not any("Hz" in w for w in imported.warnings)
+    assert abs(int(imported.log.position_measured.sum()) - len(gnss.iloc[::10])) <= 1
     gnss.iloc[:400].to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
     warnings = " | ".join(import_recording(recording / "manifest.toml").warnings)
     assert "the streams overlap for 40 s of the 415 s" in warnings

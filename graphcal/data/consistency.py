@@ -133,22 +133,24 @@ def inconsistent_samples(
     travelled = np.concatenate([[0.0], np.cumsum(wheels)])
     margin = max(1, round(SPIKE_MARGIN_S / log.dt))
     steps = np.hypot(np.diff(log.px), np.diff(log.py))
-    same = np.concatenate([[False], steps == 0.0])  # sample k repeats sample k-1
-    # A receiver at a lower rate than the log repeats each fix (sample-and-hold): only a hold
-    # much longer than the log's usual one is a frozen fix.
-    fixes = np.flatnonzero(~same)
+    # The rows holding a fix (every row of a uniform log), and which of them repeat the fix
+    # before (a receiver at a lower rate than the log, sample-and-hold, or a frozen one).
+    rows = np.flatnonzero(log.position_measured)
+    same = np.concatenate([[False], np.hypot(np.diff(log.px[rows]), np.diff(log.py[rows])) == 0])
+    fixes = rows[~same]
     fix_interval = float(np.median(np.diff(log.t[fixes]))) if len(fixes) > 1 else log.dt
+    # Only a hold much longer than the log's usual one is a frozen fix.
     frozen_min_s = max(FROZEN_MIN_S, 5.0 * fix_interval)
     frozen = np.zeros(n, dtype=bool)
     for a, b in runs(same):
-        first = a - 1  # the fix that is repeated
-        if log.t[b] - log.t[first] >= frozen_min_s and travelled[b] - travelled[first] >= (
-            FROZEN_MIN_DISTANCE
+        first, last = rows[a - 1], rows[b]  # the fix that is repeated, its last repeat
+        if log.t[last] - log.t[first] >= frozen_min_s and (
+            travelled[last] - travelled[first] >= FROZEN_MIN_DISTANCE
         ):
-            frozen[first : b + 1] = True
+            frozen[first : last + 1] = True
             notes.append(
-                f"position frozen at t = {log.t[first]:.1f}–{log.t[b]:.1f} s while the wheels "
-                f"travelled {travelled[b] - travelled[first]:.0f} m: a held fix"
+                f"position frozen at t = {log.t[first]:.1f}–{log.t[last]:.1f} s while the "
+                f"wheels travelled {travelled[last] - travelled[first]:.0f} m: a held fix"
             )
     # Spikes: each distinct fix against the previous one, over the wheels' travel between them.
     jump = np.hypot(np.diff(log.px[fixes]), np.diff(log.py[fixes]))
@@ -178,17 +180,32 @@ def inconsistent_samples(
             f"{steps[a : max(a + 1, b)].max():.1f} m where the wheels moved "
             f"{wheels[a : max(a + 1, b)].max():.2f} m): spike"
         )
-    # Heading against the yaw the wheels imply, per step (nominal theta).
+    # Heading against the yaw the wheels imply (nominal theta), from each measured heading to
+    # the next: per step in a uniform log.
     wheel_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * nominal[0] / nominal[2]
-    yaw_excess = np.abs(np.diff(log.psi) - wheel_yaw)
-    yaw_noise = 1.4826 * np.median(np.abs(yaw_excess - np.median(yaw_excess)))
+    headings = np.flatnonzero(log.heading_measured)
+    if len(headings) == n:
+        yaw_excess = np.abs(np.diff(log.psi) - wheel_yaw)
+    else:
+        turned = np.concatenate([[0.0], np.cumsum(wheel_yaw)])[headings]
+        yaw_excess = np.abs(np.diff(log.psi[headings]) - np.diff(turned))
+    step_excess = yaw_excess  # per step, for the notes
+    if len(headings) < n:
+        step_excess = np.zeros(n - 1)
+        step_excess[headings[1:] - 1] = yaw_excess
     turns = np.zeros(n, dtype=bool)
-    for k in np.flatnonzero(yaw_excess > max(HEADING_EXCESS, 10.0 * yaw_noise)):
-        turns[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
+    if len(yaw_excess):
+        yaw_noise = 1.4826 * np.median(np.abs(yaw_excess - np.median(yaw_excess)))
+        for k in np.flatnonzero(yaw_excess > max(HEADING_EXCESS, 10.0 * yaw_noise)):
+            if len(headings) < n:  # the samples between the two headings
+                k0, k1 = headings[k], headings[k + 1]
+                turns[max(0, k0 - margin + 1) : min(n, k1 + margin)] = True
+            else:
+                turns[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
     for a, b in runs(turns & ~frozen & ~spikes):
         notes.append(
             f"heading jumps at t = {log.t[a]:.1f}–{log.t[b]:.1f} s (by up to "
-            f"{np.degrees(yaw_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
+            f"{np.degrees(step_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
         )
     mask = frozen | spikes | turns
     return mask, notes, outlying & ~mask

@@ -9,6 +9,14 @@
 Row ``k``'s inputs drive the step from row ``k`` to row ``k+1`` (eq. 1), so the last row's
 inputs are unused. Extra columns are ignored. :func:`load_drive_log` validates the file and
 raises :class:`DriveLogError` with one line naming the file, the column and the first bad line.
+
+**Sparse measurements.** The wheel rotations are the uniform grid; the pose need not be: a
+row without a fix leaves ``px`` and ``py`` empty, a row without a heading leaves ``psi``
+empty, and a fix taken between two rows keeps its own time in the optional column
+``t_fix`` (after the previous row's ``t``, at most its own row's). Each measurement is then
+used once, at its own time (:class:`DriveLog` ``measured`` and ``fix_lag``); the pose at
+the other rows is a track for cutting and initial values, never a measurement
+(:mod:`graphcal.data.track`).
 """
 
 from __future__ import annotations
@@ -23,6 +31,7 @@ import numpy as np
 import pandas as pd
 
 from graphcal.data.consistency import MAX_MASKED_SHARE, runs, screen
+from graphcal.data.track import fill_track
 from graphcal.errors import GraphcalError, first_line
 from graphcal.files import atomic_write_csv
 from graphcal.model import THETA_NOMINAL
@@ -30,6 +39,10 @@ from graphcal.model import THETA_NOMINAL
 COLUMNS = ("t", "px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
 #: Optional column: 1 marks a sample no segment may span (e.g. a gap an import carried over).
 MASK_COLUMN = "masked"
+#: Optional column: the time [s] of the row's fix when it was taken between two rows.
+FIX_TIME_COLUMN = "t_fix"
+#: Columns that may be empty in a row (no fix, no heading there).
+SPARSE_COLUMNS = ("px", "py", "psi")
 
 #: Relative tolerance on the sampling interval before a log counts as non-uniform: 25 % lets
 #: timestamp jitter through (±3 ms per sample at 40 Hz) but stops at a dropped sample.
@@ -62,6 +75,11 @@ class DriveLog:
     masked sample. ``outlying`` marks isolated position spikes (a fix off the track and the
     next one back on it, e.g. multipath): segments keep them, calibration gives them no
     weight.
+
+    ``measured`` ``(N, 2)`` says which rows measured the position and the heading (``None``:
+    every row both, a uniform log), ``fix_lag`` ``(N,)`` [s] how long before the row's time
+    its measurement was taken (``None``: at it). Where a component was not measured,
+    ``px``, ``py``, ``psi`` hold the track (:mod:`graphcal.data.track`), not a measurement.
     """
 
     t: np.ndarray
@@ -76,15 +94,49 @@ class DriveLog:
     masked: np.ndarray | None = field(default=None, compare=False)
     mask_notes: tuple[str, ...] = field(default=(), compare=False)
     outlying: np.ndarray | None = field(default=None, compare=False)
+    measured: np.ndarray | None = field(default=None, compare=False)
+    fix_lag: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
         if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:
             raise ValueError(f"DriveLog columns must be equally long 1-D arrays, got {lengths}")
-        for name in ("masked", "outlying"):
+        for name in ("masked", "outlying", "fix_lag"):
             flags = getattr(self, name)
             if flags is not None and np.shape(flags) != lengths["t"]:
                 raise ValueError(f"DriveLog.{name} must have one entry per sample")
+        if self.measured is not None and np.shape(self.measured) != (len(self.t), 2):
+            raise ValueError("DriveLog.measured must be (N, 2) booleans [position, heading]")
+
+    @property
+    def sparse(self) -> bool:
+        """Some rows lack a measured position or heading, or measured it between rows."""
+        return self.measured is not None or self.fix_lag is not None
+
+    @property
+    def position_measured(self) -> np.ndarray:
+        """``(N,)``: the row holds a position fix."""
+        if self.measured is None:
+            return np.ones(len(self.t), bool)
+        return np.asarray(self.measured[:, 0], bool)
+
+    @property
+    def heading_measured(self) -> np.ndarray:
+        """``(N,)``: the row holds a measured heading."""
+        if self.measured is None:
+            return np.ones(len(self.t), bool)
+        return np.asarray(self.measured[:, 1], bool)
+
+    @property
+    def fix_fraction(self) -> np.ndarray | None:
+        """``(N,)`` in ``(0, 1]``: where in the step before each row its measurement was
+        taken (1: at the row; row 0 is always 1), or ``None`` for every one at its row."""
+        if self.fix_lag is None:
+            return None
+        step = np.diff(self.t)
+        fraction = np.ones(len(self.t))
+        fraction[1:] = 1.0 - self.fix_lag[1:] / step
+        return fraction
 
     def __len__(self) -> int:
         return len(self.t)
@@ -111,8 +163,16 @@ class DriveLog:
         return np.concatenate([[0.0], np.cumsum(per_step)])
 
     def to_dataframe(self) -> pd.DataFrame:
-        """The log as a DataFrame with the format's columns (and ``masked`` if any is)."""
+        """The log as a DataFrame with the format's columns (and ``masked`` if any is); rows
+        without a measured position or heading leave those cells empty (NaN), and a fix
+        between rows has its time in ``t_fix``."""
         frame = pd.DataFrame({name: getattr(self, name) for name in COLUMNS})
+        if self.measured is not None:
+            frame.loc[~self.position_measured, ["px", "py"]] = np.nan
+            frame.loc[~self.heading_measured, "psi"] = np.nan
+        if self.fix_lag is not None:
+            any_measured = self.position_measured | self.heading_measured
+            frame[FIX_TIME_COLUMN] = np.where(any_measured, self.t - self.fix_lag, np.nan)
         if self.masked is not None:
             frame[MASK_COLUMN] = self.masked.astype(np.int8)
         return frame
@@ -217,6 +277,8 @@ def validate_frame(
                     "every value must be a number",
                 )
         not_finite = ~np.isfinite(numeric)
+        if column in SPARSE_COLUMNS:  # empty: no measurement in that row
+            not_finite &= ~np.isnan(numeric)
         if not_finite.any():
             row = _first(not_finite)
             raise _fail(
@@ -267,16 +329,19 @@ def validate_frame(
             "resample the log to a uniform rate (gaps must be cut into separate logs)",
         )
 
-    psi = arrays["psi"]
+    measured, lag = _measured_components(frame, arrays, source)
+    psi = arrays["psi"][measured[:, 1]]
     jumps = np.abs(np.diff(psi))
     degree_wrap = (jumps > 4.0 * np.pi) & (jumps < 3.0 * 360.0)
     if degree_wrap.any():
         row = _first(degree_wrap) + 1
+        row = int(np.flatnonzero(measured[:, 1])[row])
         raise _fail(
             source,
             "psi",
             row,
-            f"heading jumps by {jumps[row - 1]:.4g}, apparently degrees wrapping at 360",
+            f"heading jumps by {jumps[_first(degree_wrap)]:.4g}, apparently degrees wrapping "
+            "at 360",
             "convert the heading to radians (multiply by pi/180)",
         )
 
@@ -321,9 +386,24 @@ def validate_frame(
                 "in degrees (take the difference between rows)",
             )
 
-    arrays["psi"] = np.unwrap(psi)
+    sparse = not measured.all() or lag is not None
+    if sparse:
+        travelled = np.concatenate(
+            [[0.0], np.cumsum(0.5 * (arrays["n_rl"] + arrays["n_rr"])[:-1] * nominal[0])]
+        )
+        arrays["px"], arrays["py"], arrays["psi"] = fill_track(
+            t, arrays["px"], arrays["py"], arrays["psi"], measured, lag, travelled
+        )
+    arrays["psi"] = np.unwrap(arrays["psi"])
     marked, marked_notes = _marked_samples(frame, source, marked, marked_notes, t)
-    log = DriveLog(**arrays, source=source, masked=marked, mask_notes=marked_notes)
+    log = DriveLog(
+        **arrays,
+        source=source,
+        masked=marked,
+        mask_notes=marked_notes,
+        measured=measured if not measured.all() else None,
+        fix_lag=lag,
+    )
     _check_heading_units(log, nominal=nominal)
     try:
         # positions checked against the wheels: refused, masked or clean
@@ -351,6 +431,63 @@ def validate_frame(
                 "use a longer drive or a shorter --segment-length",
             )
     return log
+
+
+def _measured_components(
+    frame: pd.DataFrame, arrays: dict[str, np.ndarray], source: str
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """Which rows measured the position and the heading ``(N, 2)``, and each row's fix lag
+    [s] (``None``: every measurement at its row) from the ``t_fix`` column."""
+    px, py = np.isfinite(arrays["px"]), np.isfinite(arrays["py"])
+    half = px != py
+    if half.any():
+        row = _first(half)
+        column = "py" if px[row] else "px"
+        raise _fail(
+            source,
+            column,
+            row,
+            "empty where the other coordinate is given",
+            "give both px and py of a fix, or leave both empty in a row without one",
+        )
+    measured = np.column_stack([px, np.isfinite(arrays["psi"])])
+    if px.sum() < 2:
+        raise _fail(
+            source,
+            "px",
+            None,
+            f"only {int(px.sum())} row(s) hold a position",
+            "a log needs position fixes along the drive",
+        )
+    if FIX_TIME_COLUMN not in frame.columns:
+        return measured, None
+    t = arrays["t"]
+    t_fix = pd.to_numeric(frame[FIX_TIME_COLUMN], errors="coerce").to_numpy(dtype=float)
+    has_time = np.isfinite(t_fix)
+    lag = np.where(has_time, t - np.where(has_time, t_fix, t), 0.0)
+    step = np.concatenate([[0.0], np.diff(t)])
+    outside = has_time & ((lag < 0) | (lag >= step) & (lag > 0))
+    if outside.any():
+        row = _first(outside)
+        raise _fail(
+            source,
+            FIX_TIME_COLUMN,
+            row,
+            f"fix time {t_fix[row]:.9g} s is not after the previous row's t and at most this "
+            f"row's t = {t[row]:.9g} s",
+            "write each fix in the first row at or after its time",
+        )
+    unused = has_time & ~measured.any(axis=1)
+    if unused.any():
+        row = _first(unused)
+        raise _fail(
+            source,
+            FIX_TIME_COLUMN,
+            row,
+            "a fix time in a row without px, py or psi",
+            "leave t_fix empty where the row holds no measurement",
+        )
+    return measured, (lag if (lag > 0).any() else None)
 
 
 def _marked_samples(

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
+from graphcal.model import THETA_NOMINAL
 
 #: White noise has second differences of the same spread over one and over two steps; a
 #: heading interpolated or held from a slower stream has much wider ones over two steps. Above
@@ -22,11 +23,17 @@ MAX_WIDE_RATIO = 1.5
 MIN_HEADING_SIGMA = np.deg2rad(0.01)
 
 
-def heading_noise(log: DriveLog) -> float | None:
+def heading_noise(log: DriveLog, nominal: np.ndarray | None = None) -> float | None:
     """Robust sigma [rad] of the measured heading's white noise, from its second differences
     away from masked samples (``1.4826 · MAD / √6``), or ``None`` for a log too short or
     a heading interpolated or held from a slower stream (its noise is not white per sample;
-    the configured heading weight stays)."""
+    the configured heading weight stays). A log whose headings are not at every sample
+    (sparse measurements) is measured on its own heading samples only, against the yaw of
+    the wheels (:func:`sparse_heading_noise`; ``nominal``: the vehicle's theta)."""
+    if log.sparse:
+        if not log.heading_measured.any():
+            return None
+        return sparse_heading_noise(log, THETA_NOMINAL if nominal is None else nominal)
     second = np.diff(log.psi, 2)
     usable = np.ones(len(second), dtype=bool)
     if log.masked is not None:
@@ -44,3 +51,29 @@ def heading_noise(log: DriveLog) -> float | None:
 def _mad(values: np.ndarray) -> float:
     """Median absolute deviation."""
     return float(np.median(np.abs(values - np.median(values))))
+
+
+def sparse_heading_noise(log: DriveLog, nominal: np.ndarray) -> float | None:
+    """Heading noise [rad] of a log with heading samples at their own times: the second
+    differences of ``measured heading − wheel yaw`` over consecutive heading samples (the
+    wheels' yaw, nominal theta, at each sample's own time, removes the motion, which a
+    heading at 1–10 Hz would otherwise confuse with noise). ``None`` for fewer than 100
+    usable samples."""
+    rows = np.flatnonzero(log.heading_measured)
+    step_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * nominal[0] / nominal[2]
+    wheel_yaw = np.concatenate([[0.0], np.cumsum(step_yaw)])
+    at_fix = wheel_yaw[rows]
+    if log.fix_lag is not None:  # back to the sample's own time within the step before
+        before = np.maximum(rows - 1, 0)
+        at_fix = at_fix - log.fix_lag[rows] / np.diff(log.t).clip(min=1e-12)[before] * (
+            step_yaw[before] * (rows > 0)
+        )
+    second = np.diff(log.psi[rows] - at_fix, 2)
+    usable = np.ones(len(second), dtype=bool)
+    if log.masked is not None:
+        bad = np.asarray(log.masked)[rows]
+        usable &= ~(bad[:-2] | bad[1:-1] | bad[2:])
+    second = second[usable]
+    if len(second) < 100:
+        return None
+    return max(1.4826 * _mad(second) / np.sqrt(6.0), float(MIN_HEADING_SIGMA))

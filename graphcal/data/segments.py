@@ -60,6 +60,10 @@ class SegmentData:
             or ``None`` when not gathered from a log.
         fix_weights: ``(S, K+1)`` weight in (0, 1] of each measured pose (robust
             down-weighting of outlying fixes), or ``None`` for all 1.
+        measured: ``(S, K+1, 2)`` which samples measured the position and the heading
+            (``DriveLog.measured``; elsewhere ``poses`` holds the track), or ``None`` for all.
+        fix_fraction: ``(S, K+1)`` in ``(0, 1]``: each sample's measurement was taken at this
+            fraction of the step before it (``DriveLog.fix_fraction``), or ``None`` for all 1.
     """
 
     poses: np.ndarray
@@ -69,9 +73,22 @@ class SegmentData:
     dt: float = 0.025
     sample_index: np.ndarray | None = None
     fix_weights: np.ndarray | None = None
+    measured: np.ndarray | None = None
+    fix_fraction: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.n_steps)
+
+    def position_fixes(self) -> np.ndarray:
+        """``(S, K+1)``: real samples whose position was measured at the sample itself or
+        within the step before it (padding excluded)."""
+        if self.measured is None:
+            return self.valid.copy()
+        return self.valid & self.measured[..., 0]
+
+    def has_heading(self) -> bool:
+        """Some sample measured the heading."""
+        return self.measured is None or bool((self.measured[..., 1] & self.valid).any())
 
     @classmethod
     def single(cls, poses: np.ndarray, inputs: np.ndarray) -> SegmentData:
@@ -106,7 +123,21 @@ class SegmentData:
             self.dt,
             rows(self.sample_index),
             rows(self.fix_weights),
+            rows(self.measured),
+            rows(self.fix_fraction),
         )
+
+    def measured_of(self, index: int) -> np.ndarray | None:
+        """Measured components ``(k+1, 2)`` of segment ``index`` without padding, or ``None``."""
+        if self.measured is None:
+            return None
+        return self.measured[index, : int(self.n_steps[index]) + 1]
+
+    def fractions_of(self, index: int) -> np.ndarray | None:
+        """Fix fractions ``(k+1,)`` of segment ``index`` without padding, or ``None``."""
+        if self.fix_fraction is None:
+            return None
+        return self.fix_fraction[index, : int(self.n_steps[index]) + 1]
 
     def weights_of(self, index: int) -> np.ndarray | None:
         """Fix weights ``(k+1,)`` of segment ``index`` without padding, or ``None``."""
@@ -257,4 +288,10 @@ def gather_segments(
     inputs = log.inputs[index[:, :-1]]
     inputs[~valid[:, 1:]] = 0.0
     weights = None if fix_weights is None else np.asarray(fix_weights, float)[index]
-    return SegmentData(poses, inputs, segments.n_steps.copy(), valid, log.dt, index, weights)
+    measured = None if log.measured is None else np.asarray(log.measured, bool)[index]
+    fraction = log.fix_fraction
+    if fraction is not None:
+        fraction = fraction[index]
+    return SegmentData(
+        poses, inputs, segments.n_steps.copy(), valid, log.dt, index, weights, measured, fraction
+    )

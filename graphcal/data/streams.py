@@ -9,11 +9,19 @@ ROS bags) converts its units into the SI quantities of these classes, so that
 * Wheel rotation per interval is **integrated**, never sampled: a cumulative angle is
   interpolated at the grid times and differenced; a rotation rate is first integrated with
   the trapezoid rule.
-* Positions are interpolated linearly; the heading on the circle (unwrapped first). Without
-  a logged heading it is the GNSS course (direction of travel over :data:`COURSE_WINDOW_S`)
-  minus the sideslip.
+* **Each fix once, at its own time**: a pose sample is written in the first grid row at or
+  after it, with its own time (``t_fix``) when it falls between rows; rows without one leave
+  the position (and a heading not logged there) empty. Nothing is interpolated into a
+  measurement and no heading is derived as one: a stream without a heading gives positions
+  only (:mod:`graphcal.data.drive_log`, sparse measurements). Where two fixes fall in one
+  grid interval (a pose stream faster than the grid) the later one is kept, with a note.
+* The columns of :attr:`Resampled.columns` are the *track* at every row (positions
+  interpolated, the heading on the circle or the GNSS course minus the sideslip): the
+  import's cross-checks of the streams read it; :meth:`Resampled.frame` is the drive log.
+* The sideslip, an input of the model, is interpolated onto the grid.
 * Lateral acceleration and yaw rate are the IMU's means over each interval; without an IMU,
-  lateral acceleration is speed × yaw rate (speed from the wheels, yaw rate from the heading).
+  lateral acceleration is speed × yaw rate (speed from the wheels, yaw rate from the logged
+  heading, else from the wheels with the nominal c_e and t_r).
 * A gap in any stream longer than :func:`gap_threshold` masks the grid samples around it.
 """
 
@@ -24,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graphcal.data.consistency import runs
+from graphcal.data.track import course
 from graphcal.errors import GraphcalError
 
 #: Rates [Hz] a drive log may be written at.
@@ -34,15 +43,11 @@ MAX_GAP_S = 0.5
 GAP_INTERVALS = 2.5
 #: The streams must overlap for at least this share of the shortest stream's time span.
 MIN_OVERLAP_SHARE = 0.5
-#: Window [s] over which the GNSS course (direction of travel) is taken, and the distance [m]
-#: the vehicle must travel in it for the course to be defined (else the last one is held).
-COURSE_WINDOW_S = 1.0
-COURSE_MIN_DISTANCE = 1.0
-#: Half the chord [m] along the wheels' travel over which the heading is derived from the
-#: GNSS course when no heading is logged.
-COURSE_HALF_DISTANCE = 5.0
 #: Window [s] of the heading difference that gives the yaw rate when no IMU is logged.
 YAW_RATE_WINDOW_S = 1.0
+#: A fix within this [s] of a grid row is at the row (float time stamps of a Unix epoch
+#: resolve 0.24 µs; at 40 m/s a microsecond is 40 µm).
+FIX_TIME_TOLERANCE = 1e-6
 #: Most negative wheel rotation [rev] per grid interval accepted before a sample counts as
 #: reversing (masked, its rotation set to 0).
 REVERSING_TOLERANCE = 0.005
@@ -163,6 +168,26 @@ class Resampled:
     overlap: tuple[float, float]
     notes: tuple[str, ...] = field(default=())
     heading_derived: bool = False
+    measured: np.ndarray | None = None
+    fix_lag: np.ndarray | None = None
+
+    def frame(self):
+        """The drive log as a DataFrame: the track's position and heading only where measured
+        (else empty), each fix's own time in ``t_fix`` where it falls between rows."""
+        import pandas as pd
+
+        from graphcal.data.drive_log import FIX_TIME_COLUMN
+
+        frame = pd.DataFrame(self.columns)
+        if self.measured is None:
+            return frame
+        frame.loc[~self.measured[:, 0], ["px", "py"]] = np.nan
+        frame.loc[~self.measured[:, 1], "psi"] = np.nan
+        if self.fix_lag is not None and (self.fix_lag > 0).any():
+            any_measured = self.measured.any(axis=1)
+            fix_time = self.columns["t"] - self.fix_lag
+            frame[FIX_TIME_COLUMN] = np.where(any_measured, fix_time, np.nan)
+        return frame
 
 
 def check_time(t: np.ndarray, source: str) -> None:
@@ -267,44 +292,31 @@ def wheel_rotations(wheels: WheelStream, grid: np.ndarray) -> tuple[np.ndarray, 
     return out[0], out[1]
 
 
-def course(
-    x: np.ndarray, y: np.ndarray, dt: float, travelled: np.ndarray | None = None
-) -> np.ndarray:
-    """Direction of travel [rad, unwrapped] from grid positions, as a central chord.
-
-    With ``travelled`` (distance [m] at each sample, from the wheels) the chord spans
-    :data:`COURSE_HALF_DISTANCE` on each side, so that its direction error (position noise
-    over chord length) does not grow at low speed; else :data:`COURSE_WINDOW_S`. Where the
-    chord is shorter than :data:`COURSE_MIN_DISTANCE` (standstill) the last defined course
-    is held (the first defined one before it).
-    """
-    n = len(x)
-    if travelled is not None:
-        ahead = np.searchsorted(travelled, travelled + COURSE_HALF_DISTANCE, side="left")
-        behind = np.searchsorted(travelled, travelled - COURSE_HALF_DISTANCE, side="right") - 1
-        ahead, behind = np.minimum(ahead, n - 1), np.maximum(behind, 0)
-    else:
-        half = max(1, round(0.5 * COURSE_WINDOW_S / dt))
-        ahead = np.minimum(np.arange(n) + half, n - 1)
-        behind = np.maximum(np.arange(n) - half, 0)
-    dx, dy = x[ahead] - x[behind], y[ahead] - y[behind]
-    defined = np.hypot(dx, dy) >= COURSE_MIN_DISTANCE
-    if not defined.any():
-        return np.zeros(n)
-    index = np.where(defined, np.arange(n), -1)
-    index = np.maximum.accumulate(index)
-    index[index < 0] = int(np.flatnonzero(defined)[0])
-    angle = np.arctan2(dy, dx)[index]
-    return np.unwrap(angle)
-
-
-def yaw_rate_from_heading(heading: np.ndarray, dt: float) -> np.ndarray:
-    """Yaw rate [rad/s] as a central difference of the heading over :data:`YAW_RATE_WINDOW_S`."""
-    n = len(heading)
+def rate_over_window(values: np.ndarray, dt: float) -> np.ndarray:
+    """Rate of change [per s] of a sampled angle (a heading, the wheels' cumulative yaw): the
+    yaw rate, as a central difference over :data:`YAW_RATE_WINDOW_S`."""
+    n = len(values)
     half = max(1, round(0.5 * YAW_RATE_WINDOW_S / dt))
     ahead = np.minimum(np.arange(n) + half, n - 1)
     behind = np.maximum(np.arange(n) - half, 0)
-    return (heading[ahead] - heading[behind]) / ((ahead - behind) * dt)
+    return (values[ahead] - values[behind]) / ((ahead - behind) * dt)
+
+
+def fixes_on_grid(
+    t: np.ndarray, grid: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Where the samples ``t`` of a pose stream go on the grid: each in the first grid row
+    at or after it. Returns the samples kept (indices into ``t``), their rows, their lags
+    [s] (row time minus sample time, in ``[0, dt)``) and how many samples inside the grid
+    were left out (an earlier one of two in one interval)."""
+    tolerance = FIX_TIME_TOLERANCE
+    inside = np.flatnonzero((t >= grid[0] - tolerance) & (t <= grid[-1] + tolerance))
+    rows = np.minimum(np.searchsorted(grid, t[inside] - tolerance, side="left"), len(grid) - 1)
+    last = np.concatenate([rows[1:] != rows[:-1], [True]])  # the latest sample of each row
+    kept, rows = inside[last], rows[last]
+    lag = np.maximum(grid[rows] - t[kept], 0.0)
+    lag[lag <= tolerance] = 0.0
+    return kept, rows, lag, int(len(inside) - len(kept))
 
 
 def grid_mask(grid: np.ndarray, gaps: list[tuple[float, float]]) -> np.ndarray:
@@ -327,6 +339,7 @@ def resample(
     rate: float = 40.0,
     max_gap: float = MAX_GAP_S,
     wheel_circumference: float = 2.0,
+    track_width: float = 1.55,
 ) -> Resampled:
     """Put a recording on the uniform grid of a drive log (see the module docstring).
 
@@ -337,6 +350,8 @@ def resample(
             uses :data:`GAP_INTERVALS` of its own interval if longer).
         wheel_circumference: [m] the vehicle's nominal c_e: for the speed in speed × yaw rate
             when no IMU lateral acceleration is logged, and the travel of a derived course.
+        track_width: [m] the vehicle's nominal t_r: for the wheels' yaw rate when neither an
+            IMU nor a heading is logged.
 
     Raises:
         StreamError: streams whose times do not overlap (enough).
@@ -379,9 +394,21 @@ def resample(
     else:
         psi = course(px, py, dt) - beta
         notes.append(
-            f"heading not logged: derived from the GNSS course over {COURSE_WINDOW_S:g} s "
-            "windows (minus the sideslip), held at standstill; calibration gives it almost "
-            "no weight"
+            "heading not logged: positions only are measured (each segment's start heading is "
+            "estimated from its fixes)"
+        )
+    kept, rows, lag, dropped = fixes_on_grid(pose.t, grid)
+    measured = np.zeros((count, 2), dtype=bool)
+    measured[rows, 0] = True
+    measured[rows, 1] = pose.heading is not None
+    fix_px, fix_py, fix_psi = px.copy(), py.copy(), psi.copy()
+    fix_px[rows], fix_py[rows] = pose.x[kept], pose.y[kept]
+    if pose.heading is not None:
+        fix_psi[rows] = np.unwrap(pose.heading)[kept]
+    if dropped > 0:
+        notes.append(
+            f"{dropped} pose sample(s) share a {dt * 1e3:g} ms grid interval with a later one "
+            "and are left out (a pose stream faster than the drive log: raise its rate)"
         )
 
     imu = recording.imu
@@ -392,11 +419,18 @@ def resample(
         if imu is not None and imu.yaw_rate is not None:
             yaw_rate = interval_means(imu.t, imu.yaw_rate, grid)
             notes.append("lateral acceleration not logged: speed × the IMU's yaw rate")
-        else:
-            yaw_rate = yaw_rate_from_heading(psi, dt)
+        elif pose.heading is not None:
+            yaw_rate = rate_over_window(psi, dt)
             notes.append(
                 "lateral acceleration not logged: speed × yaw rate from the heading over "
                 f"{YAW_RATE_WINDOW_S:g} s"
+            )
+        else:
+            wheel_yaw = np.cumsum((n_rr - n_rl) * wheel_circumference / track_width)
+            yaw_rate = rate_over_window(wheel_yaw, dt)
+            notes.append(
+                "lateral acceleration not logged: speed × yaw rate of the wheels (nominal c_e, "
+                f"t_r) over {YAW_RATE_WINDOW_S:g} s"
             )
         ay = speed * yaw_rate
 
@@ -419,9 +453,9 @@ def resample(
         )
     columns = {
         "t": since_start,
-        "px": px,
-        "py": py,
-        "psi": psi,
+        "px": fix_px,
+        "py": fix_py,
+        "psi": fix_psi,
         "n_rl": n_rl,
         "n_rr": n_rr,
         "beta": beta,
@@ -435,4 +469,15 @@ def resample(
         overlap=(start, end),
         notes=(*recording.notes, *notes),
         heading_derived=pose.heading is None,
+        measured=measured,
+        fix_lag=lag_at_rows(lag, rows, count),
     )
+
+
+def lag_at_rows(lag: np.ndarray, rows: np.ndarray, count: int) -> np.ndarray | None:
+    """Per grid row, the lag [s] of its fix (0 without one), or ``None`` if all are 0."""
+    if not (lag > 0).any():
+        return None
+    out = np.zeros(count)
+    out[rows] = lag
+    return out

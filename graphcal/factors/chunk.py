@@ -9,7 +9,11 @@ variables.
 
 The error stacks, in this order, the tracking residuals ``measurement_k − measured_k`` of the
 poses ``k = 1..L`` (if the chunk has measured poses) and the continuity residual
-``predicted_L − end`` (if it has an end), in world coordinates ``[px, py, psi]``. The
+``predicted_L − end`` (if it has an end), in world coordinates ``[px, py, psi]``. A
+measurement taken between two samples (a GNSS fix at its own time) is predicted part-way
+through its step (``fractions``: :func:`graphcal.model.partial_steps`), and a chunk whose
+samples do not all measure position and heading (``measured``) keeps only the rows of the
+components that were measured (:attr:`OdometryChunk.residual_rows`). The
 predicted measurement of the state ``x_k = [p_k, ψ_k]`` is ``[p_k + R(ψ_k) · arm, ψ_k + bias]``
 (zero arm and bias unless given), and a wheel time offset ``τ`` turns the measured rotation of
 step k into ``n_k + τ · ṅ_k`` (the rotation over ``[t_k + τ, t_k+1 + τ]`` to first order;
@@ -28,6 +32,7 @@ from graphcal.model import (
     N_RL,
     N_RR,
     integrate_with_jacobians,
+    partial_steps,
     wheel_rotation_jacobian,
     wrap_angle,
 )
@@ -73,6 +78,10 @@ class OdometryChunk:
             the measured start heading).
         rotation_rates: ``(L, 2)`` change [rev/s] of each step's rotation per second of wheel
             time offset (needed only to evaluate with a time offset).
+        fractions: ``(L,)`` in ``(0, 1]``: pose ``k``'s measurement was taken at this fraction
+            of step ``k-1`` (1: at sample ``k``), or ``None`` for all at their samples.
+        measured: ``(L+1, 2)`` booleans: which of pose ``k``'s position and heading were
+            measured (row 0 unused), or ``None`` for all; the others have no residual row.
     """
 
     def __init__(
@@ -81,6 +90,8 @@ class OdometryChunk:
         measured_poses: np.ndarray | None = None,
         reference_heading: float | None = None,
         rotation_rates: np.ndarray | None = None,
+        fractions: np.ndarray | None = None,
+        measured: np.ndarray | None = None,
     ):
         self.inputs = np.array(inputs, dtype=float)
         self.rotation_rates = None
@@ -104,6 +115,28 @@ class OdometryChunk:
                 raise ValueError("a chunk without measured poses needs a reference heading")
             reference_heading = float(self.measured_poses[0, 2])
         self.reference_heading = float(reference_heading)
+        self.fractions = None
+        if fractions is not None and not np.all(np.asarray(fractions) == 1.0):
+            self.fractions = np.asarray(fractions, float)
+            if self.fractions.shape != (self.n_steps,) or not np.all(
+                (self.fractions > 0) & (self.fractions <= 1)
+            ):
+                raise ValueError(f"fractions must be ({self.n_steps},) numbers in (0, 1]")
+        self.measured = None
+        if measured is not None and not np.all(measured):
+            self.measured = np.asarray(measured, bool)
+            if self.measured.shape != (self.n_steps + 1, 2):
+                raise ValueError(f"measured must be ({self.n_steps + 1}, 2) booleans")
+
+    @property
+    def residual_rows(self) -> np.ndarray | None:
+        """Rows of :func:`chunk_errors`' full error (tracking rows then continuity) that
+        this chunk keeps, or ``None`` for all: a position not measured drops its x and y
+        rows, a heading not measured its heading row."""
+        if self.measured is None or self.measured_poses is None:
+            return None
+        keep = np.repeat(self.measured[1:], [2, 1], axis=1).reshape(-1)
+        return np.flatnonzero(np.concatenate([keep, np.ones(3, bool)]))
 
     @property
     def n_steps(self) -> int:
@@ -148,6 +181,7 @@ class OdometryChunk:
             one(self.rotation_rates),
             one(lever_arm),
             None if heading_bias is None else np.array([float(heading_bias)]),
+            one(self.fractions),
         )
         fields = (getattr(batch, f.name) for f in dataclasses.fields(batch))
         return ChunkError(*(None if x is None else x[0] for x in fields))
@@ -166,12 +200,16 @@ def chunk_errors(
     rotation_rates: np.ndarray | None = None,
     lever_arm: np.ndarray | None = None,
     heading_bias: np.ndarray | None = None,
+    fractions: np.ndarray | None = None,
 ) -> ChunkError:
     """:meth:`OdometryChunk.error` of ``C`` chunks of ``L`` steps at once, vectorized over the
     chunks: ``inputs (C, L, 4)``, ``measured_poses (C, L+1, 3)`` or ``None``, ``start (C, 3)``,
     ``theta (C, 4)``, ``corrections (C, L, 2)``, ``end (C, 3)``, ``slip (C, 2)``,
     ``time_offset (C,)`` with ``rotation_rates (C, L, 2)``, ``lever_arm (C, 2)``,
-    ``heading_bias (C,)``. Every field of the result has the leading chunk axis."""
+    ``heading_bias (C,)``, ``fractions (C, L)`` (each tracked pose's measurement part-way
+    through its step, :func:`graphcal.model.partial_steps`; ``None``: at the samples). Every
+    field of the result has the leading chunk axis; the error has every tracking row (a
+    chunk's :attr:`~OdometryChunk.residual_rows` picks its own)."""
     count, n_steps = inputs.shape[:2]
     rotations = inputs
     if corrections is not None or slip is not None or time_offset is not None:
@@ -190,11 +228,17 @@ def chunk_errors(
     # with it, ``(C, rows, 2)``; None: not at all).
     parts, rows, turns = [], [], []
     tracked = measured_poses is not None
+    partial = fractions is not None and tracked
+    if partial:  # each measurement predicted at its own time within its step
+        parts_of = partial_steps(states, rotations, theta, fractions, jacobians)
+        at_fix, whole = parts_of[0], fractions == 1.0
+    else:
+        at_fix = states[:, 1:]
     if tracked:
-        residual = states[:, 1:] - measured_poses[:, 1:]
+        residual = at_fix - measured_poses[:, 1:]
         turn = None
         if lever_arm is not None:
-            cos, sin = np.cos(states[:, 1:, 2]), np.sin(states[:, 1:, 2])
+            cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
             ahead, left = lever_arm[:, 0:1], lever_arm[:, 1:2]
             residual[..., 0] += cos * ahead - sin * left
             residual[..., 1] += sin * ahead + cos * left
@@ -216,10 +260,23 @@ def chunk_errors(
     if not jacobians:
         return ChunkError(error)
 
-    def stack(full: np.ndarray) -> np.ndarray:  # (C, L+1, 3, ...) -> (C, dim, ...)
+    def at_fixes(full: np.ndarray, direct: np.ndarray | None) -> np.ndarray:
+        """Tracked rows of a state Jacobian ``(C, L+1, 3, ...)``: at the samples, or through
+        the part-steps (chain rule through state k-1 plus ``direct`` through step k-1)."""
+        if not partial:
+            return full[:, 1:]
+        _, d_state, *_ = parts_of
+        out = np.einsum("clij,clj...->cli...", d_state, full[:, :-1])
+        if direct is not None:
+            out += direct
+        keep = whole.reshape(whole.shape + (1,) * (out.ndim - 2))
+        return np.where(keep, full[:, 1:], out)
+
+    def stack(full: np.ndarray, direct: np.ndarray | None = None) -> np.ndarray:
+        # (C, L+1, 3, ...) -> (C, dim, ...)
         blocks = []
         for r, turn in zip(rows, turns, strict=True):
-            block = full[:, r]
+            block = at_fixes(full, direct) if r == slice(1, None) else full[:, r]
             if turn is not None:  # x and y gain the heading's derivative times the turn
                 block = block.copy()
                 heading = block[:, :, 2]
@@ -237,7 +294,13 @@ def chunk_errors(
         d_end[:, -3:] = -np.eye(3)
     d_corrections = d_slip = d_time = None
     if corrections is not None or slip is not None or time_offset is not None:
-        d_rotations = stack(wheel_rotation_jacobian(states, rotations, theta))  # (C, dim, L, 2)
+        direct = None
+        if partial:  # step k-1's own rotations move the fix of pose k directly
+            direct = np.zeros((count, n_steps, 3, n_steps, 2))
+            steps = np.arange(n_steps)
+            direct[:, steps, :, steps, :] = np.moveaxis(parts_of[3], 1, 0)
+        full = wheel_rotation_jacobian(states, rotations, theta)
+        d_rotations = stack(full, direct)  # (C, dim, L, 2)
         if corrections is not None:
             d_corrections = d_rotations
         if slip is not None:  # d n_w / d slip_w = measured n_w, summed over the steps
@@ -248,7 +311,7 @@ def chunk_errors(
     if lever_arm is not None:
         d_arm = np.zeros((count, dim, 2))
         if tracked:
-            cos, sin = np.cos(states[:, 1:, 2]), np.sin(states[:, 1:, 2])
+            cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
             d_arm[:, 0:n_tracked:3] = np.stack([cos, -sin], axis=-1)
             d_arm[:, 1:n_tracked:3] = np.stack([sin, cos], axis=-1)
     if heading_bias is not None:
@@ -257,7 +320,7 @@ def chunk_errors(
     return ChunkError(
         error,
         stack(d_start),
-        stack(d_theta),
+        stack(d_theta, parts_of[2] if partial else None),
         d_corrections,
         d_end,
         d_slip,

@@ -100,7 +100,7 @@ class ChunkBatch:
     def _compute_block(self, block: list[tuple[int, np.ndarray]], jacobians: bool) -> None:
         members = [self.members[i] for i, _ in block]
         args = [member.arguments(raw) for member, (_, raw) in zip(members, block, strict=True)]
-        inputs, measured, rates = self._measurements(tuple(i for i, _ in block))
+        inputs, measured, rates, fractions = self._measurements(tuple(i for i, _ in block))
 
         def stacked(name: str) -> np.ndarray | None:
             items = [getattr(a, name) for a in args]
@@ -119,16 +119,26 @@ class ChunkBatch:
             None if args[0].time_offset is None else rates,
             stacked("lever_arm"),
             stacked("heading_bias"),
+            fractions,
         )
         blocks = None
         if jacobians:
             blocks = members[0].jacobian_blocks(result, stacked("start"), stacked("end"))
         for n, (i, raw) in enumerate(block):
-            mine = None if blocks is None else [np.ascontiguousarray(b[n]) for b in blocks]
-            self._answers[i] = _Answer(raw, result.error[n], mine)
+            rows = members[n].rows  # the measured components' rows, or all
+            if rows is None:
+                error = result.error[n]
+                mine = None if blocks is None else [np.ascontiguousarray(b[n]) for b in blocks]
+            else:
+                error = result.error[n][rows]
+                mine = (
+                    None if blocks is None else [np.ascontiguousarray(b[n][rows]) for b in blocks]
+                )
+            self._answers[i] = _Answer(raw, error, mine)
 
     def _measurements(self, block: tuple[int, ...]) -> tuple:
-        """The block's inputs, measured poses and rotation rates stacked (made once)."""
+        """The block's inputs, measured poses, rotation rates and fix fractions stacked (made
+        once)."""
         if block not in self._stacked:
             chunks = [self.members[i].chunk for i in block]
 
@@ -140,6 +150,7 @@ class ChunkBatch:
                 stack("inputs"),
                 stack("measured_poses"),
                 stack("rotation_rates"),
+                stack("fractions"),
             )
         return self._stacked[block]
 

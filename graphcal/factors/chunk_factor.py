@@ -111,7 +111,10 @@ class ChunkOdometryFactor:
         if end is not None:
             cont = CONTINUITY_SIGMAS if continuity_sigmas is None else continuity_sigmas
             sigmas.append(np.asarray(cont, float))
+        self.rows = chunk.residual_rows if end is not None else _without_continuity(chunk)
         self.sigmas = np.concatenate(sigmas)
+        if self.rows is not None:
+            self.sigmas = self.sigmas[self.rows]
         # The vector slots in read order: name, key (or None), size.
         self._vector_slots = (
             ("corrections", self.corrections_key, 2 * chunk.n_steps),
@@ -201,6 +204,7 @@ class ChunkOdometryFactor:
             self.chunk.n_steps,
             self.chunk.measured_poses is None,
             self.chunk.rotation_rates is None,
+            self.chunk.fractions is None,
             *(key is None for key in self._slot_keys()),
         )
 
@@ -238,6 +242,12 @@ class ChunkOdometryFactor:
             for i, block in enumerate(blocks):
                 H[i] = block
         return error
+
+
+def _without_continuity(chunk: OdometryChunk) -> np.ndarray | None:
+    """:attr:`OdometryChunk.residual_rows` of a chunk without an end (no continuity rows)."""
+    rows = chunk.residual_rows
+    return None if rows is None else rows[:-3]
 
 
 def _state(pose: np.ndarray, reference_heading: float) -> np.ndarray:

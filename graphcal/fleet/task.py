@@ -121,20 +121,16 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
 
 def _calibrate(log: FleetLog, settings: Settings) -> dict[str, Any]:
     from graphcal.data.drive_log import load_drive_log
-    from graphcal.data.importer import heading_derived, import_recording, is_recording
+    from graphcal.data.importer import import_recording, is_recording
     from graphcal.pipeline.run import run_calibration
-    from graphcal.pipeline.settings import for_derived_heading
 
     nominal = settings.vehicle.theta_nominal
     length = settings.segments.length
     if is_recording(log.path):
         imported = import_recording(log.path, nominal=nominal, min_distance=length)
-        drive, derived = imported.log, imported.resampled.heading_derived
+        drive = imported.log
     else:
         drive = load_drive_log(log.path, min_distance=length, nominal=nominal)
-        derived = heading_derived(log.path)
-    if derived:
-        settings = for_derived_heading(settings)
     run = run_calibration(drive, settings, FLEET_METHOD, workers=1)
     if run.whole is None or run.covariance is None or not np.all(np.isfinite(run.covariance)):
         raise GraphcalError("the solve gave no covariance")

@@ -29,11 +29,16 @@ def plausible_ranges(reference: np.ndarray = THETA_NOMINAL) -> np.ndarray:
 
 
 def check_plausible(
-    theta: np.ndarray, label: str = "the solve", reference: np.ndarray = THETA_NOMINAL
+    theta: np.ndarray,
+    label: str = "the solve",
+    reference: np.ndarray = THETA_NOMINAL,
+    causes: tuple[str, ...] = (),
 ) -> None:
     """Raise :class:`~graphcal.errors.CalibrationFailed` unless theta is finite and inside
     the plausible ranges of a vehicle with nominal theta ``reference`` (:func:`plausible_ranges`;
-    by default the paper's car, :data:`PLAUSIBLE_THETA`)."""
+    by default the paper's car, :data:`PLAUSIBLE_THETA`). ``causes`` name what in the data
+    or the weights likely drove the solve there (the heading's weight, the fix rate, a time
+    offset beyond its prior); units are named only when nothing else is found."""
     theta = np.asarray(theta, float)
     if not np.all(np.isfinite(theta)):
         raise CalibrationFailed(f"{label} produced a non-finite theta")
@@ -41,6 +46,11 @@ def check_plausible(
     outside = (theta < ranges[:, 0]) | (theta > ranges[:, 1])
     if outside.any():
         bad = ", ".join(f"{PARAMETER_NAMES[i]} = {theta[i]:.4g}" for i in np.flatnonzero(outside))
+        if causes:
+            raise CalibrationFailed(
+                f"{label} gave an implausible theta ({bad}, SI units); likely cause: "
+                + "; ".join(causes)
+            )
         raise CalibrationFailed(
             f"{label} gave an implausible theta ({bad}, SI units); check the units of the "
             "wheel rotations (rev per sample), sideslip (rad) and lateral acceleration (m/s²)"

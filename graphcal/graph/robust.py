@@ -87,7 +87,8 @@ def solve_robust(
     weights = data.fix_weights
     for _ in range(rounds - 1):
         residuals = solution.built.fix_residuals(solution.result, solution.segmented)
-        usable = data.valid & (given >= 1.0)  # the scale from fixes not flagged already
+        # The scale from fixes not flagged already (samples between fixes have none).
+        usable = data.position_fixes() & (given >= 1.0)
         scale = residual_scale(residuals, usable, floor)
         new = np.where(data.valid, np.minimum(given, fix_weights(residuals, scale, threshold)), 1.0)
         old = given if weights is None else weights

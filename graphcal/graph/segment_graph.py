@@ -137,12 +137,14 @@ class SegmentGraphSpec:
 @dataclass(frozen=True)
 class ChunkFactorSlot:
     """Where a chunk factor sits: its index in the graph, its segment and its steps
-    ``first .. end`` (tracking the poses ``first+1 .. end``)."""
+    ``first .. end`` (tracking the poses ``first+1 .. end``), and which rows of the full
+    tracking error it keeps (``None``: all; :attr:`OdometryChunk.residual_rows`)."""
 
     index: int
     segment: int
     first: int
     end: int
+    rows: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,10 @@ class SegmentGraph:
             values = values_of.get(int(factor.keys()[0]), result)
             error = np.asarray(factor.unwhitenedError(values))
             n = slot.end - slot.first
+            if slot.rows is not None:  # rows of unmeasured components stay zero
+                full = np.zeros(3 * n + 3)
+                full[slot.rows] = error
+                error = full
             out[slot.segment, slot.first + 1 : slot.end + 1] = error[: 3 * n].reshape(n, 3)[:, :2]
         if self.spec.start_prior_sigmas is not None:
             starts = self.start_states(result)
@@ -179,7 +185,7 @@ class SegmentGraph:
             if self.spec.lever_arm_sigma is not None:
                 arm = np.asarray(result.atVector(keys.LEVER_ARM))
             antenna = starts[:, :2] + lever_offset(starts[:, 2], arm)
-            out[:, 0] = antenna - data.poses[:, 0, :2]
+            out[:, 0] = np.where(_start_measured(data)[:, :1], antenna - data.poses[:, 0, :2], 0.0)
         return out
 
     def start_states(self, result: gtsam.Values) -> np.ndarray:
@@ -212,7 +218,7 @@ class SegmentGraph:
             values.insert(keys.THETA, np.asarray(theta, float))
         _insert_nuisance(values, self.spec)
         for s, bounds in enumerate(self.bounds):
-            _insert_segment(values, s, bounds, states[s], self.spec)
+            _insert_segment(values, s, bounds, states[s], self.spec, _with_heading(self.data, s))
             if self.spec.corrections is not None and corrections is not None:
                 for j in range(len(bounds) - 1):
                     a, b = int(bounds[j]), int(bounds[j + 1])
@@ -220,15 +226,38 @@ class SegmentGraph:
         return values
 
 
+def _with_heading(data: SegmentData, s: int) -> bool:
+    """Segment ``s`` measures the heading somewhere (else it has no heading bias)."""
+    measured = data.measured_of(s)
+    return measured is None or bool(measured[:, 1].any())
+
+
+def _start_measured(data: SegmentData) -> np.ndarray:
+    """``(S, 2)``: each segment's first sample measured the position / heading at the
+    sample itself (a measurement within the step before it lies outside the segment)."""
+    if data.measured is None:
+        found = np.ones((len(data), 2), bool)
+    else:
+        found = data.measured[:, 0].copy()
+    if data.fix_fraction is not None:
+        found &= (data.fix_fraction[:, 0] == 1.0)[:, None]
+    return found
+
+
 def _insert_segment(
-    values: gtsam.Values, s: int, bounds: np.ndarray, states: np.ndarray, spec: SegmentGraphSpec
+    values: gtsam.Values,
+    s: int,
+    bounds: np.ndarray,
+    states: np.ndarray,
+    spec: SegmentGraphSpec,
+    with_heading: bool = True,
 ) -> None:
     """Insert the Pose2 variables of segment ``s`` (free start, chunk boundaries) and its
-    slip scales (at zero)."""
+    slip scales (at zero) and heading bias (if it measures the heading)."""
     if spec.slip_sigma is not None:
         for j in range(len(bounds) - 1):
             values.insert(keys.segment_slip(s, j), np.zeros(2))
-    if spec.heading_bias_sigma is not None:
+    if spec.heading_bias_sigma is not None and with_heading:
         values.insert(keys.segment_heading_bias(s), np.zeros(1))
     if spec.start_prior_sigmas is not None:
         values.insert(keys.segment_pose(s), pose2_from_state(states[0]))
@@ -298,24 +327,39 @@ def build_segment_graph(
     tracking = np.asarray(spec.tracking_sigmas, float)
     all_bounds = []
     slots = []
+    start_measured = _start_measured(data)
     for s in range(len(data)):
         poses, inputs = data.segment(s)
         weights = data.weights_of(s)
+        measured, fractions = data.measured_of(s), data.fractions_of(s)
         nominal = integrate(poses[0], inputs, integrate_with)
         if align:  # a solved theta's path, from where it fits the fixes best
-            nominal = aligned_trajectory(nominal, poses, weights, arm)
+            fitted = weights
+            if measured is not None:  # the fixes, not the track between them
+                fitted = measured[:, 0] * (1.0 if weights is None else weights)
+            nominal = aligned_trajectory(nominal, poses, fitted, arm)
         bounds = chunk_bounds(len(inputs), spec.chunk_steps)
         all_bounds.append(bounds)
-        _insert_segment(values, s, bounds, nominal, spec)
+        with_heading = _with_heading(data, s)
+        _insert_segment(values, s, bounds, nominal, spec, with_heading)
         if spec.slip_sigma is not None:
             _add_slip(graph, s, bounds, data.dt, spec)
         bias_key = None
-        if spec.heading_bias_sigma is not None:
+        if spec.heading_bias_sigma is not None and with_heading:
             bias_key = keys.segment_heading_bias(s)
             graph.add(_vector_prior(bias_key, 1, spec.heading_bias_sigma))
-        if free_start:
+        if free_start and start_measured[s].any():
             start_weight = 1.0 if weights is None else float(weights[0])
-            _add_start_prior(graph, s, poses[0], spec, lever_arm_key, bias_key, start_weight)
+            _add_start_prior(
+                graph,
+                s,
+                poses[0],
+                spec,
+                lever_arm_key,
+                bias_key,
+                start_weight,
+                (bool(start_measured[s, 0]), bool(start_measured[s, 1])),
+            )
         rates = None
         if time_offset_key is not None:
             rates = rotation_rate_changes(inputs[:, :2], data.dt)
@@ -335,6 +379,8 @@ def build_segment_graph(
                 poses[a : b + 1],
                 float(nominal[a, 2]),
                 None if rates is None else rates[a:b],
+                None if fractions is None else fractions[a + 1 : b + 1],
+                None if measured is None else measured[a : b + 1],
             )
             factor = ChunkOdometryFactor(
                 chunk,
@@ -351,7 +397,7 @@ def build_segment_graph(
                 fix_weights=None if weights is None else weights[a + 1 : b + 1],
                 batch=batch,
             )
-            slots.append(ChunkFactorSlot(int(graph.size()), s, a, b))
+            slots.append(ChunkFactorSlot(int(graph.size()), s, a, b, factor.rows))
             graph.add(factor.factor())
     return SegmentGraph(graph, values, all_bounds, spec, data, tuple(slots))
 
@@ -364,22 +410,36 @@ def _add_start_prior(
     lever_arm_key: int | None,
     bias_key: int | None,
     weight: float,
+    components: tuple[bool, bool] = (True, True),
 ) -> None:
     """The measured start pose of segment ``s`` on its free start (the paper's W): GTSAM's
     priors, or a :class:`~graphcal.factors.MeasuredPoseFactor` through the lever arm and the
-    heading bias when those are variables; the position sigma widened by a fix weight."""
+    heading bias when those are variables; the position sigma widened by a fix weight. Only
+    the measured ``components`` [position, heading] enter (a start without a measured
+    heading stays free in heading: the fixes after it determine it)."""
     prior = np.asarray(spec.start_prior_sigmas, float).copy()
     prior[:2] /= np.sqrt(weight)
     start_key = keys.segment_pose(s)
-    if lever_arm_key is None and bias_key is None:
+    position, heading = bool(components[0]), bool(components[1])
+    if position and (lever_arm_key is not None or (bias_key is not None and heading)):
+        factor = MeasuredPoseFactor(
+            start_key,
+            measured,
+            prior,
+            lever_arm_key,
+            bias_key if heading else None,
+            with_heading=heading,
+        )
+        graph.add(factor.factor())
+        return
+    if position:
         position_noise = gtsam.noiseModel.Isotropic.Sigma(2, float(prior[0]))
-        heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(prior[2]))
         graph.add(
             gtsam.PoseTranslationPrior2D(start_key, gtsam.Point2(*measured[:2]), position_noise)
         )
+    if heading:  # (a heading without a position at the start: its bias is left out there)
+        heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(prior[2]))
         graph.add(gtsam.PoseRotationPrior2D(start_key, gtsam.Rot2(measured[2]), heading_noise))
-        return
-    graph.add(MeasuredPoseFactor(start_key, measured, prior, lever_arm_key, bias_key).factor())
 
 
 def _add_slip(
@@ -586,7 +646,9 @@ def solve_segment_graph(
         )
         if spec.estimate_theta:
             theta = np.asarray(segmented.shared_values.atVector(keys.THETA))
-            check_plausible(theta, label, reference=spec.theta)
+            check_plausible(
+                theta, label, spec.theta, implausibility_causes(built, segmented.values())
+            )
             if covariance:
                 marginal, nuisance = _marginals(segmented, spec, label)
     result = segmented.values()
@@ -625,7 +687,7 @@ def _solve_whole_graph(
     marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
-        check_plausible(theta, label, reference=spec.theta)
+        check_plausible(theta, label, spec.theta, implausibility_causes(built, result))
         if covariance:
             marginal, nuisance = _whole_graph_marginals(built, result, label)
     return SegmentSolution(
@@ -722,3 +784,42 @@ def degrees_of_freedom(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) 
     """Residual dimensions of ``graph`` minus the dimensions of the unknowns in ``values``."""
     residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
     return int(residuals - values.dim())
+
+
+#: Fix rate [Hz] below which an implausible theta names the rate among its causes, and
+#: heading sigma [rad] below which it names the heading's weight (0.05°).
+SLOW_FIX_RATE = 2.0
+TIGHT_HEADING_SIGMA = float(np.deg2rad(0.05))
+#: Mean |yaw rate| [rad/s] of the segments below which the drive leaves t_r and d to priors.
+STRAIGHT_YAW_RATE = 0.02
+
+
+def implausibility_causes(built: SegmentGraph, result: gtsam.Values) -> tuple[str, ...]:
+    """What in the data or the weights of ``built`` may have driven its solve to an
+    implausible theta (one phrase each, with the key or option to change)."""
+    data, spec = built.data, built.spec
+    causes = []
+    if data.has_heading() and float(spec.tracking_sigmas[2]) < TIGHT_HEADING_SIGMA:
+        causes.append(
+            f"the heading weighs as a {np.degrees(spec.tracking_sigmas[2]):.3f}° measurement "
+            "(check heading_unit and the heading noise, [joint] heading_noise_from_log)"
+        )
+    fixes = data.position_fixes()
+    seconds = float(data.n_steps.sum() * data.dt)
+    rate = float(fixes.sum()) / seconds if seconds > 0 else 0.0
+    if rate < SLOW_FIX_RATE:
+        causes.append(f"position fixes at only {rate:.1f} Hz")
+    if spec.time_offset_sigma is not None and result.exists(keys.TIME_OFFSET):
+        offset = float(result.atVector(keys.TIME_OFFSET)[0])
+        if abs(offset - spec.time_offset_mean) > 3.0 * spec.time_offset_sigma:
+            causes.append(
+                f"the wheels' time offset went to {offset:+.2f} s, beyond its prior "
+                f"(±{spec.time_offset_sigma:g} s): check the streams' time bases"
+            )
+    turned = np.abs(np.diff(data.poses[..., 2], axis=1))[data.valid[:, 1:]].sum()
+    if seconds > 0 and turned / seconds < STRAIGHT_YAW_RATE:
+        causes.append(
+            f"the drive barely turns (mean |yaw rate| {turned / seconds:.3f} rad/s), so t_r "
+            "and d rest on their priors"
+        )
+    return tuple(causes)

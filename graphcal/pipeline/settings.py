@@ -518,26 +518,6 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
-#: Heading weight (of the paper's W = [1, 1, 50]) for a heading that was not measured but
-#: derived from the GNSS course: the positions carry the information, the heading nearly
-#: none. Measured on a 24 km recording without heading (docs/import.md): weighted like a
-#: measured heading, c_e was off by 6σ; at this weight all parameters were within 2.4σ.
-DERIVED_HEADING_WEIGHT = 0.01
-
-
-def for_derived_heading(settings: Settings) -> Settings:
-    """``settings`` for a log whose heading was derived from the positions (the GNSS course):
-    its errors follow the positions', so it is not weighted as a measurement of its own
-    (heading weight :data:`DERIVED_HEADING_WEIGHT` in ``[calibration]`` and ``[joint]``)."""
-
-    def weights(section: Any) -> Any:
-        x, y, _ = section.pose_weights
-        return dataclasses.replace(section, pose_weights=(x, y, DERIVED_HEADING_WEIGHT))
-
-    joint = dataclasses.replace(weights(settings.joint), heading_noise_from_log=False)
-    return dataclasses.replace(settings, calibration=weights(settings.calibration), joint=joint)
-
-
 def vehicle_settings_in(path: str | os.PathLike[str]) -> set[str]:
     """The settings a TOML settings file sets that a vehicle profile would otherwise set
     (``"joint.wheel_noise"``, ...): what :func:`apply_vehicle` must ``keep`` when a vehicle

@@ -64,9 +64,12 @@ class Defects:
     follows in brackets; they come from measured real logs.
 
     Attributes:
-        gnss_rate: GNSS fix rate [Hz], the fixes interpolated linearly to the log rate
-            (``None``: every log sample is a fix) [10 Hz].
+        gnss_rate: GNSS fix rate [Hz]: each fix written once, at its own time, in the first
+            log row at or after it (sparse measurements, ``DriveLog.measured``; a row holding
+            a fix between rows has no heading) (``None``: every log sample is a fix) [10 Hz].
         gnss_hold: sample-and-hold the fixes to the log rate instead (needs ``gnss_rate``).
+        gnss_interpolate: interpolate the fixes linearly to the log rate instead, as a
+            resampler does (needs ``gnss_rate``): each fix then counts as several.
         outlier_share: share of the fixes moved by multipath [0.005].
         outlier_range: ``(least, most)`` distance [m] a multipath fix is off, in a uniformly
             random direction [(10, 50) m].
@@ -95,6 +98,7 @@ class Defects:
 
     gnss_rate: float | None = None
     gnss_hold: bool = False
+    gnss_interpolate: bool = False
     outlier_share: float = 0.0
     outlier_range: tuple[float, float] = (10.0, 50.0)
     outages: int = 0
@@ -120,6 +124,8 @@ class Defects:
             fail(f"gnss_rate must be a positive rate in Hz, got {self.gnss_rate}")
         if self.gnss_hold and self.gnss_rate is None:
             fail("gnss_hold needs a gnss_rate to hold the fixes of")
+        if self.gnss_interpolate and (self.gnss_rate is None or self.gnss_hold):
+            fail("gnss_interpolate needs a gnss_rate and excludes gnss_hold")
         if not (finite(self.outlier_share) and 0 <= self.outlier_share < 1):
             fail(f"outlier_share must be in [0, 1), got {self.outlier_share}")
         low, high = self.outlier_range
@@ -157,8 +163,10 @@ class Defects:
     def names(self) -> tuple[str, ...]:
         """The defects switched on, by their :data:`DEFECT_NAMES` (empty: a clean drive)."""
         on = {
-            "gnss10hz": self.gnss_rate is not None and not self.gnss_hold,
+            "gnss10hz": self.gnss_rate is not None
+            and not (self.gnss_hold or self.gnss_interpolate),
             "hold": self.gnss_hold,
+            "interpolated": self.gnss_interpolate,
             "outliers": self.outlier_share > 0,
             "outages": self.outages > 0 and self.outage_hold,
             "dropouts": self.outages > 0 and not self.outage_hold,
@@ -181,8 +189,9 @@ class Defects:
 
 #: Each defect's name, main knob (SI) and realistic default, for ``--defects`` and its help.
 DEFECTS: dict[str, str] = {
-    "gnss10hz": "GNSS fixes at RATE Hz interpolated to the log rate (10)",
-    "hold": "GNSS fixes at RATE Hz, sample-and-hold (10)",
+    "gnss10hz": "GNSS fixes at RATE Hz, each at its own time (10)",
+    "hold": "GNSS fixes at RATE Hz, sample-and-hold to the log rate (10)",
+    "interpolated": "GNSS fixes at RATE Hz, interpolated to the log rate (10)",
     "outliers": "SHARE of the fixes off by 10–50 m, multipath (0.005)",
     "outages": "COUNT outages of 30 s, the receiver holding its last fix (2)",
     "dropouts": "COUNT outages of 30 s without any pose, masked in the log (2)",
@@ -197,7 +206,9 @@ DEFECT_NAMES: tuple[str, ...] = tuple(DEFECTS)
 #: What ``all`` switches on: every defect but ``hold`` and ``dropouts``, the alternatives to
 #: interpolated fixes and to outages that hold the last fix (``all,hold`` or ``all,dropouts``
 #: switches to them).
-ALL_NAMES: tuple[str, ...] = tuple(n for n in DEFECT_NAMES if n not in ("hold", "dropouts"))
+ALL_NAMES: tuple[str, ...] = tuple(
+    n for n in DEFECT_NAMES if n not in ("hold", "interpolated", "dropouts")
+)
 
 
 def _knob(name: str, value: str | None, whole: bool = False) -> float | None:
@@ -215,11 +226,12 @@ def _knob(name: str, value: str | None, whole: bool = False) -> float | None:
 
 def _switch(name: str, value: str | None, fields: dict) -> None:
     """Switch defect ``name`` on in ``fields`` (Defects keywords), at its default or ``value``."""
-    if name in ("gnss10hz", "hold"):
+    if name in ("gnss10hz", "hold", "interpolated"):
         rate = _knob(name, value)
         if rate is not None or fields.get("gnss_rate") is None:
             fields["gnss_rate"] = 10.0 if rate is None else rate
         fields["gnss_hold"] = name == "hold"
+        fields["gnss_interpolate"] = name == "interpolated"
     elif name == "outliers":
         share = _knob(name, value)
         fields["outlier_share"] = 0.005 if share is None else share
@@ -394,8 +406,9 @@ def _outage_starts(t0: float, t_end: float, defects: Defects, rng: np.random.Gen
 
 def _pose(
     drive: SyntheticDrive, defects: Defects, rngs: dict[str, np.random.Generator]
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, tuple[str, ...]]:
-    """Measured ``px, py, psi``, the masked samples (dropouts) and their notes."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None, tuple[str, ...], dict]:
+    """Measured ``px, py, psi``, the masked samples (dropouts), their notes and, for sparse
+    fixes, the log's ``measured`` and ``fix_lag`` (else an empty dict)."""
     truth, clean = drive.truth, drive.measured
     t, dt = truth.t, truth.dt
     count = len(t)
@@ -440,6 +453,7 @@ def _pose(
 
     # Outages: fixes repeated (receiver holding its last fix) or missing (dropout).
     masked, notes = None, ()
+    heading_gone = np.zeros(count, dtype=bool)  # a dropout's samples: no heading either
     if defects.outages > 0:
         starts = _outage_starts(t[0], t[-1], defects, rngs["outages"])
         which = np.searchsorted(starts, t_fix, side="right") - 1
@@ -462,9 +476,11 @@ def _pose(
                 f"t = {a:.1f}–{b:.1f} s: no pose (simulated dropout)"
                 for a, b in zip(gap_a, gap_b, strict=True)
             )
+            heading_gone = inside
             psi = np.where(inside, np.interp(t, t[~inside], psi[~inside]), psi)
 
     # Fixes to the log rate.
+    sparse: dict = {}
     if t_fix is t:
         px, py = fix[:, 0], fix[:, 1]
     elif defects.gnss_hold:
@@ -472,7 +488,20 @@ def _pose(
         px, py = fix[held, 0], fix[held, 1]
     else:
         px, py = np.interp(t, t_fix, fix[:, 0]), np.interp(t, t_fix, fix[:, 1])
-    return px, py, psi, masked, notes
+        if not defects.gnss_interpolate:  # each fix once, at its own time
+            rows = np.searchsorted(t, t_fix - 1e-9, side="left")
+            lag = np.maximum(t[rows] - t_fix, 0.0)
+            lag[lag < 1e-9] = 0.0
+            measured = np.zeros((count, 2), dtype=bool)
+            measured[rows, 0] = True
+            measured[:, 1] = True
+            measured[rows[lag > 0], 1] = False  # a row's measurements share its fix's time
+            measured[heading_gone, 1] = False
+            px[rows], py[rows] = fix[:, 0], fix[:, 1]
+            full_lag = np.zeros(count)
+            full_lag[rows] = lag
+            sparse = {"measured": measured, "fix_lag": full_lag if (lag > 0).any() else None}
+    return px, py, psi, masked, notes, sparse
 
 
 def degrade(drive: SyntheticDrive, defects: Defects, seed: int) -> SyntheticDrive:
@@ -499,7 +528,7 @@ def degrade(drive: SyntheticDrive, defects: Defects, seed: int) -> SyntheticDriv
     children = np.random.SeedSequence([int(seed), 13]).spawn(len(_STREAMS))
     rngs = {name: np.random.default_rng(s) for name, s in zip(_STREAMS, children, strict=True)}
     wheels = _wheels(drive, defects, rngs)
-    px, py, psi, masked, notes = _pose(drive, defects, rngs)
+    px, py, psi, masked, notes, sparse = _pose(drive, defects, rngs)
     clean = drive.measured
     measured = DriveLog(
         t=clean.t.copy(),
@@ -513,5 +542,6 @@ def degrade(drive: SyntheticDrive, defects: Defects, seed: int) -> SyntheticDriv
         source=clean.source,
         masked=masked,
         mask_notes=notes,
+        **sparse,
     )
     return dataclasses.replace(drive, measured=measured, defects=defects, defect_seed=int(seed))
