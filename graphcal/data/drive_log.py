@@ -165,14 +165,9 @@ class DriveLog:
     def to_dataframe(self) -> pd.DataFrame:
         """The log as a DataFrame with the format's columns (and ``masked`` if any is); rows
         without a measured position or heading leave those cells empty (NaN), and a fix
-        between rows has its time in ``t_fix``."""
-        frame = pd.DataFrame({name: getattr(self, name) for name in COLUMNS})
-        if self.measured is not None:
-            frame.loc[~self.position_measured, ["px", "py"]] = np.nan
-            frame.loc[~self.heading_measured, "psi"] = np.nan
-        if self.fix_lag is not None:
-            any_measured = self.position_measured | self.heading_measured
-            frame[FIX_TIME_COLUMN] = np.where(any_measured, self.t - self.fix_lag, np.nan)
+        between rows has its time in ``t_fix`` (:func:`measurement_frame`)."""
+        columns = {name: getattr(self, name) for name in COLUMNS}
+        frame = measurement_frame(columns, self.measured, self.fix_lag)
         if self.masked is not None:
             frame[MASK_COLUMN] = self.masked.astype(np.int8)
         return frame
@@ -184,6 +179,22 @@ class DriveLog:
         if missing:
             raise ValueError(f"missing columns {missing}")
         return cls(**{c: np.array(columns[c], dtype=float) for c in COLUMNS}, source=source)
+
+
+def measurement_frame(
+    columns: dict[str, np.ndarray], measured: np.ndarray | None, fix_lag: np.ndarray | None
+) -> pd.DataFrame:
+    """The drive-log columns as a DataFrame, ``px, py`` empty in rows without a position fix
+    and ``psi`` in rows without a heading (``measured`` ``(N, 2)``, ``None``: all measured),
+    and a ``t_fix`` column where a fix was taken between rows (``fix_lag`` [s])."""
+    frame = pd.DataFrame(columns)
+    if measured is not None:
+        frame.loc[~measured[:, 0], ["px", "py"]] = np.nan
+        frame.loc[~measured[:, 1], "psi"] = np.nan
+    if fix_lag is not None and (fix_lag > 0).any():
+        any_measured = np.ones(len(frame), bool) if measured is None else measured.any(axis=1)
+        frame[FIX_TIME_COLUMN] = np.where(any_measured, frame["t"] - fix_lag, np.nan)
+    return frame
 
 
 def _line(row: int) -> int:

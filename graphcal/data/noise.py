@@ -63,11 +63,10 @@ def sparse_heading_noise(log: DriveLog, nominal: np.ndarray) -> float | None:
     step_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * nominal[0] / nominal[2]
     wheel_yaw = np.concatenate([[0.0], np.cumsum(step_yaw)])
     at_fix = wheel_yaw[rows]
-    if log.fix_lag is not None:  # back to the sample's own time within the step before
+    fraction = log.fix_fraction
+    if fraction is not None:  # back to the sample's own time within the step before
         before = np.maximum(rows - 1, 0)
-        at_fix = at_fix - log.fix_lag[rows] / np.diff(log.t).clip(min=1e-12)[before] * (
-            step_yaw[before] * (rows > 0)
-        )
+        at_fix = at_fix - (1.0 - fraction[rows]) * step_yaw[before]
     second = np.diff(log.psi[rows] - at_fix, 2)
     usable = np.ones(len(second), dtype=bool)
     if log.masked is not None:

@@ -86,6 +86,16 @@ class SegmentData:
             return self.valid.copy()
         return self.valid & self.measured[..., 0]
 
+    def start_measured(self) -> np.ndarray:
+        """``(S, 2)``: each segment's first sample measured the position / heading at the
+        sample itself (a measurement within the step before it lies outside the segment)."""
+        found = np.ones((len(self), 2), bool)
+        if self.measured is not None:
+            found &= self.measured[:, 0]
+        if self.fix_fraction is not None:
+            found &= (self.fix_fraction[:, 0] == 1.0)[:, None]
+        return found
+
     def has_heading(self) -> bool:
         """Some sample measured the heading."""
         return self.measured is None or bool((self.measured[..., 1] & self.valid).any())

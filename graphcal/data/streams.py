@@ -174,20 +174,9 @@ class Resampled:
     def frame(self):
         """The drive log as a DataFrame: the track's position and heading only where measured
         (else empty), each fix's own time in ``t_fix`` where it falls between rows."""
-        import pandas as pd
+        from graphcal.data.drive_log import measurement_frame
 
-        from graphcal.data.drive_log import FIX_TIME_COLUMN
-
-        frame = pd.DataFrame(self.columns)
-        if self.measured is None:
-            return frame
-        frame.loc[~self.measured[:, 0], ["px", "py"]] = np.nan
-        frame.loc[~self.measured[:, 1], "psi"] = np.nan
-        if self.fix_lag is not None and (self.fix_lag > 0).any():
-            any_measured = self.measured.any(axis=1)
-            fix_time = self.columns["t"] - self.fix_lag
-            frame[FIX_TIME_COLUMN] = np.where(any_measured, fix_time, np.nan)
-        return frame
+        return measurement_frame(self.columns, self.measured, self.fix_lag)
 
 
 def check_time(t: np.ndarray, source: str) -> None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from graphcal.errors import CalibrationFailed
@@ -32,13 +34,14 @@ def check_plausible(
     theta: np.ndarray,
     label: str = "the solve",
     reference: np.ndarray = THETA_NOMINAL,
-    causes: tuple[str, ...] = (),
+    causes: Callable[[], tuple[str, ...]] | None = None,
 ) -> None:
     """Raise :class:`~graphcal.errors.CalibrationFailed` unless theta is finite and inside
     the plausible ranges of a vehicle with nominal theta ``reference`` (:func:`plausible_ranges`;
-    by default the paper's car, :data:`PLAUSIBLE_THETA`). ``causes`` name what in the data
-    or the weights likely drove the solve there (the heading's weight, the fix rate, a time
-    offset beyond its prior); units are named only when nothing else is found."""
+    by default the paper's car, :data:`PLAUSIBLE_THETA`). ``causes()``, called only for an
+    implausible theta, names what in the data or the weights likely drove the solve there
+    (the heading's weight, the fix rate, a time offset beyond its prior); units are named
+    only when it names nothing."""
     theta = np.asarray(theta, float)
     if not np.all(np.isfinite(theta)):
         raise CalibrationFailed(f"{label} produced a non-finite theta")
@@ -46,10 +49,11 @@ def check_plausible(
     outside = (theta < ranges[:, 0]) | (theta > ranges[:, 1])
     if outside.any():
         bad = ", ".join(f"{PARAMETER_NAMES[i]} = {theta[i]:.4g}" for i in np.flatnonzero(outside))
-        if causes:
+        found = causes() if causes is not None else ()
+        if found:
             raise CalibrationFailed(
                 f"{label} gave an implausible theta ({bad}, SI units); likely cause: "
-                + "; ".join(causes)
+                + "; ".join(found)
             )
         raise CalibrationFailed(
             f"{label} gave an implausible theta ({bad}, SI units); check the units of the "

@@ -185,7 +185,7 @@ class SegmentGraph:
             if self.spec.lever_arm_sigma is not None:
                 arm = np.asarray(result.atVector(keys.LEVER_ARM))
             antenna = starts[:, :2] + lever_offset(starts[:, 2], arm)
-            out[:, 0] = np.where(_start_measured(data)[:, :1], antenna - data.poses[:, 0, :2], 0.0)
+            out[:, 0] = np.where(data.start_measured()[:, :1], antenna - data.poses[:, 0, :2], 0.0)
         return out
 
     def start_states(self, result: gtsam.Values) -> np.ndarray:
@@ -230,18 +230,6 @@ def _with_heading(data: SegmentData, s: int) -> bool:
     """Segment ``s`` measures the heading somewhere (else it has no heading bias)."""
     measured = data.measured_of(s)
     return measured is None or bool(measured[:, 1].any())
-
-
-def _start_measured(data: SegmentData) -> np.ndarray:
-    """``(S, 2)``: each segment's first sample measured the position / heading at the
-    sample itself (a measurement within the step before it lies outside the segment)."""
-    if data.measured is None:
-        found = np.ones((len(data), 2), bool)
-    else:
-        found = data.measured[:, 0].copy()
-    if data.fix_fraction is not None:
-        found &= (data.fix_fraction[:, 0] == 1.0)[:, None]
-    return found
 
 
 def _insert_segment(
@@ -327,7 +315,7 @@ def build_segment_graph(
     tracking = np.asarray(spec.tracking_sigmas, float)
     all_bounds = []
     slots = []
-    start_measured = _start_measured(data)
+    start_measured = data.start_measured()
     for s in range(len(data)):
         poses, inputs = data.segment(s)
         weights = data.weights_of(s)
@@ -647,7 +635,7 @@ def solve_segment_graph(
         if spec.estimate_theta:
             theta = np.asarray(segmented.shared_values.atVector(keys.THETA))
             check_plausible(
-                theta, label, spec.theta, implausibility_causes(built, segmented.values())
+                theta, label, spec.theta, lambda: implausibility_causes(built, segmented.values())
             )
             if covariance:
                 marginal, nuisance = _marginals(segmented, spec, label)
@@ -687,7 +675,7 @@ def _solve_whole_graph(
     marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
-        check_plausible(theta, label, spec.theta, implausibility_causes(built, result))
+        check_plausible(theta, label, spec.theta, lambda: implausibility_causes(built, result))
         if covariance:
             marginal, nuisance = _whole_graph_marginals(built, result, label)
     return SegmentSolution(

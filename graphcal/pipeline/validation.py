@@ -34,11 +34,7 @@ def _errors_at_fixes(data: SegmentData, states: np.ndarray, theta: np.ndarray) -
     """:func:`position_errors` of a log with sparse fixes: the mean over each segment's
     fixes after its start."""
     fixes = data.position_fixes()
-    measured_start = fixes[:, 0].copy()
-    if data.measured is not None:
-        measured_start &= data.measured[:, 0, 1]
-    if data.fix_fraction is not None:
-        measured_start &= data.fix_fraction[:, 0] == 1.0
+    measured_start = data.start_measured().all(axis=1)
     for s in np.flatnonzero(~measured_start):  # no measured start pose: fitted to the fixes
         k = int(data.n_steps[s])
         states[s, : k + 1] = aligned_trajectory(

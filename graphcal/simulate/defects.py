@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
+from graphcal.data.streams import fixes_on_grid
 
 if TYPE_CHECKING:
     from graphcal.simulate.drive import SyntheticDrive
@@ -489,9 +490,8 @@ def _pose(
     else:
         px, py = np.interp(t, t_fix, fix[:, 0]), np.interp(t, t_fix, fix[:, 1])
         if not defects.gnss_interpolate:  # each fix once, at its own time
-            rows = np.searchsorted(t, t_fix - 1e-9, side="left")
-            lag = np.maximum(t[rows] - t_fix, 0.0)
-            lag[lag < 1e-9] = 0.0
+            kept, rows, lag, _ = fixes_on_grid(t_fix, t)
+            fix, t_fix = fix[kept], t_fix[kept]
             measured = np.zeros((count, 2), dtype=bool)
             measured[rows, 0] = True
             measured[:, 1] = True
