@@ -402,3 +402,28 @@ def test_a_manifest_naming_a_bag_applies_time_offsets_and_refuses_column_keys(sm
     manifest.write_text(f'bag = "{small_bag}"\n[imu]\ntime_unit = "ms"\n')
     with pytest.raises(StreamError, match="time_unit: not used with bag"):
         read_manifest(manifest)
+
+
+def test_the_straight_road_twin_calibrates_what_it_determines(tmp_path, capsys):
+    """Issue 25's straight twin: 1 km straight, 10 Hz fixes in lat/lon, CAN wheel speeds, no
+    heading, sideslip or IMU. It exited 2 ("implausible theta (t_r = 0.18); check the
+    units"): its steady speed near a quarter revolution per interval was taken for 27-tick
+    counts. Now it finishes: c_e and c_d within 3σ, t_r not observable."""
+    directory = tmp_path / "twin"
+    assert main(["simulate", "--route", "straight", "--length-km", "1", "--seed", "3",
+                 "--streams", str(directory)]) == 0  # fmt: skip
+    manifest = directory / "manifest.toml"
+    lines = manifest.read_text().split("\n[imu]")[0].splitlines()
+    dropped = ("heading", "heading_unit", "heading_convention", "sideslip", "sideslip_unit")
+    kept = [line for line in lines if line.split("=")[0].strip() not in dropped]
+    manifest.write_text("\n".join(kept) + "\n")
+    out = tmp_path / "r"
+    args = ["calibrate", str(manifest), "--min-yaw-rate", "0", "--out", str(out)]
+    assert main(args) == 0
+    assert "ticks per revolution" not in capsys.readouterr().err
+    result = json.loads((out / "calibration.json").read_text())
+    assert result["parameters"]["t_r"]["status"].startswith("not calibrated: not observable")
+    assert "t_r" in result["not_calibrated"]
+    for name in ("c_e", "c_d"):
+        assert name not in result["not_calibrated"]
+        assert abs(result["theta_error"][name]) < 3 * result["parameters"][name]["sigma"]

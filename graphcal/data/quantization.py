@@ -28,6 +28,9 @@ MIN_SPREAD_TICKS = 2.0
 #: Share of intervals whose count differs from the previous one's, at least, for a counter
 #: (measured 0.36–0.52 on counted drives, 0.008–0.02 on continuous ones).
 MIN_COUNT_CHANGES = 0.15
+#: Robust σ [ticks] of the second differences of the counts, at least, for a counter (about
+#: 1.3 for rounded counts; a continuous signal's, at the found resolution, is far smaller).
+MIN_DITHER_TICKS = 0.5
 #: The best resolution must put the counts this close to whole numbers (mean resultant
 #: length; ``exp(−2π² (σ T)²)`` for white noise σ on top of the counts: 0.5 at σ = 0.19 tick).
 MIN_RESULTANT = 0.5
@@ -73,7 +76,8 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
        :data:`MIN_SPREAD_TICKS` (a 64-tick car at 100 Hz, 0–20 m/s, 1.4 ticks): that bound
        keeps a continuous signal's narrow range from fitting a small ``T``, but a divisor is
        only tried for a best ``kT`` that fits, and only taken if it fits the same samples.
-    4. The counts change between intervals.
+    4. The counts change between intervals and dither as rounded counts do
+       (:data:`MIN_DITHER_TICKS`).
     """
     n = np.asarray(rotations, float).reshape(-1)
     n = n[np.isfinite(n) & (n > 0)]
@@ -94,8 +98,16 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
     # A counter's rotation jumps between neighbouring counts from one interval to the next
     # even at a steady speed; a continuous signal that dwells at one speed (a cruise) can
     # look like whole counts there, but its rounded count hardly ever changes.
-    counts = np.round(np.asarray(rotations, float)[..., 0].reshape(-1) * ticks)
+    first = np.asarray(rotations, float)[..., 0].reshape(-1)
+    counts = np.round(first * ticks)
     if np.mean(np.diff(counts) != 0) < MIN_COUNT_CHANGES:
+        return None
+    # Rounding a cumulative count makes each interval's count dither: its second difference
+    # is e_k+3 − 3 e_k+2 + 3 e_k+1 − e_k in ticks (e uniform in ±½: σ = 1.29 ticks). A
+    # continuous signal that only looks counted — a cruise at a speed near a simple fraction
+    # of a revolution per interval — is smooth from one interval to the next.
+    second = np.diff(first[np.isfinite(first)], 2) * ticks
+    if len(second) and 1.4826 * np.median(np.abs(second - np.median(second))) < MIN_DITHER_TICKS:
         return None
     return ticks
 
