@@ -149,7 +149,10 @@ def simulate_streams(
         side: np.concatenate([[0.0], np.cumsum(n[:-1])])
         for side, n in (("rl", truth.n_rl), ("rr", truth.n_rr))
     }
-    t_wheels = _times(start, end, settings.wheel_rate, 0.0123, settings.clock_jitter, rng)
+    # Wheels (the CAN logger) start last, 0.6 s late: the drive log's grid starts at their
+    # first sample, and the GNSS epochs fall between its rows (12 ms before one), as they do
+    # in a real recording.
+    t_wheels = _times(start + 0.6, end, settings.wheel_rate, 0.0, settings.clock_jitter, rng)
     wheels = pd.DataFrame({"t": t_wheels})
     rate_t = 0.5 * (t_fine[1:] + t_fine[:-1])  # rotation rates hold between fine samples
     for side, cum in cumulative.items():
