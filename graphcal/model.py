@@ -355,7 +355,10 @@ def partial_steps(
     states = np.asarray(states, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
     f = np.asarray(fraction, dtype=float)
-    v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
+    if jacobians:
+        v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
+    else:  # validation over a whole log: no Jacobian arrays of (..., K, 4) each
+        v, omega = step_increments(inputs, theta, True)
     start = states[..., :-1, :]
     course = start[..., 2] + 0.5 * f * omega + inputs[..., BETA]
     cos_c, sin_c = np.cos(course), np.sin(course)

@@ -186,14 +186,14 @@ def measurement_frame(
 ) -> pd.DataFrame:
     """The drive-log columns as a DataFrame, ``px, py`` empty in rows without a position fix
     and ``psi`` in rows without a heading (``measured`` ``(N, 2)``, ``None``: all measured),
-    and a ``t_fix`` column where a fix was taken between rows (``fix_lag`` [s])."""
+    and a ``t_fix`` column with the time of each fix taken between rows (``fix_lag`` [s];
+    empty where the row's measurements are at its own time)."""
     frame = pd.DataFrame(columns)
     if measured is not None:
         frame.loc[~measured[:, 0], ["px", "py"]] = np.nan
         frame.loc[~measured[:, 1], "psi"] = np.nan
-    if fix_lag is not None and (fix_lag > 0).any():
-        any_measured = np.ones(len(frame), bool) if measured is None else measured.any(axis=1)
-        frame[FIX_TIME_COLUMN] = np.where(any_measured, frame["t"] - fix_lag, np.nan)
+    if fix_lag is not None and (fix_lag > 0).any():  # only where it is not the row's own t
+        frame[FIX_TIME_COLUMN] = np.where(fix_lag > 0, frame["t"] - fix_lag, np.nan)
     return frame
 
 

@@ -260,23 +260,31 @@ def chunk_errors(
     if not jacobians:
         return ChunkError(error)
 
-    def at_fixes(full: np.ndarray, direct: np.ndarray | None) -> np.ndarray:
+    def at_fixes(full: np.ndarray, direct: np.ndarray | None, own_step: bool) -> np.ndarray:
         """Tracked rows of a state Jacobian ``(C, L+1, 3, ...)``: at the samples, or through
-        the part-steps (chain rule through state k-1 plus ``direct`` through step k-1)."""
+        the part-steps (chain rule through state k-1 plus ``direct`` through step k-1;
+        with ``own_step``, ``direct (C, L, 3, 2)`` acts on step k-1's own rotations only,
+        the diagonal of a ``(C, L, 3, L, 2)`` Jacobian)."""
         if not partial:
             return full[:, 1:]
         _, d_state, *_ = parts_of
         out = np.einsum("clij,clj...->cli...", d_state, full[:, :-1])
-        if direct is not None:
+        if direct is not None and own_step:
+            steps = np.arange(n_steps)
+            out[:, steps, :, steps, :] += np.moveaxis(direct, 1, 0)
+        elif direct is not None:
             out += direct
-        keep = whole.reshape(whole.shape + (1,) * (out.ndim - 2))
-        return np.where(keep, full[:, 1:], out)
+        if whole.any():  # measurements at their samples: the state itself
+            out[whole] = full[:, 1:][whole]
+        return out
 
-    def stack(full: np.ndarray, direct: np.ndarray | None = None) -> np.ndarray:
+    def stack(
+        full: np.ndarray, direct: np.ndarray | None = None, own_step: bool = False
+    ) -> np.ndarray:
         # (C, L+1, 3, ...) -> (C, dim, ...)
         blocks = []
         for r, turn in zip(rows, turns, strict=True):
-            block = at_fixes(full, direct) if r == slice(1, None) else full[:, r]
+            block = at_fixes(full, direct, own_step) if r == slice(1, None) else full[:, r]
             if turn is not None:  # x and y gain the heading's derivative times the turn
                 block = block.copy()
                 heading = block[:, :, 2]
@@ -294,13 +302,10 @@ def chunk_errors(
         d_end[:, -3:] = -np.eye(3)
     d_corrections = d_slip = d_time = None
     if corrections is not None or slip is not None or time_offset is not None:
-        direct = None
-        if partial:  # step k-1's own rotations move the fix of pose k directly
-            direct = np.zeros((count, n_steps, 3, n_steps, 2))
-            steps = np.arange(n_steps)
-            direct[:, steps, :, steps, :] = np.moveaxis(parts_of[3], 1, 0)
+        # With part-steps, step k-1's own rotations move the fix of pose k directly.
+        direct = parts_of[3] if partial else None
         full = wheel_rotation_jacobian(states, rotations, theta)
-        d_rotations = stack(full, direct)  # (C, dim, L, 2)
+        d_rotations = stack(full, direct, own_step=True)  # (C, dim, L, 2)
         if corrections is not None:
             d_corrections = d_rotations
         if slip is not None:  # d n_w / d slip_w = measured n_w, summed over the steps
