@@ -36,6 +36,9 @@ class MeasuredPoseFactor:
         with_heading: the heading is measured too (else the error is the position's alone,
             and ``heading_bias`` must be ``None``).
         robust: Huber threshold [in σ] of a robust noise model, or 0 for a Gaussian one.
+        offset: a known body-frame offset ``[ahead, left]`` [m] added to the lever arm
+            (a fix taken a moment before the pose's time: minus the distance driven since,
+            ahead), or ``None``.
 
     Keys, in order: pose, lever_arm, heading_bias (those given).
     """
@@ -49,6 +52,7 @@ class MeasuredPoseFactor:
         heading_bias: int | None = None,
         with_heading: bool = True,
         robust: float = 0.0,
+        offset: np.ndarray | None = None,
     ):
         self.pose_key = int(pose)
         self.measured = np.asarray(measured, float)
@@ -61,6 +65,7 @@ class MeasuredPoseFactor:
         self.heading_bias_key = heading_bias
         self.rows = 3 if with_heading else 2
         self.robust = float(robust)
+        self.offset = np.zeros(2) if offset is None else np.asarray(offset, float)
 
     @property
     def keys(self) -> list[int]:
@@ -80,9 +85,9 @@ class MeasuredPoseFactor:
         self, factor: gtsam.CustomFactor, values: gtsam.Values, H: list | None
     ) -> np.ndarray:
         state = state_from_pose2(values.atPose2(self.pose_key), float(self.measured[2]))
-        arm = np.zeros(2)
+        arm = self.offset
         if self.lever_arm_key is not None:
-            arm = values.atVector(self.lever_arm_key)
+            arm = arm + values.atVector(self.lever_arm_key)
         bias = 0.0
         if self.heading_bias_key is not None:
             bias = float(values.atVector(self.heading_bias_key)[0])

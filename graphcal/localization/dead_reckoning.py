@@ -19,7 +19,8 @@ import pandas as pd
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
-from graphcal.graph.keyframes import gnss_keyframes
+from graphcal.factors.measured_pose import MeasuredPoseFactor
+from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
 from graphcal.graph.keys import keyframe
 from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
@@ -51,15 +52,30 @@ def pose_before_outage(
     """State ``[px, py, psi]`` at sample ``start`` from the smoothing window that ends there
     (GNSS positions and wheel odometry with ``theta`` fixed)."""
     first = max(0, start - round(settings.window_s / log.dt))
-    stride = gnss_keyframes(log, settings.gnss_rate_hz)[1]
-    keyframes = np.arange(start, first - 1, -stride)[::-1]
+    if log.measured is None:
+        stride = gnss_keyframes(log, settings.gnss_rate_hz)[1]
+        keyframes = np.arange(start, first - 1, -stride)[::-1]
+    else:  # the fixes in the window, and the outage's start
+        fixes = gnss_keyframes(log, settings.gnss_rate_hz)
+        keyframes = np.unique(np.append(fixes[(fixes >= first) & (fixes <= start)], start))
     if len(keyframes) < 2:
         raise GraphcalError(f"outage at sample {start}: no GNSS window before it")
     keys = [keyframe(i) for i in range(len(keyframes))]
     graph = gtsam.NonlinearFactorGraph()
     noise = gtsam.noiseModel.Isotropic.Sigma(2, settings.gnss_sigma)
-    for key, k in zip(keys, keyframes, strict=True):
-        graph.add(gtsam.PoseTranslationPrior2D(key, gtsam.Point2(log.px[k], log.py[k]), noise))
+    offsets = fix_offsets(log, keyframes, float(theta[0]))
+    for key, k, offset in zip(keys, keyframes, offsets, strict=True):
+        if not log.position_measured[k]:
+            continue
+        if offset == 0.0:
+            graph.add(gtsam.PoseTranslationPrior2D(key, gtsam.Point2(log.px[k], log.py[k]), noise))
+        else:  # a fix taken before the row's time
+            sigmas = np.full(3, settings.gnss_sigma)
+            graph.add(
+                MeasuredPoseFactor(
+                    key, log.poses[k], sigmas, with_heading=False, offset=np.array([offset, 0.0])
+                ).factor()
+            )
     for factor in keyframe_odometry_factors(log, keyframes, keys, None, theta=theta):
         graph.add(factor)
     values = gtsam.Values()

@@ -29,8 +29,9 @@ import numpy as np
 from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import pose2_from_state, state_from_pose2, theta_prior_factor
+from graphcal.factors.measured_pose import MeasuredPoseFactor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
-from graphcal.graph.keyframes import gnss_keyframes
+from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
 from graphcal.graph.keys import keyframe as _pose_key
 from graphcal.graph.keys import theta as _theta_key
 from graphcal.graph.slip import slip_noise_covariance
@@ -155,6 +156,9 @@ def run_online(
     smoother = gtsam.IncrementalFixedLagSmoother(settings.lag_s, params)
     position_noise = gnss_noise(settings.gnss_sigma, settings.gnss_huber)
     usable = dict(zip(keyframes.tolist(), gnss_usable(log, keyframes).tolist(), strict=True))
+    offsets = dict(
+        zip(keyframes.tolist(), fix_offsets(log, keyframes, settings.theta_initial[0]), strict=True)
+    )
     heading_noise = (
         None
         if settings.heading_sigma is None
@@ -167,10 +171,17 @@ def run_online(
 
     def measurement_factors(key: int, k: int) -> list:
         out = []
-        if usable[int(k)]:
+        if usable[int(k)] and offsets[int(k)] == 0.0:
             point = gtsam.Point2(log.px[k], log.py[k])
             out.append(gtsam.PoseTranslationPrior2D(key, point, position_noise))
-        if heading_noise is not None:
+        elif usable[int(k)]:  # a fix taken before the row's time: a known offset behind
+            sigmas = np.full(3, settings.gnss_sigma)
+            offset = np.array([offsets[int(k)], 0.0])
+            factor = MeasuredPoseFactor(
+                key, log.poses[k], sigmas, None, None, False, settings.gnss_huber, offset
+            )
+            out.append(factor.factor())
+        if heading_noise is not None and log.heading_measured[k]:
             out.append(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
         return out
 

@@ -29,7 +29,7 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import MeasuredPoseFactor, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
-from graphcal.graph.keyframes import gnss_keyframes
+from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
 from graphcal.graph.keys import LEVER_ARM, THETA, gap_slip, keyframe, keyframe_slip
 from graphcal.graph.observability import Observability, assess_observability
 from graphcal.graph.slip import slip_mean_sigma, slip_prior_factor, slip_step_factor
@@ -106,9 +106,37 @@ class SmoothingResult:
     lever_arm: tuple[np.ndarray, np.ndarray] | None = None
 
 
+def gnss_factor(
+    log: DriveLog,
+    key: int,
+    k: int,
+    offset: float,
+    arm_key: int | None,
+    settings: SmoothingSettings,
+) -> gtsam.NonlinearFactor:
+    """The fix of row ``k`` on keyframe ``key``: GTSAM's position prior, or, with a lever
+    arm variable or a fix taken ``offset`` [m] behind the pose (its own time, before the
+    row's), a :class:`~graphcal.factors.MeasuredPoseFactor`."""
+    if arm_key is None and offset == 0.0:
+        point = gtsam.Point2(log.px[k], log.py[k])
+        return gtsam.PoseTranslationPrior2D(
+            key, point, gnss_noise(settings.gnss_sigma, settings.gnss_huber)
+        )
+    return MeasuredPoseFactor(
+        key,
+        log.poses[k],
+        np.full(3, settings.gnss_sigma),
+        arm_key,
+        with_heading=False,
+        robust=settings.gnss_huber,
+        offset=np.array([offset, 0.0]),
+    ).factor()
+
+
 def gnss_usable(log: DriveLog, keyframes: np.ndarray) -> np.ndarray:
-    """Per keyframe: its fix may be used (not masked, not flagged as an outlying spike)."""
-    usable = np.ones(len(keyframes), dtype=bool)
+    """Per keyframe: it holds a fix that may be used (not masked, not flagged as an
+    outlying spike)."""
+    usable = log.position_measured[keyframes].copy()
     for flags in (log.masked, log.outlying):
         if flags is not None:
             usable &= ~np.asarray(flags)[keyframes]
@@ -136,7 +164,6 @@ def build_smoothing_graph(
     theta0 = np.asarray(settings.theta_initial, float)
     graph = gtsam.NonlinearFactorGraph()
     graph.add(theta_prior_factor(THETA, np.asarray(settings.theta_prior_sigmas), theta0))
-    position_noise = gnss_noise(settings.gnss_sigma, settings.gnss_huber)
     arm_key = LEVER_ARM if settings.lever_arm_sigma > 0 else None
     if arm_key is not None:
         graph.add(
@@ -144,22 +171,17 @@ def build_smoothing_graph(
                 arm_key, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, settings.lever_arm_sigma)
             )
         )
-    sigmas = np.full(3, settings.gnss_sigma)
     usable = gnss_usable(log, keyframes)
-    for key, k in zip(np.asarray(keys)[usable], keyframes[usable], strict=True):
-        if arm_key is None:
-            point = gtsam.Point2(log.px[k], log.py[k])
-            graph.add(gtsam.PoseTranslationPrior2D(int(key), point, position_noise))
-        else:
-            measured = log.poses[k]
-            factor = MeasuredPoseFactor(
-                int(key), measured, sigmas, arm_key, with_heading=False, robust=settings.gnss_huber
-            )
-            graph.add(factor.factor())
+    offsets = fix_offsets(log, keyframes, float(theta0[0]))
+    for key, k, offset in zip(
+        np.asarray(keys)[usable], keyframes[usable], offsets[usable], strict=True
+    ):
+        graph.add(gnss_factor(log, int(key), int(k), offset, arm_key, settings))
     if settings.heading_sigma is not None:
         heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, settings.heading_sigma)
         for key, k in zip(keys, keyframes, strict=True):
-            graph.add(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
+            if log.heading_measured[k]:  # no heading where none was logged
+                graph.add(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
     slip_keys = None
     if settings.slip_sigma > 0:
         slip_keys = _slip_model(graph, log, keyframes, usable, settings)
