@@ -631,7 +631,9 @@ def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Set
     joint = settings.joint
     if not joint.heading_noise_from_log:
         return settings
-    sigma = heading_noise(log, settings.vehicle.theta_nominal)
+    sigma = heading_noise(
+        log, settings.vehicle.theta_nominal, joint.wheel_noise, joint.tick_quantization
+    )
     if sigma is None:
         return settings
     x, y, _ = joint.pose_weights
