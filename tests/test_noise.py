@@ -50,3 +50,19 @@ def test_headings_only_at_10_hz_discount_the_wheels_tick_rounding(counted):
     found = heading_noise(log, THETA_NOMINAL, 0.0005, rounding)
     assert found == pytest.approx(WHITE, rel=0.15)
     assert heading_noise(log, THETA_NOMINAL) > 1.2 * WHITE  # the rounding not discounted
+
+
+def test_position_noise_is_read_from_the_solve_and_used():
+    """Fixes noisier than the settings assume (0.6 m against 0.2 m): the whole-log solve's
+    residuals give the fixes' own noise, the log is solved again with it, and the σ is
+    honest (χ²/dof about 1, the truth within 3σ)."""
+    from graphcal.pipeline.run import run_calibration
+    from graphcal.simulate.drive import NoiseLevels
+
+    drive = simulate_drive(6.0, seed=4, noise=NoiseLevels(position=0.6))
+    run = run_calibration(drive.measured, method="whole", workers=1)
+    assert run.whole.position_noise == pytest.approx(0.6, rel=0.1)
+    assert run.settings.joint.position_sigma == pytest.approx(0.6, rel=0.1)
+    assert run.whole.chi2_per_dof == pytest.approx(1.0, abs=0.1)
+    sigma = np.sqrt(np.diag(run.covariance))
+    assert np.all(np.abs(run.theta - drive.theta_true) < 3 * sigma)

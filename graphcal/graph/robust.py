@@ -66,7 +66,7 @@ def solve_robust(
     solve: Callable[..., SegmentSolution],
     threshold: float,
     rounds: int = 5,
-) -> tuple[SegmentSolution, np.ndarray | None]:
+) -> tuple[SegmentSolution, np.ndarray | None, np.ndarray | None]:
     """Solve ``spec`` over ``data`` with robust fix weights.
 
     Args:
@@ -78,13 +78,16 @@ def solve_robust(
         rounds: most solves.
 
     Returns:
-        The last solution and the weights ``(S, K+1)`` it used (``None``: every fix kept
-        weight 1 and the drive was solved once; the given weights if none changed).
+        The last solution, the weights ``(S, K+1)`` it used (``None``: every fix kept
+        weight 1 and the drive was solved once; the given weights if none changed) and the
+        fixes' position residuals ``(S, K+1, 2)`` at it, if the last round computed them
+        there (else ``None``).
     """
     floor = float(spec.tracking_sigmas[0])
     given = np.ones(data.valid.shape) if data.fix_weights is None else data.fix_weights
     solution = solve(data, None)
     weights = data.fix_weights
+    residuals = None
     for _ in range(rounds - 1):
         residuals = solution.built.fix_residuals(solution.result, solution.segmented)
         # The scale from fixes not flagged already (samples between fixes have none).
@@ -93,10 +96,10 @@ def solve_robust(
         new = np.where(data.valid, np.minimum(given, fix_weights(residuals, scale, threshold)), 1.0)
         old = given if weights is None else weights
         if np.max(np.abs(new - old)) <= WEIGHT_TOLERANCE:
-            break
+            return solution, weights, residuals  # computed at this solution
         weights = new
         solution = solve(dataclasses.replace(data, fix_weights=weights), solution.result)
-    return solution, weights
+    return solution, weights, None
 
 
 def solve_segment_graph_robust(
@@ -110,9 +113,10 @@ def solve_segment_graph_robust(
     workers: int = 1,
     progress: Callable[[str], None] | None = None,
     shared_start: dict[int, np.ndarray] | None = None,
-) -> tuple[SegmentSolution, np.ndarray | None]:
+) -> tuple[SegmentSolution, np.ndarray | None, np.ndarray | None]:
     """:func:`~graphcal.graph.segment_graph.solve_segment_graph` with robust fix weights
-    (:func:`solve_robust`); ``threshold`` 0 solves once without them. ``workers``: processes
+    (:func:`solve_robust`, whose three results it returns); ``threshold`` 0 solves once
+    without them. ``workers``: processes
     the segments are shared out among; ``shared_start``: where the first solve starts the
     graph-wide variables (e.g. :func:`~graphcal.graph.warm_start.warm_start`)."""
 
@@ -131,7 +135,9 @@ def solve_segment_graph_robust(
         )
 
     if threshold <= 0:
-        solution, weights = solve(data, None), data.fix_weights
+        solution, weights, residuals = solve(data, None), data.fix_weights, None
     else:
-        solution, weights = solve_robust(data, spec, solve, threshold)
-    return (with_covariance(solution, label, workers) if covariance else solution), weights
+        solution, weights, residuals = solve_robust(data, spec, solve, threshold)
+    if covariance:
+        solution = with_covariance(solution, label, workers)
+    return solution, weights, residuals

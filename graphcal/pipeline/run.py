@@ -49,6 +49,7 @@ from graphcal.data.segments import (
 )
 from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import GraphcalError
+from graphcal.factors import pose_sigmas
 from graphcal.graph.observability import Observability, condition_on_prior
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
@@ -297,9 +298,16 @@ def run_calibration(
     if method != "staged" or _models_sensors(settings.joint):
         # The recommended theta (joint, whole) first; it also finds the time offset, the
         # lever arm and the outliers, corrected for everything after it.
+        gathered = data
         whole, whole_values, data, offset = _solve_with_time_offset(
             log, data, selected, flagged, settings.joint, say, workers
         )
+        joint = _with_position_noise(whole, settings.joint, say)
+        if joint is not settings.joint:  # the fixes' own noise, not the settings' guess
+            settings = dataclasses.replace(settings, joint=joint)
+            whole, whole_values, data, offset = _solve_with_time_offset(
+                log, gathered, selected, flagged, settings.joint, say, workers
+            )
         if method != "joint":  # only the joint batches linearize at the solution
             whole_values = None
         if method != "staged":
@@ -641,6 +649,34 @@ def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Set
     say(f"heading noise {np.degrees(sigma):.2f}° (from the log): heading weight {weight:g}")
     joint = dataclasses.replace(joint, pose_weights=(x, y, weight))
     return dataclasses.replace(settings, joint=joint)
+
+
+#: The fixes' noise from the solve replaces the settings' when they differ by more than this
+#: share (a variance component; one more solve).
+POSITION_NOISE_TOLERANCE = 0.25
+
+
+def _with_position_noise(
+    whole: JointCalibration, settings: JointSettings, say: Progress
+) -> JointSettings:
+    """``settings`` with the position sigma the whole-log solve found in its residuals
+    (:attr:`JointCalibration.position_noise`) when it differs from theirs by more than
+    :data:`POSITION_NOISE_TOLERANCE`, the heading sigma kept; else ``settings`` itself."""
+    found = whole.position_noise
+    if found is None:
+        return settings
+    x, y, heading = settings.pose_weights
+    configured = float(pose_sigmas(settings.pose_weights, settings.position_sigma)[0])
+    say(f"position noise {found:.3f} m per axis (the fixes' residuals)")
+    if abs(found / configured - 1.0) <= POSITION_NOISE_TOLERANCE:
+        return settings
+    sigma = found * np.sqrt(x)
+    weight = float(f"{heading * (sigma / settings.position_sigma) ** 2:.6g}")
+    say(
+        f"  not the {configured:g} m the settings assume: solved again with it (heading "
+        f"weight {weight:g}, the heading's sigma kept)"
+    )
+    return dataclasses.replace(settings, position_sigma=sigma, pose_weights=(x, y, weight))
 
 
 def _models_sensors(settings: JointSettings) -> bool:

@@ -253,6 +253,8 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
         doc["estimated"] = {name: e.to_dict() for name, e in run.estimated.items()}
     if run.down_weighted is not None:
         doc["down_weighted_fixes"] = run.down_weighted.to_dict()
+    if run.whole is not None and run.whole.position_noise is not None:
+        doc["position_noise_m"] = run.whole.position_noise
     if run.whole is not None and run.whole.slip_statistic is not None:
         doc["wheel_slip"] = {
             "modelled": run.whole.slip_modelled,
