@@ -21,6 +21,8 @@ the other rows is a track for cutting and initial values, never a measurement
 
 from __future__ import annotations
 
+import dataclasses
+import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -80,6 +82,9 @@ class DriveLog:
     every row both, a uniform log), ``fix_lag`` ``(N,)`` [s] how long before the row's time
     its measurement was taken (``None``: at it). Where a component was not measured,
     ``px``, ``py``, ``psi`` hold the track (:mod:`graphcal.data.track`), not a measurement.
+    ``tick_resolution`` [rev] is one count of the wheels' tick counters when the recording
+    said so (an import's ``ticks_per_revolution``; ``None``: found from the rotations, if
+    they are counts, :mod:`graphcal.data.quantization`).
     """
 
     t: np.ndarray
@@ -96,6 +101,7 @@ class DriveLog:
     outlying: np.ndarray | None = field(default=None, compare=False)
     measured: np.ndarray | None = field(default=None, compare=False)
     fix_lag: np.ndarray | None = field(default=None, compare=False)
+    tick_resolution: float | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
@@ -686,7 +692,23 @@ def load_drive_log(
         ),
     )
     frame.columns = [str(c).strip() for c in frame.columns]
-    return validate_frame(frame, source, min_distance, nominal=nominal)
+    log = validate_frame(frame, source, min_distance, nominal=nominal)
+    resolution = _sidecar_tick_resolution(path)
+    return log if resolution is None else dataclasses.replace(log, tick_resolution=resolution)
+
+
+def _sidecar_tick_resolution(path: Path) -> float | None:
+    """One tick [rev] of the wheels' counters as the ``<stem>.json`` sidecar that
+    ``graphcal import`` wrote beside the CSV says (``ticks_per_revolution``), else None:
+    interpolated onto the grid, counts are no longer whole and cannot be found again."""
+    sidecar = path.with_name(f"{path.stem}.json")
+    try:
+        ticks = json.loads(sidecar.read_text()).get("ticks_per_revolution")
+    except (OSError, ValueError, AttributeError):
+        return None
+    if isinstance(ticks, int | float) and not isinstance(ticks, bool) and ticks >= 1:
+        return 1.0 / float(ticks)
+    return None
 
 
 def write_drive_log(log: DriveLog, path: str | os.PathLike[str]) -> None:

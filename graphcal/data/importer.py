@@ -105,6 +105,9 @@ class ImportedLog:
             "notes": list(r.notes),
             "masked": list(self.log.mask_notes),
             "heading": "not logged (positions only)" if r.heading_derived else "logged",
+            "ticks_per_revolution": None
+            if self.log.tick_resolution is None
+            else round(1.0 / self.log.tick_resolution),
             "warnings": list(self.warnings),
         }
         if self.truth is not None:
@@ -202,6 +205,8 @@ def import_recording(
         marked_notes=resampled.mask_notes,
         nominal=nominal,
     )
+    if recording.wheels.resolution is not None:  # counts interpolated onto the grid
+        log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
     return ImportedLog(
         log=log,
         resampled=resampled,

@@ -44,8 +44,11 @@ def heading_noise(
     return _uniform_heading_noise(log.psi, log.masked)
 
 
-def _uniform_heading_noise(psi: np.ndarray, masked: np.ndarray | None) -> float | None:
-    """:func:`heading_noise` of headings at consecutive samples."""
+def _uniform_heading_noise(
+    psi: np.ndarray, masked: np.ndarray | None, check_wide: bool = True
+) -> float | None:
+    """:func:`heading_noise` of headings at consecutive samples (``check_wide``: refuse
+    headings interpolated or held from a slower stream, which a uniform log may hold)."""
     second = np.diff(psi, 2)
     usable = np.ones(len(second), dtype=bool)
     if masked is not None:
@@ -55,7 +58,7 @@ def _uniform_heading_noise(psi: np.ndarray, masked: np.ndarray | None) -> float 
     if len(second) < 100:
         return None
     wide = psi[4:] - 2.0 * psi[2:-2] + psi[:-4]  # over two steps each side
-    if _mad(wide) > MAX_WIDE_RATIO * _mad(second):
+    if check_wide and _mad(wide) > MAX_WIDE_RATIO * _mad(second):
         return None  # interpolated or held from a slower stream: not white per sample
     return max(1.4826 * _mad(second) / np.sqrt(6.0), float(MIN_HEADING_SIGMA))
 
@@ -65,33 +68,41 @@ def _mad(values: np.ndarray) -> float:
     return float(np.median(np.abs(values - np.median(values))))
 
 
+#: Heading samples at most this far apart [s] are measured on their own second differences:
+#: a yaw acceleration of 0.5 rad/s² moves one by 0.02° at 40 Hz and 0.3° at 4 Hz, the
+#: median far less; slower headings are measured against the wheels' yaw.
+MAX_PLAIN_SPACING_S = 0.25
+#: Variance of a cumulative count's rounding at a time between two counter samples, as a
+#: share of a count's (``(1 − a)² + a²``, averaged over the position ``a``).
+INTERPOLATED_ROUNDING_SHARE = 2.0 / 3.0
+
+
 def sparse_heading_noise(
     log: DriveLog, nominal: np.ndarray, wheel_noise: float = 0.0, quantization: float = 0.0
 ) -> float | None:
-    """Heading noise [rad] of a log with heading samples at their own times, the smaller of
-    two estimates (each can only overstate it):
+    """Heading noise [rad] of a log with heading samples at their own times.
 
-    * on runs of headings at consecutive rows, the uniform estimator (the motion over one
-      step is far below the noise);
-    * over consecutive heading samples, the second differences of ``measured heading −
-      wheel yaw`` (the wheels' yaw, nominal theta, at each sample's own time, removes the
-      motion, which headings at 1–10 Hz would confuse with noise), less what the wheels add
-      to them: the rounding of tick counts (``quantization`` [rev] on each cumulative
-      count, 12 (c/t_r)² q² in a second difference) and white noise per step
-      (``wheel_noise`` [rev], (m₁ + m₂) 2 (c/t_r)² σ² over m₁ + m₂ steps).
+    * Headings at most :data:`MAX_PLAIN_SPACING_S` apart (median): the uniform estimator
+      on consecutive heading samples (the motion between them is far below the noise).
+    * Slower headings: the second differences of ``measured heading − wheel yaw`` (the
+      wheels' yaw, nominal theta, at each sample's own time, removes the motion), less what
+      the wheels add to them. For tick counts (``quantization`` [rev] > 0), the rounding
+      of each wheel's cumulative count, 12 (c/t_r)² q² per second difference, times
+      :data:`INTERPOLATED_ROUNDING_SHARE` for counts the recording gave at other instants
+      (``DriveLog.tick_resolution``); else the white noise per step (``wheel_noise``
+      [rev]), (m₁ + m₂) 2 (c/t_r)² σ² over m₁ + m₂ steps. An estimate that subtracts too
+      much overweights the heading, and a heading weighted by an understated noise biases
+      t_r and d further than an overstated one: the discount is the smallest that holds.
 
-    ``None`` when neither has 100 usable samples."""
+    ``None`` for fewer than 100 usable samples."""
     rows = np.flatnonzero(log.heading_measured)
-    estimates = []
-    runs_of_three = rows[:-2][rows[2:] - rows[:-2] == 2]
-    if len(runs_of_three) >= 100:  # rows r, r+1, r+2 all measure the heading
-        psi = log.psi
-        second = psi[runs_of_three] - 2.0 * psi[runs_of_three + 1] + psi[runs_of_three + 2]
-        if log.masked is not None:
-            bad = np.asarray(log.masked)
-            second = second[~(bad[runs_of_three] | bad[runs_of_three + 1] | bad[runs_of_three + 2])]
-        if len(second) >= 100:
-            estimates.append(1.4826 * _mad(second) / np.sqrt(6.0))
+    if len(rows) < 3:
+        return None
+    times = log.t[rows] if log.fix_lag is None else (log.t - log.fix_lag)[rows]
+    psi = log.psi[rows]
+    masked = None if log.masked is None else np.asarray(log.masked)[rows]
+    if float(np.median(np.diff(times))) <= MAX_PLAIN_SPACING_S:
+        return _uniform_heading_noise(psi, masked, check_wide=False)
     yaw_per_rev = nominal[0] / nominal[2]
     step_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * yaw_per_rev
     wheel_yaw = np.concatenate([[0.0], np.cumsum(step_yaw)])
@@ -100,17 +111,16 @@ def sparse_heading_noise(
     if fraction is not None:  # back to the sample's own time within the step before
         before = np.maximum(rows - 1, 0)
         at_fix = at_fix - (1.0 - fraction[rows]) * step_yaw[before]
-    second = np.diff(log.psi[rows] - at_fix, 2)
-    usable = np.ones(len(second), dtype=bool)
-    if log.masked is not None:
-        bad = np.asarray(log.masked)[rows]
-        usable &= ~(bad[:-2] | bad[1:-1] | bad[2:])
-    second = second[usable]
-    if len(second) >= 100:
-        steps = float(np.median(rows[2:] - rows[:-2]))
-        from_wheels = yaw_per_rev**2 * (12.0 * quantization**2 + 2.0 * steps * wheel_noise**2)
-        variance = max((1.4826 * _mad(second)) ** 2 - from_wheels, 0.0) / 6.0
-        estimates.append(np.sqrt(variance))
-    if not estimates:
+    second = np.diff(psi - at_fix, 2)
+    if masked is not None:
+        second = second[~(masked[:-2] | masked[1:-1] | masked[2:])]
+    if len(second) < 100:
         return None
-    return max(min(estimates), float(MIN_HEADING_SIGMA))
+    if quantization > 0:
+        share = INTERPOLATED_ROUNDING_SHARE if log.tick_resolution is not None else 1.0
+        from_wheels = 12.0 * share * quantization**2
+    else:
+        steps = float(np.median(rows[2:] - rows[:-2]))
+        from_wheels = 2.0 * steps * wheel_noise**2
+    variance = max((1.4826 * _mad(second)) ** 2 - yaw_per_rev**2 * from_wheels, 0.0) / 6.0
+    return max(float(np.sqrt(variance)), float(MIN_HEADING_SIGMA))

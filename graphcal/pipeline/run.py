@@ -621,14 +621,23 @@ def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
 
 
 def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Settings:
-    """``settings`` with the joint solve's tick quantization from the log's own resolution
+    """``settings`` with the joint solve's tick quantization from the resolution the
+    recording stated (``DriveLog.tick_resolution``) or the log's rotations show
     (:mod:`graphcal.data.quantization`), unless the settings (or vehicle) give one."""
     if settings.joint.tick_quantization > 0:
         return settings
-    ticks = ticks_per_revolution(np.column_stack([log.n_rl, log.n_rr]))
+    source = "the recording says"
+    if log.tick_resolution is not None:
+        ticks = round(1.0 / log.tick_resolution)
+    else:
+        ticks = ticks_per_revolution(np.column_stack([log.n_rl, log.n_rr]))
+        source = "found in the rotations"
     if ticks is None:
         return settings
-    say(f"wheel rotations are counts of {ticks} ticks per revolution: quantization modelled")
+    say(
+        f"wheel rotations are counts of {ticks} ticks per revolution ({source}): "
+        "quantization modelled"
+    )
     joint = dataclasses.replace(settings.joint, tick_quantization=quantization_sigma(ticks))
     return dataclasses.replace(settings, joint=joint)
 
