@@ -389,3 +389,35 @@ def partial_steps(
         )
 
     return out, d_state, direct(dv_dth, domega_dth), direct(dv_dn, domega_dn)
+
+
+def wheel_lateral_acceleration(
+    n_rl: np.ndarray,
+    n_rr: np.ndarray,
+    theta: np.ndarray,
+    dt: float,
+    window_s: float = 1.0,
+    iterations: int = 3,
+) -> np.ndarray:
+    """Lateral acceleration [m/s²] of a log without an IMU or a heading: speed × yaw rate of
+    the wheels (eqs. 2–3 with ``theta``), each over a central ``window_s`` [s], per sample.
+    Eq. (3)'s load transfer ``d · a_y`` depends on the result: solved by fixed-point
+    iteration from ``a_y = 0`` (its factor, ``2 v² d / (c_e t_r)``, is about 0.1 at 10 m/s).
+    With the nominal theta (``c_d = d = 0``) a straight road's left/right difference reads
+    as a lateral acceleration ``∝ c_d v²``: derive it again with a solved theta."""
+    n_rl, n_rr = np.asarray(n_rl, float), np.asarray(n_rr, float)
+    n = len(n_rl)
+    half = max(1, round(0.5 * window_s / dt))
+    ahead = np.minimum(np.arange(n) + half, n - 1)
+    behind = np.maximum(np.arange(n) - half, 0)
+    span = np.maximum(ahead - behind, 1) * dt
+
+    def rate(per_step: np.ndarray) -> np.ndarray:
+        cumulative = np.concatenate([[0.0], np.cumsum(per_step[:-1])])
+        return (cumulative[ahead] - cumulative[behind]) / span
+
+    inputs = np.column_stack([n_rl, n_rr, np.zeros(n), np.zeros(n)])
+    for _ in range(iterations):
+        v, omega = step_increments(inputs, theta)
+        inputs[:, AY] = rate(v) * rate(omega)
+    return inputs[:, AY].copy()

@@ -84,7 +84,10 @@ class DriveLog:
     ``px``, ``py``, ``psi`` hold the track (:mod:`graphcal.data.track`), not a measurement.
     ``tick_resolution`` [rev] is one count of the wheels' tick counters when the recording
     said so (an import's ``ticks_per_revolution``; ``None``: found from the rotations, if
-    they are counts, :mod:`graphcal.data.quantization`).
+    they are counts, :mod:`graphcal.data.quantization`). ``ay_from_wheels``: ``ay`` was
+    derived from the wheels with the nominal theta (no IMU, no heading:
+    :func:`graphcal.model.wheel_lateral_acceleration`), to be derived again with a solved
+    one.
     """
 
     t: np.ndarray
@@ -102,6 +105,7 @@ class DriveLog:
     measured: np.ndarray | None = field(default=None, compare=False)
     fix_lag: np.ndarray | None = field(default=None, compare=False)
     tick_resolution: float | None = field(default=None, compare=False)
+    ay_from_wheels: bool = field(default=False, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
@@ -693,22 +697,27 @@ def load_drive_log(
     )
     frame.columns = [str(c).strip() for c in frame.columns]
     log = validate_frame(frame, source, min_distance, nominal=nominal)
-    resolution = _sidecar_tick_resolution(path)
-    return log if resolution is None else dataclasses.replace(log, tick_resolution=resolution)
+    return dataclasses.replace(log, **_from_import_sidecar(path))
 
 
-def _sidecar_tick_resolution(path: Path) -> float | None:
-    """One tick [rev] of the wheels' counters as the ``<stem>.json`` sidecar that
-    ``graphcal import`` wrote beside the CSV says (``ticks_per_revolution``), else None:
-    interpolated onto the grid, counts are no longer whole and cannot be found again."""
-    sidecar = path.with_name(f"{path.stem}.json")
+def _from_import_sidecar(path: Path) -> dict:
+    """What the ``<stem>.json`` sidecar that ``graphcal import`` wrote beside the CSV says
+    that the CSV cannot: the wheels' tick resolution (``ticks_per_revolution``; counts
+    interpolated onto the grid are no longer whole and cannot be found again) and whether
+    ``ay`` came from the wheels (``ay_from_wheels``). Empty without such a sidecar."""
     try:
-        ticks = json.loads(sidecar.read_text()).get("ticks_per_revolution")
-    except (OSError, ValueError, AttributeError):
-        return None
+        meta = json.loads(path.with_name(f"{path.stem}.json").read_text())
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(meta, dict) or not str(meta.get("generator", "")).endswith(" import"):
+        return {}
+    found: dict = {}
+    ticks = meta.get("ticks_per_revolution")
     if isinstance(ticks, int | float) and not isinstance(ticks, bool) and ticks >= 1:
-        return 1.0 / float(ticks)
-    return None
+        found["tick_resolution"] = 1.0 / float(ticks)
+    if meta.get("ay_from_wheels") is True:
+        found["ay_from_wheels"] = True
+    return found
 
 
 def write_drive_log(log: DriveLog, path: str | os.PathLike[str]) -> None:

@@ -105,6 +105,7 @@ class ImportedLog:
             "notes": list(r.notes),
             "masked": list(self.log.mask_notes),
             "heading": "not logged (positions only)" if r.heading_derived else "logged",
+            "ay_from_wheels": self.log.ay_from_wheels,
             "ticks_per_revolution": None
             if self.log.tick_resolution is None
             else round(1.0 / self.log.tick_resolution),
@@ -207,6 +208,8 @@ def import_recording(
     )
     if recording.wheels.resolution is not None:  # counts interpolated onto the grid
         log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
+    if resampled.ay_from_wheels:
+        log = dataclasses.replace(log, ay_from_wheels=True)
     return ImportedLog(
         log=log,
         resampled=resampled,

@@ -34,6 +34,7 @@ import numpy as np
 from graphcal.data.consistency import runs
 from graphcal.data.track import course
 from graphcal.errors import GraphcalError
+from graphcal.model import wheel_lateral_acceleration
 
 #: Rates [Hz] a drive log may be written at.
 RATE_RANGE = (1.0, 1000.0)
@@ -168,6 +169,7 @@ class Resampled:
     overlap: tuple[float, float]
     notes: tuple[str, ...] = field(default=())
     heading_derived: bool = False
+    ay_from_wheels: bool = False
     measured: np.ndarray | None = None
     fix_lag: np.ndarray | None = None
 
@@ -415,13 +417,16 @@ def resample(
                 f"{YAW_RATE_WINDOW_S:g} s"
             )
         else:
-            wheel_yaw = np.cumsum((n_rr - n_rl) * wheel_circumference / track_width)
-            yaw_rate = rate_over_window(wheel_yaw, dt)
+            yaw_rate = None
             notes.append(
-                "lateral acceleration not logged: speed × yaw rate of the wheels (nominal c_e, "
-                f"t_r) over {YAW_RATE_WINDOW_S:g} s"
+                "lateral acceleration not logged: speed × yaw rate of the wheels over "
+                f"{YAW_RATE_WINDOW_S:g} s (nominal theta; derived again with the solved one)"
             )
-        ay = speed * yaw_rate
+        if yaw_rate is None:
+            nominal = np.array([wheel_circumference, 0.0, track_width, 0.0])
+            ay = wheel_lateral_acceleration(n_rl, n_rr, nominal, dt, YAW_RATE_WINDOW_S)
+        else:
+            ay = speed * yaw_rate
 
     masked = np.zeros(count, dtype=bool)
     mask_notes: list[str] = []
@@ -458,6 +463,9 @@ def resample(
         overlap=(start, end),
         notes=(*recording.notes, *notes),
         heading_derived=pose.heading is None,
+        ay_from_wheels=(imu is None or imu.lateral_acceleration is None)
+        and (imu is None or imu.yaw_rate is None)
+        and pose.heading is None,
         measured=measured,
         fix_lag=lag_at_rows(lag, rows, count),
     )

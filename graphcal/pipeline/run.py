@@ -51,7 +51,7 @@ from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import GraphcalError
 from graphcal.factors import pose_sigmas
 from graphcal.graph.observability import Observability, condition_on_prior
-from graphcal.model import PARAMETER_NAMES
+from graphcal.model import PARAMETER_NAMES, wheel_lateral_acceleration
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import (
@@ -303,8 +303,15 @@ def run_calibration(
             log, data, selected, flagged, settings.joint, say, workers
         )
         joint = _with_position_noise(whole, settings.joint, say)
-        if joint is not settings.joint:  # the fixes' own noise, not the settings' guess
-            settings = dataclasses.replace(settings, joint=joint)
+        if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
+            log = dataclasses.replace(
+                log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, whole.theta, log.dt)
+            )
+            gathered = gather_segments(log, selected, flagged)
+            validation = gather_segments(log, validation_segments)
+            say("lateral acceleration of the wheels derived again with the solved theta")
+        if joint is not settings.joint or log.ay_from_wheels:
+            settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
             whole, whole_values, data, offset = _solve_with_time_offset(
                 log, gathered, selected, flagged, settings.joint, say, workers
             )
