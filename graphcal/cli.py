@@ -323,6 +323,7 @@ def _simulate_streams(
 
 def cmd_check(args: argparse.Namespace) -> int:
     """Validate a drive log (or a manifest or bag, imported in memory) and summarize it."""
+    from graphcal.data.drive_log import measurement_line
     from graphcal.data.segments import split_segments, yaw_rate_statistic
 
     settings = settings_from_args(args)
@@ -336,6 +337,8 @@ def cmd_check(args: argparse.Namespace) -> int:
             print(f"  {line}")
     print(f"  samples          {len(log)} at {log.dt * 1e3:.1f} ms ({1 / log.dt:.1f} Hz)")
     print(f"  duration         {log.t[-1] - log.t[0]:.1f} s")
+    if log.sparse:
+        print(f"  measurements     {measurement_line(log)}")
     print(f"  distance         {_distance_line(log, settings)}")
     print(
         f"  segments         {len(segments)} of {seg.length:g} m, "

@@ -231,3 +231,15 @@ def test_sparse_fix_mistakes_are_one_line(tmp_path, change, column, what):
         load_drive_log(path)
     message = str(raised.value)
     assert f"column '{column}', line {line + 1}" in message and "\n" not in message
+
+
+def test_check_says_what_a_sparse_log_measures(tmp_path, capsys):
+    from graphcal.simulate.defects import degrade, parse_defects
+    from graphcal.simulate.drive import simulate_drive
+
+    sparse = degrade(simulate_drive(1.0, seed=2), parse_defects("gnss10hz=1"), seed=3).measured
+    path = tmp_path / "sparse.csv"
+    write_drive_log(sparse, path)
+    assert main(["check", str(path)]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if "measurements" in x)
+    assert "position fixes (1.0 Hz)" in line and "taken between rows" in line

@@ -198,3 +198,23 @@ def test_route_title_does_not_claim_a_selection_that_did_not_happen(joint):
     fallback = dataclasses.replace(run, yaw_rate=np.zeros_like(run.yaw_rate), selected=run.segments)
     title = route_figure(fallback).axes[0].get_title()
     assert f"all {len(run.segments)}" in title and "selected" not in title
+
+
+def test_trajectory_of_sparse_fixes_shows_the_fixes_and_the_compared_paths():
+    """1 Hz fixes: the figure marks the fixes, not the track between them, and draws the
+    paths the validation compares (placed where they fit the fixes: no pose at the start)."""
+    from graphcal.pipeline.validation import odometry_paths
+    from graphcal.simulate.defects import degrade, parse_defects
+
+    drive = degrade(simulate_drive(3.0, seed=2), parse_defects("gnss10hz=1"), seed=3)
+    run = run_calibration(drive.measured, method="whole", workers=1)
+    figure = trajectory_figure(run)
+    ax = figure.axes[0]
+    measured = next(line for line in ax.lines if line.get_label() == "measured positions")
+    i = int(re.search(r"segment (\d+)", ax.get_title()).group(1))
+    one = run.validation.take(np.array([i]))
+    assert len(measured.get_xdata()) == one.position_fixes()[0].sum()  # about 1 per 15 m
+    assert len(measured.get_xdata()) < 40
+    calibrated = next(line for line in ax.lines if "recommended" in str(line.get_label()))
+    np.testing.assert_allclose(calibrated.get_xdata(), odometry_paths(one, run.theta)[0, :, 0])
+    assert "fits the fixes" in ax.get_title()

@@ -207,6 +207,21 @@ def measurement_frame(
     return frame
 
 
+def measurement_line(log: DriveLog) -> str:
+    """What a log's pose rows measure, in one line: fixes and headings, their rates, and
+    how many were taken between rows (for ``graphcal check``)."""
+    duration = max(float(log.t[-1] - log.t[0]), 1e-9)
+    parts = []
+    kinds = (("position fixes", log.position_measured), ("headings", log.heading_measured))
+    for name, rows in kinds:
+        count = int(rows.sum())
+        parts.append(f"{count} {name} ({count / duration:.1f} Hz)" if count else f"no {name}")
+    between = 0 if log.fix_lag is None else int((log.fix_lag > 0).sum())
+    if between:
+        parts.append(f"{between} taken between rows, each used at its own time (t_fix)")
+    return ", ".join(parts)
+
+
 def _line(row: int) -> int:
     """File line of a data row (header is line 1)."""
     return int(row) + 2

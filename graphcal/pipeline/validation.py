@@ -19,9 +19,25 @@ from graphcal.data.segments import SegmentData
 from graphcal.model import aligned_trajectory, integrate, partial_steps
 
 
+def odometry_paths(data: SegmentData, theta: np.ndarray) -> np.ndarray:
+    """The dead-reckoned states ``(S, K+1, 3)`` the validation compares: from each
+    segment's measured start pose, or, where its first sample measured no pose there,
+    moved rigidly to fit its fixes."""
+    states = integrate(data.poses[:, 0], data.inputs, theta)
+    if data.measured is None and data.fix_fraction is None:
+        return states
+    fixes = data.position_fixes()
+    for s in np.flatnonzero(~data.start_measured().all(axis=1)):
+        k = int(data.n_steps[s])
+        states[s, : k + 1] = aligned_trajectory(
+            states[s, : k + 1], data.poses[s, : k + 1], fixes[s, : k + 1].astype(float)
+        )
+    return states
+
+
 def position_errors(data: SegmentData, theta: np.ndarray) -> np.ndarray:
     """Mean position error [m] per segment of odometry with ``theta`` (eq. 16 / K), ``(S,)``."""
-    states = integrate(data.poses[:, 0], data.inputs, theta)
+    states = odometry_paths(data, theta)
     if data.measured is None and data.fix_fraction is None:
         distance = np.hypot(*(states[..., :2] - data.poses[..., :2]).transpose(2, 0, 1))
         valid = data.valid.copy()
@@ -31,15 +47,9 @@ def position_errors(data: SegmentData, theta: np.ndarray) -> np.ndarray:
 
 
 def _errors_at_fixes(data: SegmentData, states: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """:func:`position_errors` of a log with sparse fixes: the mean over each segment's
-    fixes after its start."""
+    """:func:`position_errors` of a log with sparse fixes, from :func:`odometry_paths`
+    ``states``: the mean over each segment's fixes after its start."""
     fixes = data.position_fixes()
-    measured_start = data.start_measured().all(axis=1)
-    for s in np.flatnonzero(~measured_start):  # no measured start pose: fitted to the fixes
-        k = int(data.n_steps[s])
-        states[s, : k + 1] = aligned_trajectory(
-            states[s, : k + 1], data.poses[s, : k + 1], fixes[s, : k + 1].astype(float)
-        )
     predicted = states
     if data.fix_fraction is not None:
         predicted = states.copy()

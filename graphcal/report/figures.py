@@ -14,8 +14,9 @@ from matplotlib.figure import Figure, SubFigure
 from matplotlib.ticker import MaxNLocator
 
 from graphcal.evaluation import Evaluation
-from graphcal.model import PARAMETER_NAMES, integrate
+from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import CalibrationRun
+from graphcal.pipeline.validation import odometry_paths
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 _COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}
@@ -394,15 +395,18 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     segment_errors = _segment_errors(run, evaluation)
     errors = segment_errors["nominal"]
     i = int(np.argsort(errors)[len(errors) // 2])
-    poses, inputs = run.validation.segment(i)
+    poses, _ = run.validation.segment(i)
+    one = run.validation.take(np.array([i]))
+    fixes = one.position_fixes()[0]
     thetas = {"nominal": run.settings.vehicle.theta_nominal, "calibrated": run.theta}
     if evaluation is not None:
         thetas["true"] = evaluation.theta_true
     fig = Figure(figsize=(7, 7), layout="constrained")
     ax = fig.add_subplot()
-    ax.plot(poses[:, 0], poses[:, 1], ".", ms=1.5, color="0.5", label="measured positions")
+    ax.plot(*poses[fixes, :2].T, ".", ms=1.5 if fixes.mean() > 0.5 else 4, color="0.5",
+            label="measured positions")  # fmt: skip
     for name, theta in thetas.items():
-        path = integrate(poses[0], inputs, theta)
+        path = odometry_paths(one, theta)[0]
         error = segment_errors[name][i]
         ax.plot(
             path[:, 0],
@@ -411,7 +415,8 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
             ls="--" if name == "true" else "-",
             label=f"odometry, {_THETA_NAMES[name]}: mean position error {error:.2f} m",
         )
-    ax.plot(poses[0, 0], poses[0, 1], "o", color="k", ms=5, label="start", zorder=4)
+    start = odometry_paths(one, run.theta)[0, 0]
+    ax.plot(start[0], start[1], "o", color="k", ms=5, label="start", zorder=4)
     ax.set_aspect("equal", adjustable="datalim")
     fig.get_layout_engine().set(w_pad=_EDGE_PAD)
     ax.set_xlabel("px [m]")
@@ -419,7 +424,11 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     ax.set_title(
         f"Validation segment {i} ({run.settings.segments.validation_length:g} m): "
         f"the median of {len(errors)} by nominal-θ error\n"
-        "odometry integrated from the measured start pose"
+        + (
+            "odometry integrated from the measured start pose"
+            if one.start_measured().all()
+            else "odometry placed where it fits the fixes best (no pose measured at the start)"
+        )
     )
     _legend_below(fig, [ax], ncols=1)
     return fig
