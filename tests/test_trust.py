@@ -92,3 +92,21 @@ def test_an_unmodelled_lever_arm_is_not_reported_as_calibrated(drive, tmp_path, 
     result = json.loads((out / "calibration.json").read_text())
     assert result["trust"]["trusted"] is False and result["trust"]["chi2_per_dof"] > 1.5
     assert result["parameters"]["c_e"]["status"].startswith("not trusted")
+
+
+def test_an_implausible_theta_names_its_likely_cause_before_units():
+    """Issue 25: a straight road or slow fixes drove solves to "implausible theta ... check
+    the units" when no unit was wrong. What drove it is named; units only when nothing is."""
+    from graphcal.errors import CalibrationFailed
+    from graphcal.graph.plausibility import check_plausible
+
+    absurd = np.array([2.0, 0.0, 0.2, 0.0])  # t_r = 0.2 m on a car
+    with pytest.raises(CalibrationFailed) as named:
+        check_plausible(absurd, "joint solve", causes=lambda: ("position fixes at only 0.5 Hz",))
+    assert "likely cause: position fixes at only 0.5 Hz" in str(named.value)
+    assert "check the units" not in str(named.value)
+    with pytest.raises(CalibrationFailed, match="check the units"):
+        check_plausible(absurd, "joint solve", causes=lambda: ())
+    called = []
+    check_plausible(np.array([2.0, 0.0, 1.55, 0.0]), causes=lambda: called.append(1) or ())
+    assert not called  # a plausible theta costs no diagnosis
