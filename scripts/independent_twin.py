@@ -1,0 +1,605 @@
+"""An independent twin of a recording: streams from a simulator graphcal's code did not build.
+
+    python scripts/independent_twin.py --length-km 12 --seeds 0 1 2 --jobs 2
+
+(every case of the default grid; restrict an axis with ``--rates 10``, ``--heading yes``,
+``--imu no``, ``--wheels ticks``; ``--keep DIR`` keeps the recordings and results).
+
+Why: graphcal's own simulator (``graphcal.simulate``) generates its data with the very model
+graphcal calibrates (the paper's eqs. 1–3: rear-wheel rotations -> distance and yaw of the
+centre of gravity, with a sideslip input), so it cannot show what a car that is *not* that
+model does to the calibration. This script simulates a car with numpy and pandas only —
+nothing from ``graphcal.simulate`` or ``graphcal.model`` — writes what its sensors would log
+as CSV files with a streams manifest, and calibrates each recording with the ``graphcal``
+command line in a subprocess (exactly what a user runs):
+
+    graphcal calibrate DIR/manifest.toml --method whole --out DIR/result --workers 1
+
+The car
+-------
+A kinematic single-track ("bicycle") model whose state is the REAR AXLE centre (x, y, yaw).
+A random town route is built on arc length from straights, bends, crossroads turns,
+roundabouts and chicanes, with smooth (raised-cosine) curvature transitions; its yaw
+curvature kappa(s) = dyaw/ds is what the steering produces. The speed (3–15 m/s) follows a
+target per piece — cruising, braking for traffic — limited to |lateral acceleration| <= 2.7
+m/s² in the bends, with +1.5 m/s² acceleration and -2.5 m/s² braking (forward/backward
+passes over the arc length). The rear axle moves along its heading (a kinematic bicycle has
+no sideslip at the rear axle), except for a tyre slip angle beta_r = -k·a_y, k = 0.004 s²/m
+(``--slip-k``; at most 0.7° at 3 m/s²), which rotates the rear axle's velocity away from the
+heading, outwards in a bend. a_y is the rear axle's lateral acceleration in the body frame
+(REP 103: positive left), differentiated from the trajectory, slip included.
+
+Rear wheels roll along the heading: their path lengths are
+ds_l = ds·cos(beta_r) - (t_r/2)·dyaw and ds_r = ds·cos(beta_r) + (t_r/2)·dyaw — the
+brief's ds·(1 ∓ kappa·t_r/2) with ds the rear axle's travel along its heading (the cosine
+differs from 1 by < 7e-5). Effective rolling circumferences c_l = c_e + c_d/2 + d·a_y,
+c_r = c_e - c_d/2 - d·a_y with the TRUE theta = [c_e, c_d, t_r, d] = [1.99 m, 0.8 mm,
+1.60 m, 0.0012 s²] (graphcal's parameter definition); rotations = path length / circumference.
+
+The sensors (each on its own clock, absolute Unix-like time)
+------------------------------------------------------------
+* GNSS antenna 1.0 m ahead of and 0.3 m left of the rear axle, fixes at 1, 5 or 10 Hz
+  (epochs at a random phase, timestamps with ±2 ms uniform jitter), white noise σ = 0.15 m
+  per axis, as WGS-84 latitude/longitude around (47.5, 19.04). Optionally a heading
+  (compass: 0 = north, clockwise; degrees; σ = 0.3°) — the body's heading, as an INS gives.
+* Rear wheels at 100 Hz: speeds in m/s (rotation rate × the ECU's circumference 2.0 m,
+  white noise 0.05 m/s) or cumulative tick counts (96 per revolution, each counter starting
+  at a random phase).
+* Optionally an IMU at 100 Hz at the rear axle: lateral acceleration (σ 0.05 m/s²) and yaw
+  rate (σ 0.1°/s), REP 103 signs.
+
+Geodesy: the brief suggested degrees = metres / (111320, 111320·cos lat). That spherical
+constant is 0.12 % off the WGS-84 meridian radius and 0.18 % off the prime-vertical one at
+47.5°, and the fixed cos(lat0) is off by another 3e-4 per 2 km north, while graphcal
+converts with the exact WGS-84 (pymap3d): the route would shrink by up to 0.2 % in one
+direction, a c_e bias of 2–4 mm (several σ) that is this simulator's, not graphcal's. So the
+default (``--geodesy wgs84``) places the local east/north/up frame's points on the WGS-84
+ellipsoid exactly (ENU -> ECEF -> geodetic, numpy); ``--geodesy flat`` is the brief's
+approximation, to see that effect.
+
+What a user should expect (the physics differs from graphcal's model)
+-------------------------------------------------------------------
+* The antenna is not at graphcal's reference point (its "centre of gravity"): graphcal
+  estimates a lever arm (antenna ahead/left of its reference point) in the joint solve. The
+  reference point at which graphcal's model is right is the rear axle (the wheels measure
+  its arcs and its velocity is along the heading), so the lever arm should come out near
+  (+1.0, +0.3) m, and theta should be unbiased by the antenna's position.
+* The rear wheels measure the rear axle's arcs: with the rear axle as the reference point,
+  eq. 2 (distance = mean of the wheel arcs, yaw = their difference / t_r) holds exactly. No
+  sideslip is logged (graphcal takes 0), right for the rear axle.
+* The tyre slip angle is not in graphcal's model: the rear axle's course leaves the heading
+  by -k·a_y (up to 0.7°), a lateral drift of some decimetres over a roundabout; graphcal
+  gets no sideslip input for it. A lever arm cannot absorb it (a point ahead of the axle has
+  a sideslip ∝ a_y/v², the tyre ∝ a_y), so expect t_r and d (the parameters that read the
+  bends) to move by more than their σ with a fused heading, which pins the heading that the
+  track's course then disagrees with. ``--slip-k 0`` removes it: then every case should be
+  within 3σ, a check of this simulator itself.
+
+Per case the table gives the exit status of ``graphcal calibrate`` (0, or 3 when a trust
+check fails), whether the run is trusted, and error/σ per parameter against the TRUE theta
+(or the parameter's status when it was not calibrated), with the lever arm graphcal
+estimated. The summary: runs with every calibrated parameter within 3σ, mean (error/σ)² per
+parameter (1 when the σ are right), and per recording shape over the seeds the worst
+|error/σ|.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+NAMES = ("c_e", "c_d", "t_r", "d")
+#: The TRUE theta [c_e, c_d, t_r, d] in SI (m, m, m, s²).
+THETA_TRUE = np.array([1.99, 0.0008, 1.60, 0.0012])
+#: Display scale of the errors in the summary (mm, mm, mm, mm·s²/m).
+DISPLAY = {"c_e": 1e3, "c_d": 1e3, "t_r": 1e3, "d": 1e3}
+
+LAT0, LON0 = 47.5, 19.04
+ANTENNA = (1.0, 0.3)  # m ahead of, left of the rear axle
+ECU_CIRCUMFERENCE = 2.0
+TICKS_PER_REV = 96
+DS = 0.05  # m, arc-length grid of the drive
+A_LAT_MAX = 2.7  # m/s², the driver's limit in bends (actual |a_y| stays <= 3)
+A_ACCEL, A_BRAKE = 1.5, 2.5  # m/s²
+V_MIN, V_MAX = 3.0, 15.0
+DEG = math.pi / 180.0
+
+
+# ------------------------------------------------------------------------------------------
+# The drive
+# ------------------------------------------------------------------------------------------
+
+
+class _Route:
+    """Yaw curvature and a target speed over arc length, piece by piece."""
+
+    def __init__(self) -> None:
+        self.kappa: list[np.ndarray] = []
+        self.target: list[np.ndarray] = []
+
+    @property
+    def length(self) -> float:
+        return DS * sum(len(k) for k in self.kappa)
+
+    def _add(self, kappa: np.ndarray, target: float) -> None:
+        self.kappa.append(kappa)
+        self.target.append(np.full(len(kappa), target))
+
+    def straight(self, length: float, target: float) -> None:
+        self._add(np.zeros(max(round(length / DS), 1)), target)
+
+    def turn(self, radius: float, angle: float, ramp: float, target: float) -> None:
+        """Turn by ``angle`` [rad] (sign = side) at ``radius`` with raised-cosine ramps of
+        curvature (each ramp turns half its length's worth of full curvature)."""
+        peak = 1.0 / radius
+        ramp = min(ramp, abs(angle) / peak)  # ramps alone turn peak·ramp
+        hold = abs(angle) / peak - ramp
+        n_ramp, n_hold = max(round(ramp / DS), 2), round(hold / DS)
+        rise = 0.5 * (1.0 - np.cos(np.pi * (np.arange(n_ramp) + 0.5) / n_ramp))
+        shape = np.concatenate([rise, np.ones(n_hold), rise[::-1]])
+        self._add(math.copysign(peak, angle) * shape, target)
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.concatenate(self.kappa), np.concatenate(self.target)
+
+
+def make_route(length: float, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Yaw curvature [1/m] and target speed [m/s] on the arc-length grid, >= ``length`` m."""
+    route = _Route()
+    route.straight(60.0, 8.0)
+    while route.length < length:
+        cruise = rng.uniform(9.0, V_MAX)
+        side = rng.choice([-1.0, 1.0])
+        kind = rng.choice(
+            ["bend", "crossroads", "roundabout", "chicane", "traffic"],
+            p=[0.28, 0.30, 0.20, 0.16, 0.06],
+        )
+        route.straight(rng.uniform(10.0, 90.0), cruise)
+        if kind == "bend":
+            route.turn(
+                rng.uniform(20.0, 120.0), side * rng.uniform(30.0, 150.0) * DEG,
+                rng.uniform(10.0, 30.0), cruise,
+            )  # fmt: skip
+        elif kind == "crossroads":
+            slow = rng.uniform(4.0, 7.0)
+            route.straight(15.0, slow)
+            route.turn(rng.uniform(6.0, 14.0), side * rng.uniform(80.0, 100.0) * DEG, 4.0, slow)
+        elif kind == "roundabout":  # right-hand traffic: in to the right, round to the left
+            slow = rng.uniform(5.0, 7.0)
+            route.turn(20.0, -30.0 * DEG, 5.0, slow)
+            route.turn(
+                rng.uniform(11.0, 20.0), rng.choice([100.0, 190.0, 280.0, 340.0]) * DEG,
+                rng.uniform(3.0, 6.0), slow,
+            )  # fmt: skip
+            route.turn(20.0, -30.0 * DEG, 5.0, slow)
+        elif kind == "chicane":
+            radius, angle = rng.uniform(25.0, 80.0), rng.uniform(25.0, 60.0) * DEG
+            route.turn(radius, side * angle, 10.0, cruise)
+            route.straight(rng.uniform(0.0, 15.0), cruise)
+            route.turn(radius, -side * angle, 10.0, cruise)
+        else:  # traffic: brake to walking pace, then go on
+            route.straight(rng.uniform(20.0, 60.0), rng.uniform(V_MIN, 5.0))
+    route.straight(60.0, 8.0)
+    return route.arrays()
+
+
+def speed_profile(kappa: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Speed [m/s] on the grid: the target, the bends' lateral-acceleration limit, and
+    bounded acceleration and braking (a forward and a backward pass)."""
+    limit = np.minimum(target, np.sqrt(A_LAT_MAX / np.maximum(np.abs(kappa), 1e-9)))
+    limit = np.clip(limit, V_MIN, V_MAX)
+    v2 = limit**2
+    out = v2.copy()
+    out[0] = min(out[0], 5.0**2)
+    up, down = 2.0 * A_ACCEL * DS, 2.0 * A_BRAKE * DS
+    for i in range(1, len(out)):  # forward: acceleration
+        out[i] = min(out[i], out[i - 1] + up)
+    for i in range(len(out) - 2, -1, -1):  # backward: braking
+        out[i] = min(out[i], out[i + 1] + down)
+    return np.sqrt(out)
+
+
+def _cumtrapz(y: np.ndarray, dx: float | np.ndarray) -> np.ndarray:
+    out = np.zeros_like(y, dtype=float)
+    out[1:] = np.cumsum(0.5 * (y[1:] + y[:-1]) * dx)
+    return out
+
+
+@dataclass
+class Drive:
+    """The rear axle's motion on the arc-length grid and the rear wheels' rotations."""
+
+    t: np.ndarray  # s from the start
+    x: np.ndarray  # m east (rear axle)
+    y: np.ndarray  # m north
+    yaw: np.ndarray  # rad, ENU (0 = east, counter-clockwise), unwrapped
+    yaw_rate: np.ndarray  # rad/s
+    ay: np.ndarray  # m/s², body-frame lateral acceleration of the rear axle (left +)
+    rev_l: np.ndarray  # cumulative rotations of the rear-left wheel
+    rev_r: np.ndarray
+    rate_l: np.ndarray  # rev/s
+    rate_r: np.ndarray
+    slip: np.ndarray  # rad, tyre slip angle of the rear axle's velocity
+
+    @property
+    def length(self) -> float:
+        return float(len(self.t) - 1) * DS
+
+
+def simulate_drive(length: float, seed: int, slip_k: float) -> Drive:
+    """A drive of >= ``length`` m with the TRUE theta."""
+    rng = np.random.default_rng([seed, 20251])
+    kappa, target = make_route(length, rng)
+    v = speed_profile(kappa, target)
+    s = np.arange(len(kappa)) * DS
+    t = np.concatenate([[0.0], np.cumsum(2.0 * DS / (v[1:] + v[:-1]))])
+    yaw = rng.uniform(-np.pi, np.pi) + _cumtrapz(kappa, DS)
+    a_steady = v**2 * kappa
+    slip = -slip_k * a_steady
+    course = yaw + slip  # direction of the rear axle's velocity
+    x = _cumtrapz(np.cos(course), DS)
+    y = _cumtrapz(np.sin(course), DS)
+    dcourse_ds = np.gradient(course, s)
+    dv_ds = np.gradient(v, s)
+    # body-frame lateral acceleration: tangential part along the slip, centripetal part
+    ay = v * dv_ds * np.sin(slip) + v**2 * dcourse_ds * np.cos(slip)
+    c_e, c_d, t_r, d = THETA_TRUE
+    c_l = c_e + 0.5 * c_d + d * ay
+    c_r = c_e - 0.5 * c_d - d * ay
+    along = np.cos(slip)  # the wheels roll along the heading
+    per_m_l = (along - 0.5 * t_r * kappa) / c_l  # rotations per metre of the axle's path
+    per_m_r = (along + 0.5 * t_r * kappa) / c_r
+    return Drive(
+        t=t, x=x, y=y, yaw=yaw, yaw_rate=v * kappa, ay=ay,
+        rev_l=_cumtrapz(per_m_l, DS), rev_r=_cumtrapz(per_m_r, DS),
+        rate_l=per_m_l * v, rate_r=per_m_r * v, slip=slip,
+    )  # fmt: skip
+
+
+# ------------------------------------------------------------------------------------------
+# Geodesy (numpy only)
+# ------------------------------------------------------------------------------------------
+
+WGS84_A = 6378137.0
+WGS84_F = 1.0 / 298.257223563
+WGS84_E2 = WGS84_F * (2.0 - WGS84_F)
+
+
+def enu_to_geodetic(east: np.ndarray, north: np.ndarray, flat: bool = False):
+    """Latitude, longitude [deg] of local east/north metres around (LAT0, LON0) on the
+    ground (the ellipsoid), or with the brief's spherical tangent-plane constants."""
+    if flat:
+        return LAT0 + north / 111320.0, LON0 + east / (111320.0 * math.cos(LAT0 * DEG))
+    lat0, lon0 = LAT0 * DEG, LON0 * DEG
+    up = -(east**2 + north**2) / (2.0 * 6371000.0)  # the plane's points dropped to the ground
+    n0 = WGS84_A / math.sqrt(1.0 - WGS84_E2 * math.sin(lat0) ** 2)
+    x0 = n0 * math.cos(lat0) * math.cos(lon0)
+    y0 = n0 * math.cos(lat0) * math.sin(lon0)
+    z0 = n0 * (1.0 - WGS84_E2) * math.sin(lat0)
+    sl, cl, sp, cp = math.sin(lon0), math.cos(lon0), math.sin(lat0), math.cos(lat0)
+    x = x0 - sl * east - sp * cl * north + cp * cl * up
+    y = y0 + cl * east - sp * sl * north + cp * sl * up
+    z = z0 + cp * north + sp * up
+    lon = np.arctan2(y, x)
+    p = np.hypot(x, y)
+    lat = np.arctan2(z, p * (1.0 - WGS84_E2))
+    for _ in range(6):
+        n = WGS84_A / np.sqrt(1.0 - WGS84_E2 * np.sin(lat) ** 2)
+        h = p / np.cos(lat) - n
+        lat = np.arctan2(z, p * (1.0 - WGS84_E2 * n / (n + h)))
+    return lat / DEG, lon / DEG
+
+
+# ------------------------------------------------------------------------------------------
+# The streams
+# ------------------------------------------------------------------------------------------
+
+
+def _clock(start: float, end: float, rate: float, rng: np.random.Generator) -> np.ndarray:
+    """Sample instants at ``rate`` with a random phase, from ``start`` to ``end``."""
+    phase = rng.uniform(0.0, 1.0 / rate)
+    return np.arange(start + phase, end, 1.0 / rate)
+
+
+def write_streams(
+    drive: Drive,
+    directory: Path,
+    gnss_rate: float,
+    wheel_kind: str,
+    seed: int,
+    flat: bool,
+) -> None:
+    """Write gnss.csv, wheels.csv and imu.csv of one recording of ``drive`` into
+    ``directory``; the noise depends on the seed, the GNSS rate and the wheel kind."""
+    rng = np.random.default_rng([seed, int(gnss_rate * 10), 0 if wheel_kind == "speeds" else 1])
+    directory.mkdir(parents=True, exist_ok=True)
+    t_end = drive.t[-1]
+    epoch = 1.76e9 + 86400.0 * seed + rng.uniform(0.0, 3600.0)
+
+    def at(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return np.interp(t, drive.t, values)
+
+    # GNSS: true epochs, stamped with jitter
+    tg = _clock(rng.uniform(0.0, 1.0), t_end - rng.uniform(0.0, 1.0), gnss_rate, rng)
+    yaw = at(tg, drive.yaw)
+    ahead, left = ANTENNA
+    east = at(tg, drive.x) + ahead * np.cos(yaw) - left * np.sin(yaw)
+    north = at(tg, drive.y) + ahead * np.sin(yaw) + left * np.cos(yaw)
+    east = east + 0.15 * rng.standard_normal(len(tg))
+    north = north + 0.15 * rng.standard_normal(len(tg))
+    lat, lon = enu_to_geodetic(east, north, flat)
+    heading = np.mod(90.0 - np.degrees(yaw) + 0.3 * rng.standard_normal(len(tg)), 360.0)
+    stamp = tg + rng.uniform(-0.002, 0.002, len(tg))
+    gnss = pd.DataFrame({"t": epoch + stamp, "lat": lat, "lon": lon, "heading": heading})
+    gnss.to_csv(directory / "gnss.csv", index=False, float_format="%.10f")
+
+    # Rear wheels: 100 Hz, sampled when stamped (±0.5 ms bus jitter)
+    tw = _clock(rng.uniform(0.0, 0.5), t_end - rng.uniform(0.0, 0.5), 100.0, rng)
+    tw = tw + rng.uniform(-0.0005, 0.0005, len(tw))
+    wheels = pd.DataFrame({"t": epoch + tw})
+    if wheel_kind == "ticks":
+        for col, rev in (("rl", drive.rev_l), ("rr", drive.rev_r)):
+            phase = rng.uniform(0.0, 1.0)  # where within a tick each counter starts
+            wheels[col] = np.floor(at(tw, rev) * TICKS_PER_REV + phase).astype(np.int64)
+        wheels.to_csv(directory / "wheels.csv", index=False, float_format="%.6f")
+    else:
+        for col, rate in (("rl", drive.rate_l), ("rr", drive.rate_r)):
+            speed = at(tw, rate) * ECU_CIRCUMFERENCE + 0.05 * rng.standard_normal(len(tw))
+            wheels[col] = speed
+        wheels.to_csv(directory / "wheels.csv", index=False, float_format="%.6f")
+
+    # IMU at the rear axle: 100 Hz, REP 103 (y left, z up)
+    ti = _clock(rng.uniform(0.0, 0.5), t_end - rng.uniform(0.0, 0.5), 100.0, rng)
+    imu = pd.DataFrame(
+        {
+            "t": epoch + ti,
+            "ay": at(ti, drive.ay) + 0.05 * rng.standard_normal(len(ti)),
+            "wz": at(ti, drive.yaw_rate) + 0.1 * DEG * rng.standard_normal(len(ti)),
+        }
+    )
+    imu.to_csv(directory / "imu.csv", index=False, float_format="%.6f")
+
+
+def manifest_text(wheel_kind: str, heading: bool, imu: bool, prefix: str = "../") -> str:
+    """A streams manifest over the CSV files in the parent directory."""
+    lines = [
+        "# Written by scripts/independent_twin.py (an independent simulator).",
+        "rate = 40.0",
+        "",
+        "[gnss]",
+        f'file = "{prefix}gnss.csv"',
+        'time = "t"',
+        'latitude = "lat"',
+        'longitude = "lon"',
+    ]
+    if heading:
+        lines += ['heading = "heading"', 'heading_unit = "deg"', 'heading_convention = "compass"']
+    lines += ["", "[wheels]", f'file = "{prefix}wheels.csv"', 'time = "t"']
+    lines += ['rear_left = "rl"', 'rear_right = "rr"']
+    if wheel_kind == "ticks":
+        lines += ['kind = "ticks"', f"ticks_per_revolution = {TICKS_PER_REV}"]
+    else:
+        lines += ['kind = "speed"', 'speed_unit = "m/s"', f"circumference = {ECU_CIRCUMFERENCE}"]
+    if imu:
+        lines += ["", "[imu]", f'file = "{prefix}imu.csv"', 'time = "t"']
+        lines += ['lateral_acceleration = "ay"', 'yaw_rate = "wz"', 'yaw_rate_unit = "rad/s"']
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------------------------------
+# Calibration and the table
+# ------------------------------------------------------------------------------------------
+
+
+@dataclass
+class Case:
+    seed: int
+    rate: float
+    heading: bool
+    imu: bool
+    wheels: str
+    directory: Path
+
+    @property
+    def shape(self) -> str:
+        h = "heading" if self.heading else "no heading"
+        i = "IMU" if self.imu else "no IMU"
+        return f"{self.rate:g} Hz, {h}, {i}, {self.wheels}"
+
+
+@dataclass
+class Outcome:
+    case: Case
+    exit_code: int
+    trusted: bool | None = None
+    ratio: dict | None = None  # name -> error/σ, or the status text
+    error: dict | None = None  # name -> error (SI) of calibrated parameters
+    lever: tuple | None = None
+    doubts: list | None = None
+    message: str = ""
+    seconds: float = 0.0
+
+
+def calibrate(case: Case, graphcal: str) -> Outcome:
+    manifest = case.directory / "manifest.toml"
+    result = case.directory / "result"
+    command = [graphcal, "calibrate", str(manifest), "--method", "whole"]
+    command += ["--out", str(result), "--workers", "1"]
+    start = time.perf_counter()
+    proc = subprocess.run(command, capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    out = Outcome(case, proc.returncode, seconds=seconds)
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    notable = [ln for ln in lines if "warning" in ln or "error" in ln or "not trusted" in ln]
+    out.message = " | ".join(notable)[:300] or (lines[-1][:200] if proc.returncode else "")
+    path = result / "calibration.json"
+    if not path.is_file():
+        return out
+    doc = json.loads(path.read_text())
+    out.trusted = bool((doc.get("trust") or {}).get("trusted"))
+    out.doubts = (doc.get("trust") or {}).get("doubts")
+    not_calibrated = set(doc.get("not_calibrated") or [])
+    out.ratio, out.error = {}, {}
+    for i, name in enumerate(NAMES):
+        entry = doc["parameters"][name]
+        sigma = entry.get("sigma")
+        if name in not_calibrated or sigma is None or not sigma > 0:
+            out.ratio[name] = entry.get("status", "not calibrated").split(":")[0]
+            continue
+        err = float(doc["theta"][name]) - THETA_TRUE[i]
+        out.error[name] = err
+        out.ratio[name] = err / float(sigma)
+    est = doc.get("estimated") or {}
+    if "lever_arm_longitudinal" in est:
+        out.lever = (
+            est["lever_arm_longitudinal"]["estimate"],
+            est.get("lever_arm_lateral", {}).get("estimate", float("nan")),
+        )
+    return out
+
+
+def _cell(value) -> str:
+    return f"{value:+.2f}" if isinstance(value, float) else str(value)
+
+
+def within(out: Outcome, limit: float = 3.0) -> bool:
+    """Every calibrated parameter within ``limit`` σ (a run without results is not)."""
+    if out.ratio is None:
+        return False
+    return all(abs(r) <= limit for r in out.ratio.values() if isinstance(r, float))
+
+
+def report(outcomes: list[Outcome]) -> str:
+    rows = [
+        "| case | seed | exit | trusted | " + " | ".join(f"{n} err/σ" for n in NAMES)
+        + " | lever arm [m] | s |",
+        "|---|---|---|---|" + "---|" * len(NAMES) + "---|---|",
+    ]  # fmt: skip
+    for out in outcomes:
+        ratio = out.ratio or {}
+        cells = [_cell(ratio.get(n, "—")) for n in NAMES]
+        lever = "—" if out.lever is None else f"{out.lever[0]:+.2f}, {out.lever[1]:+.2f}"
+        trusted = "—" if out.trusted is None else ("yes" if out.trusted else "NO")
+        rows.append(
+            f"| {out.case.shape} | {out.case.seed} | {out.exit_code} | {trusted} | "
+            + " | ".join(cells) + f" | {lever} | {out.seconds:.0f} |"
+        )  # fmt: skip
+    n = len(outcomes)
+    ok = sum(within(o) for o in outcomes)
+    trusted = sum(bool(o.trusted) for o in outcomes)
+    lines = [*rows, ""]
+    summary = [f"runs within 3σ: {ok}/{n}; trusted (exit 0): {trusted}/{n}"]
+    for name in NAMES:
+        r = [o.ratio[name] for o in outcomes if o.ratio and isinstance(o.ratio.get(name), float)]
+        e = [o.error[name] for o in outcomes if o.error and name in o.error]
+        if r:
+            summary.append(
+                f"{name}: mean (err/σ)² {np.mean(np.square(r)):.2f}, worst |err/σ| "
+                f"{np.max(np.abs(r)):.2f}, mean error {np.mean(e) * DISPLAY[name]:+.3f} "
+                f"(mm{'·s²/m' if name == 'd' else ''}), calibrated in {len(r)}/{n}"
+            )
+        else:
+            summary.append(f"{name}: calibrated in no run")
+    lines += ["**Summary.** " + "; ".join(summary[:1]), ""]
+    lines += [f"- {s}" for s in summary[1:]]
+    # per recording shape, over the seeds
+    lines += ["", "| shape | within 3σ | " + " | ".join(f"max abs {n}" for n in NAMES) + " |"]
+    lines += ["|---|---|" + "---|" * len(NAMES)]
+    shapes: dict[str, list[Outcome]] = {}
+    for out in outcomes:
+        shapes.setdefault(out.case.shape, []).append(out)
+    for shape, group in shapes.items():
+        cells = []
+        for name in NAMES:
+            r = [o.ratio[name] for o in group if o.ratio and isinstance(o.ratio.get(name), float)]
+            cells.append(f"{max(abs(x) for x in r):.2f}" if r else "—")
+        lines.append(
+            f"| {shape} | {sum(within(o) for o in group)}/{len(group)} | "
+            + " | ".join(cells)
+            + " |"
+        )
+    notes = [o for o in outcomes if o.message or o.doubts]
+    if notes:
+        lines += ["", "Messages:"]
+        for o in notes:
+            doubts = f" doubts: {o.doubts}" if o.doubts else ""
+            lines.append(f"- {o.case.shape}, seed {o.case.seed}: {o.message}{doubts}")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--rates", type=float, nargs="+", default=[1.0, 5.0, 10.0])
+    parser.add_argument("--heading", nargs="+", choices=["yes", "no"], default=["yes", "no"])
+    parser.add_argument("--imu", nargs="+", choices=["yes", "no"], default=["yes", "no"])
+    wheel_kinds = ["speeds", "ticks"]
+    parser.add_argument("--wheels", nargs="+", choices=wheel_kinds, default=wheel_kinds)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    parser.add_argument("--length-km", type=float, default=12.0)
+    parser.add_argument("--slip-k", type=float, default=0.004, help="tyre slip [s²/m] (0.004)")
+    parser.add_argument("--geodesy", choices=["wgs84", "flat"], default="wgs84")
+    parser.add_argument("--jobs", type=int, default=2, help="calibrations at once (2)")
+    parser.add_argument("--keep", type=Path, help="write the recordings here and keep them")
+    parser.add_argument("--graphcal", default=shutil.which("graphcal") or "graphcal")
+    args = parser.parse_args(argv)
+
+    base = args.keep or Path(tempfile.mkdtemp(prefix="independent_twin_"))
+    cases: list[Case] = []
+    started = time.perf_counter()
+    for seed in args.seeds:
+        drive = simulate_drive(args.length_km * 1e3, seed, args.slip_k)
+        print(
+            f"seed {seed}: {drive.length / 1e3:.1f} km in {drive.t[-1]:.0f} s, "
+            f"|a_y| <= {np.abs(drive.ay).max():.2f} m/s², |slip| <= "
+            f"{np.degrees(np.abs(drive.slip).max()):.2f}°",
+            file=sys.stderr,
+        )
+        for rate in args.rates:
+            for wheels in args.wheels:
+                streams = base / f"seed{seed}" / f"{rate:g}hz_{wheels}"
+                write_streams(drive, streams, rate, wheels, seed, args.geodesy == "flat")
+                for heading in args.heading:
+                    for imu in args.imu:
+                        case_dir = streams / f"heading-{heading}_imu-{imu}"
+                        case_dir.mkdir(parents=True, exist_ok=True)
+                        (case_dir / "manifest.toml").write_text(
+                            manifest_text(wheels, heading == "yes", imu == "yes")
+                        )
+                        case = Case(seed, rate, heading == "yes", imu == "yes", wheels, case_dir)
+                        cases.append(case)
+
+    def run(case: Case) -> Outcome:
+        out = calibrate(case, args.graphcal)
+        print(
+            f"[{time.perf_counter() - started:6.0f} s] {case.shape}, seed {case.seed}: exit "
+            f"{out.exit_code} ({out.seconds:.0f} s)",
+            file=sys.stderr,
+        )
+        return out
+
+    try:
+        with ThreadPoolExecutor(max_workers=max(args.jobs, 1)) as pool:
+            outcomes = list(pool.map(run, cases))
+    finally:
+        if args.keep is None:
+            shutil.rmtree(base, ignore_errors=True)
+    command = " ".join(["python scripts/independent_twin.py", *(argv or sys.argv[1:])])
+    print(f"`{command}` (slip k = {args.slip_k} s²/m, geodesy {args.geodesy})\n")
+    print(report(outcomes))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
