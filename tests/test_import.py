@@ -411,7 +411,9 @@ def test_the_straight_road_twin_calibrates_what_it_determines(tmp_path, capsys):
     """Issue 25's straight twin: 1 km straight, 10 Hz fixes in lat/lon, CAN wheel speeds, no
     heading, sideslip or IMU. It exited 2 ("implausible theta (t_r = 0.18); check the
     units"): its steady speed near a quarter revolution per interval was taken for 27-tick
-    counts. Now it finishes: c_e and c_d within 3σ, t_r not observable."""
+    counts. Now it finishes: c_e and c_d within 3σ, t_r and d not observable (d: its
+    lateral acceleration comes from the wheels, whose own noise it fits on a straight road;
+    seed 4 had put d −3.5σ off)."""
     directory = tmp_path / "twin"
     assert main(["simulate", "--route", "straight", "--length-km", "1", "--seed", "3",
                  "--streams", str(directory)]) == 0  # fmt: skip
@@ -425,8 +427,9 @@ def test_the_straight_road_twin_calibrates_what_it_determines(tmp_path, capsys):
     assert main(args) == 0
     assert "ticks per revolution" not in capsys.readouterr().err
     result = json.loads((out / "calibration.json").read_text())
-    assert result["parameters"]["t_r"]["status"].startswith("not calibrated: not observable")
-    assert "t_r" in result["not_calibrated"]
+    for name in ("t_r", "d"):  # d: a lateral acceleration from the wheels, no bends
+        assert result["parameters"][name]["status"].startswith("not calibrated: not observable")
+        assert name in result["not_calibrated"]
     for name in ("c_e", "c_d"):
         assert name not in result["not_calibrated"]
         assert abs(result["theta_error"][name]) < 3 * result["parameters"][name]["sigma"]

@@ -110,3 +110,16 @@ def test_an_implausible_theta_names_its_likely_cause_before_units():
     called = []
     check_plausible(np.array([2.0, 0.0, 1.55, 0.0]), causes=lambda: called.append(1) or ())
     assert not called  # a plausible theta costs no diagnosis
+
+
+def test_d_from_wheels_on_a_straight_road_is_not_calibrated():
+    """A lateral acceleration taken from the wheels and a drive without bends: d · a_y can
+    only fit the wheels' own noise, so d is said not observable, with the reason."""
+    from graphcal.graph.observability import assess_observability
+
+    observability = assess_observability(np.diag([1e-8, 1e-8, 0.04, 1e-8]), np.array(
+        [0.1, 0.01, 0.2, 0.01]))  # fmt: skip
+    assert observability.calibrated[3]
+    held = observability.without("d", "its lateral acceleration comes from the wheels")
+    assert not held.calibrated[3] and held.verdicts()["d"] == "not observable"
+    assert "d not observable (its lateral acceleration comes from the wheels)" in held.message()

@@ -19,7 +19,8 @@ Pure numpy; the covariance comes from a solve such as
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -40,6 +41,8 @@ class Observability:
         weak_directions: ``(M, 4)`` unit directions (in prior-sigma units) whose posterior
             sigma exceeds ``max_sigma_ratio`` times the prior's: the unobservable combinations.
         max_sigma_ratio: the threshold used.
+        reasons: why a parameter is not calibrated where the σ alone does not say (a
+            parameter whose apparent information the drive cannot give), by name.
     """
 
     calibrated: np.ndarray
@@ -47,6 +50,14 @@ class Observability:
     correlation: np.ndarray
     weak_directions: np.ndarray
     max_sigma_ratio: float
+    reasons: dict[str, str] = field(default_factory=dict)
+
+    def without(self, name: str, reason: str) -> Observability:
+        """These verdicts with ``name`` not calibrated, for ``reason``."""
+        calibrated = self.calibrated.copy()
+        calibrated[PARAMETER_NAMES.index(name)] = False
+        reasons = {**self.reasons, name: reason}
+        return dataclasses.replace(self, calibrated=calibrated, reasons=reasons)
 
     @property
     def degenerate(self) -> bool:
@@ -92,7 +103,9 @@ class Observability:
         if not self.degenerate:
             return ""
         parts = [
-            f"{name} not observable (data shrank its prior sigma only to "
+            f"{name} not observable ({self.reasons[name]})"
+            if name in self.reasons
+            else f"{name} not observable (data shrank its prior sigma only to "
             f"{self.sigma_ratio[PARAMETER_NAMES.index(name)]:.0%})"
             for name in self.not_calibrated
         ]

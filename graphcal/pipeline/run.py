@@ -51,7 +51,7 @@ from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import GraphcalError
 from graphcal.factors import pose_sigmas
 from graphcal.graph.observability import Observability, condition_on_prior
-from graphcal.model import PARAMETER_NAMES, wheel_lateral_acceleration
+from graphcal.model import PARAMETER_NAMES, step_increments, wheel_lateral_acceleration
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import (
@@ -317,6 +317,8 @@ def run_calibration(
             )
         if method != "joint":  # only the joint batches linearize at the solution
             whole_values = None
+        if log.ay_from_wheels:
+            whole = _d_on_a_straight_drive(whole, data, say)
         if method != "staged":
             theta, covariance, observability = _conditioned(whole, settings.joint)
             if observability.degenerate:
@@ -665,6 +667,33 @@ def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Set
     say(f"heading noise {np.degrees(sigma):.2f}° (from the log): heading weight {weight:g}")
     joint = dataclasses.replace(joint, pose_weights=(x, y, weight))
     return dataclasses.replace(settings, joint=joint)
+
+
+#: Mean |yaw rate| [rad/s] of the wheels (over 1 s) below which a drive whose lateral
+#: acceleration comes from the wheels does not determine d (straight roads: 0.00–0.01; a
+#: city drive's selected segments 0.25).
+D_FROM_WHEELS_MIN_YAW_RATE = 0.05
+
+
+def _d_on_a_straight_drive(
+    whole: JointCalibration, data: SegmentData, say: Progress
+) -> JointCalibration:
+    """``whole`` with d not calibrated when its lateral acceleration came from the wheels
+    (no IMU, no heading) and the drive barely turns: d · a_y then fits mostly the noise of
+    the wheels' own left/right difference (a_y is taken from it), not a load transfer."""
+    window = max(1, round(1.0 / data.dt))
+    _, omega = step_increments(data.inputs, whole.theta)
+    turned = np.cumsum(omega, axis=1)[:, window - 1 :: window]
+    rates = np.abs(np.diff(turned, axis=1)) / (window * data.dt)
+    rate = float(rates.mean()) if rates.size else 0.0
+    if rate >= D_FROM_WHEELS_MIN_YAW_RATE or not whole.observability.calibrated[3]:
+        return whole
+    reason = (
+        f"its lateral acceleration comes from the wheels, on a drive that barely turns "
+        f"(mean |yaw rate| {rate:.3f} rad/s): log an IMU"
+    )
+    say(f"d not calibrated: {reason}")
+    return dataclasses.replace(whole, observability=whole.observability.without("d", reason))
 
 
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this
