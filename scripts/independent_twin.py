@@ -440,11 +440,17 @@ def calibrate(case: Case, graphcal: str) -> Outcome:
     start = time.perf_counter()
     proc = subprocess.run(command, capture_output=True, text=True)
     seconds = time.perf_counter() - start
+    (case.directory / "calibrate.log").write_text(proc.stderr)
     out = Outcome(case, proc.returncode, seconds=seconds)
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     notable = [ln for ln in lines if "warning" in ln or "error" in ln or "not trusted" in ln]
     out.message = " | ".join(notable)[:300] or (lines[-1][:200] if proc.returncode else "")
-    path = result / "calibration.json"
+    return read_result(out)
+
+
+def read_result(out: Outcome) -> Outcome:
+    """Fill ``out`` from its case's ``result/calibration.json`` (if one was written)."""
+    path = out.case.directory / "result" / "calibration.json"
     if not path.is_file():
         return out
     doc = json.loads(path.read_text())
