@@ -48,14 +48,14 @@ The sensors (each on its own clock, absolute Unix-like time)
 * Optionally an IMU at 100 Hz at the rear axle: lateral acceleration (σ 0.05 m/s²) and yaw
   rate (σ 0.1°/s), REP 103 signs.
 
-Geodesy: the brief suggested degrees = metres / (111320, 111320·cos lat). That spherical
-constant is 0.12 % off the WGS-84 meridian radius and 0.18 % off the prime-vertical one at
-47.5°, and the fixed cos(lat0) is off by another 3e-4 per 2 km north, while graphcal
-converts with the exact WGS-84 (pymap3d): the route would shrink by up to 0.2 % in one
-direction, a c_e bias of 2–4 mm (several σ) that is this simulator's, not graphcal's. So the
-default (``--geodesy wgs84``) places the local east/north/up frame's points on the WGS-84
-ellipsoid exactly (ENU -> ECEF -> geodetic, numpy); ``--geodesy flat`` is the brief's
-approximation, to see that effect.
+Geodesy: a spherical tangent plane, degrees = metres / (111320, 111320·cos lat0), is 0.12 %
+off the WGS-84 meridian radius and 0.18 % off the prime-vertical one at 47.5° (and the fixed
+cos lat0 another 3e-4 per 2 km north), while graphcal converts with the exact WGS-84
+(pymap3d): the map would be stretched east and shrunk north, an error of the simulator, not
+of graphcal (it mostly cancels over a route in all directions: c_e moved by +0.4 mm, 1.5σ,
+at 10 Hz on seeds 0 and 1). So the default (``--geodesy wgs84``) puts the local
+east/north/up frame's points on the WGS-84 ellipsoid exactly (ENU -> ECEF -> geodetic,
+numpy; within 1e-6 m of pymap3d's inverse); ``--geodesy flat`` is the spherical plane.
 
 What a user should expect (the physics differs from graphcal's model)
 -------------------------------------------------------------------
@@ -69,11 +69,16 @@ What a user should expect (the physics differs from graphcal's model)
   sideslip is logged (graphcal takes 0), right for the rear axle.
 * The tyre slip angle is not in graphcal's model: the rear axle's course leaves the heading
   by -k·a_y (up to 0.7°), a lateral drift of some decimetres over a roundabout; graphcal
-  gets no sideslip input for it. A lever arm cannot absorb it (a point ahead of the axle has
-  a sideslip ∝ a_y/v², the tyre ∝ a_y), so expect t_r and d (the parameters that read the
-  bends) to move by more than their σ with a fused heading, which pins the heading that the
-  track's course then disagrees with. ``--slip-k 0`` removes it: then every case should be
-  within 3σ, a check of this simulator itself.
+  gets no sideslip input for it. A lever arm ahead of the reference point makes a course
+  offset ∝ a_y/v², the tyre's is ∝ a_y, so the lever arm absorbs part of it (and is biased
+  short), the rest could move t_r and d (the parameters that read the bends).
+  ``--slip-k 0`` removes it, a check of this simulator itself.
+
+Measured (12 km, seeds 0–2, all 24 shapes; 18 min with 2 jobs on a busy 2-core machine): all
+72 runs exit 0, trusted, every parameter within 3σ (worst |error/σ| 2.6, c_e at 10 Hz with
+wheel speeds); mean (error/σ)² 1.04 (c_e), 0.40 (c_d), 0.49 (t_r), 0.46 (d). The lever arm
+came out 0.81–0.98 m ahead (true 1.0: the slip absorbed) and 0.28–0.31 m left. With
+``--slip-k 0`` (10 Hz, heading, IMU; 10 runs) it is 1.00 m ahead and all within 3σ.
 
 Per case the table gives the exit status of ``graphcal calibrate`` (0, or 3 when a trust
 check fails), whether the run is trusted, and error/σ per parameter against the TRUE theta
