@@ -17,6 +17,7 @@ import pandas as pd
 
 from graphcal import __version__
 from graphcal.evaluation import Evaluation
+from graphcal.factors import pose_sigmas
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import CalibrationRun, slip_line
@@ -253,8 +254,15 @@ def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = Non
         doc["estimated"] = {name: e.to_dict() for name, e in run.estimated.items()}
     if run.down_weighted is not None:
         doc["down_weighted_fixes"] = run.down_weighted.to_dict()
-    if run.whole is not None and run.whole.position_noise is not None:
-        doc["position_noise_m"] = run.whole.position_noise
+    if run.whole is not None:
+        joint = run.settings.joint
+        used = pose_sigmas(joint.pose_weights, joint.position_sigma)
+        doc["noise"] = {  # what the whole-log solve weighted the pose with, per component
+            "position_sigma_m": float(used[0]),
+            "heading_sigma_deg": float(np.degrees(used[2])),
+            "position_sigma_from_residuals_m": run.whole.position_noise,
+            "heading_from_log": bool(joint.heading_noise_from_log),
+        }
     if run.whole is not None and run.whole.slip_statistic is not None:
         doc["wheel_slip"] = {
             "modelled": run.whole.slip_modelled,
