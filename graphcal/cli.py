@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import inspect
 import os
 import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -180,6 +181,29 @@ def cmd_fleet(args: argparse.Namespace) -> int:
     return 0
 
 
+class _PrintManifestKeys(argparse.Action):
+    """``graphcal import --help-manifest``: print every manifest key with its default."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, nargs=0, default=argparse.SUPPRESS, **kwargs)
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        from graphcal.data import manifest
+
+        print(inspect.cleandoc(manifest.__doc__ or ""))
+        parser.exit()
+
+
+def recording_path(text: str) -> Path:
+    """A log or recording argument as a path: a directory holding ``manifest.toml`` (as
+    ``graphcal simulate --streams DIR`` writes) is that recording, unless it is a ROS 2 bag."""
+    path = Path(text)
+    manifest = path / "manifest.toml"
+    if path.is_dir() and manifest.is_file() and not (path / "metadata.yaml").exists():
+        return manifest
+    return path
+
+
 def _bag_options(args: argparse.Namespace):
     """The bag flags (``--pose-topic`` ...) as :class:`~graphcal.data.importer.BagOptions`."""
     from graphcal.data.importer import BagOptions
@@ -293,7 +317,7 @@ def _simulate_streams(
 
         if importlib.util.find_spec("rosbags") is None:
             raise GraphcalError(
-                f"--bag {args.bag} needs the rosbags package: pip install 'graphcal[ros]'"
+                f'--bag {args.bag} needs the rosbags package: pip install -e ".[ros]"'
             )
     if directory.exists() and not directory.is_dir():
         raise GraphcalError(f"--streams {directory}: exists and is not a directory")
@@ -453,10 +477,16 @@ def _evaluate_synthetic(
     say("synthetic drive: comparing with theta_true from its sidecar")
     path = truth_path(log_path)
     truth_log = None
-    try:
-        truth_log = load_drive_log(path)
-    except GraphcalError as exc:
-        say(f"no Cramér–Rao bound: cannot use {path.name}: {exc}")
+    if not path.exists():
+        # An imported recording's sidecar carries theta_true but no noise-free drive; only
+        # `graphcal simulate` writes one, and only then is its absence worth a word.
+        if str(sidecar.get("generator", "")).endswith("simulate"):
+            say(f"no Cramér–Rao bound: the noise-free drive {path} is missing")
+    else:
+        try:
+            truth_log = load_drive_log(path)
+        except GraphcalError as exc:
+            say(f"no Cramér–Rao bound: cannot use {path}: {exc}")
     if truth_log is not None and len(truth_log) != len(run.log):
         say(
             f"no Cramér–Rao bound: {path.name} has {len(truth_log)} samples, the log {len(run.log)}"
@@ -696,8 +726,18 @@ def build_parser() -> argparse.ArgumentParser:
         description=cmd_import.__doc__
         + " The manifest's keys are documented in graphcal/data/manifest.py and the README.",
     )
-    p.add_argument("source", type=Path, help="streams manifest (.toml), ROS 1 bag, ROS 2 bag, MCAP")
+    p.add_argument(
+        "source",
+        type=recording_path,
+        help="streams manifest (.toml, or the directory holding manifest.toml), ROS 1 bag, "
+        "ROS 2 bag, MCAP",
+    )
     p.add_argument("--out", type=Path, required=True, help="drive-log CSV to write (+ .json)")
+    p.add_argument(
+        "--help-manifest",
+        action=_PrintManifestKeys,
+        help="print every key of a streams manifest, with its default, and exit",
+    )
     recording_options(p)
     segment_options(p)
     vehicle_option(p)
@@ -706,7 +746,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "check", help="validate a drive log and summarize it", description=cmd_check.__doc__
     )
-    p.add_argument("log", type=Path, help="drive-log CSV, streams manifest or ROS bag")
+    p.add_argument("log", type=recording_path, help="drive-log CSV, streams manifest or ROS bag")
     segment_options(p)
     recording_options(p)
     vehicle_option(p)
@@ -717,9 +757,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "log",
-        type=Path,
-        help="drive-log CSV (t, px, py, psi, n_rl, n_rr, beta, ay), or a streams manifest or "
-        "ROS bag (imported in memory)",
+        type=recording_path,
+        help="drive-log CSV (t, px, py, psi, n_rl, n_rr, beta, ay), or a streams manifest (or "
+        "its directory) or ROS bag (imported in memory)",
     )
     p.add_argument(
         "--out", type=Path, default=Path("results"), help="output directory (default results/)"
@@ -841,8 +881,8 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``graphcal`` console script; returns the exit status."""
     parser = build_parser()
-    args = parser.parse_args(argv)
     try:
+        args = parser.parse_args(argv)
         return args.func(args)
     except GraphcalError as exc:
         print(f"graphcal: error: {exc}", file=sys.stderr)

@@ -63,7 +63,7 @@ from graphcal.pipeline.sensor_estimates import (
 )
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
-from graphcal.pipeline.trust import TrustAssessment, assess_trust
+from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
 from graphcal.pipeline.validation import position_errors
 
 Progress = Callable[[str], None]
@@ -437,6 +437,9 @@ def run_calibration(
         validation_nominal=float(nominal),
     )
     warnings += [f"not to be trusted: {doubt}" for doubt in trust.doubts]
+    scale = circumference_warning(float(theta[0]), float(settings.vehicle.theta_nominal[0]))
+    if scale is not None:
+        warnings.append(scale)
     solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
     if staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
         first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])

@@ -39,6 +39,11 @@ MAX_SPREAD_RATIO = 2.5
 EXIT_UNTRUSTED = 3
 #: Normal distribution's interquartile range in units of its σ.
 NORMAL_IQR = 1.349
+#: Relative difference between the calibrated c_e and the vehicle's nominal above which
+#: graphcal names the likely causes. Tyre wear, pressure and load move the effective
+#: circumference by 1–2 %; a wheel speed converted with another circumference than the
+#: ECU's, a speed unit or a tick count that is off move it by far more.
+MAX_C_E_DEVIATION = 0.03
 
 
 @dataclass(frozen=True)
@@ -177,4 +182,23 @@ def assess_trust(
         validates_worse=validates_worse,
         parameter_doubts=parameter_doubts,
         doubts=tuple(doubts),
+    )
+
+
+def circumference_warning(c_e: float, nominal_c_e: float) -> str | None:
+    """One line when the calibrated ``c_e`` [m] lies more than :data:`MAX_C_E_DEVIATION`
+    from the vehicle's ``nominal_c_e`` [m], naming what usually puts it there; else None.
+
+    The value may be right (a profile for another vehicle), so this is a warning, not a
+    doubt: the wheel rotations are scaled by what the recording declared, and c_e absorbs
+    any error in that scale one to one.
+    """
+    deviation = c_e / nominal_c_e - 1.0
+    if not np.isfinite(deviation) or abs(deviation) <= MAX_C_E_DEVIATION:
+        return None
+    return (
+        f"c_e = {c_e:.4f} m is {deviation:+.1%} from the vehicle's nominal {nominal_c_e:g} m, "
+        "more than tyres explain: check the scale of the wheel rotations — for wheel speeds "
+        "the manifest's `circumference` (the one the ECU used) and `speed_unit`, for tick "
+        "counters `ticks_per_revolution` — or the vehicle profile (`theta_nominal`)"
     )

@@ -25,7 +25,7 @@ from graphcal.data.streams import Recording, StreamError
 Storage = Literal["ros1", "ros2", "mcap"]
 #: A topic's message type, record times [ns] and its k-th message.
 _Topic = tuple[str, np.ndarray, Callable[[int], Any]]
-_MISSING_ROSBAGS = "writing ROS bags needs the rosbags package: pip install 'graphcal[ros]'"
+_MISSING_ROSBAGS = 'writing ROS bags needs the rosbags package: pip install -e ".[ros]"'
 
 
 def write_bag(
