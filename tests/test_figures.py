@@ -47,6 +47,17 @@ def staged(small_drive: SyntheticDrive) -> CalibrationRun:
     return run_calibration(small_drive.measured, settings, "staged", workers=1)
 
 
+@pytest.fixture(scope="module")
+def straight() -> tuple[CalibrationRun, Evaluation]:
+    """A joint run on a straight road: t_r and d not observable, so every batch is left out
+    of the statistics (and one Step 1 solve fails)."""
+    drive = simulate_drive(length_km=2.0, seed=0, route="straight")
+    settings = Settings(batches=BatchingSettings(count=2, size=4))
+    run = run_calibration(drive.measured, settings, "joint", workers=1)
+    assert run.observability.not_calibrated == ["t_r", "d"]
+    return run, evaluate(run, Truth(drive.theta_true))
+
+
 def _drawn(fig: Figure) -> Figure:
     FigureCanvasAgg(fig)
     fig.canvas.draw()
@@ -218,3 +229,52 @@ def test_trajectory_of_sparse_fixes_shows_the_fixes_and_the_compared_paths():
     calibrated = next(line for line in ax.lines if "recommended" in str(line.get_label()))
     np.testing.assert_allclose(calibrated.get_xdata(), odometry_paths(one, run.theta)[0, :, 0])
     assert "fits the fixes" in ax.get_title()
+
+
+def _caption(fig: Figure) -> str:
+    """The caption heading the figure's legend."""
+    return "\n".join(legend.get_title().get_text() for legend in _legends(fig))
+
+
+def test_every_text_lies_inside_its_figure(straight, joint, staged):
+    """Issue 26: on a straight route "d [mm·s²/m]: not observable" ran off the right edge."""
+    run, evaluation = straight
+    every = {f"straight {n}": f for n, f in figures(run, evaluation).items()}
+    every |= {f"city {n}": f for n, f in figures(*joint).items()}
+    every |= {f"staged {n}": f for n, f in figures(staged).items()}
+    for name, fig in every.items():
+        _drawn(fig)
+        drawn = fig.get_tightbbox(fig.canvas.get_renderer())  # inches, every drawn artist
+        page = fig.bbox_inches
+        assert drawn.x0 >= page.x0 - 1e-3 and drawn.x1 <= page.x1 + 1e-3, (name, drawn)
+        assert drawn.y0 >= page.y0 - 1e-3 and drawn.y1 <= page.y1 + 1e-3, (name, drawn)
+
+
+def test_a_step_without_batches_says_why_instead_of_counting_zero(straight):
+    """Issue 26: "joint (0 of 100)" under a calibrated c_e, with nothing saying why."""
+    run, evaluation = straight
+    fig = parameters_figure(run, evaluation)
+    ticks = [t.get_text() for ax in fig.axes for t in ax.get_xticklabels()]
+    assert ticks and not [t for t in ticks if "(0 of" in t], ticks
+    caption = _caption(fig).replace("\n", " ")
+    assert "joint: none of 2 batches shown (2 left out, not observable: t_r, d)" in caption
+    assert "Step 1: none of 2 batches shown (1 solve failed; 1 left out" in caption
+
+
+def test_figures_say_what_step_1_is(joint, staged):
+    """Issue 26: a newcomer could not place the "Step 1" row of the figures."""
+    run, evaluation = joint
+    shown = {
+        "joint parameters.png": parameters_figure(run, evaluation),
+        "joint validation.png": validation_figure(run, evaluation),
+        "staged parameters.png": parameters_figure(staged),
+        "staged validation.png": validation_figure(staged),
+    }
+    for name, fig in shown.items():
+        caption = " ".join(_caption(fig).split())
+        assert "Step 1 = the paper's first step" in caption, name
+        assert "measured wheel rotations and heading" in caption, name
+        if name.startswith("joint"):
+            assert "joint = wheel-rotation compensation and θ solved together" in caption
+        else:
+            assert "Step 3 = " in caption and "Step 5 = " in caption, name

@@ -6,7 +6,8 @@ part of the data says how much, and legends sit outside the plots, never over da
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import textwrap
+from collections.abc import Iterable, Sequence
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -28,6 +29,22 @@ _STEP_LABELS = {
     "whole": "whole log",
 }
 _THETA_NAMES = {"nominal": "nominal θ", "calibrated": "recommended θ", "true": "true θ"}
+#: The run's theta when a check of :mod:`graphcal.pipeline.trust` failed (exit status 3):
+#: an estimate, never called recommended.
+NOT_TRUSTED_THETA = "estimated θ (not trusted)"
+#: What each step or method of a batch study is, for the captions of the figures showing it
+#: (docs/method.md, graphcal/pipeline/staged.py).
+STEP_NOTES = {
+    "step1": "Step 1 = the paper's first step, the uncompensated baseline: θ of each batch "
+    "from the measured wheel rotations and heading, every segment starting from its "
+    "measured pose",
+    "step3": "Step 3 = Step 1 with the heading corrected per segment (Step 2)",
+    "step5": "Step 5 = Step 1 with the compensated wheel rotations (Step 4) and the corrected "
+    "heading: the paper's final θ",
+    "joint": "joint = wheel-rotation compensation and θ solved together in one graph per "
+    "batch (graphcal's default method)",
+    "whole": "whole log = one joint solve over all selected segments",
+}
 #: Up to this many values per box, the values themselves are drawn over the box plot.
 _MAX_POINTS = 30
 #: Reachable (true θ) lines: wide and pale beneath the thin recommended line, so both show
@@ -37,6 +54,68 @@ _TRUE_LINE = {"color": _COLOURS["true"], "lw": 5.0, "alpha": 0.35, "zorder": 1}
 #: which the layout does not foresee when the aspect widens the limits.
 _EDGE_PAD = 0.25
 _RECOMMENDED_LINE = {"color": _COLOURS["calibrated"], "lw": 1.2, "zorder": 3}
+#: The run's theta when it is not trusted: dashed, so it is not taken for a recommendation.
+_NOT_TRUSTED_LINE = {**_RECOMMENDED_LINE, "ls": "--"}
+#: Characters per inch of figure width of a caption line in the "small" font.
+_CAPTION_CHARS_PER_INCH = 13
+
+
+def trusted(run: CalibrationRun) -> bool:
+    """False if a check of :mod:`graphcal.pipeline.trust` failed: the run's theta is then an
+    estimate, shown as not trusted, never as calibrated or recommended."""
+    return run.trust is None or run.trust.trusted
+
+
+def _theta_names(run: CalibrationRun) -> dict[str, str]:
+    """Names of nominal, calibrated and true theta; the calibrated one is "recommended θ"
+    only if the run is trusted (else :data:`NOT_TRUSTED_THETA`)."""
+    return {**_THETA_NAMES, "calibrated": _calibrated_name(run)}
+
+
+def _calibrated_name(run: CalibrationRun) -> str:
+    """What the run's theta is called: "recommended θ" or :data:`NOT_TRUSTED_THETA`."""
+    return _THETA_NAMES["calibrated"] if trusted(run) else NOT_TRUSTED_THETA
+
+
+def _calibrated_line(run: CalibrationRun) -> dict:
+    """Line style of the run's theta: solid if trusted, dashed if not."""
+    return _RECOMMENDED_LINE if trusted(run) else _NOT_TRUSTED_LINE
+
+
+def _shown(label: str, shown: int, total: int) -> str:
+    """A step's tick label, with a second line saying how many of its batches it shows when
+    not all: ``(7 of 10)``, or ``(none shown)`` instead of ``(0 of 10)``."""
+    if shown == total:
+        return label
+    return f"{label}\n({shown} of {total})" if shown else f"{label}\n(none shown)"
+
+
+def _left_out(run: CalibrationRun, step: str) -> str:
+    """Why batches of ``step`` are not shown (failed solves, batches left out of the
+    statistics and the reason), one line; empty if every batch is shown."""
+    thetas = run.batch_theta[step]
+    total = len(thetas)
+    failed = ~np.all(np.isfinite(thetas), axis=1)
+    reasons = run.batch_excluded.get(step, np.full(total, "", dtype=object))
+    parts = [f"{_count(int(failed.sum()), 'solve', 'solves')} failed"] if failed.any() else []
+    kept = ~failed
+    for reason in sorted(set(reasons[kept]) - {""}):
+        parts.append(f"{int(np.sum(kept & (reasons == reason)))} left out, {reason}")
+    if not parts:
+        return ""
+    shown = total - int(failed.sum()) - int(np.sum(kept & (reasons != "")))
+    label = _STEP_LABELS.get(step, step)
+    return f"{label}: {shown or 'none'} of {total} batches shown ({'; '.join(parts)})"
+
+
+def _caption(run: CalibrationRun | None, steps: Iterable[str]) -> list[str]:
+    """Caption lines of a figure showing ``steps``: what each step is and, given the run,
+    which of its batches are not shown and why."""
+    steps = list(steps)
+    lines = [STEP_NOTES[s] for s in steps if s in STEP_NOTES]
+    if run is not None:
+        lines += [line for s in steps if (line := _left_out(run, s))]
+    return lines
 
 
 def _count(n: int, singular: str, plural: str) -> str:
@@ -45,20 +124,30 @@ def _count(n: int, singular: str, plural: str) -> str:
 
 
 def _legend_below(
-    fig: Figure | SubFigure, axes: Iterable[Axes], ncols: int, fontsize: str = "small"
+    fig: Figure | SubFigure,
+    axes: Iterable[Axes],
+    ncols: int,
+    fontsize: str = "small",
+    caption: Sequence[str] = (),
 ) -> None:
-    """One legend of the entries of ``axes`` (first of each label) below the plots."""
+    """One legend of the entries of ``axes`` (first of each label) below the plots, headed
+    by the ``caption`` lines (wrapped to the figure's width)."""
     entries: dict[str, object] = {}
     for ax in axes:
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             entries.setdefault(label, handle)
-    if entries:
+    width = int(_CAPTION_CHARS_PER_INCH * fig.figure.get_figwidth())
+    title = "\n".join(textwrap.fill(line, width, subsequent_indent="    ") for line in caption)
+    if entries or title:
         fig.legend(
             list(entries.values()),
             list(entries),
             loc="outside lower center",
-            ncols=min(ncols, len(entries)),
+            ncols=max(1, min(ncols, len(entries))),
             fontsize=fontsize,
+            title=title or None,
+            title_fontsize="small",
+            alignment="left",
         )
 
 
@@ -139,6 +228,10 @@ def box_plots(
     theta_true: np.ndarray | None = None,
     recommended: np.ndarray | None = None,
     not_observable: tuple[str, ...] = (),
+    *,
+    recommended_label: str = _THETA_NAMES["calibrated"],
+    recommended_style: dict | None = None,
+    notes: Sequence[str] = (),
 ) -> Figure:
     """Box plots of each parameter per step or method (paper Fig. 5).
 
@@ -149,6 +242,11 @@ def box_plots(
         theta_true, recommended: drawn as horizontal lines when given.
         not_observable: parameters the data did not determine: no recommended line, and the
             panel says so.
+        recommended_label, recommended_style: legend entry and line style of
+            ``recommended`` (e.g. :data:`NOT_TRUSTED_THETA`, dashed, for a run that is not
+            trusted).
+        notes: caption lines below the legend, after the explanation of each step shown
+            (:data:`STEP_NOTES`), e.g. why batches are not shown.
     """
     fig = Figure(figsize=(11, 4.4), layout="constrained")
     names = list(estimates)
@@ -160,23 +258,24 @@ def box_plots(
         for step in names:
             t = estimates[step][:, i]
             data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
-            label = _STEP_LABELS.get(step, step)
-            if len(data[-1]) < len(t):
-                label += f"\n({len(data[-1])} of {len(t)})"
-            labels.append(label)
+            labels.append(_shown(_STEP_LABELS.get(step, step), len(data[-1]), len(t)))
         _boxes(ax, data, labels, vertical=True, label="one batch's estimate")
+        if not any(len(d) for d in data):
+            # low in the panel: the lines of theta run through its middle
+            ax.text(0.5, 0.12, "no batch estimate\nto show (see below)", transform=ax.transAxes,
+                    ha="center", va="center", color="0.4")  # fmt: skip
         if theta_true is not None:
             ax.axhline(theta_true[i] * DISPLAY_SCALE[i], **_TRUE_LINE, label="true θ")
         hidden = name in not_observable
         if recommended is not None and not hidden:
-            ax.axhline(
-                recommended[i] * DISPLAY_SCALE[i], **_RECOMMENDED_LINE, label="recommended θ"
-            )
-        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + (": not observable" if hidden else ""))
+            style = recommended_style or _RECOMMENDED_LINE
+            ax.axhline(recommended[i] * DISPLAY_SCALE[i], **style, label=recommended_label)
+        # "not observable" on a line of its own: beside the name it overflows the panel
+        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + ("\nnot observable" if hidden else ""))
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(axis="y", alpha=0.3)
     fig.suptitle(title)
-    _legend_below(fig, axes, ncols=4)
+    _legend_below(fig, axes, ncols=4, caption=[*_caption(None, names), *notes])
     return fig
 
 
@@ -189,7 +288,16 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         f"Estimates of θ over {_count(len(run.batches), 'batch', 'batches')}, by step "
         "(box: quartiles, whiskers: data within 1.5 IQR)"
     )
-    return box_plots(estimates, title, _theta_true(evaluation), run.theta, hidden)
+    return box_plots(
+        estimates,
+        title,
+        _theta_true(evaluation),
+        run.theta,
+        hidden,
+        recommended_label=_calibrated_name(run),
+        recommended_style=_calibrated_line(run),
+        notes=[line for step in estimates if (line := _left_out(run, step))],
+    )
 
 
 def batch_intervals_figure(
@@ -199,7 +307,8 @@ def batch_intervals_figure(
     name: str = "joint",
     limit: int = 60,
 ) -> Figure:
-    """Every batch's estimate of ``name`` next to the recommended theta's ±2σ band.
+    """Every batch's estimate of ``name`` next to the run's theta and its ±2σ band (labelled
+    not trusted when a trust check failed).
 
     Up to ``limit`` batches get ±2σ bars; more are drawn as points, and the title says so.
     Excluded batches are grey crosses; failed solves (no estimate) are counted in the title.
@@ -214,6 +323,7 @@ def batch_intervals_figure(
         (finite & (excluded == ""), "o", "tab:blue", "batch ±2σ" if bars else "batch estimate"),
         (finite & (excluded != ""), "x", "0.55", "excluded batch"),
     )
+    theta_name = _calibrated_name(run)
     fig = Figure(figsize=(11, 6.6), layout="constrained")
     axes = []
     for i, parameter in enumerate(PARAMETER_NAMES):
@@ -252,9 +362,9 @@ def batch_intervals_figure(
                     color="tab:blue",
                     alpha=0.15,
                     lw=0,
-                    label="recommended θ ±2σ",
+                    label=f"{theta_name} ±2σ",
                 )
-                ax.axhline(centre, **_RECOMMENDED_LINE, label="recommended θ")
+                ax.axhline(centre, **_calibrated_line(run), label=theta_name)
             else:
                 title += ": not observable"
         sigmas = np.sqrt(covariances[kinds[0][0], i, i]) * scale
@@ -285,21 +395,25 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     mean_error = {name: float(np.mean(e)) for name, e in segment_errors.items()}
     fig = Figure(figsize=(7.5, 4.6), layout="constrained")
     ax = fig.add_subplot()
+    theta_names = _theta_names(run)
+    caption: list[str] = []
     if any(np.isfinite(e).any() for e in run.batch_errors.values()):  # E_p per batch, step
         data, labels = [], []
         for name, e in run.batch_errors.items():
             data.append(e[np.isfinite(e)])
-            counted = (
-                _count(len(e), "batch", "batches")
-                if len(data[-1]) == len(e)
-                else f"{len(data[-1])} of {len(e)} batches"
-            )
+            if len(data[-1]) == len(e):
+                counted = _count(len(e), "batch", "batches")
+            elif len(data[-1]):
+                counted = f"{len(data[-1])} of {len(e)} batches"
+            else:
+                counted = f"none of {len(e)} shown"
             labels.append(f"{_STEP_LABELS.get(name, name)}\n({counted})")
+        caption = _caption(run, run.batch_errors)
         ax.set_ylabel("θ of each batch, by step")
         ax.set_xlabel("validation error E_p [m] (mean position error, eq. 16 / K)")
         points = "E_p of a batch's θ"
     else:  # no batches: the spread over the validation segments of each theta
-        labels = [_THETA_NAMES[n] for n in segment_errors]
+        labels = [theta_names[n] for n in segment_errors]
         data = list(segment_errors.values())
         ax.set_ylabel("θ of the odometry")
         ax.set_xlabel("mean position error of a validation segment [m] (lines: E_p, their mean)")
@@ -308,14 +422,14 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     values = np.concatenate([np.ravel(d) for d in data])
     shown = [float(v) for v in values[np.isfinite(values)]]
     top = max(shown, default=np.nan)
-    names = {**_THETA_NAMES, "true": "reachable (true θ)"}
+    names = {**theta_names, "true": "reachable (true θ)"}
     # enough digits to tell the recommended from the reachable error apart
     close = abs(mean_error["calibrated"] - mean_error.get("true", np.inf)) < 0.01
     digits = 3 if close else 2
     for name, style in (
         ("nominal", {"color": _COLOURS["nominal"], "ls": ":", "lw": 1.5, "zorder": 2}),
         ("true", _TRUE_LINE),
-        ("calibrated", _RECOMMENDED_LINE),
+        ("calibrated", _calibrated_line(run)),
     ):
         if name not in mean_error:
             continue
@@ -335,7 +449,7 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         f"{run.settings.segments.validation_length:g} m"
     )
     ax.grid(axis="x", alpha=0.3)
-    _legend_below(fig, [ax], ncols=2)
+    _legend_below(fig, [ax], ncols=2, caption=caption)
     return fig
 
 
@@ -381,7 +495,7 @@ def wheel_rotations_figure(run: CalibrationRun) -> Figure:
     for sub, ax in ((left_fig, left), (right_fig, right)):
         ax.set_xlabel("time in segment [s]")
         ax.grid(alpha=0.3)
-        _legend_below(sub, [ax], ncols=2)
+        _legend_below(sub, [ax], ncols=1)  # two columns overflow a half-width panel
     start = run.log.t[run.selected.start[s]] - run.log.t[0]
     fig.suptitle(
         f"Wheel rotations of selected calibration segment {s} "
@@ -413,7 +527,7 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
             path[:, 1],
             color=_COLOURS[name],
             ls="--" if name == "true" else "-",
-            label=f"odometry, {_THETA_NAMES[name]}: mean position error {error:.2f} m",
+            label=f"odometry, {_theta_names(run)[name]}: mean position error {error:.2f} m",
         )
     start = odometry_paths(one, run.theta)[0, 0]
     ax.plot(start[0], start[1], "o", color="k", ms=5, label="start", zorder=4)

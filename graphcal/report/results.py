@@ -21,7 +21,7 @@ from graphcal.factors import pose_sigmas
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import CalibrationRun, slip_line
-from graphcal.report.figures import figures
+from graphcal.report.figures import figures, trusted
 from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
     NOT_OBSERVABLE,
@@ -300,14 +300,23 @@ def batches_frame(run: CalibrationRun, evaluation: Evaluation | None = None) -> 
     return frame
 
 
+#: Row name of the run's theta in the summary when a trust check failed (exit status 3).
+NOT_TRUSTED_ROW = "estimated (not trusted)"
+
+
 def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> str:
-    """The human-readable summary printed by the CLI."""
+    """The human-readable summary printed by the CLI.
+
+    A run that failed a trust check shows its theta as ``estimated (not trusted)``, never as
+    calibrated or recommended.
+    """
     truth = _theta_true(evaluation)
-    rows = {"nominal": run.settings.vehicle.theta_nominal, "calibrated": run.theta}
+    ours = "calibrated" if trusted(run) else NOT_TRUSTED_ROW
+    rows = {"nominal": run.settings.vehicle.theta_nominal, ours: run.theta}
     if truth is not None:
         rows["true"] = truth
     hidden = set(run.observability.not_calibrated) if run.observability is not None else set()
-    parts = [theta_table(rows, {"calibrated": hidden})]
+    parts = [theta_table(rows, {ours: hidden})]
     if hidden:
         parts[0] += (
             f"\n{NOT_OBSERVABLE}: not observable from this drive, not calibrated "
@@ -320,14 +329,21 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
     if run.whole is not None and run.whole.slip_statistic is not None:
         parts.append(slip_line(run.whole, run.settings.joint))
     if run.covariance is not None and run.observability is not None:
+        solve = f"joint solve over all {len(run.selected)} selected segments"
         parts.append(
-            f"recommended θ: joint solve over all {len(run.selected)} selected segments\n"
+            (
+                f"recommended θ: {solve}"
+                if trusted(run)
+                else f"estimated θ, not trusted (see the warnings below): {solve}"
+            )
+            + "\n"
             + interval_table(
                 run.theta,
                 run.covariance,
                 run.verdicts(),
                 None if evaluation is None else evaluation.crb,
                 truth,
+                estimated=run.observability.calibrated,
             )
         )
     if run.staged is not None:
@@ -363,7 +379,8 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
                 + " (1 = efficient)"
             )
         parts.append(line)
-    parts.append(validation_table(validation_summary(run, evaluation)))
+    errors = validation_summary(run, evaluation)
+    parts.append(validation_table({ours if k == "calibrated" else k: v for k, v in errors.items()}))
     if run.warnings:
         parts.append("\n".join(f"warning: {w}" for w in run.warnings))
     return "\n\n".join(parts)

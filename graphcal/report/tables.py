@@ -123,11 +123,17 @@ def interval_table(
     verdicts: dict[str, str],
     crb: np.ndarray | None = None,
     truth: np.ndarray | None = None,
+    *,
+    estimated: np.ndarray | None = None,
 ) -> str:
-    """The recommended theta with 1σ, its 95 % interval and the observability verdict.
+    """Theta with 1σ, its 95 % interval and the verdict of each parameter.
 
     Values in display units; σ and interval half-widths in mm (mm·s²/m for d). A parameter
-    the data did not determine shows its prior value and no interval.
+    whose verdict starts with "calibrated" gets its σ and interval. Of the others, those
+    ``estimated`` (``(4,)`` bool: the data determined them, e.g.
+    :attr:`~graphcal.graph.observability.Observability.calibrated`) keep their estimate but
+    no σ or interval, since a check failed (not trusted); the rest show their prior value.
+    Without ``estimated`` every parameter not calibrated is taken to be at its prior.
     """
     sigma = np.sqrt(np.diag(covariance))
     header = ["parameter", "value", "1σ", "95 % interval"]
@@ -139,18 +145,22 @@ def interval_table(
         value = theta[i] * DISPLAY_SCALE[i]
         row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]", _FORMATS[i].format(value)]
         calibrated = verdicts[name].startswith("calibrated")
+        # An estimate (not the prior) whether or not it passed the checks.
+        estimate = calibrated or (estimated is not None and bool(estimated[i]))
         if calibrated:
             half = Z95 * sigma[i] * DISPLAY_SCALE[i]
             row += [
                 f"{sigma[i] * DEVIATION_SCALE[i]:.3f}",
                 f"{_FORMATS[i].format(value - half)} … {_FORMATS[i].format(value + half)}",
             ]
+        elif estimate:
+            row += ["-", "none: not trusted"]
         else:
             row += ["-", "prior value, not calibrated"]
         if crb is not None:
-            row.append(f"{np.sqrt(crb[i, i]) * DEVIATION_SCALE[i]:.3f}" if calibrated else "-")
+            row.append(f"{np.sqrt(crb[i, i]) * DEVIATION_SCALE[i]:.3f}" if estimate else "-")
         if truth is not None:
-            row.append(f"{(theta[i] - truth[i]) * DEVIATION_SCALE[i]:+.3f}" if calibrated else "-")
+            row.append(f"{(theta[i] - truth[i]) * DEVIATION_SCALE[i]:+.3f}" if estimate else "-")
         row.append(verdicts[name])
         body.append(row)
     return _render([header, *body])
