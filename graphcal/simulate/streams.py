@@ -89,7 +89,18 @@ class SyntheticRecording:
     settings: StreamSettings
     gnss: pd.DataFrame
     wheels: pd.DataFrame
-    imu: pd.DataFrame
+    imu: pd.DataFrame | None
+
+    def manifest(self) -> str:
+        """The streams manifest of :func:`write_streams`' files: a local x/y pose (``pose.csv``)
+        when ``gnss`` has ``x`` and ``y`` columns, no ``[imu]`` without an IMU stream."""
+        return manifest_text(
+            self.settings, local_pose="x" in self.gnss.columns, imu=self.imu is not None
+        )
+
+    def metadata(self) -> dict:
+        """What ``truth.json`` says besides the drive, theta_true and the stream settings."""
+        return {}
 
 
 def _times(start: float, end: float, rate: float, phase: float, jitter: float, rng) -> np.ndarray:
@@ -219,8 +230,14 @@ def _recording(
     return Recording(pose=pose, wheels=wheel, imu=imu_stream, source="<synthetic streams>")
 
 
-def manifest_text(settings: StreamSettings, rate: float = 40.0) -> str:
-    """The streams manifest of :func:`write_streams`' files."""
+def manifest_text(
+    settings: StreamSettings, rate: float = 40.0, *, local_pose: bool = False, imu: bool = True
+) -> str:
+    """The streams manifest of :func:`write_streams`' files.
+
+    ``local_pose``: a ``[pose]`` of ``pose.csv`` with x, y [m] and an ENU heading [rad] (motion
+    capture) instead of GNSS latitude/longitude; ``imu``: with the ``[imu]`` section.
+    """
     if settings.wheel_kind == "ticks":
         wheel_keys = f'kind = "ticks"\nticks_per_revolution = {settings.ticks_per_revolution}\n'
     else:
@@ -228,33 +245,49 @@ def manifest_text(settings: StreamSettings, rate: float = 40.0) -> str:
             'kind = "speed"\nspeed_unit = "m/s"\n'
             f"circumference = {settings.circumference!r}  # m, the ECU's\n"
         )
+    if local_pose:
+        pose = (
+            "\n[pose]\n"
+            'file = "pose.csv"\ntime = "t"\nx = "x"\ny = "y"\n'
+            'heading = "heading"\nheading_unit = "rad"\nheading_convention = "enu"\n'
+        )
+    else:
+        pose = (
+            "\n[gnss]\n"
+            'file = "gnss.csv"\ntime = "t"\nlatitude = "lat"\nlongitude = "lon"\n'
+            'heading = "heading"\nheading_unit = "deg"\nheading_convention = "compass"\n'
+            'sideslip = "beta"\nsideslip_unit = "rad"\n'
+        )
+    imu_keys = (
+        '\n[imu]\nfile = "imu.csv"\ntime = "t"\nlateral_acceleration = "ay"\nyaw_rate = "wz"\n'
+    )
     return (
         "# Synthetic recording written by `graphcal simulate --streams`.\n"
         f"rate = {rate!r}\n"
         'truth = "truth.json"  # synthetic only: theta_true, compared with after calibration\n'
-        "\n[gnss]\n"
-        'file = "gnss.csv"\ntime = "t"\nlatitude = "lat"\nlongitude = "lon"\n'
-        'heading = "heading"\nheading_unit = "deg"\nheading_convention = "compass"\n'
-        'sideslip = "beta"\nsideslip_unit = "rad"\n'
+        f"{pose}"
         "\n[wheels]\n"
         'file = "wheels.csv"\ntime = "t"\nrear_left = "rl"\nrear_right = "rr"\n'
         f"{wheel_keys}"
-        "\n[imu]\n"
-        'file = "imu.csv"\ntime = "t"\nlateral_acceleration = "ay"\nyaw_rate = "wz"\n'
+        f"{imu_keys if imu else ''}"
     )
 
 
 def write_streams(sim: SyntheticRecording, directory: str | os.PathLike[str]) -> list[Path]:
-    """Write ``gnss.csv``, ``wheels.csv``, ``imu.csv``, ``manifest.toml`` and ``truth.json``."""
+    """Write ``gnss.csv``, ``wheels.csv``, ``imu.csv``, ``manifest.toml`` and ``truth.json``
+    (``pose.csv`` instead of ``gnss.csv`` for a local x/y pose, no ``imu.csv`` without an IMU:
+    :meth:`SyntheticRecording.manifest`)."""
     from graphcal import __version__
 
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
+    pose_file = "pose.csv" if "x" in sim.gnss.columns else "gnss.csv"
     written = [
-        atomic_write_csv(sim.gnss, directory / "gnss.csv"),
+        atomic_write_csv(sim.gnss, directory / pose_file),
         atomic_write_csv(sim.wheels, directory / "wheels.csv"),
-        atomic_write_csv(sim.imu, directory / "imu.csv"),
     ]
+    if sim.imu is not None:
+        written.append(atomic_write_csv(sim.imu, directory / "imu.csv"))
     truth = {
         "generator": f"graphcal {__version__} simulate --streams",
         "seed": sim.drive.seed,
@@ -267,7 +300,8 @@ def write_streams(sim: SyntheticRecording, directory: str | os.PathLike[str]) ->
             for key, value in asdict(sim.settings).items()
         },
         "epoch_s": EPOCH,
+        **sim.metadata(),
     }
     written.append(atomic_write_text(directory / "truth.json", json.dumps(truth, indent=2) + "\n"))
-    written.append(atomic_write_text(directory / "manifest.toml", manifest_text(sim.settings)))
+    written.append(atomic_write_text(directory / "manifest.toml", sim.manifest()))
     return written

@@ -1,0 +1,499 @@
+"""A differential-drive robot in a motion-capture hall, as raw sensor streams.
+
+The robot drives ``runs`` runs of 5–15 m (straight and gently curved, some arcs of small
+radius, 0.1–1.5 m/s with acceleration and deceleration ramps), each ended by a stop and
+followed by a spin on the spot (±90–360°, the wheels turning in opposite directions) that
+points it roughly back to where it started, so that it stays in the hall; optionally it
+reverses a little after every second run. The motion is simulated noise-free on a fine grid
+(:data:`FINE_DT`): the wheel rotations are eqs. (2)–(3) inverted with ``theta_true`` and the
+true poses eq. (1) integrated from them (:func:`graphcal.model.integrate`), so the truth is
+exactly the model's. The pose is the axle midpoint: no sideslip, no lever arm.
+
+The streams sample that truth as a lab records it, each on its own clock: motion-capture poses
+(x, y [m] in the hall's frame, heading [rad] wrapped to ±π) at 20–100 Hz with 1 mm / 0.2°
+noise, and the wheels' cumulative encoder counts (floored integers) at 100 Hz with timestamp
+jitter. No IMU. :func:`graphcal.simulate.streams.write_streams` writes them as
+``pose.csv``, ``wheels.csv``, ``manifest.toml`` and ``truth.json``;
+:func:`graphcal.simulate.bags.write_bag` writes ``recording`` as a bag (nav_msgs/Odometry
+and JointState positions).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.streams import PoseStream, Recording, WheelStream
+from graphcal.model import integrate, partial_steps, wheel_rotations_for_motion, wrap_angle
+from graphcal.simulate.drive import NoiseLevels, SyntheticDrive
+from graphcal.simulate.streams import EPOCH, StreamSettings, SyntheticRecording, manifest_text
+from graphcal.vehicle import VehicleProfile
+
+#: Default true parameters [c_e m, c_d m, t_r m, d s²]: an 84 mm wheel (nominal 85 mm,
+#: 0.267 m) on a 0.205 m track (nominal 0.200 m); a differential drive has no load transfer.
+ROBOT_THETA_TRUE = np.array([0.2639, 0.1e-3, 0.205, 0.0])
+#: Fine grid [s] of the noise-free simulation the streams sample (500 Hz).
+FINE_DT = 0.002
+#: Arc-length step [m] of a run's path before it is timed.
+PATH_STEP = 0.002
+#: Kinds of manoeuvre in :attr:`RobotRecording.manoeuvres`.
+MANOEUVRES = ("stop", "run", "spin", "reverse")
+
+
+@dataclass(frozen=True)
+class RobotSettings:
+    """How the robot drives and what its sensors record (SI; ranges are ``(low, high)``,
+    drawn uniformly per run, spin or stop).
+
+    Attributes:
+        run_length: [m] of a run. cruise_speed: [m/s] a run's top speed.
+        acceleration: [m/s²] of the speed ramps (and braking).
+        lateral_acceleration_limit: [m/s²] in bends; yaw_rate_limit: [rad/s] while driving.
+        gentle_curvature: [1/m] of a gentle bend's |curvature|.
+        tight_radius: [m] of a small-radius arc; tight_share: share of a run's pieces that are
+            one. piece_length: [m] of a straight or gently curved piece.
+        spin_angle: [rad] of a spin's |yaw|; spin_rate: [rad/s] its peak yaw rate;
+            spin_acceleration: [rad/s²].
+        stop_duration: [s] standing still between manoeuvres (and at both ends).
+        reversing: reverse straight back after every second run; reverse_length [m],
+            reverse_speed [m/s].
+        pose_rate: [Hz] of the motion capture; position_noise [m] (per axis) and
+            heading_noise [rad] per pose.
+        wheel_rate: [Hz] of the encoder counts; ticks_per_revolution; clock_jitter [s], uniform
+            ± on the wheel timestamps.
+        log_rate: [Hz] of the drive-log view and the manifest's ``rate`` (``None``: the pose
+            rate, so that each pose gets a row of its own).
+    """
+
+    run_length: tuple[float, float] = (5.0, 15.0)
+    cruise_speed: tuple[float, float] = (0.4, 1.5)
+    acceleration: float = 0.5
+    lateral_acceleration_limit: float = 0.8
+    yaw_rate_limit: float = 1.5
+    gentle_curvature: tuple[float, float] = (0.05, 0.4)
+    tight_radius: tuple[float, float] = (0.3, 1.0)
+    tight_share: float = 0.2
+    piece_length: tuple[float, float] = (1.0, 3.0)
+    spin_angle: tuple[float, float] = (0.5 * math.pi, 2.0 * math.pi)
+    spin_rate: tuple[float, float] = (0.5, 1.5)
+    spin_acceleration: float = 2.0
+    stop_duration: tuple[float, float] = (1.0, 3.0)
+    reversing: bool = False
+    reverse_length: tuple[float, float] = (0.5, 2.0)
+    reverse_speed: float = 0.3
+    pose_rate: float = 50.0
+    position_noise: float = 0.001
+    heading_noise: float = float(np.deg2rad(0.2))
+    wheel_rate: float = 100.0
+    ticks_per_revolution: int = 2797
+    clock_jitter: float = 0.0005
+    log_rate: float | None = None
+
+    def __post_init__(self) -> None:
+        ranges = ("run_length", "cruise_speed", "gentle_curvature", "tight_radius")
+        ranges += ("piece_length", "spin_angle", "spin_rate", "stop_duration", "reverse_length")
+        for name in ranges:
+            low, high = getattr(self, name)
+            if not (0 < low <= high < math.inf):
+                raise ValueError(f"{name} must be (low, high) with 0 < low <= high")
+        positive = ("acceleration", "lateral_acceleration_limit", "yaw_rate_limit")
+        positive += ("spin_acceleration", "reverse_speed", "pose_rate", "wheel_rate")
+        for name in positive:
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) > 0):
+                raise ValueError(f"{name} must be a positive number")
+        for name in ("position_noise", "heading_noise"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise ValueError(f"{name} must be >= 0")
+        if not 0 <= self.tight_share <= 1:
+            raise ValueError("tight_share must be within 0 … 1")
+        if max(self.pose_rate, self.wheel_rate, self.rate) > 0.5 / FINE_DT:
+            raise ValueError(f"rates must be at most {0.5 / FINE_DT:g} Hz (the fine grid's half)")
+        if not 0 <= self.clock_jitter < 0.25 / self.wheel_rate:
+            raise ValueError("clock_jitter must be >= 0 and well below the wheel interval")
+        ticks = self.ticks_per_revolution
+        if not (isinstance(ticks, int) and not isinstance(ticks, bool) and ticks >= 1):
+            raise ValueError(f"ticks_per_revolution must be a whole number >= 1, got {ticks!r}")
+
+    @property
+    def rate(self) -> float:
+        """[Hz] of the drive-log view: ``log_rate``, else ``pose_rate``."""
+        return float(self.pose_rate if self.log_rate is None else self.log_rate)
+
+    @classmethod
+    def from_vehicle(cls, vehicle: VehicleProfile, **overrides) -> RobotSettings:
+        """Settings with a vehicle profile's sensor noise and encoder resolution."""
+        keys = {
+            "position_noise": float(vehicle.position_sigma),
+            "heading_noise": float(vehicle.heading_sigma),
+        }
+        if vehicle.ticks_per_revolution is not None:
+            keys["ticks_per_revolution"] = int(vehicle.ticks_per_revolution)
+        return cls(**{**keys, **overrides})
+
+    def stream_settings(self) -> StreamSettings:
+        """The :class:`StreamSettings` equivalent (``truth.json``'s ``streams``)."""
+        return StreamSettings(
+            gnss_rate=self.pose_rate,
+            wheel_rate=self.wheel_rate,
+            position_noise=self.position_noise,
+            heading_noise=self.heading_noise,
+            wheel_kind="ticks",
+            ticks_per_revolution=self.ticks_per_revolution,
+            clock_jitter=self.clock_jitter,
+        )
+
+
+@dataclass(frozen=True)
+class RobotRecording(SyntheticRecording):
+    """A simulated robot recording: the streams (``gnss`` is the motion-capture pose frame
+    ``t, x, y, heading``; ``wheels`` ``t, rl, rr`` counts; no IMU), ``drive`` its drive-log
+    view at ``robot.rate`` (``measured``: noisy poses and counted rotations; ``truth``), and
+    the model-exact truth on the fine grid.
+
+    Attributes:
+        robot: how it was simulated.
+        fine: noise-free truth at :data:`FINE_DT` (``t`` from 0): its poses are eq. (1)
+            integrated from its wheel rotations with ``drive.theta_true``.
+        manoeuvres: one row per manoeuvre: ``kind`` (:data:`MANOEUVRES`), ``start``, ``end``
+            [s, fine time], ``distance`` [m, signed, along the path] and ``yaw`` [rad].
+    """
+
+    robot: RobotSettings = field(default_factory=RobotSettings)
+    fine: DriveLog | None = None
+    manoeuvres: pd.DataFrame = field(default_factory=pd.DataFrame)
+
+    @property
+    def total_distance(self) -> float:
+        """Path length [m] driven, forwards and backwards."""
+        rows = self.manoeuvres
+        return float(rows["distance"].abs().sum())
+
+    def manifest(self) -> str:
+        """The manifest: x/y pose, tick counts, no IMU, ``rate`` the drive-log view's."""
+        return manifest_text(self.settings, self.robot.rate, local_pose=True, imu=False)
+
+    def metadata(self) -> dict:
+        """``truth.json``'s ``streams`` (the robot's settings, SI) and the manoeuvres' totals."""
+        counts = self.manoeuvres["kind"].value_counts()
+        settings = asdict(self.robot)
+        return {
+            "streams": {k: list(v) if isinstance(v, tuple) else v for k, v in settings.items()},
+            "manoeuvres": {kind: int(counts.get(kind, 0)) for kind in MANOEUVRES},
+            "distance_m": self.total_distance,
+        }
+
+
+def _trapezoid(total: float, peak: float, accel: float) -> np.ndarray:
+    """Progress (distance or angle, from 0 to ``total`` >= 0) at ``k * FINE_DT`` of a move
+    that accelerates at ``accel`` to at most ``peak``, holds and decelerates to rest."""
+    peak = min(peak, math.sqrt(accel * total))
+    t_ramp = peak / accel
+    t_hold = (total - peak * t_ramp) / peak if peak > 0 else 0.0
+    duration = 2.0 * t_ramp + t_hold
+    t = FINE_DT * np.arange(math.ceil(duration / FINE_DT) + 1)
+    up = 0.5 * accel * np.minimum(t, t_ramp) ** 2
+    hold = peak * np.clip(t - t_ramp, 0.0, t_hold)
+    down_t = np.clip(t - t_ramp - t_hold, 0.0, t_ramp)
+    down = peak * down_t - 0.5 * accel * down_t**2
+    return np.minimum(up + hold + down, total)
+
+
+def _run_path(length: float, rng: np.random.Generator, s: RobotSettings) -> tuple[np.ndarray, ...]:
+    """Arc length [m] and course change [rad] of a run at ``k * FINE_DT``."""
+    n_pieces = math.ceil(length / min(s.piece_length[0], 0.5 * math.pi * s.tight_radius[0])) + 1
+    tight = rng.random(n_pieces) < s.tight_share
+    straight = ~tight & (rng.random(n_pieces) < 0.4)
+    side = rng.choice([-1.0, 1.0], n_pieces)
+    radius = rng.uniform(*s.tight_radius, n_pieces)
+    turn = rng.uniform(0.5 * math.pi, math.pi, n_pieces)  # of a tight arc [rad]
+    gentle = rng.uniform(*s.gentle_curvature, n_pieces)
+    kappa_piece = side * np.where(tight, 1.0 / radius, np.where(straight, 0.0, gentle))
+    piece = np.where(tight, radius * turn, rng.uniform(*s.piece_length, n_pieces))
+    edges = np.cumsum(piece)
+    arc = np.linspace(0.0, length, math.ceil(length / PATH_STEP) + 1)
+    kappa = kappa_piece[np.minimum(np.searchsorted(edges, arc), n_pieces - 1)]
+    # Curvature eased over 0.2 m (a moving average), as a robot's controller turns in.
+    half = max(1, round(0.1 / PATH_STEP))
+    padded = np.concatenate([np.full(half, kappa[0]), kappa, np.full(half, kappa[-1])])
+    summed = np.concatenate([[0.0], np.cumsum(padded)])
+    kappa = (summed[2 * half + 1 :] - summed[: -2 * half - 1]) / (2 * half + 1)
+
+    # Fastest speed within the run's cruise speed, the bend's limits and the ramps: forward
+    # v² <= 2 a s' over the distance s' from the start, backward likewise to the end.
+    cruise = rng.uniform(*s.cruise_speed)
+    abs_kappa = np.maximum(np.abs(kappa), 1e-9)
+    v_max = np.minimum.reduce(
+        [
+            np.full(len(arc), cruise),
+            np.sqrt(s.lateral_acceleration_limit / abs_kappa),
+            s.yaw_rate_limit / abs_kappa,
+        ]
+    )
+    v_max[0] = v_max[-1] = 0.0
+    a2 = 2.0 * s.acceleration
+    forward = a2 * arc + np.minimum.accumulate(v_max**2 - a2 * arc)
+    backward = -a2 * arc + np.minimum.accumulate((v_max**2 + a2 * arc)[::-1])[::-1]
+    speed = np.sqrt(np.maximum(np.minimum(forward, backward), 0.0))
+    mean = 0.5 * (speed[1:] + speed[:-1])
+    time_at = np.concatenate([[0.0], np.cumsum(np.diff(arc) / mean)])
+    course = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(arc))])
+    t = FINE_DT * np.arange(math.ceil(time_at[-1] / FINE_DT) + 1)
+    s_t = np.interp(t, time_at, arc)
+    return s_t, np.interp(s_t, arc, course)
+
+
+def _plan(
+    runs: int, rng: np.random.Generator, s: RobotSettings, heading0: float
+) -> tuple[np.ndarray, np.ndarray, pd.DataFrame]:
+    """Distance [m] and yaw [rad] of every fine step, and the manoeuvres' table."""
+    distance: list[np.ndarray] = []
+    yaw: list[np.ndarray] = []
+    rows: list[tuple[str, int, int, float, float]] = []
+    position, heading = np.zeros(2), heading0
+    steps = 0
+
+    def add(kind: str, travel: np.ndarray, turn: np.ndarray) -> None:
+        nonlocal position, heading, steps
+        d, w = np.diff(travel), np.diff(turn)
+        course = heading + np.concatenate([[0.0], np.cumsum(w)[:-1]]) + 0.5 * w
+        position = position + np.array([np.sum(d * np.cos(course)), np.sum(d * np.sin(course))])
+        heading += float(np.sum(w))
+        distance.append(d)
+        yaw.append(w)
+        rows.append((kind, steps, steps + len(d), float(np.sum(d)), float(np.sum(w))))
+        steps += len(d)
+
+    def stop() -> None:
+        n = math.ceil(rng.uniform(*s.stop_duration) / FINE_DT)
+        add("stop", np.zeros(n + 1), np.zeros(n + 1))
+
+    stop()
+    for k in range(runs):
+        travel, turn = _run_path(rng.uniform(*s.run_length), rng, s)
+        add("run", travel, turn)
+        stop()
+        if s.reversing and k % 2 == 1:
+            back = -_trapezoid(rng.uniform(*s.reverse_length), s.reverse_speed, s.acceleration)
+            add("reverse", back, np.zeros_like(back))
+            stop()
+        if k == runs - 1:
+            break
+        # Spin to face roughly back to the start (±45°), by 90–360° either way.
+        home = math.atan2(-position[1], -position[0]) + rng.uniform(-0.25, 0.25) * math.pi
+        angle = float(wrap_angle(home - heading))
+        low, high = s.spin_angle
+        while abs(angle) < low:
+            angle += math.copysign(2.0 * math.pi, angle if angle != 0 else 1.0)
+        if abs(angle) > high:
+            angle = math.copysign(rng.uniform(low, high), angle)
+        spin = math.copysign(1.0, angle) * _trapezoid(
+            abs(angle), rng.uniform(*s.spin_rate), s.spin_acceleration
+        )
+        add("spin", np.zeros_like(spin), spin)
+        stop()
+    frame = pd.DataFrame(rows, columns=["kind", "start", "end", "distance", "yaw"])
+    frame["start"] *= FINE_DT
+    frame["end"] *= FINE_DT
+    return np.concatenate(distance), np.concatenate(yaw), frame
+
+
+def _states_at(
+    t: np.ndarray, t_fine: np.ndarray, states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
+) -> np.ndarray:
+    """The model's states ``(len(t), 3)`` at times ``t`` within the fine grid: eq. (1) over
+    the part of the fine step each falls in (:func:`graphcal.model.partial_steps`)."""
+    k = np.clip(np.searchsorted(t_fine, t, side="left") - 1, 0, len(inputs) - 1)
+    fraction = np.clip((t - t_fine[k]) / (t_fine[k + 1] - t_fine[k]), 0.0, 1.0)
+    pairs = np.stack([states[k], states[k + 1]], axis=1)  # (Q, 2, 3)
+    (out,) = partial_steps(pairs, inputs[k][:, None, :], theta, fraction[:, None])
+    out = out[:, 0, :]
+    at_start = fraction == 0.0
+    out[at_start] = states[k[at_start]]
+    return out
+
+
+def _repeat_last(x: np.ndarray) -> np.ndarray:
+    """``x`` with its last entry repeated: the last sample drives no step."""
+    return np.append(x, x[-1])
+
+
+def _per_row(cumulative: np.ndarray) -> np.ndarray:
+    """Increments of a cumulative signal over each row's interval to the next."""
+    return _repeat_last(np.diff(cumulative))
+
+
+def _times(start: float, end: float, rate: float, jitter: float, rng) -> np.ndarray:
+    t = np.arange(start, end, 1.0 / rate)
+    if jitter > 0:
+        t = t + rng.uniform(-jitter, jitter, len(t))
+    return t
+
+
+def simulate_robot(
+    seed: int = 0,
+    runs: int = 10,
+    settings: RobotSettings | None = None,
+    theta_true: np.ndarray = ROBOT_THETA_TRUE,
+) -> RobotRecording:
+    """Simulate a differential-drive robot's recording (module docstring).
+
+    Args:
+        seed: seed of every random choice (path, spins, stops, clocks, noise, counter
+            offsets); same seed and settings, same recording.
+        runs: number of runs (each 5–15 m by default), separated by stops and spins.
+        settings: motion and sensors (default :class:`RobotSettings`).
+        theta_true: true ``[c_e, c_d, t_r, d]`` [m, m, m, s²].
+
+    Returns:
+        A :class:`RobotRecording` for :func:`~graphcal.simulate.streams.write_streams` and
+        :func:`~graphcal.simulate.bags.write_bag` (its ``recording``).
+    """
+    if not (isinstance(runs, int) and runs >= 1):
+        raise ValueError(f"runs must be a whole number >= 1, got {runs!r}")
+    s = settings or RobotSettings()
+    theta_true = np.asarray(theta_true, dtype=float)
+    if theta_true.shape != (4,) or not (theta_true[0] > 0 and theta_true[2] > 0):
+        raise ValueError("theta_true must be [c_e, c_d, t_r, d] with c_e > 0 and t_r > 0")
+    motion_seed, pose_seed, wheel_seed, log_seed = np.random.SeedSequence(seed).spawn(4)
+    motion_rng = np.random.default_rng(motion_seed)
+    heading0 = float(motion_rng.uniform(-math.pi, math.pi))
+    distance, yaw, manoeuvres = _plan(runs, motion_rng, s, heading0)
+
+    # Noise-free truth on the fine grid: eqs. (2)-(3) inverted, eq. (1) integrated.
+    n_steps = len(distance)
+    t_fine = FINE_DT * np.arange(n_steps + 1)
+    ay = distance * yaw / FINE_DT**2  # speed × yaw rate [m/s²]
+    n_rl, n_rr = wheel_rotations_for_motion(distance, yaw, ay, theta_true)
+    zero = np.zeros(n_steps)
+    inputs = np.column_stack([n_rl, n_rr, zero, ay])
+    states = integrate(np.array([0.0, 0.0, heading0]), inputs, theta_true)
+    fine = DriveLog(
+        t=t_fine,
+        px=states[:, 0],
+        py=states[:, 1],
+        psi=states[:, 2],
+        n_rl=_repeat_last(n_rl),
+        n_rr=_repeat_last(n_rr),
+        beta=np.zeros(n_steps + 1),
+        ay=_repeat_last(ay),
+        source="<synthetic robot truth, fine>",
+    )
+    cumulative = {
+        "rl": np.concatenate([[0.0], np.cumsum(n_rl)]),
+        "rr": np.concatenate([[0.0], np.cumsum(n_rr)]),
+    }
+
+    # Motion capture: its own clock (starts 0.3 s in, ends 0.2 s early), wrapped heading.
+    end = float(t_fine[-1])
+    pose_rng = np.random.default_rng(pose_seed)
+    first_pose = 0.3 + pose_rng.uniform(0.0, 1.0 / s.pose_rate)
+    t_pose = _times(first_pose, end - 0.2, s.pose_rate, 0.0, pose_rng)
+    true_pose = _states_at(t_pose, t_fine, states, inputs, theta_true)
+    noise = pose_rng.standard_normal((len(t_pose), 3)) * [
+        s.position_noise,
+        s.position_noise,
+        s.heading_noise,
+    ]
+    measured_pose = true_pose + noise
+    pose_frame = pd.DataFrame(
+        {
+            "t": EPOCH + t_pose,
+            "x": measured_pose[:, 0],
+            "y": measured_pose[:, 1],
+            "heading": wrap_angle(measured_pose[:, 2]),
+        }
+    )
+
+    # Encoders: cumulative counts, floored, from a random start within a tick; start 0.5 s in.
+    wheel_rng = np.random.default_rng(wheel_seed)
+    offsets = wheel_rng.uniform(0.0, 1.0, 2)
+    t_wheels = _times(0.5, end, s.wheel_rate, s.clock_jitter, wheel_rng)
+    tpr = s.ticks_per_revolution
+
+    def counts(t: np.ndarray) -> dict[str, np.ndarray]:
+        return {
+            side: np.floor(np.interp(t, t_fine, cum) * tpr + offset).astype(np.int64)
+            for (side, cum), offset in zip(cumulative.items(), offsets, strict=True)
+        }
+
+    wheel_frame = pd.DataFrame({"t": EPOCH + t_wheels, **counts(t_wheels)})
+
+    recording = Recording(
+        pose=PoseStream(
+            t=pose_frame["t"].to_numpy(),
+            x=pose_frame["x"].to_numpy(),
+            y=pose_frame["y"].to_numpy(),
+            heading=pose_frame["heading"].to_numpy(),
+            sideslip=None,
+            source="<synthetic motion capture>",
+        ),
+        wheels=WheelStream(
+            t=wheel_frame["t"].to_numpy(),
+            left=wheel_frame["rl"].to_numpy(dtype=float) / tpr,
+            right=wheel_frame["rr"].to_numpy(dtype=float) / tpr,
+            cumulative=True,
+            source="<synthetic wheel encoders>",
+            resolution=1.0 / tpr,
+        ),
+        imu=None,
+        source="<synthetic robot streams>",
+    )
+
+    # Drive-log view at s.rate: true states at the rows, rotations between rows; measured
+    # poses with the motion capture's noise and rotations from the counters.
+    t_log = np.arange(0.0, end + 1e-9, 1.0 / s.rate)
+    true_log = _states_at(t_log, t_fine, states, inputs, theta_true)
+    true_rot = {side: _per_row(np.interp(t_log, t_fine, cum)) for side, cum in cumulative.items()}
+    counted = {side: _per_row(c.astype(float) / tpr) for side, c in counts(t_log).items()}
+    speed = 0.5 * (true_rot["rl"] + true_rot["rr"]) * theta_true[0] * s.rate
+    yaw_rate = _per_row(true_log[:, 2]) * s.rate
+    log_ay = speed * yaw_rate
+    truth = DriveLog(
+        t=t_log,
+        px=true_log[:, 0],
+        py=true_log[:, 1],
+        psi=true_log[:, 2],
+        n_rl=true_rot["rl"],
+        n_rr=true_rot["rr"],
+        beta=np.zeros(len(t_log)),
+        ay=log_ay,
+        source="<synthetic robot truth>",
+    )
+    log_rng = np.random.default_rng(log_seed)
+    log_noise = log_rng.standard_normal((len(t_log), 3)) * [
+        s.position_noise,
+        s.position_noise,
+        s.heading_noise,
+    ]
+    measured = DriveLog(
+        t=t_log.copy(),
+        px=truth.px + log_noise[:, 0],
+        py=truth.py + log_noise[:, 1],
+        psi=truth.psi + log_noise[:, 2],
+        n_rl=counted["rl"],
+        n_rr=counted["rr"],
+        beta=np.zeros(len(t_log)),
+        ay=log_ay.copy(),
+        source="<synthetic robot>",
+        tick_resolution=1.0 / tpr,
+    )
+    levels = NoiseLevels(position=s.position_noise, heading=s.heading_noise, wheel_rotation=0.0)
+    total = float(np.sum(np.abs(distance)))
+    drive = SyntheticDrive(
+        measured, truth, theta_true, levels, int(seed), total / 1000.0, route="robot"
+    )
+    return RobotRecording(
+        recording=recording,
+        drive=drive,
+        settings=s.stream_settings(),
+        gnss=pose_frame,
+        wheels=wheel_frame,
+        imu=None,
+        robot=s,
+        fine=fine,
+        manoeuvres=manoeuvres,
+    )
