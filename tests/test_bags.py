@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pytest
 
+from graphcal.cli import main
 from graphcal.data.bags import bag_topics, is_bag, pick_joints, read_bag
 from graphcal.data.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
 from graphcal.simulate.bags import write_bag
@@ -183,7 +184,7 @@ def test_corrupt_bags(tmp_path, bags):
 
 def test_missing_rosbags_names_the_extra(bags, monkeypatch):
     monkeypatch.setitem(sys.modules, "rosbags", None)
-    with pytest.raises(StreamError, match=r"pip install 'graphcal\[ros\]'"):
+    with pytest.raises(StreamError, match=r'pip install -e "\.\[ros\]"'):
         read_bag(bags["ros1"])
 
 
@@ -268,7 +269,7 @@ def test_joints_by_name_in_any_order_stamps_status_and_duplicates(tmp_path):
         position = [value[n] for n in names]
         messages.append(("/joints", JOINTS, 10**9 * k + 1, _joints(t, names, position, [])))
     messages.append(("/joints", JOINTS, 10**11, _joints(101.0, ["front_left"], [0.0], [])))
-    messages.append(("/joints", JOINTS, 10**11 + 1, _joints(100.05, FOUR, [9, 9, 9, 9], [])))
+    messages.append(("/joints", JOINTS, 10**11 + 1, _joints(100.05, FOUR, [0, 1, 0, 2], [])))
     path = tmp_path / "handmade"
     _write_messages(path, messages)
     read = read_bag(path)
@@ -276,11 +277,31 @@ def test_joints_by_name_in_any_order_stamps_status_and_duplicates(tmp_path):
     assert "Rear_Left_Wheel, rear_right_wheel picked automatically" in notes
     assert "skipped 2 NavSatFix without a fix" in notes
     assert "skipped 1 JointState message(s) without both" in notes
-    assert "dropped 1 message(s) with a duplicate stamp" in notes
+    assert "/joints: dropped 1 message(s) repeating the time and values" in notes
     assert len(read.pose.t) == 18 and read.imu is None
     np.testing.assert_allclose(read.wheels.t, 100.0 + 0.05 * np.arange(50), atol=1e-9)
     np.testing.assert_allclose(read.wheels.left * 2 * np.pi, np.arange(50), atol=1e-12)
     np.testing.assert_allclose(read.wheels.right * 2 * np.pi, 2.0 * np.arange(50), atol=1e-12)
+
+
+def test_a_stamp_written_twice_with_other_values_is_refused_naming_both_messages(tmp_path, capsys):
+    """Issue 26 row G, the rule CSV streams follow too: a stamp repeated with the same values
+    is dropped with a note (above), with other values refused, naming the topic, both
+    messages (1-based, in the topic's order in the bag) and the values that differ."""
+    messages = []
+    for k in range(20):
+        messages.append(("/fix", FIX, 10**9 * k, _fix(100.0 + 0.1 * k, 47.0 + 1e-5 * k, 19.0)))
+    for k in range(50):
+        joints = _joints(100.0 + 0.05 * k, ["rl", "rr"], [k, 2.0 * k], [])
+        messages.append(("/joints", JOINTS, 10**9 * k + 1, joints))
+    messages.append(("/joints", JOINTS, 10**11, _joints(100.05, ["rl", "rr"], [9.0, 2.0], [])))
+    path = tmp_path / "twice"
+    _write_messages(path, messages)
+    assert main(["check", str(path), "--rear-left", "rl", "--rear-right", "rr"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert f"{path}:/joints: message 2 and message 51 have the same time 100.05 s" in err, err
+    assert "position[rl] 1.0 vs 9.0" in err and "position[rr]" not in err, err
 
 
 def test_zero_stamps_use_receive_times_and_velocity_fallback(tmp_path):

@@ -88,6 +88,18 @@ def test_time_not_increasing(frame, tmp_path, capsys):
     expect_error(frame, tmp_path, capsys, "column 't'", "line 302", "time does not increase")
 
 
+def test_time_stepping_back_by_a_microsecond_prints_two_different_times(frame, tmp_path, capsys):
+    """Issue 26 row H: Unix times (1.76e9 s) written with every digit, so a step back of a
+    microsecond does not read "1.76385611e+09 then 1.76385611e+09"; both lines named."""
+    frame["t"] += 1763856110.0
+    frame.loc[300, "t"] = frame.loc[299, "t"] - 1e-6
+    frame["t"] = frame["t"].map(repr)  # every digit in the file
+    before, after = frame.loc[299, "t"], frame.loc[300, "t"]
+    message = expect_error(frame, tmp_path, capsys, "column 't'", "line 302", "on line 301")
+    assert f"time does not increase ({after} s after {before} s on line 301)" in message
+    assert before != after
+
+
 def test_time_not_uniform(frame, tmp_path, capsys):
     frame.loc[500:, "t"] += 0.1  # a 100 ms gap
     expect_error(frame, tmp_path, capsys, "column 't'", "line 502", "non-uniform sampling")

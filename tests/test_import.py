@@ -280,13 +280,17 @@ def test_bad_manifests_get_one_line_and_nothing_is_written(
 
 
 def test_a_stream_whose_time_does_not_increase_is_refused(recording, tmp_path, capsys):
+    """Issue 26 row H: the file's own line numbers (header = line 1) and both times with
+    every digit, so that a step back of a microsecond does not print as two equal times."""
     wheels = pd.read_csv(recording / "wheels.csv")
-    wheels.loc[500, "t"] = wheels.loc[498, "t"]
+    wheels.loc[500, "t"] = wheels.loc[499, "t"] - 1e-6  # data row 500 is file line 502
     wheels.to_csv(recording / "wheels.csv", index=False, float_format="%.17g")
+    before, after = (repr(float(wheels.loc[k, "t"])) for k in (499, 500))
     args = ["calibrate", str(recording / "manifest.toml"), "--out", str(tmp_path / "r")]
     err = _one_line_exit_2(args, capsys)
-    assert "wheels.csv" in err and "time does not increase at sample 501" in err
-    assert not (tmp_path / "r").exists()
+    assert "wheels.csv: column 't'" in err and "line 502: time" in err, err
+    assert f"time {after} s is " in err and f"before line 501's {before} s" in err, err
+    assert before != after and not (tmp_path / "r").exists()
 
 
 def test_streams_that_overlap_too_little_are_refused():

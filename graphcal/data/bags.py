@@ -33,7 +33,16 @@ import numpy as np
 
 from graphcal.data.bag_layout import decode_fixed
 from graphcal.data.geodesy import GeodesyError, geodetic_to_local
-from graphcal.data.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
+from graphcal.data.streams import (
+    Field,
+    ImuStream,
+    PoseStream,
+    Provenance,
+    Recording,
+    StreamError,
+    WheelStream,
+    unique_samples,
+)
 from graphcal.data.streams import check_time as _check_time
 from graphcal.errors import first_line
 
@@ -53,7 +62,7 @@ WheelKind = Literal["angle", "angular_speed"]
 #: Decode Imu and JointState messages of one layout with numpy (False: one by one, rosbags).
 FAST_DECODING = True
 
-_MISSING_ROSBAGS = "reading ROS bags needs the rosbags package: pip install 'graphcal[ros]'"
+_MISSING_ROSBAGS = 'reading ROS bags needs the rosbags package: pip install -e ".[ros]"'
 _NAN2 = (math.nan, math.nan)
 #: How to repair a bag whose recording was cut off, by file suffix.
 _REPAIR = {
@@ -322,9 +331,18 @@ class _Topic:
     skipped: int = 0
     pending: list[tuple[int, bytes]] = field(default_factory=list)
     decoded: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    #: Messages offered so far, and the number (1-based, in the topic's order in the bag) of
+    #: each kept row, for messages that name one.
+    offered: int = 0
+    row_numbers: list[int] = field(default_factory=list)
+    decoded_numbers: list[np.ndarray] = field(default_factory=list)
 
-    def add(self, timestamp: int, msg: Any) -> None:
-        """Keep the numbers of one message (``timestamp``: receive time [ns])."""
+    def add(self, timestamp: int, msg: Any, number: int | None = None) -> None:
+        """Keep the numbers of one message (``timestamp``: receive time [ns]; ``number``: its
+        place in the topic, counted here when not given)."""
+        if number is None:
+            self.offered += 1
+            number = self.offered
         row = self.extract(msg)
         if row is None:
             self.skipped += 1
@@ -332,6 +350,7 @@ class _Topic:
         stamp = msg.header.stamp
         self.stamps.append((stamp.sec, stamp.nanosec, timestamp))
         self.rows.append(row)
+        self.row_numbers.append(number)
 
     def add_raw(self, timestamp: int, raw: bytes) -> None:
         """Keep one raw message; decoded in chunks of :data:`RAW_CHUNK`."""
@@ -345,14 +364,17 @@ class _Topic:
             return
         pending, self.pending = self.pending, []
         assert self.decode is not None and self.deserialize is not None
+        first = self.offered + 1
+        self.offered += len(pending)
         result = self.decode([raw for _, raw in pending])
         if result is None:
-            for timestamp, raw in pending:
-                self.add(timestamp, self.deserialize(raw))
+            for number, (timestamp, raw) in enumerate(pending, start=first):
+                self.add(timestamp, self.deserialize(raw), number)
             return
         stamp, values = result
         received = np.array([timestamp for timestamp, _ in pending], dtype=np.int64)
         self.decoded.append((np.column_stack([stamp, received]), values))
+        self.decoded_numbers.append(np.arange(first, first + len(pending)))
 
     def __len__(self) -> int:
         return len(self.rows) + sum(len(values) for _, values in self.decoded)
@@ -363,6 +385,12 @@ class _Topic:
         if self.rows or not parts:
             parts.insert(0, np.array(self.rows, dtype=float, ndmin=2))
         return np.concatenate(parts) if len(parts) > 1 else parts[0]
+
+    def numbers(self) -> np.ndarray:
+        """Each row's message number (1-based, in the topic's order in the bag), in the order
+        of :meth:`values`."""
+        parts = [np.asarray(self.row_numbers, dtype=np.int64), *self.decoded_numbers]
+        return np.concatenate(parts)
 
     def times(self, source: str, notes: list[str]) -> np.ndarray:
         """Header stamps [s]; the receive times if every stamp is zero."""
@@ -457,15 +485,51 @@ def _joint_extractor(left: str, right: str) -> tuple[Callable[[Any], tuple | Non
 # --- post-processing --------------------------------------------------------------------------
 
 
-def _sorted_unique(t: np.ndarray, source: str, notes: list[str]) -> np.ndarray:
-    """Indices that sort ``t`` and keep the first of each duplicate stamp."""
-    order = np.argsort(t, kind="stable")
-    ts = t[order]
-    keep = np.ones(len(ts), dtype=bool)
-    keep[1:] = ts[1:] != ts[:-1]
-    if not keep.all():
-        notes.append(f"{source}: dropped {int((~keep).sum())} message(s) with a duplicate stamp")
-    return order[keep]
+#: The message fields behind the columns of each message type's rows (:data:`_EXTRACT`,
+#: :func:`_imu`, :func:`_joint_extractor`), as the user would look them up.
+_POSE_FIELDS = {
+    NAVSATFIX: ("latitude", "longitude", "status.status"),
+    ODOMETRY: (
+        *(f"pose.pose.position.{a}" for a in "xy"),
+        *(f"pose.pose.orientation.{a}" for a in "xyzw"),
+        *(f"twist.twist.linear.{a}" for a in "xy"),
+    ),
+    POSE_COVARIANCE: (
+        *(f"pose.pose.position.{a}" for a in "xy"),
+        *(f"pose.pose.orientation.{a}" for a in "xyzw"),
+    ),
+    POSE_STAMPED: (
+        *(f"pose.position.{a}" for a in "xy"),
+        *(f"pose.orientation.{a}" for a in "xyzw"),
+    ),
+}
+_IMU_FIELDS = (
+    "linear_acceleration.y",
+    "angular_velocity.z",
+    "linear_acceleration_covariance[0]",
+    "angular_velocity_covariance[0]",
+    "orientation_covariance[0]",
+    *(f"orientation.{a}" for a in "xyzw"),
+)
+
+
+def _unique(
+    source: str,
+    names: tuple[str, ...],
+    values: np.ndarray,
+    t: np.ndarray,
+    numbers: np.ndarray,
+    fields: dict[str, Field],
+    notes: list[str],
+) -> tuple[np.ndarray, np.ndarray, Provenance]:
+    """The topic's rows sorted by stamp, a stamp written twice dropped when the messages
+    agree and refused when they differ (the rule of CSV streams too:
+    :func:`graphcal.data.streams.unique_samples`); returns ``values``, ``t`` and the
+    :class:`Provenance` of the kept rows."""
+    provenance = Provenance(source, {**{n: Field(n) for n in names}, **fields}, numbers, "message")
+    columns = {name: values[:, j] for j, name in enumerate(names)}
+    keep = unique_samples(t, columns, provenance, notes, sort=True)
+    return values[keep], t[keep], provenance.take(keep)
 
 
 def _yaw(q: np.ndarray) -> np.ndarray:
@@ -484,7 +548,14 @@ def _no_messages(bag: _Bag, topic: str, role: str, flag: str) -> StreamError:
 def _pose_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> PoseStream:
     source = f"{bag.source}:{topic}"
     msgtype = bag.topics[topic]
-    values, t = rows.values(), rows.times(source, notes)
+    values, t, numbers = rows.values(), rows.times(source, notes), rows.numbers()
+    names = _POSE_FIELDS[msgtype]
+    if msgtype == NAVSATFIX:
+        fields = {"latitude": Field("latitude", None, "degrees")}
+        fields["longitude"] = Field("longitude", None, "degrees")
+    else:
+        fields = {"x": Field(names[0], None, "m"), "y": Field(names[1], None, "m")}
+        fields["heading"] = Field(names[2].rsplit(".", 1)[0], None, "yaw of the quaternion")
     if msgtype == NAVSATFIX:
         fixed = (values[:, 2] >= 0) & np.isfinite(values[:, :2]).all(axis=1)
         if not fixed.any():
@@ -494,16 +565,17 @@ def _pose_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> PoseS
             )
         if not fixed.all():
             notes.append(f"{source}: skipped {int((~fixed).sum())} NavSatFix without a fix")
-        values, t = values[fixed], t[fixed]
-    keep = _sorted_unique(t, source, notes)
-    values, t = values[keep], t[keep]
-    _check_time(t, source)
+        values, t, numbers = values[fixed], t[fixed], numbers[fixed]
+    values, t, provenance = _unique(source, names, values, t, numbers, fields, notes)
+    _check_time(t, source, provenance)
     if msgtype == NAVSATFIX:
         try:
-            x, y, origin = geodetic_to_local(values[:, 0], values[:, 1], source)
+            x, y, origin = geodetic_to_local(
+                values[:, 0], values[:, 1], source, provenance=provenance
+            )
         except GeodesyError as error:
             raise StreamError(str(error)) from None
-        return PoseStream(t, x, y, None, None, source, origin)
+        return PoseStream(t, x, y, None, None, source, origin, provenance)
     quaternion = values[:, 2:6]
     if not np.linalg.norm(quaternion, axis=1).any():
         notes.append(f"{source}: orientation all zero (not logged); the course is used")
@@ -517,7 +589,9 @@ def _pose_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> PoseS
         if forward.any() and np.abs(vy).any():
             sideslip = np.where(forward, np.arctan2(vy, np.where(forward, vx, 1.0)), 0.0)
             notes.append(f"{source}: sideslip from the direction of the body-frame twist")
-    return PoseStream(t, values[:, 0].copy(), values[:, 1].copy(), heading, sideslip, source)
+            provenance.fields["sideslip"] = Field("twist.twist.linear", None, "its direction")
+    x, y = values[:, 0].copy(), values[:, 1].copy()
+    return PoseStream(t, x, y, heading, sideslip, source, provenance=provenance)
 
 
 def _wheel_stream(
@@ -541,7 +615,7 @@ def _wheel_stream(
             f"{source}: skipped {rows.skipped} JointState message(s) without both {joints[0]} "
             f"and {joints[1]}"
         )
-    values, t = rows.values(), rows.times(source, notes)
+    values, t, numbers = rows.values(), rows.times(source, notes), rows.numbers()
     has_position = np.isfinite(values[:, :2]).all(axis=1)
     has_velocity = np.isfinite(values[:, 2:]).all(axis=1)
     if wheel_kind is None:
@@ -559,23 +633,34 @@ def _wheel_stream(
             f"{source}: skipped {int((~present).sum())} JointState message(s) without a "
             f"{field_name}"
         )
-    values, t = values[present], t[present]
-    keep = _sorted_unique(t, source, notes)
-    columns = values[keep][:, :2] if angle else values[keep][:, 2:]
-    t = t[keep]
-    _check_time(t, source)
+    values, t, numbers = values[present], t[present], numbers[present]
+    names = tuple(f"{kind}[{joint}]" for kind in ("position", "velocity") for joint in joints)
+    unit = "rad, cumulative" if angle else "rad/s"
+    used = names[:2] if angle else names[2:]
+    fields = {"rear_left": Field(used[0], None, unit), "rear_right": Field(used[1], None, unit)}
+    values, t, provenance = _unique(source, names, values, t, numbers, fields, notes)
+    _check_time(t, source, provenance)
+    columns = values[:, :2] if angle else values[:, 2:]
     revolutions = columns / (2.0 * np.pi)
     return WheelStream(
-        t, revolutions[:, 0].copy(), revolutions[:, 1].copy(), cumulative=angle, source=source
+        t,
+        revolutions[:, 0].copy(),
+        revolutions[:, 1].copy(),
+        cumulative=angle,
+        source=source,
+        provenance=provenance,
     )
 
 
 def _imu_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> ImuStream:
     source = f"{bag.source}:{topic}"
-    values, t = rows.values(), rows.times(source, notes)
-    keep = _sorted_unique(t, source, notes)
-    values, t = values[keep], t[keep]
-    _check_time(t, source)
+    values, t, numbers = rows.values(), rows.times(source, notes), rows.numbers()
+    fields = {
+        "lateral_acceleration": Field(_IMU_FIELDS[0], None, "m/s², REP 103: y to the left"),
+        "yaw_rate": Field(_IMU_FIELDS[1], None, "rad/s, REP 103: z up"),
+    }
+    values, t, provenance = _unique(source, _IMU_FIELDS, values, t, numbers, fields, notes)
+    _check_time(t, source, provenance)
     signals = []
     for column, covariance, what in ((0, 2, "linear acceleration"), (1, 3, "angular velocity")):
         # REP 145: a covariance whose first element is -1 means "this field is not provided".
@@ -584,7 +669,7 @@ def _imu_stream(bag: _Bag, topic: str, rows: _Topic, notes: list[str]) -> ImuStr
             signals.append(None)
         else:
             signals.append(values[:, column].copy())
-    return ImuStream(t, signals[0], signals[1], source)
+    return ImuStream(t, signals[0], signals[1], source, provenance)
 
 
 def _imu_heading(rows: _Topic, imu: ImuStream, pose: PoseStream, notes: list[str]) -> PoseStream:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TypeVar
@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from graphcal.data.consistency import MAX_MASKED_SHARE, runs, screen
+from graphcal.data.streams import time_text
 from graphcal.data.track import fill_track
 from graphcal.errors import GraphcalError, first_line
 from graphcal.files import atomic_write_csv
@@ -227,13 +228,47 @@ def _line(row: int) -> int:
     return int(row) + 2
 
 
-def _fail(path: str, column: str | None, row: int | None, what: str, fix: str) -> DriveLogError:
+def _fail(
+    path: str,
+    column: str | None,
+    row: int | None,
+    what: str,
+    fix: str,
+    origins: Mapping[str, ColumnOrigin] | None = None,
+    imported: str | None = None,
+) -> DriveLogError:
+    """The one-line error of a check on ``column`` at data row ``row``: in the drive log's
+    terms, or, for a column with an origin (an imported recording), in the user's: the
+    stream's file, column, manifest key and line, the check's ``imported`` text (``QUANTITY``
+    in it replaced by what the column holds) and the origin's fix."""
+    origin = None if origins is None or column is None else origins.get(column)
+    if origin is not None:
+        said = what if imported is None else imported.replace("QUANTITY", origin.quantity)
+        return DriveLogError(f"{origin.where(row)}: {said}; {origin.fix}")
     where = path
     if column is not None:
         where += f": column '{column}'"
     if row is not None:
         where += f", line {_line(row)}"
     return DriveLogError(f"{where}: {what}; {fix}")
+
+
+@dataclass(frozen=True)
+class ColumnOrigin:
+    """Where an imported drive-log column came from, so that a check that fires on it speaks
+    of the user's streams, never of a drive-log column the user did not write.
+
+    Attributes:
+        quantity: what the column holds, in words (``"lateral acceleration (the wheels'
+            speed × the IMU's yaw rate)"``).
+        where: ``where(row)``: the stream file(s), column(s) with their manifest keys and
+            the line(s) behind drive-log row ``row``; ``where(None)`` without a line.
+        fix: the how-to-fix: the manifest key(s) to check or change.
+    """
+
+    quantity: str
+    where: Callable[[int | None], str]
+    fix: str
 
 
 def _first(mask: np.ndarray) -> int:
@@ -261,6 +296,7 @@ def validate_frame(
     marked: np.ndarray | None = None,
     marked_notes: tuple[str, ...] = (),
     nominal: np.ndarray = THETA_NOMINAL,
+    origins: Mapping[str, ColumnOrigin] | None = None,
 ) -> DriveLog:
     """Validate a raw table in the drive-log format and return the :class:`DriveLog`.
 
@@ -276,12 +312,19 @@ def validate_frame(
     The checks that turn wheel rotations into speed, distance or yaw (implausible rotations,
     heading units, positions against the wheels, ``min_distance``) use ``nominal``, the
     vehicle's nominal theta ``[c_e, c_d, t_r, d]`` (default: the paper's car).
+
+    ``origins`` (an import's, by drive-log column) turns each message into the user's terms:
+    the stream's file, column, manifest key and line instead of the drive-log column and row.
     """
     nominal = _checked_nominal(nominal)
+
+    def fail(*args, **kwargs) -> DriveLogError:
+        return _fail(*args, **kwargs, origins=origins)
+
     _check_repeated([str(c) for c in frame.columns], source)
     missing = [c for c in COLUMNS if c not in frame.columns]
     if missing:
-        raise _fail(
+        raise fail(
             source,
             None,
             None,
@@ -289,9 +332,7 @@ def validate_frame(
             f"the header must contain {', '.join(COLUMNS)}",
         )
     if len(frame) < 2:
-        raise _fail(
-            source, None, None, f"only {len(frame)} data row(s)", "a log needs many samples"
-        )
+        raise fail(source, None, None, f"only {len(frame)} data row(s)", "a log needs many samples")
 
     arrays: dict[str, np.ndarray] = {}
     for column in COLUMNS:
@@ -305,7 +346,7 @@ def validate_frame(
             bad_text = np.isnan(numeric) & ~blank
             if bad_text.any():
                 row = _first(bad_text)
-                raise _fail(
+                raise fail(
                     source,
                     column,
                     row,
@@ -317,7 +358,7 @@ def validate_frame(
             not_finite &= ~np.isnan(numeric)
         if not_finite.any():
             row = _first(not_finite)
-            raise _fail(
+            raise fail(
                 source,
                 column,
                 row,
@@ -331,22 +372,23 @@ def validate_frame(
         dt = np.diff(t)
     if not np.all(np.isfinite(dt)):
         row = _first(~np.isfinite(dt)) + 1
-        raise _fail(
+        raise fail(
             source, "t", row, "time value too large to difference", "give the time in seconds"
         )
     if (dt <= 0).any():
         row = _first(dt <= 0) + 1
-        raise _fail(
+        raise fail(
             source,
             "t",
             row,
-            f"time does not increase ({t[row - 1]:.9g} then {t[row]:.9g})",
+            f"time does not increase ({time_text(t[row])} s after {time_text(t[row - 1])} s on "
+            f"line {_line(row - 1)})",
             "sort the rows by time and remove duplicates",
         )
     dt_nominal = float(np.median(dt))
     low, high = SAMPLING_INTERVAL_RANGE
     if not low <= dt_nominal <= high:
-        raise _fail(
+        raise fail(
             source,
             "t",
             None,
@@ -356,7 +398,7 @@ def validate_frame(
     uneven = np.abs(dt - dt_nominal) > TIME_TOLERANCE * dt_nominal
     if uneven.any():
         row = _first(uneven) + 1
-        raise _fail(
+        raise fail(
             source,
             "t",
             row,
@@ -365,20 +407,24 @@ def validate_frame(
             "resample the log to a uniform rate (gaps must be cut into separate logs)",
         )
 
-    measured, lag = _measured_components(frame, arrays, source)
+    measured, lag = _measured_components(frame, arrays, source, origins)
     psi = arrays["psi"][measured[:, 1]]
     jumps = np.abs(np.diff(psi))
     degree_wrap = (jumps > 4.0 * np.pi) & (jumps < 3.0 * 360.0)
     if degree_wrap.any():
         row = _first(degree_wrap) + 1
         row = int(np.flatnonzero(measured[:, 1])[row])
-        raise _fail(
+        raise fail(
             source,
             "psi",
             row,
             f"heading jumps by {jumps[_first(degree_wrap)]:.4g}, apparently degrees wrapping "
             "at 360",
             "convert the heading to radians (multiply by pi/180)",
+            imported=(
+                f"the QUANTITY jumps by {jumps[_first(degree_wrap)]:.4g} rad between two "
+                "samples, apparently degrees wrapping at 360"
+            ),
         )
 
     for column, limit, unit, hint in (
@@ -388,12 +434,15 @@ def validate_frame(
         too_big = np.abs(arrays[column]) > limit
         if too_big.any():
             row = _first(too_big)
-            raise _fail(
+            raise fail(
                 source,
                 column,
                 row,
                 f"implausible value {arrays[column][row]:.6g} (|{column}| over {limit:g} {unit})",
                 hint,
+                imported=(
+                    f"implausible QUANTITY {arrays[column][row]:.4g} {unit} (over {limit:g} {unit})"
+                ),
             )
 
     for column in ("n_rl", "n_rr"):
@@ -401,18 +450,19 @@ def validate_frame(
         negative = n < -NEGATIVE_ROTATION_TOLERANCE
         if negative.any():
             row = _first(negative)
-            raise _fail(
+            raise fail(
                 source,
                 column,
                 row,
                 f"negative wheel rotation {n[row]:.6g} rev",
                 "the model covers forward driving only: cut reversing manoeuvres from the log",
+                imported=f"QUANTITY turns backwards ({n[row]:.4g} rev)",
             )
         limit = MAX_PLAUSIBLE_SPEED * dt_nominal / nominal[0]
         too_big = n > limit
         if too_big.any():
             row = _first(too_big)
-            raise _fail(
+            raise fail(
                 source,
                 column,
                 row,
@@ -420,6 +470,10 @@ def validate_frame(
                 f"(over {MAX_PLAUSIBLE_SPEED:.0f} m/s)",
                 "give the rotation during each sample interval, not a cumulative count or angle "
                 "in degrees (take the difference between rows)",
+                imported=(
+                    f"implausible QUANTITY: {n[row] * nominal[0] / dt_nominal:.4g} m/s with "
+                    f"c_e = {nominal[0]:g} m (over {MAX_PLAUSIBLE_SPEED:.0f} m/s)"
+                ),
             )
 
     sparse = not measured.all() or lag is not None
@@ -440,26 +494,35 @@ def validate_frame(
         measured=measured if not measured.all() else None,
         fix_lag=lag,
     )
-    _check_heading_units(log, nominal=nominal)
+    _check_heading_units(log, nominal=nominal, origins=origins)
+    pair = _positions_against_wheels(origins)
     try:
         # positions checked against the wheels: refused, masked or clean
         log = screen(log, nominal=nominal)
     except ValueError as exc:
-        raise DriveLogError(f"{source}: {exc}") from None
+        if pair is None:
+            raise DriveLogError(f"{source}: {exc}") from None
+        what = str(exc).split("; ", 1)[0].removeprefix("line ").split(": ", 1)[-1]
+        raise DriveLogError(f"{pair[0]}: {what}; {pair[1]}") from None
     if log.masked is not None and log.masked.mean() > MAX_MASKED_SHARE:
-        raise _fail(
+        what = (
+            f"{log.masked.mean():.0%} of the samples have positions that disagree with the "
+            f"wheels (first: {log.mask_notes[0]})"
+        )
+        if pair is not None:
+            raise DriveLogError(f"{pair[0]}: {what}; {pair[1]}")
+        raise fail(
             source,
             None,
             None,
-            f"{log.masked.mean():.0%} of the samples have positions that disagree with the "
-            f"wheels (first: {log.mask_notes[0]})",
+            what,
             "check the position columns (units, frame) against the wheel rotations",
         )
 
     if min_distance > 0:
         distance = log.travelled_distance(nominal[0])[-1]
         if distance < min_distance:
-            raise _fail(
+            raise fail(
                 source,
                 None,
                 None,
@@ -469,8 +532,22 @@ def validate_frame(
     return log
 
 
+def _positions_against_wheels(
+    origins: Mapping[str, ColumnOrigin] | None,
+) -> tuple[str, str] | None:
+    """For an import, where a check of the positions against the wheels fired (the pose and
+    the wheel streams) and what to check; ``None`` for a drive-log CSV."""
+    if origins is None or "px" not in origins or "n_rl" not in origins:
+        return None
+    pose, wheels = origins["px"], origins["n_rl"]
+    return f"{pose.where(None)} against {wheels.where(None)}", f"{pose.fix}; {wheels.fix}"
+
+
 def _measured_components(
-    frame: pd.DataFrame, arrays: dict[str, np.ndarray], source: str
+    frame: pd.DataFrame,
+    arrays: dict[str, np.ndarray],
+    source: str,
+    origins: Mapping[str, ColumnOrigin] | None = None,
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Which rows measured the position and the heading ``(N, 2)``, and each row's fix lag
     [s] (``None``: every measurement at its row) from the ``t_fix`` column."""
@@ -494,6 +571,7 @@ def _measured_components(
             None,
             f"only {int(px.sum())} row(s) hold a position",
             "a log needs position fixes along the drive",
+            origins,
         )
     if FIX_TIME_COLUMN not in frame.columns:
         return measured, None
@@ -509,8 +587,8 @@ def _measured_components(
             source,
             FIX_TIME_COLUMN,
             row,
-            f"fix time {t_fix[row]:.9g} s is not after the previous row's t and at most this "
-            f"row's t = {t[row]:.9g} s",
+            f"fix time {time_text(t_fix[row])} s is not after the previous row's t and at most "
+            f"this row's t = {time_text(t[row])} s",
             "write each fix in the first row at or after its time",
         )
     unused = has_time & ~measured.any(axis=1)
@@ -577,7 +655,11 @@ def _checked_nominal(nominal: np.ndarray) -> np.ndarray:
 
 
 def _check_heading_units(
-    log: DriveLog, window_s: float = 2.0, *, nominal: np.ndarray = THETA_NOMINAL
+    log: DriveLog,
+    window_s: float = 2.0,
+    *,
+    nominal: np.ndarray = THETA_NOMINAL,
+    origins: Mapping[str, ColumnOrigin] | None = None,
 ) -> None:
     """Catch a heading given in degrees without wrap-arounds.
 
@@ -600,6 +682,11 @@ def _check_heading_units(
             f"heading turns {heading_turn / wheel_turn:.0f}x more than the wheel rotations imply, "
             "apparently degrees",
             "convert the heading to radians (multiply by pi/180)",
+            origins,
+            (
+                f"the QUANTITY turns {heading_turn / wheel_turn:.0f}x more than the wheel "
+                "rotations imply, apparently degrees"
+            ),
         )
 
 

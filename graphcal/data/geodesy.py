@@ -16,8 +16,14 @@ class GeodesyError(GraphcalError, ValueError):
     """Latitude/longitude that cannot be fixes on Earth; one line: what, where, how to fix."""
 
 
-def check_geodetic(latitude: np.ndarray, longitude: np.ndarray, source: str) -> None:
-    """Raise :class:`GeodesyError` for latitudes outside ±90° or longitudes outside ±180°."""
+def check_geodetic(
+    latitude: np.ndarray, longitude: np.ndarray, source: str, provenance=None
+) -> None:
+    """Raise :class:`GeodesyError` for latitudes outside ±90° or longitudes outside ±180°.
+
+    ``provenance`` (:class:`graphcal.data.streams.Provenance`) names the file's columns and
+    the sample's line; without it, the sample's number in ``source``.
+    """
     for name, values, limit in (("latitude", latitude, 90.0), ("longitude", longitude, 180.0)):
         bad = ~np.isfinite(values) | (np.abs(values) > limit)
         if bad.any():
@@ -27,10 +33,12 @@ def check_geodetic(latitude: np.ndarray, longitude: np.ndarray, source: str) -> 
                 if name == "latitude" and np.all(np.abs(longitude) <= 90.0)
                 else f"give the {name} in degrees WGS-84"
             )
-            raise GeodesyError(
-                f"{source}: {name} of sample {k + 1} is {values[k]:.9g}°, outside ±{limit:g}°; "
-                f"{hint}"
+            where = (
+                f"{source}: {name} of sample {k + 1}"
+                if provenance is None
+                else f"{provenance.at((name,), k)}: {name}"
             )
+            raise GeodesyError(f"{where} is {values[k]:.9g}°, outside ±{limit:g}°; {hint}")
 
 
 def geodetic_to_local(
@@ -38,6 +46,8 @@ def geodetic_to_local(
     longitude: np.ndarray,
     source: str,
     origin: tuple[float, float] | None = None,
+    *,
+    provenance=None,
 ) -> tuple[np.ndarray, np.ndarray, tuple[float, float]]:
     """East and north [m] of each fix from ``origin`` (default: the first fix).
 
@@ -45,6 +55,7 @@ def geodetic_to_local(
         latitude, longitude: WGS-84 [deg], ``(M,)``.
         source: name of the stream, for messages.
         origin: ``(latitude, longitude)`` [deg] of the local frame's origin.
+        provenance: the file's columns and lines, for messages (:func:`check_geodetic`).
 
     Returns:
         ``(east, north, origin)``.
@@ -53,7 +64,7 @@ def geodetic_to_local(
 
     latitude = np.asarray(latitude, dtype=float)
     longitude = np.asarray(longitude, dtype=float)
-    check_geodetic(latitude, longitude, source)
+    check_geodetic(latitude, longitude, source, provenance)
     if origin is None:
         origin = (float(latitude[0]), float(longitude[0]))
     east, north, _ = pymap3d.geodetic2enu(

@@ -18,14 +18,18 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog, validate_frame, write_drive_log
+from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
+from graphcal.data.manifest import SPEED_UNITS
 from graphcal.data.streams import (
+    FIX_TIME_TOLERANCE,
     MAX_GAP_S,
+    Provenance,
     Recording,
     Resampled,
     StreamError,
     course,
     interval_means,
+    provenance_of,
     resample,
 )
 from graphcal.files import atomic_write_text
@@ -205,6 +209,7 @@ def import_recording(
         marked=resampled.masked,
         marked_notes=resampled.mask_notes,
         nominal=nominal,
+        origins=column_origins(resampled, recording),
     )
     if recording.wheels.resolution is not None:  # counts interpolated onto the grid
         log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
@@ -321,11 +326,12 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     dt = float(c["t"][1] - c["t"][0])
     usable = ~resampled.masked
     _check_wheel_scale(c, usable, dt, recording, nominal)
+    check_units(resampled, recording)
     check_turning(resampled, recording, nominal)
     warnings = []
     offset = _heading_offset(c, usable, dt, float(nominal[0]))
     if offset is not None and recording.pose.heading is not None:
-        where = recording.pose.source
+        where = provenance_of(recording.pose).at(("heading",))
         if abs(offset) > HEADING_OFFSET_ERROR:
             raise StreamError(
                 f"{where}: the heading differs from the direction of travel by "
@@ -349,8 +355,11 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     return warnings
 
 
-#: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's.
+#: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's, and the
+#: distance [m] the comparison needs (as the drive log's own check of positions against
+#: the wheels, which would otherwise speak of drive-log columns).
 WHEEL_SCALE_RANGE = (0.8, 1.25)
+MIN_SCALE_DISTANCE = 50.0
 #: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°).
 HEADING_OFFSET_WARNING = np.radians(3.0)
 HEADING_OFFSET_ERROR = np.radians(15.0)
@@ -368,17 +377,50 @@ def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nomina
     chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
     clean = np.add.reduceat((~usable).astype(int), ends)[: len(rolled)] == 0
     moving = clean & (rolled > 5.0) & (chords > 5.0)
-    if chords[moving].sum() < 200.0:
+    if chords[moving].sum() < MIN_SCALE_DISTANCE:
         return
     ratio = rolled[moving].sum() / chords[moving].sum()
     low, high = WHEEL_SCALE_RANGE
     if not low <= ratio <= high:
+        wheels = provenance_of(recording.wheels)
         raise StreamError(
-            f"{recording.wheels.source}: the wheels travel {ratio:.3g}x the distance of the "
-            f"GNSS track (with the nominal c_e = {nominal[0]:g} m); check [wheels] kind, "
-            "speed_unit, circumference or ticks_per_revolution, the time units, and the "
-            "vehicle's c_e (--vehicle)"
+            f"{wheels.at(('rear_left', 'rear_right'))}: the wheels travel {ratio:.3g}x the "
+            f"distance of the GNSS track (with the nominal c_e = {nominal[0]:g} m); "
+            f"{_speed_unit_hint(wheels, ratio)}"
         )
+
+
+def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
+    """How to fix wheels that travel ``ratio`` times the GNSS track's distance: the speed
+    unit that explains it, if one does, else every key that scales the wheels."""
+    field = wheels.fields.get("rear_left")
+    declared = None if field is None else field.declares("speed_unit")
+    if declared is not None:
+        for unit, factor in SPEED_UNITS.items():
+            implied = SPEED_UNITS[declared] / factor  # the ratio if the column were in `unit`
+            if unit != declared and abs(ratio / implied - 1.0) < 0.1:
+                return (
+                    f'the speeds are apparently in {unit}: set [wheels] speed_unit = "{unit}" '
+                    f'(now "{declared}")'
+                )
+    scaled = {"circumference": "m", "ticks_per_revolution": ""}
+    for key, unit in scaled.items():
+        value = None if field is None else field.declares(key)
+        if value is not None:  # the wheels' distance is inversely proportional to it
+            return (
+                f"check [wheels] {key} ({float(value) * ratio:.4g}{unit and ' ' + unit} would "
+                "match the GNSS track with the nominal c_e), kind, speed_unit, the time units "
+                "and the vehicle's c_e (--vehicle)"
+            )
+    if wheels.unit == "message":
+        return (
+            "check --wheel-kind (angle: positions [rad]; angular_speed: velocities [rad/s]), the "
+            "joints and the vehicle's c_e (--vehicle)"
+        )
+    return (
+        "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
+        "the time units, and the vehicle's c_e (--vehicle)"
+    )
 
 
 def _heading_offset(c: dict, usable: np.ndarray, dt: float, circumference: float) -> float | None:
@@ -400,10 +442,11 @@ def _check_imu_signs(c: dict, usable: np.ndarray, dt: float, resampled, recordin
     window = max(1, round(TURN_WINDOW_S / dt))
     track = _turn_directions(course(c["px"], c["py"], dt), usable, window)
     grid = c["t"] + resampled.overlap[0]  # the streams' time base
-    for name, signal, hint in (
-        ("lateral acceleration", imu.lateral_acceleration, "positive to the left"),
-        ("yaw rate", imu.yaw_rate, "positive counter-clockwise"),
+    for quantity, signal, hint in (
+        ("lateral_acceleration", imu.lateral_acceleration, "positive to the left"),
+        ("yaw_rate", imu.yaw_rate, "positive counter-clockwise"),
     ):
+        name = quantity.replace("_", " ")
         if signal is None:
             continue
         values = interval_means(imu.t, signal, grid)
@@ -411,10 +454,300 @@ def _check_imu_signs(c: dict, usable: np.ndarray, dt: float, resampled, recordin
         agreement = _agreement(_turn_directions(integral, usable, window), track)
         if agreement is not None and agreement < TURN_MIN_AGREEMENT:
             raise StreamError(
-                f"{imu.source}: the IMU's {name} has the opposite sign to the turns of the "
-                f"GNSS track in {1 - agreement:.0%} of them; it must be {hint} (ROS REP 103: "
-                "x forward, y left, z up): negate the column or fix the IMU's frame"
+                f"{provenance_of(imu).at((quantity,))}: the IMU's {name} has the opposite sign "
+                f"to the turns of the GNSS track in {1 - agreement:.0%} of them; it must be "
+                f"{hint} (ROS REP 103: x forward, y left, z up): negate the column or fix the "
+                "IMU's frame"
             )
+
+
+#: A heading or IMU yaw rate turning more than this many times as much as the GNSS track
+#: (or less than its inverse) is in the wrong unit (degrees for radians is 57.3x).
+ANGLE_SCALE_LIMIT = 8.0
+#: The same for the IMU's lateral acceleration against speed × the track's yaw rate (an
+#: acceleration in g is 1/9.81 of it).
+ACCELERATION_SCALE_LIMIT = 3.0
+#: Shortest chord [m] of a window whose turn counts (the course of a slower one is noise).
+TURN_MIN_CHORD = 10.0
+
+
+@dataclass(frozen=True)
+class _Turns:
+    """The GNSS track's clear turns in consecutive windows of the grid."""
+
+    window: int
+    ends: np.ndarray  # first grid row of each window, and the last window's end
+    track: np.ndarray  # the track's turn [rad] in each window (NaN where masked)
+    chords: np.ndarray  # [m]
+    turning: np.ndarray  # windows that turn clearly while moving
+
+    def scale(self, turns: np.ndarray) -> tuple[float, int] | None:
+        """Median of |turns| / |the track's turns| over the clear turns, and the window of
+        the sharpest one; ``None`` if there are too few turns."""
+        if self.turning.sum() < TURN_MIN_COUNT:
+            return None
+        ratio = np.abs(turns[self.turning]) / np.abs(self.track[self.turning])
+        sharpest = int(np.flatnonzero(self.turning)[np.argmax(np.abs(self.track[self.turning]))])
+        return float(np.median(ratio)), sharpest
+
+
+def _turns(resampled: Resampled) -> _Turns:
+    c = resampled.columns
+    dt = float(c["t"][1] - c["t"][0])
+    window = max(1, round(TURN_WINDOW_S / dt))
+    ends = np.arange(0, len(c["t"]), window)
+    track = _turn_directions(course(c["px"], c["py"], dt), ~resampled.masked, window)
+    chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
+    turning = np.isfinite(track) & (np.abs(track) > TURN_MIN_YAW) & (chords > TURN_MIN_CHORD)
+    return _Turns(window, ends, track, chords, turning)
+
+
+def _span(provenance: Provenance, t: np.ndarray, grid: np.ndarray, turns: _Turns, k: int) -> str:
+    """``from line 2301 to line 2381``: the stream's samples at window ``k``'s ends."""
+    a, b = turns.ends[k], turns.ends[k + 1]
+    first, last = _sample_before(t, grid[a]), _sample_before(t, grid[b])
+    return f"from {provenance.line(first)} to {provenance.line(last)}"
+
+
+def _unit_advice(field, key: str, ratio: float, limit: float, units: tuple[str, str]) -> str:
+    """``set heading_unit = "deg"`` when the declared unit is the other of ``units`` (radians
+    first, degrees second) and the ratio says so; else which key to check."""
+    declared = None if field is None else field.declares(key)
+    radians, degrees = units
+    if declared == radians and ratio > limit:
+        return f'it is apparently in {degrees}: set {field.section} {key} = "{degrees}"'
+    if declared == degrees and ratio < 1.0 / limit:
+        return f'it is apparently in {radians}: set {field.section} {key} = "{radians}"'
+    if declared is not None:
+        return f'check {field.section} {key} (now "{declared}"; {radians} or {degrees})'
+    return f"it must be in {radians} (REP 103)"
+
+
+def check_units(resampled: Resampled, recording: Recording) -> None:
+    """One line if the heading, the IMU's yaw rate or its lateral acceleration is in another
+    unit than the manifest declares, in the stream's own terms (its file, column, manifest
+    key and lines, and the key to change).
+
+    Each is compared with the GNSS track in its clear turns (2 s windows turning more than
+    0.1 rad over more than 10 m): the heading's turn and the yaw rate's integral with the
+    track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
+    speed × the track's yaw rate (an acceleration in g is 1/9.81 of it).
+    """
+    turns = _turns(resampled)
+    if turns.turning.sum() < TURN_MIN_COUNT:
+        return
+    c = resampled.columns
+    dt = float(c["t"][1] - c["t"][0])
+    grid = c["t"] + resampled.overlap[0]
+    usable = ~resampled.masked
+    pose, imu = recording.pose, recording.imu
+    if pose.heading is not None:
+        found = turns.scale(_turn_directions(c["psi"], usable, turns.window))
+        if found is not None and not 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
+            ratio, k = found
+            where = provenance_of(pose)
+            advice = _unit_advice(
+                where.fields.get("heading"),
+                "heading_unit",
+                ratio,
+                ANGLE_SCALE_LIMIT,
+                ("rad", "deg"),
+            )
+            raise StreamError(
+                f"{where.at(('heading',))}: the heading turns {ratio:.3g}x as much as the GNSS "
+                f"track in its turns (e.g. {_span(where, pose.t, grid, turns, k)}: "
+                f"{_turn_of(c['psi'], turns, k):.3g} rad as declared where the track turns "
+                f"{turns.track[k]:.3g} rad); {advice}"
+            )
+    if imu is None:
+        return
+    where = provenance_of(imu)
+    if imu.yaw_rate is not None:
+        rate = interval_means(imu.t, imu.yaw_rate, grid)
+        yaw = np.concatenate([[0.0], np.cumsum(rate[:-1] * dt)])
+        found = turns.scale(_turn_directions(yaw, usable, turns.window))
+        if found is not None and not 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
+            ratio, k = found
+            advice = _unit_advice(
+                where.fields.get("yaw_rate"),
+                "yaw_rate_unit",
+                ratio,
+                ANGLE_SCALE_LIMIT,
+                ("rad/s", "deg/s"),
+            )
+            raise StreamError(
+                f"{where.at(('yaw_rate',))}: the yaw rate turns {ratio:.3g}x as much as the "
+                f"GNSS track in its turns (e.g. {_span(where, imu.t, grid, turns, k)}: "
+                f"{_turn_of(yaw, turns, k):.3g} rad as declared where the track turns "
+                f"{turns.track[k]:.3g} "
+                f"rad); {advice}"
+            )
+    if imu.lateral_acceleration is not None:
+        mean = interval_means(imu.t, imu.lateral_acceleration, grid)
+        sums = np.add.reduceat(mean, turns.ends)[: len(turns.track)]
+        counts = np.diff(np.append(turns.ends, len(mean)))[: len(turns.track)]
+        seconds = turns.window * dt
+        expected = turns.chords / seconds * np.nan_to_num(turns.track) / seconds
+        found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
+        if found is not None and not (
+            1 / ACCELERATION_SCALE_LIMIT <= found[0] <= ACCELERATION_SCALE_LIMIT
+        ):
+            ratio, k = found
+            in_g = abs(ratio * 9.80665 - 1.0) < 0.3
+            advice = (
+                "it is apparently in g: multiply the column by 9.81"
+                if in_g
+                else "give it in m/s², positive to the left"
+            )
+            raise StreamError(
+                f"{where.at(('lateral_acceleration',))}: the lateral acceleration is "
+                f"{ratio:.3g}x the speed × yaw rate of the GNSS track in its turns (e.g. "
+                f"{_span(where, imu.t, grid, turns, k)}: {sums[k] / counts[k]:.3g} m/s² where "
+                f"the track's is {expected[k]:.3g} m/s²); {advice}"
+            )
+
+
+def _turn_of(yaw: np.ndarray, turns: _Turns, k: int) -> float:
+    return float(yaw[turns.ends[k + 1]] - yaw[turns.ends[k]])
+
+
+def _sample_before(t: np.ndarray, time: float) -> int:
+    """The last sample of a stream at or before ``time`` (the first if none is)."""
+    return max(int(np.searchsorted(t, time + FIX_TIME_TOLERANCE, side="right")) - 1, 0)
+
+
+def _sample_within(t: np.ndarray, lo: float, hi: float, values: np.ndarray | None) -> int:
+    """The sample of a stream in ``[lo, hi]`` or next to it with the largest ``|values|``
+    (the first one if ``values`` is None), else the last one before ``lo``."""
+    # with the samples just outside: the trapezoid rule spreads each over its neighbours'
+    a = max(int(np.searchsorted(t, lo - FIX_TIME_TOLERANCE, side="left")) - 1, 0)
+    b = int(np.searchsorted(t, hi + FIX_TIME_TOLERANCE, side="right")) + 1
+    if b <= a:
+        return _sample_before(t, lo)
+    if values is None:
+        return a
+    return a + int(np.argmax(np.abs(values[a:b])))
+
+
+def column_origins(resampled: Resampled, recording: Recording) -> dict[str, ColumnOrigin]:
+    """Where each drive-log column of an import came from (:class:`ColumnOrigin`), so that
+    the drive log's checks name the user's file, column, manifest key and line, and the key
+    to change; a derived column (``ay`` from speed × yaw rate) names every stream behind it."""
+    grid = resampled.columns["t"] + resampled.overlap[0]
+    last = len(grid) - 1
+    pose, wheels, imu = recording.pose, recording.wheels, recording.imu
+    at_pose, at_wheels = provenance_of(pose), provenance_of(wheels)
+    csv = at_wheels.unit == "line"
+
+    def at_fix(provenance: Provenance, quantities: tuple[str, ...], stream):
+        def where(row: int | None) -> str:
+            k = None if row is None else _sample_before(stream.t, grid[row])
+            return provenance.at(quantities, k)
+
+        return where
+
+    def within(provenance: Provenance, quantities: tuple[str, ...], stream, values=None):
+        def where(row: int | None) -> str:
+            if row is None:
+                return provenance.at(quantities)
+            k = _sample_within(stream.t, grid[row], grid[min(row + 1, last)], values)
+            return provenance.at(quantities, k)
+
+        return where
+
+    def joined(first, second):
+        return lambda row: f"{first(row)}, times the speed of {second(row)}"
+
+    position = ("latitude", "longitude") if pose.origin is not None else ("x", "y")
+    section = next((f.section for f in at_pose.fields.values() if f.section), "[gnss]")
+    position_fix = (
+        f"check {section} {' and '.join(position)}"
+        + (" (degrees WGS-84)" if pose.origin is not None else " (metres, east and north)")
+        if at_pose.unit == "line"
+        else "check the pose topic (--pose-topic)"
+    )
+    heading_field = at_pose.fields.get("heading")
+    heading_fix = (
+        f"check {heading_field.section} heading_unit (deg | rad) and heading_convention "
+        "(enu | compass)"
+        if heading_field is not None and heading_field.declares("heading_unit")
+        else "check the pose's orientation (ENU, REP 103)"
+    )
+    wheel_fix = (
+        "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
+        "and the vehicle's c_e (--vehicle)"
+        if csv
+        else "check --wheel-kind (angle or angular_speed) and the vehicle's c_e (--vehicle)"
+    )
+    both = ("rear_left", "rear_right")
+    speeds = None if wheels.cumulative else np.abs(wheels.left) + np.abs(wheels.right)
+    wheel_speed = within(at_wheels, both, wheels, speeds)
+    origins = {
+        "px": ColumnOrigin("position", at_fix(at_pose, position, pose), position_fix),
+        "py": ColumnOrigin("position", at_fix(at_pose, position, pose), position_fix),
+    }
+    for column, side, signal in (
+        ("n_rl", "rear_left", wheels.left),
+        ("n_rr", "rear_right", wheels.right),
+    ):
+        values = None if wheels.cumulative else signal
+        origins[column] = ColumnOrigin(
+            f"{side.replace('_', '-')} wheel speed",
+            within(at_wheels, (side,), wheels, values),
+            wheel_fix,
+        )
+    if pose.heading is not None:
+        origins["psi"] = ColumnOrigin("heading", at_fix(at_pose, ("heading",), pose), heading_fix)
+    else:
+        origins["psi"] = ColumnOrigin(
+            "course of the GNSS track (no heading logged)",
+            lambda row: f"{at_pose.at(position)} against {at_wheels.at(both)}",
+            f"{position_fix}; {wheel_fix}",
+        )
+    if pose.sideslip is not None:
+        field = at_pose.fields.get("sideslip")
+        fix = (
+            f"check {field.section} sideslip_unit (rad | deg)"
+            if field is not None and field.declares("sideslip_unit")
+            else "check the Odometry twist (body frame, REP 103)"
+        )
+        origins["beta"] = ColumnOrigin("sideslip", at_fix(at_pose, ("sideslip",), pose), fix)
+    if imu is not None and imu.lateral_acceleration is not None:
+        at_imu = provenance_of(imu)
+        fix = (
+            "it must be in m/s², positive to the left (a column in g: multiply it by 9.81); "
+            "drop or fill a lone spike's line"
+            if at_imu.unit == "line"
+            else "linear_acceleration.y must be in m/s² (REP 103)"
+        )
+        where = within(at_imu, ("lateral_acceleration",), imu, imu.lateral_acceleration)
+        origins["ay"] = ColumnOrigin("lateral acceleration", where, fix)
+    elif imu is not None and imu.yaw_rate is not None:
+        at_imu = provenance_of(imu)
+        field = at_imu.fields.get("yaw_rate")
+        fix = (
+            f"check {field.section} yaw_rate_unit (rad/s | deg/s)"
+            if field is not None and field.declares("yaw_rate_unit")
+            else "angular_velocity.z must be in rad/s (REP 103)"
+        )
+        origins["ay"] = ColumnOrigin(
+            "lateral acceleration (speed × yaw rate, none logged)",
+            joined(within(at_imu, ("yaw_rate",), imu, imu.yaw_rate), wheel_speed),
+            f"{fix}; {wheel_fix}",
+        )
+    elif pose.heading is not None:
+        origins["ay"] = ColumnOrigin(
+            "lateral acceleration (the wheel speed × the heading's rate of turn; none is logged)",
+            joined(at_fix(at_pose, ("heading",), pose), wheel_speed),
+            f"{heading_fix}; {wheel_fix}",
+        )
+    else:
+        origins["ay"] = ColumnOrigin(
+            "lateral acceleration (from the two wheels' speeds, none logged)",
+            wheel_speed,
+            wheel_fix,
+        )
+    return origins
 
 
 def _pose_names(geodetic: bool) -> str:

@@ -58,12 +58,15 @@ from graphcal.data.drive_log import _readable
 from graphcal.data.geodesy import geodetic_to_local
 from graphcal.data.streams import (
     MAX_GAP_S,
+    Field,
     ImuStream,
     PoseStream,
+    Provenance,
     Recording,
     StreamError,
     WheelStream,
     check_time,
+    unique_samples,
 )
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
@@ -196,10 +199,11 @@ def read_manifest(path: str | os.PathLike[str] | Manifest) -> Recording:
     manifest = path if isinstance(path, Manifest) else load_manifest(path)
     if manifest.bag is not None:
         return _read_bag_manifest(manifest)
-    pose = _read_pose(manifest)
-    wheels = _read_wheels(manifest)
-    imu = _read_imu(manifest) if manifest.imu is not None else None
-    return Recording(pose=pose, wheels=wheels, imu=imu, source=manifest.source)
+    notes: list[str] = []
+    pose = _read_pose(manifest, notes)
+    wheels = _read_wheels(manifest, notes)
+    imu = _read_imu(manifest, notes) if manifest.imu is not None else None
+    return Recording(pose=pose, wheels=wheels, imu=imu, source=manifest.source, notes=tuple(notes))
 
 
 #: Keys a section may hold when the manifest reads a bag (the wheels' also name the joints).
@@ -250,10 +254,27 @@ def _read_bag_manifest(manifest: Manifest) -> Recording:
     return dataclasses.replace(recording, **shifted) if shifted else recording
 
 
+def _declared(table: dict, key: str, default: str | None = None) -> str:
+    """How a unit key reads in the manifest (``'speed_unit = "m/s"'``), for messages; a key
+    left out says its default."""
+    value = table.get(key, default)
+    text = f"{key} = {value!r}".replace("'", '"') if isinstance(value, str) else f"{key} = {value}"
+    return text if key in table else f"{text} by default"
+
+
 def _read_columns(
-    manifest: Manifest, section: str, table: dict, columns: dict[str, str]
-) -> tuple[str, np.ndarray, dict[str, np.ndarray]]:
-    """Read the named columns of a section's CSV: ``(source, time [s], {role: values})``."""
+    manifest: Manifest,
+    section: str,
+    table: dict,
+    columns: dict[str, str],
+    notes: list[str],
+    units: dict[str, str] | None = None,
+    declared: dict[str, dict[str, str]] | None = None,
+) -> tuple[str, np.ndarray, dict[str, np.ndarray], Provenance]:
+    """Read the named columns of a section's CSV: ``(source, time [s], {role: values},
+    provenance)``, each role's column named as the user wrote it with its manifest key and
+    ``units`` (how the role's unit was declared); a time written twice is dropped when the
+    rows agree and refused when they differ (:func:`graphcal.data.streams.unique_samples`)."""
     name = table.get("file")
     if not isinstance(name, str) or not name:
         raise manifest.error(f"[{section}] needs file (the stream's CSV, relative to the manifest)")
@@ -296,12 +317,26 @@ def _read_columns(
                 f"{str(frame[column].iloc[row])!r} is not a finite number; fill or drop that row"
             )
         values[role] = numeric
-    t = values.pop("time") * TIME_UNITS[unit] + offset
-    check_time(t, f"{source}: column {time_column!r}")
-    return source, t, values
+    units = {"time": _declared(table, "time_unit", "s"), **(units or {})}
+    declared = {"time": {"time_unit": unit}, **(declared or {})}
+    fields = {
+        role: Field(
+            column, f"[{section}] {role}", units.get(role), tuple(declared.get(role, {}).items())
+        )
+        for role, column in wanted.items()
+    }
+    provenance = Provenance(source, fields, np.arange(len(frame)) + 2)  # the header is line 1
+    raw = values.pop("time")
+    keep = unique_samples(raw, values, provenance, notes, unit=unit)
+    if len(keep) < len(raw):
+        raw, provenance = raw[keep], provenance.take(keep)
+        values = {role: column[keep] for role, column in values.items()}
+    check_time(raw, source, provenance, unit)
+    t = raw * TIME_UNITS[unit] + offset
+    return source, t, values, provenance
 
 
-def _read_pose(manifest: Manifest) -> PoseStream:
+def _read_pose(manifest: Manifest, notes: list[str]) -> PoseStream:
     section, table = manifest.pose_name, manifest.pose
     geodetic = "latitude" in table or "longitude" in table
     metric = "x" in table or "y" in table
@@ -323,22 +358,65 @@ def _read_pose(manifest: Manifest) -> PoseStream:
     if sideslip is not None:
         columns["sideslip"] = sideslip
         sideslip_unit = manifest.choice(table, "sideslip_unit", ANGLE_UNITS, section, "rad")
-    source, t, values = _read_columns(manifest, section, table, columns)
+    units = {"latitude": "degrees", "longitude": "degrees", "x": "m", "y": "m"}
+    declared = {}
+    if heading is not None:
+        units["heading"] = (
+            f"{_declared(table, 'heading_unit')}, {_declared(table, 'heading_convention')}"
+        )
+        declared["heading"] = {"heading_unit": heading_unit, "heading_convention": convention}
+    if sideslip is not None:
+        units["sideslip"] = _declared(table, "sideslip_unit", "rad")
+        declared["sideslip"] = {"sideslip_unit": sideslip_unit}
+    source, t, values, provenance = _read_columns(
+        manifest, section, table, columns, notes, units, declared
+    )
     origin = None
     if geodetic:
-        x, y, origin = geodetic_to_local(values["latitude"], values["longitude"], source)
+        x, y, origin = geodetic_to_local(
+            values["latitude"], values["longitude"], source, provenance=provenance
+        )
     else:
         x, y = values["x"], values["y"]
+        _check_metric(x, y, provenance)
     psi = None
     if heading is not None:
         psi = values["heading"] * ANGLE_UNITS[heading_unit]
         if convention == "compass":
             psi = 0.5 * np.pi - psi
     beta = values["sideslip"] * ANGLE_UNITS[sideslip_unit] if sideslip is not None else None
-    return PoseStream(t=t, x=x, y=y, heading=psi, sideslip=beta, source=source, origin=origin)
+    return PoseStream(
+        t=t,
+        x=x,
+        y=y,
+        heading=psi,
+        sideslip=beta,
+        source=source,
+        origin=origin,
+        provenance=provenance,
+    )
 
 
-def _read_wheels(manifest: Manifest) -> WheelStream:
+#: Largest distance [m] of an x/y position from the first one (1000 km): farther, the
+#: positions are not metres of a local frame.
+MAX_LOCAL_DISTANCE = 1e6
+
+
+def _check_metric(x: np.ndarray, y: np.ndarray, provenance: Provenance) -> None:
+    """One line if x/y positions are not metres of a local frame (degrees give a drive of
+    metres, ECEF or kilometres-as-metres are caught by the wheels; this catches the absurd)."""
+    radius = np.hypot(x - x[0], y - y[0])
+    far = radius > MAX_LOCAL_DISTANCE
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        raise StreamError(
+            f"{provenance.at(('x', 'y'), k)}: position ({x[k]:.6g}, {y[k]:.6g}) is "
+            f"{radius[k] / 1e3:.0f} km from the first one; give x and y in metres (east, "
+            "north) of a local frame, or latitude and longitude in degrees"
+        )
+
+
+def _read_wheels(manifest: Manifest, notes: list[str]) -> WheelStream:
     table = manifest.wheels
     kind = manifest.choice(table, "kind", WHEEL_KINDS, "wheels", None)
     columns = {key: manifest.text(table, key, "wheels") for key in ("rear_left", "rear_right")}
@@ -369,7 +447,26 @@ def _read_wheels(manifest: Manifest) -> WheelStream:
     wrap = manifest.number(table, "ticks_wrap", None, "wheels", positive=True)
     if wrap is not None and kind != "ticks":
         raise manifest.error("[wheels] ticks_wrap applies to kind = 'ticks' only")
-    source, t, values = _read_columns(manifest, "wheels", table, columns)
+    declared = [f"kind = {kind!r}".replace("'", '"')]
+    if kind == "speed":
+        declared += [_declared(table, "speed_unit", "m/s"), f"circumference = {circumference:g} m"]
+    elif kind == "ticks":
+        declared.append(f"ticks_per_revolution = {ticks:g}")
+    wheel_units = ", ".join(declared)
+    keys = {"kind": kind}
+    if kind == "speed":
+        keys.update(speed_unit=unit, circumference=repr(circumference))
+    elif kind == "ticks":
+        keys["ticks_per_revolution"] = repr(ticks)
+    source, t, values, provenance = _read_columns(
+        manifest,
+        "wheels",
+        table,
+        columns,
+        notes,
+        {"rear_left": wheel_units, "rear_right": wheel_units},
+        {"rear_left": keys, "rear_right": keys},
+    )
     left, right = values["rear_left"], values["rear_right"]
     if wrap is not None:
         left, right = _unwrap_counter(left, wrap), _unwrap_counter(right, wrap)
@@ -380,6 +477,7 @@ def _read_wheels(manifest: Manifest) -> WheelStream:
         cumulative=cumulative,
         source=source,
         resolution=resolution,
+        provenance=provenance,
     )
 
 
@@ -390,7 +488,7 @@ def _unwrap_counter(counts: np.ndarray, modulus: float) -> np.ndarray:
     return counts + wraps
 
 
-def _read_imu(manifest: Manifest) -> ImuStream:
+def _read_imu(manifest: Manifest, notes: list[str]) -> ImuStream:
     table = manifest.imu
     columns = {
         key: manifest.text(table, key, "imu", required=False)
@@ -400,11 +498,18 @@ def _read_imu(manifest: Manifest) -> ImuStream:
     if not columns:
         raise manifest.error("[imu] needs lateral_acceleration or yaw_rate (a column name)")
     unit = manifest.choice(table, "yaw_rate_unit", YAW_RATE_UNITS, "imu", "rad/s")
-    source, t, values = _read_columns(manifest, "imu", table, columns)
+    units = {
+        "lateral_acceleration": "m/s², positive to the left",
+        "yaw_rate": _declared(table, "yaw_rate_unit", "rad/s"),
+    }
+    source, t, values, provenance = _read_columns(
+        manifest, "imu", table, columns, notes, units, {"yaw_rate": {"yaw_rate_unit": unit}}
+    )
     yaw_rate = values.get("yaw_rate")
     return ImuStream(
         t=t,
         lateral_acceleration=values.get("lateral_acceleration"),
         yaw_rate=None if yaw_rate is None else yaw_rate * YAW_RATE_UNITS[unit],
         source=source,
+        provenance=provenance,
     )
