@@ -85,3 +85,40 @@ def test_every_install_hint_has_one_form():
     form = re.compile(r'pip install -e "\.\[\w+\]"')
     odd = [(name, hint) for name, hint in hints if not form.search(hint)]
     assert not odd, odd
+
+
+def _one_hertz_with_late_wheels(streams_dir: Path, directory: Path, heading_in_rad: bool) -> Path:
+    """The recording at 1 Hz GNSS, its wheels 1 s late; the heading column converted to rad
+    (the manifest still declaring deg) when ``heading_in_rad``."""
+    import numpy as np
+    import pandas as pd
+
+    shutil.copytree(streams_dir, directory)
+    gnss = pd.read_csv(directory / "gnss.csv").iloc[::10].copy()
+    if heading_in_rad:
+        gnss["heading"] = np.deg2rad(gnss["heading"])
+    gnss.to_csv(directory / "gnss.csv", index=False, float_format="%.17g")
+    wheels = pd.read_csv(directory / "wheels.csv")
+    wheels["t"] += 1.0
+    wheels.to_csv(directory / "wheels.csv", index=False, float_format="%.17g")
+    return directory
+
+
+def test_a_heading_in_rad_declared_deg_is_named_not_the_wheels_units(streams_dir, tmp_path, capsys):
+    """Issue 26: heading in rad declared deg, wheels 1 s late, 1 Hz GNSS gave 'implausible
+    theta ... check the units of the wheel rotations, sideslip and lateral acceleration'."""
+    recording = _one_hertz_with_late_wheels(streams_dir, tmp_path / "rec", heading_in_rad=True)
+    assert main(["calibrate", str(recording), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err, err
+    assert 'heading_unit = "rad"' in err and "gnss.csv" in err
+    assert "wheel rotations" not in err and not (tmp_path / "out").exists()
+
+
+def test_late_wheels_at_one_hertz_are_found_not_blamed_on_units(streams_dir, tmp_path, capsys):
+    recording = _one_hertz_with_late_wheels(streams_dir, tmp_path / "rec", heading_in_rad=False)
+    out = tmp_path / "out"
+    assert main(["calibrate", str(recording), "--method", "whole", "--out", str(out)]) == 0
+    result = json.loads((out / "calibration.json").read_text())
+    offset = result["estimated"]["time_offset"]
+    assert offset["value"] == pytest.approx(1.0, abs=3 * offset["sigma"] + 0.025)
