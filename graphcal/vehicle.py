@@ -59,6 +59,12 @@ class VehicleProfile:
             beyond the encoder's quantization.
         ticks_per_revolution: encoder counts per wheel revolution, or ``None`` when the
             rotations are not quantized noticeably (:meth:`tick_quantization`).
+        reverses: wheels turning backwards are motion — a differential-drive robot spinning
+            on the spot or reversing — integrated by eq. (1) like any other step. False (a
+            car): the sideslip model covers forward driving only, so backwards wheels are
+            masked as reversing.
+        fix_d: hold d at its nominal value (a light vehicle without load transfer); it is
+            then reported as fixed, not estimated.
     """
 
     name: str = "paper car"
@@ -68,6 +74,8 @@ class VehicleProfile:
     heading_sigma: float = PAPER_HEADING_SIGMA
     wheel_noise: float = 0.0005
     ticks_per_revolution: int | None = None
+    reverses: bool = False
+    fix_d: bool = False
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -99,6 +107,9 @@ class VehicleProfile:
             raise ValueError(
                 f"vehicle.ticks_per_revolution must be a whole number >= 1, got {ticks!r}"
             )
+        for key in ("reverses", "fix_d"):
+            if not isinstance(getattr(self, key), bool):
+                raise ValueError(f"vehicle.{key} must be true or false, got {getattr(self, key)!r}")
         if self.white_wheel_noise() <= 0:
             raise ValueError(
                 "vehicle.wheel_noise must be positive unless ticks_per_revolution is given, "
@@ -119,6 +130,11 @@ class VehicleProfile:
         """``wheel_noise`` [rev], or a tenth of the tick quantization when it is 0 (counts with
         no noise of their own): ``[joint] wheel_noise``."""
         return float(self.wheel_noise) if self.wheel_noise > 0 else 0.1 * self.tick_quantization()
+
+    def size_scale(self) -> float:
+        """The vehicle's size relative to the paper's car: nominal track / 1.55 m (1 for the
+        car). Segment lengths scale with it (:func:`graphcal.pipeline.settings.apply_vehicle`)."""
+        return float(self.theta_nominal[T_R] / THETA_NOMINAL[T_R])
 
     def pose_weights(self) -> tuple[float, float, float]:
         """The pose weights ``W = (1, 1, (position_sigma / heading_sigma)²)`` (§4.4).
