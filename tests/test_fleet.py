@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -258,3 +259,91 @@ def test_a_log_the_worker_cannot_see_is_retried_not_kept(tmp_path):
     result = calibrate_fleet_log(FleetLog("v", "d", tmp_path / "gone.csv"), Settings(), "k")
     assert result["status"] == "failed" and result["retry"] is True
     assert "not found" in result["reason"]
+
+
+#: The smallest fleet that still has logs left when the first one finishes (1 km days).
+SMALL_DAYS, SMALL_KM = 6, 1.0
+#: A progress line of the CLI (``[   1.2 s] ...``); everything else on stderr is a message.
+PROGRESS = re.compile(r"^\[\s*\d+\.\d s\] ")
+
+
+@pytest.fixture(scope="module")
+def small_fleet(tmp_path_factory) -> Path:
+    from graphcal.simulate.fleet import simulate_fleet
+
+    root = tmp_path_factory.mktemp("small") / "fleet"
+    simulate_fleet(root, 1, SMALL_DAYS, SMALL_KM, seed=1)
+    return root
+
+
+def _interrupt_after_first_log(command: list[str]) -> tuple[int, list[str]]:
+    """Run ``command`` in its own process group, send SIGINT to the whole group (as Ctrl-C
+    in a terminal does) once its first log is done; its exit status and stderr lines."""
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    lines = []
+    try:
+        for line in process.stderr:
+            lines.append(line.rstrip("\n"))
+            if "fleet: 1/" in line:
+                os.killpg(process.pid, signal.SIGINT)
+                break
+        lines += process.communicate(timeout=60)[1].splitlines()
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+    return process.returncode, lines
+
+
+def test_ctrl_c_during_a_fleet_run_gives_one_line_and_the_rerun_resumes(small_fleet, tmp_path):
+    """Ctrl-C reaches graphcal and the local cluster's workers alike (one process group):
+    the user reads one line, the run exits with 130, leaves no half-written result, and
+    running it again calibrates only what is missing."""
+    out = tmp_path / "out"
+    command = [
+        sys.executable,
+        "-m",
+        "graphcal.cli",
+        "fleet",
+        str(small_fleet),
+        "--out",
+        str(out),
+        "--workers",
+        "2",
+        "--no-progress-bar",
+    ]
+    status, lines = _interrupt_after_first_log(command)
+    messages = [line for line in lines if not PROGRESS.match(line)]
+    assert status == 130, lines
+    assert len(messages) == 1 and messages[0].startswith("graphcal: interrupted"), lines
+    assert lines[-1] == messages[0]
+    finished = {p: p.read_bytes() for p in (out / "logs").glob("*/*.json")}
+    assert finished and not list((out / "logs").glob("*/.*"))  # no half-written file
+
+    from graphcal.fleet.run import run_fleet
+
+    run = run_fleet(small_fleet, out, workers=2)
+    assert run.reused == len(finished) and run.computed == SMALL_DAYS - len(finished)
+    assert run.failed == 0 and len(pd.read_csv(out / "fleet.csv")) == SMALL_DAYS
+    assert all(path.read_bytes() == text for path, text in finished.items())
+
+
+def test_an_interrupted_run_says_how_to_resume(small_fleet, tmp_path):
+    """What ``graphcal: interrupted`` can name: how many results are kept, and that the
+    same command continues."""
+    from graphcal.fleet.run import run_fleet
+
+    def interrupt_after_first(line: str) -> None:
+        if "fleet: 1/" in line:
+            os.kill(os.getpid(), signal.SIGINT)
+
+    with pytest.raises(KeyboardInterrupt) as raised:
+        run_fleet(small_fleet, tmp_path / "out", workers=2, progress=interrupt_after_first)
+    kept = len(list((tmp_path / "out" / "logs").glob("*/*.json")))
+    assert str(raised.value).startswith(f"{kept} of {SMALL_DAYS} logs' results kept in ")
+    assert "run the same command again" in str(raised.value)

@@ -8,6 +8,7 @@
   combined theta of the days since the last change;
 * :mod:`graphcal.fleet.run` — the run on a ``LocalCluster`` or a running scheduler, results
   written as they arrive;
+* :mod:`graphcal.fleet.interrupt` — Ctrl-C: one line from graphcal, none from Dask's workers;
 * :mod:`graphcal.fleet.report` — ``fleet.csv``, ``vehicles.csv`` and ``fleet.png``.
 
 Dask and tqdm come with the ``fleet`` extra (``pip install -e ".[fleet]"``).

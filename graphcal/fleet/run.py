@@ -9,6 +9,9 @@
   A result lost with its worker (the process died), or a failure that is not the log's own
   (a path the worker cannot see, a bug), is reported but not written, so the next run tries
   again.
+* **Ctrl-C**: the workers never take it; the run stops at its next check, closes the
+  cluster quietly and raises ``KeyboardInterrupt`` naming how to resume
+  (:mod:`graphcal.fleet.interrupt`).
 * **Isolated failures**: a log that cannot be calibrated gives its one-line reason in its
   row of ``fleet.csv`` and does not stop the others.
 * Then per vehicle, changes and the current theta (:mod:`graphcal.fleet.history`), and the
@@ -23,7 +26,7 @@ import os
 import re
 import time
 from collections.abc import Callable, Collection
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -39,12 +42,23 @@ from graphcal.fleet.history import (
     flag_fleet_outliers,
     vehicle_history,
 )
+from graphcal.fleet.interrupt import (
+    WORKER_PRELOAD,
+    DeferredInterrupt,
+    quiet_dask,
+    sigint_blocked,
+)
 from graphcal.fleet.report import summary_lines, write_fleet_report
 from graphcal.fleet.sources import FleetLog, discover_fleet
 from graphcal.fleet.task import calibrate_fleet_log, content_hash, failed_result, result_key
 from graphcal.pipeline.settings import Settings, apply_vehicle, load_vehicle
 
 Progress = Callable[[str], None]
+
+#: How often [s] a run waiting for results checks for Ctrl-C.
+POLL_SECONDS = 0.1
+#: How long [s] closing the local cluster waits for its workers before ending them.
+CLOSE_SECONDS = 10.0
 
 
 @dataclass(frozen=True)
@@ -134,17 +148,30 @@ def run_fleet(
     reused = len(logs) - len(pending)
     if reused:
         say(f"{reused} logs already calibrated with these settings: kept")
-    if pending:
-        with _client(workers, scheduler) as client:
-            say(f"calibrating {len(pending)} logs on {_describe(client)}")
-            for i, result in _calibrate(client, out, logs, per_log, keys, pending, say, bar):
-                results[i] = result
-    final = [r for r in results if r is not None]
-    histories = _histories(final, alpha)
-    try:
-        written = write_fleet_report(final, histories, out)
-    except OSError as exc:
-        raise GraphcalError(f"cannot write the fleet report to {out}: {exc}") from exc
+    with DeferredInterrupt() as interrupt:
+        try:
+            if pending:
+                with _client(workers, scheduler) as client:
+                    interrupt.check()
+                    say(f"calibrating {len(pending)} logs on {_describe(client)}")
+                    calibrated = _calibrate(
+                        client, out, logs, per_log, keys, pending, say, bar, interrupt
+                    )
+                    for i, result in calibrated:
+                        results[i] = result
+            interrupt.check()
+        except KeyboardInterrupt:
+            kept = sum(r is not None and not r.get("retry") for r in results)
+            raise KeyboardInterrupt(
+                f"{kept} of {len(logs)} logs' results kept in {out / 'logs'}; run the same "
+                "command again to calibrate the others"
+            ) from None
+        final = [r for r in results if r is not None]
+        histories = _histories(final, alpha)
+        try:
+            written = write_fleet_report(final, histories, out)
+        except OSError as exc:
+            raise GraphcalError(f"cannot write the fleet report to {out}: {exc}") from exc
     failed = sum(r["status"] != "ok" for r in final)
     return FleetRun(
         final, histories, len(pending), reused, failed, time.perf_counter() - started, written
@@ -206,15 +233,24 @@ def _client(workers: int, scheduler: str | None):
         with client:
             yield client
         return
-    cluster = LocalCluster(
-        n_workers=max(1, workers),
-        threads_per_worker=1,
-        processes=True,
-        dashboard_address=None,
-        silence_logs=logging.ERROR,
-    )
-    with cluster, Client(cluster) as client:
-        yield client
+    with sigint_blocked():  # the workers never see Ctrl-C (graphcal.fleet.interrupt)
+        cluster = LocalCluster(
+            n_workers=max(1, workers),
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+            preload=[WORKER_PRELOAD],
+        )
+    with ExitStack() as quiet, ExitStack() as stack:  # quiet outlasts the closing
+        stack.callback(cluster.close, timeout=CLOSE_SECONDS)
+        client = stack.enter_context(Client(cluster))
+        try:
+            yield client
+        except BaseException:  # interrupted or failed: stop the workers without Dask's logs
+            quiet.enter_context(quiet_dask())
+            client.cancel(list(client.futures))
+            raise
 
 
 def _describe(client) -> str:
@@ -222,8 +258,19 @@ def _describe(client) -> str:
     return f"{count} Dask worker{'s' if count != 1 else ''} ({client.scheduler.address})"
 
 
-def _calibrate(client, out: Path, logs, per_log, keys, pending, say: Progress, bar: bool):
-    """Submit the pending logs; yield ``(index, result)`` as each finishes, after writing it."""
+def _calibrate(
+    client,
+    out: Path,
+    logs,
+    per_log,
+    keys,
+    pending,
+    say: Progress,
+    bar: bool,
+    interrupt: DeferredInterrupt,
+):
+    """Submit the pending logs; yield ``(index, result)`` as each finishes, after writing it.
+    Checks ``interrupt`` every :data:`POLL_SECONDS` (raises ``KeyboardInterrupt``)."""
     from distributed import as_completed
 
     futures = {
@@ -232,7 +279,7 @@ def _calibrate(client, out: Path, logs, per_log, keys, pending, say: Progress, b
     }
     meter = _meter(len(futures), say, bar)
     try:
-        for future in as_completed(futures):
+        for future in _as_finished(as_completed(futures), interrupt):
             i = futures[future]
             try:
                 result = future.result()
@@ -250,6 +297,17 @@ def _calibrate(client, out: Path, logs, per_log, keys, pending, say: Progress, b
             meter(result)
     finally:
         meter(None)
+
+
+def _as_finished(finished, interrupt: DeferredInterrupt):
+    """The futures of ``finished`` (a Dask ``as_completed``) as they finish, checking
+    ``interrupt`` in between."""
+    while not finished.is_empty():
+        interrupt.check()
+        batch = finished.next_batch(block=False)
+        if not batch:
+            time.sleep(POLL_SECONDS)
+        yield from batch
 
 
 def _write(path: Path, text: str) -> None:
