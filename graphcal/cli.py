@@ -59,14 +59,29 @@ def _timed_progress() -> Callable[[str], None]:
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     """Write a synthetic drive, its noise-free truth and a JSON sidecar."""
-    from graphcal.simulate.drive import NoiseLevels, simulate_drive, write_synthetic_drive
+    from graphcal.simulate.drive import (
+        THETA_TRUE_DEFAULT,
+        NoiseLevels,
+        simulate_drive,
+        write_synthetic_drive,
+    )
 
-    theta_true = np.asarray(args.theta_true, dtype=float) / DISPLAY_SCALE
-    if not (np.all(np.isfinite(theta_true)) and theta_true[0] > 0 and theta_true[2] > 0):
-        raise GraphcalError(
-            f"--theta-true {' '.join(map(str, args.theta_true))}: c_e and t_r must be positive "
-            f"and all values finite ({', '.join(DISPLAY_UNITS)})"
-        )
+    theta_true = None
+    if args.theta_true is not None:
+        theta_true = np.asarray(args.theta_true, dtype=float) / DISPLAY_SCALE
+        if not (np.all(np.isfinite(theta_true)) and theta_true[0] > 0 and theta_true[2] > 0):
+            raise GraphcalError(
+                f"--theta-true {' '.join(map(str, args.theta_true))}: c_e and t_r must be "
+                f"positive and all values finite ({', '.join(DISPLAY_UNITS)})"
+            )
+    if args.vehicle is not None:
+        return _simulate_robot(args, theta_true)
+    if theta_true is None:
+        theta_true = THETA_TRUE_DEFAULT
+    if args.position_noise is None:
+        args.position_noise = NoiseLevels.position
+    if args.heading_noise_deg is None:
+        args.heading_noise_deg = CAR_HEADING_NOISE_DEG
     noise = NoiseLevels(
         position=args.position_noise,
         heading=float(np.deg2rad(args.heading_noise_deg)),
@@ -108,6 +123,64 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         written = write_synthetic_drive(drive, args.out)
     except OSError as exc:
         raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
+    for path in written:
+        say(f"wrote {path}")
+    return 0
+
+
+#: The car simulation's heading noise [deg] unless --heading-noise-deg gives one.
+CAR_HEADING_NOISE_DEG = 1.5
+
+
+def _simulate_robot(args: argparse.Namespace, theta_true: np.ndarray | None) -> int:
+    """``simulate --vehicle ROBOT``: a robot's runs and spins as motion-capture poses and
+    encoder counts (``--streams DIR``, optionally ``--bag``) or a drive-log CSV (``--out``)."""
+    from graphcal.pipeline.settings import load_vehicle
+    from graphcal.simulate.robot import ROBOT_THETA_TRUE, RobotSettings, simulate_robot
+
+    vehicle = load_vehicle(args.vehicle)
+    if not vehicle.reverses:
+        raise GraphcalError(
+            f"--vehicle {args.vehicle}: simulate drives robots that turn on the spot; this "
+            "profile does not (reverses = false): leave --vehicle out to simulate the car"
+        )
+    unused = [
+        f"--{name.replace('_', '-')}"
+        for name in ("fleet", "defects", "length_km")
+        if getattr(args, name) is not None
+    ]
+    if unused or args.route != "city":
+        raise GraphcalError(
+            f"--vehicle simulates a robot's runs; {', '.join(unused) or '--route'} "
+            "applies to the car (use --runs)"
+        )
+    if (args.out is None) == (args.streams is None):
+        raise GraphcalError("simulate --vehicle needs one of --out FILE.csv or --streams DIR")
+    overrides = {}
+    if args.position_noise is not None:
+        overrides["position_noise"] = args.position_noise
+    if args.heading_noise_deg is not None:
+        overrides["heading_noise"] = float(np.deg2rad(args.heading_noise_deg))
+    try:
+        robot = RobotSettings.from_vehicle(vehicle, **overrides)
+    except ValueError as exc:
+        raise GraphcalError(f"--vehicle {args.vehicle}: {exc}") from None
+    theta = ROBOT_THETA_TRUE if theta_true is None else theta_true
+    say = _timed_progress()
+    sim = simulate_robot(args.seed, args.runs, robot, theta)
+    say(
+        f"simulated {vehicle.name}: {args.runs} runs, {sim.total_distance:.1f} m, "
+        f"{sim.drive.measured.t[-1]:.0f} s"
+    )
+    try:
+        if args.out is not None:
+            from graphcal.simulate.drive import write_synthetic_drive
+
+            written = write_synthetic_drive(sim.drive, args.out)
+        else:
+            written = _write_streams(sim, Path(args.streams), args.bag, "/mocap/pose")
+    except OSError as exc:
+        raise GraphcalError(f"cannot write {exc.filename or args.out}: {exc.strerror}") from exc
     for path in written:
         say(f"wrote {path}")
     return 0
@@ -309,18 +382,9 @@ def _simulate_streams(
     args: argparse.Namespace, theta_true: np.ndarray, say: Callable[[str], None]
 ) -> int:
     """``simulate --streams DIR``: raw GNSS, wheel and IMU streams with a manifest."""
-    from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
+    from graphcal.simulate.streams import StreamSettings, simulate_streams
 
     directory = Path(args.streams)
-    if args.bag is not None:
-        import importlib.util
-
-        if importlib.util.find_spec("rosbags") is None:
-            raise GraphcalError(
-                f'--bag {args.bag} needs the rosbags package: pip install -e ".[ros]"'
-            )
-    if directory.exists() and not directory.is_dir():
-        raise GraphcalError(f"--streams {directory}: exists and is not a directory")
     stream_settings = StreamSettings(
         position_noise=args.position_noise,
         heading_noise=float(np.deg2rad(args.heading_noise_deg)),
@@ -332,17 +396,33 @@ def _simulate_streams(
     sim = simulate_streams(length_km, args.seed, theta_true, stream_settings, route=args.route)
     say(f"simulated {length_km:g} km as GNSS, wheel and IMU streams")
     try:
-        written = write_streams(sim, directory)
-        if args.bag is not None:
-            from graphcal.simulate.bags import write_bag
-
-            suffix = {"ros1": "drive.bag", "ros2": "drive_ros2", "mcap": "drive_mcap"}[args.bag]
-            written.append(write_bag(sim.recording, directory / suffix, args.bag))
+        written = _write_streams(sim, directory, args.bag)
     except OSError as exc:
         raise GraphcalError(f"cannot write {directory}: {exc.strerror or exc}") from exc
     for path in written:
         say(f"wrote {path}")
     return 0
+
+
+def _write_streams(sim, directory: Path, bag: str | None, pose_topic: str | None = None):
+    """Write ``sim``'s streams and manifest into ``directory`` and, with ``bag``, a bag."""
+    from graphcal.simulate.streams import write_streams
+
+    if bag is not None:
+        import importlib.util
+
+        if importlib.util.find_spec("rosbags") is None:
+            raise GraphcalError(f'--bag {bag} needs the rosbags package: pip install -e ".[ros]"')
+    if directory.exists() and not directory.is_dir():
+        raise GraphcalError(f"--streams {directory}: exists and is not a directory")
+    written = write_streams(sim, directory)
+    if bag is not None:
+        from graphcal.simulate.bags import write_bag
+
+        suffix = {"ros1": "drive.bag", "ros2": "drive_ros2", "mcap": "drive_mcap"}[bag]
+        topic = {} if pose_topic is None else {"pose_topic": pose_topic}
+        written.append(write_bag(sim.recording, directory / suffix, bag, **topic))
+    return written
 
 
 def cmd_check(args: argparse.Namespace) -> int:
@@ -524,10 +604,11 @@ def build_parser() -> argparse.ArgumentParser:
     def segment_options(p: argparse.ArgumentParser) -> None:
         p.add_argument(
             "--segment-length",
-            type=_at_least(10.0, "m"),
+            type=_at_least(0.01, "m"),
             default=None,
             metavar="M",
-            help="calibration segment length [m] (default 150, paper §5.1)",
+            help="calibration segment length [m] (default 150, paper §5.1; with --vehicle "
+            "scaled by its track over the car's 1.55 m; at least 5 tracks)",
         )
         p.add_argument(
             "--segment-stride",
@@ -572,6 +653,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--out", type=Path, default=None, help="output CSV path")
     p.add_argument(
+        "--vehicle",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="a robot's profile (reverses = true, e.g. data/vehicles/mocap_robot.toml): drive "
+        "a robot instead of the car — runs of 5–15 m, spins on the spot, stops, "
+        "motion-capture poses and encoder counts with the profile's noise and resolution",
+    )
+    p.add_argument(
+        "--runs", type=_whole(1), default=10, help="with a robot --vehicle: runs to drive (10)"
+    )
+    p.add_argument(
         "--streams",
         type=Path,
         default=None,
@@ -602,22 +695,23 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         nargs=4,
         metavar=("C_E", "C_D", "T_R", "D"),
-        default=[1.985, 1.2, 1.585, 1.5],
-        help=f"true theta in {', '.join(DISPLAY_UNITS)} (1.985 1.2 1.585 1.5)",
+        default=None,
+        help=f"true theta in {', '.join(DISPLAY_UNITS)} (1.985 1.2 1.585 1.5; with a robot "
+        "--vehicle 0.2639 0.1 0.205 0)",
     )
     p.add_argument(
         "--position-noise",
         type=_non_negative,
-        default=0.2,
+        default=None,
         metavar="M",
-        help="position noise sigma [m] (0.2)",
+        help="position noise sigma [m] (0.2; with --vehicle the profile's)",
     )
     p.add_argument(
         "--heading-noise-deg",
         type=_non_negative,
-        default=1.5,
+        default=None,
         metavar="DEG",
-        help="heading noise sigma [deg] (1.5)",
+        help="heading noise sigma [deg] (1.5; with --vehicle the profile's)",
     )
     p.add_argument(
         "--wheel-noise",
@@ -767,10 +861,11 @@ def build_parser() -> argparse.ArgumentParser:
     segment_options(p)
     p.add_argument(
         "--validation-length",
-        type=_at_least(10.0, "m"),
+        type=_at_least(0.01, "m"),
         default=None,
         metavar="M",
-        help="validation segment length [m] (default 300)",
+        help="validation segment length [m] (default 300; with --vehicle scaled like "
+        "--segment-length)",
     )
     p.add_argument(
         "--method",

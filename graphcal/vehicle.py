@@ -32,12 +32,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graphcal.errors import check_settings
-from graphcal.model import C_E, T_R, THETA_NOMINAL, THETA_PRIOR_SIGMAS
+from graphcal.model import C_E, T_R, THETA_NOMINAL, THETA_PRIOR_SIGMAS, D
 
 #: The paper's position noise [m] (§3.3) and heading sigma [rad] that, with it, gives the
 #: paper's pose weights W = [1, 1, 50]: 0.2 / sqrt(50) = 0.028 rad (1.6°).
 PAPER_POSITION_SIGMA = 0.2
 PAPER_HEADING_SIGMA = PAPER_POSITION_SIGMA / math.sqrt(50.0)
+#: A held parameter's prior sigma as a share of its datasheet sigma: 10⁻⁴ holds d to within
+#: 10⁻⁷ s² of its nominal (0.1 µrad of yaw per m/s² of lateral acceleration and m of travel)
+#: while the solve's normal equations stay well conditioned.
+HELD_SIGMA_SCALE = 1e-4
 
 
 @dataclass(frozen=True)
@@ -130,6 +134,14 @@ class VehicleProfile:
         """``wheel_noise`` [rev], or a tenth of the tick quantization when it is 0 (counts with
         no noise of their own): ``[joint] wheel_noise``."""
         return float(self.wheel_noise) if self.wheel_noise > 0 else 0.1 * self.tick_quantization()
+
+    def solve_prior_sigmas(self) -> np.ndarray:
+        """The theta prior's sigmas a solve uses: ``theta_prior_sigmas``, with d's
+        :data:`HELD_SIGMA_SCALE` times as large when ``fix_d`` (held at its nominal)."""
+        sigmas = np.array(self.theta_prior_sigmas, dtype=float)
+        if self.fix_d:
+            sigmas[D] *= HELD_SIGMA_SCALE
+        return sigmas
 
     def size_scale(self) -> float:
         """The vehicle's size relative to the paper's car: nominal track / 1.55 m (1 for the

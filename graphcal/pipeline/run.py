@@ -61,7 +61,12 @@ from graphcal.pipeline.sensor_estimates import (
     log_weights,
     sensor_estimates,
 )
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.settings import (
+    CAR_SEGMENT_LENGTH,
+    CAR_VALIDATION_LENGTH,
+    Settings,
+    segment_lengths,
+)
 from graphcal.pipeline.staged import StagedResult, run_staged, step1_thetas
 from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
 from graphcal.pipeline.validation import position_errors
@@ -193,6 +198,17 @@ def select(
     """
     s = settings.segments
     circumference = float(settings.vehicle.theta_nominal[0])
+    if settings.vehicle.size_scale() != 1.0:
+        derived = segment_lengths(settings.vehicle)
+        how = (
+            f"the car's {CAR_SEGMENT_LENGTH:g} m and {CAR_VALIDATION_LENGTH:g} m scaled to the "
+            f"vehicle's {settings.vehicle.theta_nominal[2]:g} m track"
+            if (s.length, s.validation_length) == derived
+            else "as set"
+        )
+        progress(
+            f"segments of {s.length:g} m, validation segments of {s.validation_length:g} m ({how})"
+        )
     for note in log.mask_notes:
         progress(f"masked: {note}")
     segments = split_segments(log, s.length, s.stride, circumference)

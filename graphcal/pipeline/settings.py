@@ -9,23 +9,21 @@ The ``[vehicle]`` section (:class:`graphcal.vehicle.VehicleProfile`; also a file
 :func:`load_vehicle`) describes the vehicle: its nominal theta, the poses' and wheels' noise.
 It supplies the defaults of the settings that depend on the vehicle — ``theta_initial``,
 ``theta_prior_sigmas``, ``pose_weights`` and ``position_sigma`` of ``[calibration]`` and
-``[joint]``, and ``[joint] wheel_noise`` (:func:`apply_vehicle`); a key given in
-``[calibration]`` or ``[joint]`` of the same file overrides it. Without ``[vehicle]`` the
-vehicle is the paper's car.
-
-The segment lengths (150 m, 300 m) and the yaw-rate threshold (0.15 rad/s) are the paper's
-car defaults and do not follow the vehicle: for a small robot set shorter segments in
-``[segments]`` (:class:`SegmentSettings` suggests values).
+``[joint]``, ``[joint] wheel_noise``, and the segment lengths of ``[segments]``: the car's
+150 m and 300 m scaled by the vehicle's track over the car's 1.55 m (19.4 m and 38.7 m for a
+0.2 m robot) (:func:`apply_vehicle`); a key given in ``[calibration]``, ``[joint]`` or
+``[segments]`` of the same file overrides it. Without ``[vehicle]`` the vehicle is the
+paper's car. The yaw-rate threshold (0.15 rad/s) stays: a robot turns faster than a car.
 
 Every section and key, with the defaults::
 
     [segments]                  # the paper's car defaults
-    length = 150.0              # m
+    length = 150.0              # (v) m, × track / 1.55 m; at least 5 tracks
     # stride = 50.0             # m; omit for disjoint segments
     min_yaw_rate = 0.15         # rad/s
     yaw_statistic = "mean"      # mean | median | rms
     yaw_window = 1.0            # s, window of the yaw-rate difference
-    validation_length = 300.0   # m
+    validation_length = 300.0   # (v) m, × track / 1.55 m
 
     [batches]
     size = 9                    # segments per batch
@@ -99,6 +97,8 @@ Every section and key, with the defaults::
     heading_sigma = 0.0282842712474619  # rad -> pose_weights [1, 1, (0.2 / it)²] = [1, 1, 50]
     wheel_noise = 0.0005        # rev per sample interval -> [joint] wheel_noise
     # ticks_per_revolution = 64 # encoder resolution -> [joint] tick_quantization 1/(ticks √12)
+    reverses = false            # true: backwards wheels are motion (spins, reversing)
+    fix_d = false               # true: d held at its nominal (no load transfer)
 """
 
 from __future__ import annotations
@@ -122,6 +122,9 @@ from graphcal.pipeline.input_estimation import InputEstimationSettings
 from graphcal.pipeline.joint import JointSettings
 from graphcal.vehicle import VehicleProfile
 
+#: Shortest segment, in tracks of the vehicle (7.75 m for the car, 1 m for a 0.2 m robot):
+#: a shorter one turns through too little for its own start pose and heading.
+MIN_SEGMENT_TRACKS = 5.0
 #: Upper limit [rad/s] of the yaw-rate selection threshold: no road vehicle keeps a mean yaw
 #: rate near it over a calibration segment, so a larger value is a unit or typing mistake.
 MAX_MIN_YAW_RATE = 1.0
@@ -132,10 +135,11 @@ class SegmentSettings:
     """How the log is cut and which segments calibrate (§5.1); lengths in m, rates in rad/s.
 
     The defaults are the paper's car (150 m calibration and 300 m validation segments, a mean
-    yaw rate above 0.15 rad/s) and do not follow :class:`~graphcal.vehicle.VehicleProfile`.
-    A segment should hold a few bends and last some tens of seconds; for a small, slow robot
-    (1–2 m/s) that is about 30–50 m (``length``) and 60–100 m (``validation_length``), and
-    since a robot turns tighter than a car the yaw-rate threshold may stay.
+    yaw rate above 0.15 rad/s). With a vehicle profile the lengths follow its size
+    (:func:`apply_vehicle`: scaled by its track over the car's), unless set; a segment should
+    hold a few bends and last some tens of seconds. The yaw-rate threshold stays, since a
+    small vehicle turns tighter than a car. A length must be at least
+    :data:`MIN_SEGMENT_TRACKS` tracks of the vehicle (checked by :class:`Settings`).
     """
 
     length: float = 150.0
@@ -147,8 +151,8 @@ class SegmentSettings:
 
     def __post_init__(self) -> None:
         for name in ("length", "validation_length"):
-            if not getattr(self, name) >= 10.0:
-                raise ValueError(f"segments.{name} must be at least 10 m")
+            if not getattr(self, name) > 0:
+                raise ValueError(f"segments.{name} must be a positive length in m")
         if not self.yaw_window > 0:
             raise ValueError("segments.yaw_window must be positive")
         if self.stride is not None and not self.stride >= 1.0:
@@ -279,6 +283,19 @@ class Settings:
     vehicle: VehicleProfile = field(default_factory=VehicleProfile)
     lever_arm: LeverArmSettings = field(default_factory=LeverArmSettings)
 
+    def __post_init__(self) -> None:
+        track = float(self.vehicle.theta_nominal[2])
+        shortest = MIN_SEGMENT_TRACKS * track
+        options = (("length", "segment-length"), ("validation_length", "validation-length"))
+        for name, option in options:
+            if getattr(self.segments, name) < shortest:
+                raise ValueError(
+                    f"segments.{name} {getattr(self.segments, name):g} m is shorter than "
+                    f"{MIN_SEGMENT_TRACKS:g} tracks of the vehicle ({shortest:g} m for its "
+                    f"{track:g} m track); set --{option} or [segments] {name} to at least "
+                    f"{shortest:g} m, or give the vehicle (--vehicle) it belongs to"
+                )
+
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view (lists instead of arrays), as written into ``calibration.json``."""
         return settings_to_dict(self)
@@ -328,7 +345,7 @@ def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Sett
     if "vehicle" not in data:
         return settings
     given = {
-        f"{section}.{key}" for section in ("calibration", "joint") for key in data.get(section, {})
+        f"{section}.{key}" for section, _ in _DERIVED_SECTIONS for key in (data.get(section) or {})
     }
     return _follow_vehicle(settings, VehicleProfile(), settings.vehicle, given)
 
@@ -384,7 +401,7 @@ def apply_vehicle(
 #: The settings of a section that follow the vehicle, and how each derives from it.
 _FROM_VEHICLE: dict[str, Callable[[VehicleProfile], Any]] = {
     "theta_initial": lambda v: v.theta_nominal.copy(),
-    "theta_prior_sigmas": lambda v: v.theta_prior_sigmas.copy(),
+    "theta_prior_sigmas": lambda v: v.solve_prior_sigmas(),
     "pose_weights": lambda v: v.pose_weights(),
     "position_sigma": lambda v: v.position_sigma,
 }
@@ -393,7 +410,33 @@ _FROM_VEHICLE_JOINT = {
     "wheel_noise": lambda v: v.white_wheel_noise(),
     "tick_quantization": lambda v: v.tick_quantization(),
 }
-_DERIVED_SECTIONS = (("calibration", _FROM_VEHICLE), ("joint", _FROM_VEHICLE_JOINT))
+#: The paper's car's segment lengths [m] (§5.1); a vehicle's scale with its size
+#: (:meth:`~graphcal.vehicle.VehicleProfile.size_scale`: its track over the car's).
+CAR_SEGMENT_LENGTH = 150.0
+CAR_VALIDATION_LENGTH = 300.0
+_FROM_VEHICLE_SEGMENTS: dict[str, Callable[[VehicleProfile], Any]] = {
+    "length": lambda v: _scaled_length(CAR_SEGMENT_LENGTH, v),
+    "validation_length": lambda v: _scaled_length(CAR_VALIDATION_LENGTH, v),
+}
+_DERIVED_SECTIONS = (
+    ("calibration", _FROM_VEHICLE),
+    ("joint", _FROM_VEHICLE_JOINT),
+    ("segments", _FROM_VEHICLE_SEGMENTS),
+)
+
+
+def segment_lengths(vehicle: VehicleProfile) -> tuple[float, float]:
+    """The calibration and validation segment lengths [m] for ``vehicle``'s size."""
+    return (
+        _scaled_length(CAR_SEGMENT_LENGTH, vehicle),
+        _scaled_length(CAR_VALIDATION_LENGTH, vehicle),
+    )
+
+
+def _scaled_length(car_length: float, vehicle: VehicleProfile) -> float:
+    """``car_length`` [m] scaled to ``vehicle``'s size, to 0.1 m (exact for the car)."""
+    scale = vehicle.size_scale()
+    return car_length if scale == 1.0 else round(car_length * scale, 1)
 
 
 def _follow_vehicle(
