@@ -224,6 +224,19 @@ def select(
             "the observability check decides what they determine"
         )
         selected = segments
+    if len(segments) == 0:
+        distance = log.travelled_distance(circumference)[-1]
+        where = (
+            f"the log's {distance:.1f} m"
+            if log.masked is None
+            else f"every stretch between masked samples ({log.masked.mean():.0%} of the log "
+            f"masked; first: {log.mask_notes[0]})"
+        )
+        raise NoUsableSegments(
+            f"{log.source}: {where} is shorter than one {s.length:g} m segment; set a "
+            "shorter --segment-length (or [segments] length), or give the vehicle's profile "
+            "(--vehicle), whose size sets the lengths"
+        )
     if len(selected) == 0:
         best = f"{yaw.max():.3f}" if len(yaw) else "n/a"
         raise NoUsableSegments(
@@ -248,8 +261,10 @@ def select(
                 "positions, or use a shorter --validation-length"
             )
         raise NoUsableSegments(
-            f"{log.source}: log is shorter than one {s.validation_length:g} m validation "
-            "segment; use a longer drive or a shorter --validation-length"
+            f"{log.source}: log ({distance:.1f} m) is shorter than one "
+            f"{s.validation_length:g} m validation segment; use a longer drive, a shorter "
+            "--validation-length (or [segments] validation_length), or give the vehicle's "
+            "profile (--vehicle), whose size sets the lengths"
         )
     return segments, yaw, selected, validation
 
