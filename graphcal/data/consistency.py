@@ -17,6 +17,12 @@ calibration changes distances by far less than the factors checked here):
   the log with a per-sample mask and a note per span, and
   no calibration or validation segment spans a masked sample
   (:func:`graphcal.data.segments.split_segments`).
+
+Distances are counted in wheel revolutions of the nominal c_e, so that a robot's 0.27 m
+wheels and millimetre motion capture are checked as the paper's car (2 m wheels, GNSS) is,
+with the car's values unchanged. Wheels turning backwards (a robot reversing, or spinning on
+the spot with one wheel backwards: ``VehicleProfile.reverses``) are motion: a step's
+distance is compared with a chord by its length, and distance along the path adds it up.
 """
 
 from __future__ import annotations
@@ -33,9 +39,15 @@ MAX_POSITION = 1e6
 #: over which both are compared.
 DISTANCE_RATIO_RANGE = (0.5, 2.0)
 RATIO_WINDOW_S = 2.0
-#: A position step longer than the wheels' step by more than this [m], or by ten times the
-#: log's own step noise if that is larger, is a spike.
-SPIKE_EXCESS = 3.0
+#: The comparison's windows must each travel :data:`RATIO_MIN_WINDOW_REVS` wheel revolutions
+#: (nominal c_e: 5 m for the paper's car), and all of them together
+#: :data:`RATIO_MIN_REVS` (50 m), so that the position noise is small next to them.
+RATIO_MIN_WINDOW_REVS = 2.5
+RATIO_MIN_REVS = 25.0
+#: A position step longer than the wheels' step by more than this many wheel revolutions
+#: (nominal c_e: 3 m for the paper's car, 0.4 m for a robot with 0.27 m wheels), or by ten
+#: times the log's own step noise if that is larger, is a spike.
+SPIKE_EXCESS_REVS = 1.5
 #: A heading step that differs from the wheels' yaw by more than this [rad], or by ten times
 #: the log's own heading-step noise if that is larger, is a heading spike.
 HEADING_EXCESS = 0.25
@@ -46,8 +58,9 @@ SPIKE_MARGIN_S = 0.5
 SPIKE_RETURN_S = 1.0
 #: A fix repeated for at least this long [s] while the wheels travel ...
 FROZEN_MIN_S = 1.0
-#: ... at least this far [m] is frozen.
-FROZEN_MIN_DISTANCE = 2.0
+#: ... at least this many revolutions along the path (nominal c_e: 2 m for the paper's car)
+#: is frozen.
+FROZEN_MIN_REVS = 1.0
 #: Above this share of jumping steps no spike counts as isolated.
 MAX_SPIKE_SHARE = 0.05
 #: A log with more than this share of its samples masked is rejected.
@@ -61,7 +74,8 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
 
 
 def wheel_steps(log, *, nominal: np.ndarray = THETA_NOMINAL) -> np.ndarray:
-    """Distance [m] of each step ``k -> k+1`` from the wheel rotations (nominal c_e), ``(N-1,)``."""
+    """Signed distance [m] of each step ``k -> k+1`` from the wheel rotations (nominal c_e),
+    ``(N-1,)``: negative backwards (a robot reversing), about 0 in a spin on the spot."""
     return 0.5 * (log.n_rl[:-1] + log.n_rr[:-1]) * nominal[0]
 
 
@@ -81,18 +95,19 @@ def position_problem(
             "(e.g. ENU around the drive's start), not latitude/longitude or ECEF"
         )
     # Chords over 2 s windows: long enough that position noise is small next to them, short
-    # enough that a chord in a bend is nearly the arc.
+    # enough that a chord in a bend is nearly the arc. The wheels' net travel in a window
+    # against its chord: backwards (a robot reversing) as far as forwards.
     window = max(1, round(RATIO_WINDOW_S / log.dt))
     ends = np.arange(0, len(log), window)
     travelled = np.concatenate([[0.0], np.cumsum(wheel_steps(log, nominal=nominal))])
-    wheels = np.diff(travelled[ends])
+    wheels = np.abs(np.diff(travelled[ends]))
     chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
     if masked is None:
         masked, _, outlying = inconsistent_samples(log, nominal=nominal)
         masked = masked | outlying
     clean = np.add.reduceat(masked.astype(int), ends)[: len(wheels)] == 0
-    usable = clean & (wheels >= 5.0)
-    if wheels[usable].sum() < 50.0:
+    usable = clean & (wheels >= RATIO_MIN_WINDOW_REVS * nominal[0])
+    if wheels[usable].sum() < RATIO_MIN_REVS * nominal[0]:
         return None
     ratio = chords[usable].sum() / wheels[usable].sum()
     low, high = DISTANCE_RATIO_RANGE
@@ -116,12 +131,14 @@ def inconsistent_samples(
     The wheel rotations become distance and yaw with ``nominal``, the vehicle's nominal theta.
 
     Spikes: a distinct fix farther from the previous one than the wheels travelled between
-    them by :data:`SPIKE_EXCESS` (or ten times the log's own noise). If a later fix within
-    :data:`SPIKE_RETURN_S` is back on the track (as far from the last good fix as the wheels
-    travelled, within the same tolerance), the fixes between are outlying; otherwise the jump
-    is masked with :data:`SPIKE_MARGIN_S` on each side. Frozen fixes: the same position for at least
+    them (net: backwards counts as forwards) by :data:`SPIKE_EXCESS_REVS` wheel revolutions
+    (or ten times the log's own noise). If a later fix within :data:`SPIKE_RETURN_S` is back
+    on the track (as far from the last good fix as the wheels travelled, within the same
+    tolerance), the fixes between are outlying; otherwise the jump is masked with
+    :data:`SPIKE_MARGIN_S` on each side. Frozen fixes: the same position for at least
     :data:`FROZEN_MIN_S` (or five of the receiver's fix intervals, for a receiver slower than
-    the log whose fixes are held) while the wheels travel :data:`FROZEN_MIN_DISTANCE`.
+    the log whose fixes are held) while the wheels travel :data:`FROZEN_MIN_REVS` revolutions
+    along the path (a spin on the spot travels none).
     """
     n = len(log)
     mask = np.zeros(n, dtype=bool)
@@ -130,7 +147,8 @@ def inconsistent_samples(
     if n < 3:
         return mask, notes, outlying
     wheels = wheel_steps(log, nominal=nominal)
-    travelled = np.concatenate([[0.0], np.cumsum(wheels)])
+    travelled = np.concatenate([[0.0], np.cumsum(wheels)])  # net: back where it started
+    along = np.concatenate([[0.0], np.cumsum(np.abs(wheels))])  # along the path
     margin = max(1, round(SPIKE_MARGIN_S / log.dt))
     steps = np.hypot(np.diff(log.px), np.diff(log.py))
     # The rows holding a fix (every row of a uniform log), and which of them repeat the fix
@@ -145,19 +163,19 @@ def inconsistent_samples(
     for a, b in runs(same):
         first, last = rows[a - 1], rows[b]  # the fix that is repeated, its last repeat
         if log.t[last] - log.t[first] >= frozen_min_s and (
-            travelled[last] - travelled[first] >= FROZEN_MIN_DISTANCE
+            along[last] - along[first] >= FROZEN_MIN_REVS * nominal[0]
         ):
             frozen[first : last + 1] = True
             notes.append(
                 f"position frozen at t = {log.t[first]:.1f}–{log.t[last]:.1f} s while the "
-                f"wheels travelled {travelled[last] - travelled[first]:.0f} m: a held fix"
+                f"wheels travelled {_metres(along[last] - along[first], nominal[0])} m: a held fix"
             )
     # Spikes: each distinct fix against the previous one, over the wheels' travel between them.
     jump = np.hypot(np.diff(log.px[fixes]), np.diff(log.py[fixes]))
-    rolled = np.diff(travelled[fixes])
+    rolled = np.abs(np.diff(travelled[fixes]))
     excess = jump - rolled
     noise = 1.4826 * np.median(np.abs(excess - np.median(excess))) if len(excess) else 0.0
-    tolerance = max(SPIKE_EXCESS, 10.0 * noise)
+    tolerance = max(SPIKE_EXCESS_REVS * nominal[0], 10.0 * noise)
     spikes = np.zeros(n, dtype=bool)
     jumps = np.flatnonzero(excess > tolerance)
     returned = _returns(log, fixes, travelled, jumps, tolerance)
@@ -178,7 +196,7 @@ def inconsistent_samples(
         notes.append(
             f"position jumps at t = {log.t[a]:.1f}–{log.t[b]:.1f} s (a step up to "
             f"{steps[a : max(a + 1, b)].max():.1f} m where the wheels moved "
-            f"{wheels[a : max(a + 1, b)].max():.2f} m): spike"
+            f"{np.abs(wheels[a : max(a + 1, b)]).max():.2f} m): spike"
         )
     # Heading against the yaw the wheels imply (nominal theta), from each measured heading to
     # the next: per step in a uniform log.
@@ -229,7 +247,7 @@ def _returns(
             if log.t[fixes[j]] - log.t[fixes[i + 1]] > SPIKE_RETURN_S:
                 break
             gap = np.hypot(log.px[end] - log.px[start], log.py[end] - log.py[start])
-            if abs(gap - (travelled[end] - travelled[start])) <= tolerance:
+            if abs(gap - abs(travelled[end] - travelled[start])) <= tolerance:
                 found[int(i)] = j
                 break
     return found
@@ -255,3 +273,9 @@ def screen(log, *, nominal: np.ndarray = THETA_NOMINAL):
     if outlying.any():
         changes["outlying"] = outlying
     return dataclasses.replace(log, **changes) if changes else log
+
+
+def _metres(distance: float, circumference: float) -> str:
+    """A distance [m] for a note: whole metres for a vehicle with wheels of a metre or more
+    around (a car), else centimetres (a robot's 0.35 m would read as 0)."""
+    return f"{distance:.0f}" if circumference >= 1.0 else f"{distance:.2f}"

@@ -59,6 +59,9 @@ MAX_LATERAL_ACCELERATION = 15.0
 NEGATIVE_ROTATION_TOLERANCE = 0.005
 #: Highest plausible speed [m/s] implied by one wheel's rotation with the nominal circumference.
 MAX_PLAUSIBLE_SPEED = 100.0
+#: The vehicle-profile key that makes wheels turning backwards motion (a robot), as a user
+#: writes it.
+REVERSES_KEY = "reverses = true"
 
 
 T = TypeVar("T")
@@ -168,10 +171,12 @@ class DriveLog:
         return np.column_stack([self.n_rl, self.n_rr, self.beta, self.ay])
 
     def travelled_distance(self, wheel_circumference: float = THETA_NOMINAL[0]) -> np.ndarray:
-        """Distance [m] travelled up to each sample, from the mean wheel rotation, ``(N,)``,
-        with ``wheel_circumference`` (the vehicle's nominal c_e; default: the paper's car)."""
-        per_step = 0.5 * (self.n_rl[:-1] + self.n_rr[:-1]) * wheel_circumference
-        return np.concatenate([[0.0], np.cumsum(per_step)])
+        """Distance [m] travelled up to each sample along the path, from the mean wheel
+        rotation, ``(N,)``, with ``wheel_circumference`` (the vehicle's nominal c_e; default:
+        the paper's car). A step backwards (a robot reversing) adds its length too, a spin on
+        the spot (the wheels turning opposite ways) next to nothing: the distance never
+        decreases, so segments cut by it stay in order."""
+        return travelled_along_path(self.n_rl, self.n_rr, wheel_circumference)
 
     def to_dataframe(self) -> pd.DataFrame:
         """The log as a DataFrame with the format's columns (and ``masked`` if any is); rows
@@ -190,6 +195,16 @@ class DriveLog:
         if missing:
             raise ValueError(f"missing columns {missing}")
         return cls(**{c: np.array(columns[c], dtype=float) for c in COLUMNS}, source=source)
+
+
+def travelled_along_path(
+    n_rl: np.ndarray, n_rr: np.ndarray, wheel_circumference: float
+) -> np.ndarray:
+    """Distance [m] along the path up to each sample, ``(N,)``: the cumulative absolute
+    mean rotation of the two wheels (row k's rotation is the step k → k+1) times the
+    circumference. Forward driving alone gives the plain cumulative distance."""
+    per_step = np.abs(0.5 * (n_rl[:-1] + n_rr[:-1])) * wheel_circumference
+    return np.concatenate([[0.0], np.cumsum(per_step)])
 
 
 def measurement_frame(
@@ -297,6 +312,7 @@ def validate_frame(
     marked_notes: tuple[str, ...] = (),
     nominal: np.ndarray = THETA_NOMINAL,
     origins: Mapping[str, ColumnOrigin] | None = None,
+    reverses: bool = False,
 ) -> DriveLog:
     """Validate a raw table in the drive-log format and return the :class:`DriveLog`.
 
@@ -304,6 +320,10 @@ def validate_frame(
     non-increasing, not in seconds or non-uniform, heading apparently in degrees, implausible
     sideslip or lateral acceleration, negative or implausible wheel rotations and, when
     ``min_distance`` [m] is given, a log too short for one segment.
+
+    ``reverses`` (``VehicleProfile.reverses``): wheels turning backwards are motion (a robot
+    spinning on the spot or reversing), accepted like forward rotations; else (a car) a
+    negative rotation beyond encoder noise is refused.
 
     Samples to leave out come from the optional ``masked`` column (non-zero = masked, e.g.
     gaps an import carried over), from ``marked`` with one note per span in
@@ -448,18 +468,20 @@ def validate_frame(
     for column in ("n_rl", "n_rr"):
         n = arrays[column]
         negative = n < -NEGATIVE_ROTATION_TOLERANCE
-        if negative.any():
+        if not reverses and negative.any():
             row = _first(negative)
             raise fail(
                 source,
                 column,
                 row,
                 f"negative wheel rotation {n[row]:.6g} rev",
-                "the model covers forward driving only: cut reversing manoeuvres from the log",
+                "a car's model covers forward driving only: cut reversing manoeuvres from the "
+                f"log, or, for a robot that spins on the spot or reverses, set {REVERSES_KEY} in "
+                "the vehicle profile (--vehicle)",
                 imported=f"QUANTITY turns backwards ({n[row]:.4g} rev)",
             )
         limit = MAX_PLAUSIBLE_SPEED * dt_nominal / nominal[0]
-        too_big = n > limit
+        too_big = np.abs(n) > limit
         if too_big.any():
             row = _first(too_big)
             raise fail(
@@ -471,18 +493,16 @@ def validate_frame(
                 "give the rotation during each sample interval, not a cumulative count or angle "
                 "in degrees (take the difference between rows)",
                 imported=(
-                    f"implausible QUANTITY: {n[row] * nominal[0] / dt_nominal:.4g} m/s with "
+                    f"implausible QUANTITY: {abs(n[row]) * nominal[0] / dt_nominal:.4g} m/s with "
                     f"c_e = {nominal[0]:g} m (over {MAX_PLAUSIBLE_SPEED:.0f} m/s)"
                 ),
             )
 
     sparse = not measured.all() or lag is not None
     if sparse:
-        travelled = np.concatenate(
-            [[0.0], np.cumsum(0.5 * (arrays["n_rl"] + arrays["n_rr"])[:-1] * nominal[0])]
-        )
+        travelled = travelled_along_path(arrays["n_rl"], arrays["n_rr"], nominal[0])
         arrays["px"], arrays["py"], arrays["psi"] = fill_track(
-            t, arrays["px"], arrays["py"], arrays["psi"], measured, lag, travelled
+            t, arrays["px"], arrays["py"], arrays["psi"], measured, lag, travelled, nominal[0]
         )
     arrays["psi"] = np.unwrap(arrays["psi"])
     marked, marked_notes = _marked_samples(frame, source, marked, marked_notes, t)
@@ -750,6 +770,7 @@ def load_drive_log(
     min_distance: float = 0.0,
     *,
     nominal: np.ndarray = THETA_NOMINAL,
+    reverses: bool = False,
 ) -> DriveLog:
     """Read and validate a drive-log CSV (see the module docstring for the format).
 
@@ -761,6 +782,8 @@ def load_drive_log(
         nominal: the vehicle's nominal theta ``[c_e, c_d, t_r, d]`` (SI; default: the
             paper's car), which turns wheel rotations into distance and yaw for the checks
             (``VehicleProfile.theta_nominal``).
+        reverses: wheels turning backwards are motion (``VehicleProfile.reverses``: a robot
+            spinning on the spot or reversing); ``False`` (a car) refuses negative rotations.
 
     Raises:
         DriveLogError: with one line naming the file, the column and the first bad line.
@@ -798,7 +821,7 @@ def load_drive_log(
         ),
     )
     frame.columns = [str(c).strip() for c in frame.columns]
-    log = validate_frame(frame, source, min_distance, nominal=nominal)
+    log = validate_frame(frame, source, min_distance, nominal=nominal, reverses=reverses)
     return dataclasses.replace(log, **_from_import_sidecar(path))
 
 

@@ -69,7 +69,8 @@ def drive_excitation(
     """The excitation of ``log`` and the parameters it is expected to determine."""
     distance = float(log.travelled_distance(wheel_circumference)[-1])
     yaw_rate = np.abs(smoothed_yaw_rate(log, yaw_window))
-    moving = np.concatenate([log.n_rl[:-1] + log.n_rr[:-1] > 0, [False]])
+    # Either wheel turning, either way: a robot spinning on the spot is driving too.
+    moving = np.concatenate([np.abs(log.n_rl[:-1]) + np.abs(log.n_rr[:-1]) > 0, [False]])
     if log.masked is not None:
         moving &= ~log.masked
     turning_share = float((yaw_rate[moving] > TURNING_YAW_RATE).mean()) if moving.any() else 0.0

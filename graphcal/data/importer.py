@@ -21,6 +21,7 @@ import numpy as np
 from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
 from graphcal.data.manifest import SPEED_UNITS
 from graphcal.data.streams import (
+    DEFAULT_RATE,
     FIX_TIME_TOLERANCE,
     MAX_GAP_S,
     Provenance,
@@ -28,10 +29,12 @@ from graphcal.data.streams import (
     Resampled,
     StreamError,
     course,
+    grid_rate,
     interval_means,
     provenance_of,
     resample,
 )
+from graphcal.data.track import COURSE_MIN_REVS
 from graphcal.files import atomic_write_text
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 
@@ -168,16 +171,20 @@ def import_recording(
     bag: BagOptions | None = None,
     nominal: np.ndarray = THETA_NOMINAL,
     min_distance: float = 0.0,
+    reverses: bool = False,
 ) -> ImportedLog:
     """Import a streams manifest or a ROS bag into a validated :class:`DriveLog`.
 
     Args:
         source: a manifest (``.toml``), a ROS 1 bag, a ROS 2 bag directory or an MCAP file.
-        rate: drive-log rate [Hz] (default: the manifest's ``rate``, else 40).
+        rate: drive-log rate [Hz] (default: the manifest's ``rate``, else 40, or just
+            faster than a pose stream faster than that: :func:`~graphcal.data.streams.grid_rate`).
         max_gap: shortest gap [s] that masks the log (default: the manifest's, else 0.5).
         bag: topics and joints of a bag (detected when not given).
         nominal: the vehicle's nominal theta (SI), for the plausibility checks.
         min_distance: shortest acceptable travelled distance [m].
+        reverses: wheels turning backwards are motion (``VehicleProfile.reverses``: a robot
+            spinning on the spot or reversing), kept; else (a car) masked as reversing.
 
     Raises:
         GraphcalError: one line naming the file, stream or column and how to fix it.
@@ -189,18 +196,31 @@ def import_recording(
 
         manifest = load_manifest(path)
         recording = read_manifest(manifest)
-        rate = rate if rate is not None else manifest.rate
+        if rate is None and "rate" in manifest.data:
+            rate = manifest.rate
         max_gap = max_gap if max_gap is not None else manifest.max_gap
         truth = _read_truth(manifest)
     else:
         recording = read_recording(path, bag)
+    followed = None
+    if rate is None:
+        rate = grid_rate(recording.pose)
+        if rate != DEFAULT_RATE:
+            followed = (
+                f"drive log at {rate:g} Hz, just faster than the pose stream, so that each "
+                f"pose sample has its own row (none given; --rate or the manifest's rate "
+                f"chooses another)"
+            )
     resampled = resample(
         recording,
-        rate=rate if rate is not None else 40.0,
+        rate=rate,
         max_gap=max_gap if max_gap is not None else MAX_GAP_S,
         wheel_circumference=float(nominal[0]),
         track_width=float(nominal[2]),
+        reverses=reverses,
     )
+    if followed is not None:
+        resampled = dataclasses.replace(resampled, notes=(*resampled.notes, followed))
     warnings = check_recording(resampled, recording, nominal)
     log = validate_frame(
         resampled.frame(),
@@ -210,6 +230,7 @@ def import_recording(
         marked_notes=resampled.mask_notes,
         nominal=nominal,
         origins=column_origins(resampled, recording),
+        reverses=reverses,
     )
     if recording.wheels.resolution is not None:  # counts interpolated onto the grid
         log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
@@ -273,7 +294,7 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
         [[0.0], np.cumsum((c["n_rr"][:-1] - c["n_rl"][:-1]) * nominal[0] / nominal[2])]
     )
     wheels = _turn_directions(wheel_yaw, usable, window)
-    track = _turn_directions(course(c["px"], c["py"], dt), usable, window)
+    track = _turn_directions(_course(c, dt, nominal), usable, window)
     wheels_track = _agreement(wheels, track)
     pose = recording.pose
     heading = None
@@ -326,10 +347,10 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     dt = float(c["t"][1] - c["t"][0])
     usable = ~resampled.masked
     _check_wheel_scale(c, usable, dt, recording, nominal)
-    check_units(resampled, recording)
+    check_units(resampled, recording, nominal)
     check_turning(resampled, recording, nominal)
     warnings = []
-    offset = _heading_offset(c, usable, dt, float(nominal[0]))
+    offset = _heading_offset(c, usable, dt, nominal)
     if offset is not None and recording.pose.heading is not None:
         where = provenance_of(recording.pose).at(("heading",))
         if abs(offset) > HEADING_OFFSET_ERROR:
@@ -344,7 +365,7 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
                 f"the heading differs from the direction of travel by {np.degrees(offset):+.1f}° "
                 "on average (more than a sideslip explains): a mounting offset biases t_r and d"
             )
-    _check_imu_signs(c, usable, dt, resampled, recording)
+    _check_imu_signs(c, usable, dt, resampled, recording, nominal)
     longest = max(s.end - s.start for s in resampled.streams)
     covered = resampled.overlap[1] - resampled.overlap[0]
     if covered < MIN_OVERLAP_OF_LONGEST * longest:
@@ -356,28 +377,41 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
 
 
 #: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's, and the
-#: distance [m] the comparison needs (as the drive log's own check of positions against
-#: the wheels, which would otherwise speak of drive-log columns).
+#: distance the comparison needs, in wheel revolutions (nominal c_e: 50 m for the paper's
+#: car, 6.7 m for a robot's 0.27 m wheels), in windows of :data:`TURN_WINDOW_S` that each
+#: travel :data:`SCALE_WINDOW_REVS` (5 m for the car) on the wheels and the track (as the
+#: drive log's own check of positions against the wheels, which would otherwise speak of
+#: drive-log columns).
 WHEEL_SCALE_RANGE = (0.8, 1.25)
-MIN_SCALE_DISTANCE = 50.0
+MIN_SCALE_REVS = 25.0
+SCALE_WINDOW_REVS = 2.5
 #: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°).
 HEADING_OFFSET_WARNING = np.radians(3.0)
 HEADING_OFFSET_ERROR = np.radians(15.0)
 #: Share of the longest stream the overlap should cover.
 MIN_OVERLAP_OF_LONGEST = 0.5
-#: Speed [m/s] above which the direction of travel is compared with the heading.
-HEADING_CHECK_SPEED = 3.0
+#: Speed, in wheel revolutions per second (nominal c_e: 3 m/s for the paper's car, 0.4 m/s
+#: for a robot's 0.27 m wheels), above which the direction of travel is compared with the
+#: heading (forwards only: reversing travels against it).
+HEADING_CHECK_REVS_PER_S = 1.5
+
+
+def _course(c: dict, dt: float, nominal) -> np.ndarray:
+    """The grid track's direction of travel (:func:`~graphcal.data.track.course`), defined
+    where its 1 s chord spans half a wheel revolution (1 m for the paper's car)."""
+    return course(c["px"], c["py"], dt, min_distance=COURSE_MIN_REVS * float(nominal[0]))
 
 
 def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nominal) -> None:
     window = max(1, round(TURN_WINDOW_S / dt))
     wheel = np.concatenate([[0.0], np.cumsum(0.5 * (c["n_rl"] + c["n_rr"])[:-1] * nominal[0])])
     ends = np.arange(0, len(wheel), window)
-    rolled = np.diff(wheel[ends])
+    rolled = np.abs(np.diff(wheel[ends]))  # net: a robot reversing rolls as far backwards
     chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
     clean = np.add.reduceat((~usable).astype(int), ends)[: len(rolled)] == 0
-    moving = clean & (rolled > 5.0) & (chords > 5.0)
-    if chords[moving].sum() < MIN_SCALE_DISTANCE:
+    least = SCALE_WINDOW_REVS * nominal[0]
+    moving = clean & (rolled > least) & (chords > least)
+    if chords[moving].sum() < MIN_SCALE_REVS * nominal[0]:
         return
     ratio = rolled[moving].sum() / chords[moving].sum()
     low, high = WHEEL_SCALE_RANGE
@@ -423,24 +457,27 @@ def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
     )
 
 
-def _heading_offset(c: dict, usable: np.ndarray, dt: float, circumference: float) -> float | None:
-    """Median of heading + sideslip − direction of travel [rad] while moving, or None."""
-    track = course(c["px"], c["py"], dt)
-    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * circumference / dt
-    moving = usable & (speed > HEADING_CHECK_SPEED)
+def _heading_offset(c: dict, usable: np.ndarray, dt: float, nominal) -> float | None:
+    """Median of heading + sideslip − direction of travel [rad] while moving forwards, or
+    None."""
+    track = _course(c, dt, nominal)
+    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
+    moving = usable & (speed > HEADING_CHECK_REVS_PER_S * nominal[0])
     if moving.sum() < 10.0 / dt:
         return None
     difference = np.angle(np.exp(1j * (c["psi"] + c["beta"] - track)))[moving]
     return float(np.median(difference))
 
 
-def _check_imu_signs(c: dict, usable: np.ndarray, dt: float, resampled, recording) -> None:
+def _check_imu_signs(
+    c: dict, usable: np.ndarray, dt: float, resampled, recording, nominal=THETA_NOMINAL
+) -> None:
     """One line if the IMU's lateral acceleration or yaw rate turns against the GNSS track."""
     imu = recording.imu
     if imu is None:
         return
     window = max(1, round(TURN_WINDOW_S / dt))
-    track = _turn_directions(course(c["px"], c["py"], dt), usable, window)
+    track = _turn_directions(_course(c, dt, nominal), usable, window)
     grid = c["t"] + resampled.overlap[0]  # the streams' time base
     for quantity, signal, hint in (
         ("lateral_acceleration", imu.lateral_acceleration, "positive to the left"),
@@ -467,8 +504,9 @@ ANGLE_SCALE_LIMIT = 8.0
 #: The same for the IMU's lateral acceleration against speed × the track's yaw rate (an
 #: acceleration in g is 1/9.81 of it).
 ACCELERATION_SCALE_LIMIT = 3.0
-#: Shortest chord [m] of a window whose turn counts (the course of a slower one is noise).
-TURN_MIN_CHORD = 10.0
+#: Shortest chord of a window whose turn counts (the course of a slower one is noise), in
+#: wheel revolutions (nominal c_e: 10 m for the paper's car).
+TURN_MIN_CHORD_REVS = 5.0
 
 
 @dataclass(frozen=True)
@@ -491,14 +529,15 @@ class _Turns:
         return float(np.median(ratio)), sharpest
 
 
-def _turns(resampled: Resampled) -> _Turns:
+def _turns(resampled: Resampled, nominal=THETA_NOMINAL) -> _Turns:
     c = resampled.columns
     dt = float(c["t"][1] - c["t"][0])
     window = max(1, round(TURN_WINDOW_S / dt))
     ends = np.arange(0, len(c["t"]), window)
-    track = _turn_directions(course(c["px"], c["py"], dt), ~resampled.masked, window)
+    track = _turn_directions(_course(c, dt, nominal), ~resampled.masked, window)
     chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
-    turning = np.isfinite(track) & (np.abs(track) > TURN_MIN_YAW) & (chords > TURN_MIN_CHORD)
+    least = TURN_MIN_CHORD_REVS * nominal[0]
+    turning = np.isfinite(track) & (np.abs(track) > TURN_MIN_YAW) & (chords > least)
     return _Turns(window, ends, track, chords, turning)
 
 
@@ -523,17 +562,20 @@ def _unit_advice(field, key: str, ratio: float, limit: float, units: tuple[str, 
     return f"it must be in {radians} (REP 103)"
 
 
-def check_units(resampled: Resampled, recording: Recording) -> None:
+def check_units(
+    resampled: Resampled, recording: Recording, nominal: np.ndarray = THETA_NOMINAL
+) -> None:
     """One line if the heading, the IMU's yaw rate or its lateral acceleration is in another
     unit than the manifest declares, in the stream's own terms (its file, column, manifest
     key and lines, and the key to change).
 
     Each is compared with the GNSS track in its clear turns (2 s windows turning more than
-    0.1 rad over more than 10 m): the heading's turn and the yaw rate's integral with the
+    0.1 rad over more than 5 wheel revolutions, 10 m for the paper's car; ``nominal``: the
+    vehicle's theta): the heading's turn and the yaw rate's integral with the
     track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
     speed × the track's yaw rate (an acceleration in g is 1/9.81 of it).
     """
-    turns = _turns(resampled)
+    turns = _turns(resampled, nominal)
     if turns.turning.sum() < TURN_MIN_COUNT:
         return
     c = resampled.columns

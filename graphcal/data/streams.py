@@ -23,6 +23,10 @@ ROS bags) converts its units into the SI quantities of these classes, so that
   lateral acceleration is speed × yaw rate (speed from the wheels, yaw rate from the logged
   heading, else from the wheels with the nominal c_e and t_r).
 * A gap in any stream longer than :func:`gap_threshold` masks the grid samples around it.
+* Wheels turning backwards are motion for a vehicle that reverses (a robot's spins and
+  reversing: ``VehicleProfile.reverses``), else masked as reversing and set to 0.
+* Without a given rate the grid runs at 40 Hz, or just faster than a faster pose stream
+  (:func:`grid_rate`), so that no fix is left out.
 """
 
 from __future__ import annotations
@@ -33,12 +37,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graphcal.data.consistency import runs
-from graphcal.data.track import course
+from graphcal.data.track import COURSE_MIN_REVS, course
 from graphcal.errors import GraphcalError
 from graphcal.model import wheel_lateral_acceleration
 
 #: Rates [Hz] a drive log may be written at.
 RATE_RANGE = (1.0, 1000.0)
+#: The drive log's rate [Hz] when none is given (the paper's), unless the pose stream is
+#: faster (:func:`grid_rate`).
+DEFAULT_RATE = 40.0
+#: A pose stream's intervals shorter than this share of its median are jitter: the grid
+#: of :func:`grid_rate` is at most 1 / this times the stream's median rate.
+POSE_JITTER_SHARE = 0.8
 #: Smallest gap [s] between two samples of a stream that counts as a gap; a slower stream's
 #: threshold is :data:`GAP_INTERVALS` of its own median interval.
 MAX_GAP_S = 0.5
@@ -51,8 +61,13 @@ YAW_RATE_WINDOW_S = 1.0
 #: resolve 0.24 µs; at 40 m/s a microsecond is 40 µm).
 FIX_TIME_TOLERANCE = 1e-6
 #: Most negative wheel rotation [rev] per grid interval accepted before a sample counts as
-#: reversing (masked, its rotation set to 0).
+#: reversing (masked, its rotation set to 0) on a vehicle that does not reverse (a car).
 REVERSING_TOLERANCE = 0.005
+#: What a recording whose wheels turn backwards is told to set when it is a robot's.
+REVERSES_HINT = (
+    "a car's model covers forward driving only; if the vehicle is a robot that spins on the "
+    "spot or reverses, set reverses = true in its vehicle profile (--vehicle)"
+)
 
 
 class StreamError(GraphcalError, ValueError):
@@ -380,6 +395,26 @@ def unique_samples(
     return order[keep]
 
 
+def grid_rate(pose: PoseStream, default: float = DEFAULT_RATE) -> float:
+    """The drive log's rate [Hz] when none is given: ``default``, or for a pose stream faster
+    than that (motion capture, a lidar pose at 50–100 Hz) a grid interval just shorter than
+    the stream's shortest interval, so that no two fixes share a grid interval and none is
+    left out. The rate is rounded up to 4 significant digits (a 50 Hz stream whose stamps
+    are 0.02 s apart within float rounding gets 50.01 Hz); intervals shorter than
+    :data:`POSE_JITTER_SHARE` of the median are jitter and not followed."""
+    step = np.diff(np.asarray(pose.t, dtype=float))
+    if len(step) == 0:
+        return default
+    median = float(np.median(step))
+    if not median > 0 or 1.0 / median <= default:
+        return default
+    shortest = max(float(step.min()), POSE_JITTER_SHARE * median)
+    needed = (1.0 + 1e-6) / shortest
+    decimals = 3 - int(np.floor(np.log10(needed)))
+    rate = float(np.ceil(needed * 10.0**decimals) / 10.0**decimals)
+    return min(rate, RATE_RANGE[1])
+
+
 def gap_threshold(t: np.ndarray, max_gap: float = MAX_GAP_S) -> float:
     """Longest step [s] between samples of a stream that is not a gap."""
     return max(max_gap, GAP_INTERVALS * float(np.median(np.diff(t))))
@@ -513,6 +548,8 @@ def resample(
     max_gap: float = MAX_GAP_S,
     wheel_circumference: float = 2.0,
     track_width: float = 1.55,
+    *,
+    reverses: bool = False,
 ) -> Resampled:
     """Put a recording on the uniform grid of a drive log (see the module docstring).
 
@@ -525,6 +562,9 @@ def resample(
             when no IMU lateral acceleration is logged, and the travel of a derived course.
         track_width: [m] the vehicle's nominal t_r: for the wheels' yaw rate when neither an
             IMU nor a heading is logged.
+        reverses: wheels turning backwards are motion (``VehicleProfile.reverses``: a robot
+            spinning on the spot or reversing), kept as they are; else (a car) samples where a
+            wheel turns backwards are masked as reversing and their rotations set to 0.
 
     Raises:
         StreamError: streams whose times do not overlap (enough).
@@ -559,13 +599,15 @@ def resample(
             "(docs/import.md)"
         )
     n_rl, n_rr = wheel_rotations(recording.wheels, grid)
-    reversing = (n_rl < -REVERSING_TOLERANCE) | (n_rr < -REVERSING_TOLERANCE)
-    n_rl, n_rr = np.maximum(n_rl, 0.0), np.maximum(n_rr, 0.0)
+    reversing = np.zeros(count, dtype=bool)
+    if not reverses:
+        reversing = (n_rl < -REVERSING_TOLERANCE) | (n_rr < -REVERSING_TOLERANCE)
+        n_rl, n_rr = np.maximum(n_rl, 0.0), np.maximum(n_rr, 0.0)
 
     if pose.heading is not None:
         psi = np.interp(grid, pose.t, np.unwrap(pose.heading))
     else:
-        psi = course(px, py, dt) - beta
+        psi = course(px, py, dt, min_distance=COURSE_MIN_REVS * wheel_circumference) - beta
         notes.append(
             "heading not logged: positions only are measured (each segment's start heading is "
             "estimated from its fixes)"
@@ -621,11 +663,11 @@ def resample(
                 f"t = {a - start:.1f}–{b - start:.1f} s: gap of {b - a:.1f} s in the "
                 f"{summary.role} stream ({summary.source})"
             )
-    for a, b in runs(reversing):
+    for i, (a, b) in enumerate(runs(reversing)):
         masked[a : b + 1] = True
         mask_notes.append(
             f"t = {since_start[a]:.1f}–{since_start[b]:.1f} s: wheels turning backwards "
-            "(reversing), rotations set to 0"
+            "(reversing), rotations set to 0" + ("" if i else f" ({REVERSES_HINT})")
         )
     columns = {
         "t": since_start,
