@@ -38,9 +38,63 @@ def test_a_parameter_tied_to_an_unobservable_one_is_named_with_it():
     correlation = np.eye(4)
     correlation[1, 2] = correlation[2, 1] = 0.99
     verdict = assess_observability(correlation * np.outer(sigma, sigma), PRIOR)
-    assert verdict.verdicts()["c_d"] == "calibrated given the prior of t_r"
+    assert verdict.verdicts()["c_d"] == "calibrated given t_r = prior (σ conditional)"
     assert verdict.verdicts()["t_r"] == "not observable"
-    assert "c_d is determined only relative to t_r" in verdict.message()
+    assert "c_d holds only given t_r = prior" in verdict.message()
+
+
+def _covariance(ratio, correlations):
+    """Theta's posterior covariance (SI) with σ = ``ratio`` × prior σ and the given
+    ``{(i, j): ρ}``."""
+    correlation = np.eye(4)
+    for (i, j), rho in correlations.items():
+        correlation[i, j] = correlation[j, i] = rho
+    sigma = PRIOR * np.asarray(ratio, float)
+    return correlation * np.outer(sigma, sigma)
+
+
+def _held_at(covariance, calibrated, prior_mean):
+    from graphcal.graph.observability import condition_on_prior
+
+    return condition_on_prior(THETA_NOMINAL, covariance, calibrated, prior_mean, PRIOR)
+
+
+def test_a_moderate_correlation_with_a_barely_determined_parameter_is_named():
+    """d correlated only 0.6 with t_r, which the data shrank to half its prior σ: were t_r's
+    prior one σ off, d (held at t_r's prior) would move by 1.5 of its conditional σ — so
+    its value and σ hold only given t_r = prior, and the verdict says so."""
+    covariance = _covariance([1e-3, 1e-2, 0.5, 0.05], {(3, 2): 0.6})
+    verdict = assess_observability(covariance, PRIOR)
+    assert verdict.not_calibrated == ["t_r"]
+    assert verdict.verdicts()["d"] == "calibrated given t_r = prior (σ conditional)"
+    assert verdict.verdicts()["c_e"] == "calibrated"
+    # What the verdict claims, measured: move t_r's prior by one σ, d moves by 1.5 σ.
+    calibrated = verdict.calibrated
+    held, conditioned = _held_at(covariance, calibrated, THETA_NOMINAL)
+    moved, _ = _held_at(covariance, calibrated, THETA_NOMINAL + [0, 0, PRIOR[2], 0])
+    shift = abs(moved[3] - held[3]) / np.sqrt(conditioned[3, 3])
+    assert shift == pytest.approx(1.5, rel=1e-9)
+    assert verdict.prior_shifts()[3, 2] == pytest.approx(shift, rel=1e-9)
+
+
+def test_two_unobservable_parameters_are_both_named():
+    covariance = _covariance([1e-3, 0.05, 0.9, 0.9], {(1, 2): 0.6, (1, 3): -0.6})
+    verdict = assess_observability(covariance, PRIOR)
+    assert verdict.verdicts()["c_d"] == "calibrated given t_r, d = prior (σ conditional)"
+
+
+def test_a_4_km_day_names_what_c_d_holds_only_given():
+    """A 4 km city day where neither t_r nor d is observable: c_d, conditioned on them at
+    their prior, is nearly 6 of its σ from its truth. Its verdict says that its value and σ
+    hold only given t_r and d at their prior (the former rule called it calibrated)."""
+    drive = simulate_drive(length_km=4.0, seed=56)
+    run = run_calibration(drive.measured, Settings(), "whole", workers=1)
+    verdicts = run.verdicts()
+    assert verdicts["t_r"] == verdicts["d"] == "not observable"
+    assert verdicts["c_d"] == "calibrated given t_r, d = prior (σ conditional)"
+    error = abs(run.theta[1] - drive.theta_true[1]) / np.sqrt(run.covariance[1, 1])
+    assert error > 3
+    assert verdicts["c_e"] == "calibrated"  # a prior one σ off moves it by < 1 σ
 
 
 def test_a_city_batch_determines_every_parameter(drive):

@@ -2,11 +2,16 @@
 vehicle), ``fleet.parquet`` (if ``pyarrow`` is installed) and ``fleet.png``.
 
 Columns are SI, as in ``batches.csv``: ``c_e``, ``c_d``, ``t_r`` [m], ``d`` [s²] and their
-``sigma_*``; empty where a log failed or a parameter was not calibrated.
+``sigma_*``; empty where a log failed or a parameter was not calibrated. ``fleet.csv`` also
+has a ``verdict_*`` per parameter (after ``not_calibrated``; older files lack them):
+``calibrated``, ``not observable``, or ``calibrated given t_r = prior (σ conditional)`` where
+the value and its ``sigma_*`` hold only given another parameter at its prior
+(:mod:`graphcal.graph.observability`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import os
 from pathlib import Path
@@ -18,6 +23,7 @@ import pandas as pd
 from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.fleet.history import VehicleHistory
 from graphcal.graph.observability import DEFAULT_MAX_SIGMA_RATIO as MAX_SIGMA_RATIO
+from graphcal.graph.observability import assess_observability
 from graphcal.model import PARAMETER_NAMES
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
@@ -25,7 +31,9 @@ from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 def fleet_table(results: list[dict[str, Any]]) -> pd.DataFrame:
     """One row per log: vehicle, day, status, reason, the recommended theta and σ (SI; no σ
     for a parameter the log did not determine, which keeps its prior value), the parameters
-    not calibrated, χ²/dof, trusted, distance, segments, warnings, seconds, path, key."""
+    not calibrated, each parameter's verdict (``verdict_d``: ``calibrated given t_r = prior
+    (σ conditional)`` where d's value and σ hold only for t_r at its prior), χ²/dof,
+    trusted, distance, segments, warnings, seconds, path, key."""
     rows = []
     for r in results:
         row = {k: r.get(k) for k in ("vehicle", "day", "status", "reason")}
@@ -38,11 +46,28 @@ def fleet_table(results: list[dict[str, Any]]) -> pd.DataFrame:
         row["not_calibrated"] = " ".join(
             n for n, ok in zip(PARAMETER_NAMES, calibrated, strict=True) if not ok
         )
+        verdicts = result_verdicts(r)
+        for name in PARAMETER_NAMES:
+            row[f"verdict_{name}"] = None if verdicts is None else verdicts.get(name)
         row |= {k: r.get(k) for k in ("chi2_per_dof", "trusted", "distance_m", "segments")}
         row["warnings"] = len(r.get("warnings") or [])
         row |= {k: r.get(k) for k in ("seconds", "path", "key")}
         rows.append(row)
     return pd.DataFrame(rows)
+
+
+def result_verdicts(result: dict[str, Any]) -> dict[str, str] | None:
+    """A log's verdicts under today's rule (:meth:`Observability.verdicts`), from its
+    posterior covariance, prior σ and calibrated flags — results kept from an earlier run
+    carry their own, older wording; ``None`` for a failed log. A result without those fields
+    gives the verdicts it stored."""
+    covariance, sigmas = result.get("posterior_covariance"), result.get("prior_sigmas")
+    calibrated = result.get("calibrated")
+    if covariance is None or sigmas is None or calibrated is None:
+        return result.get("verdicts")
+    observability = assess_observability(np.asarray(covariance, float), np.asarray(sigmas))
+    flags = np.asarray(calibrated, bool)
+    return dataclasses.replace(observability, calibrated=flags).verdicts()
 
 
 def vehicles_table(histories: list[VehicleHistory]) -> pd.DataFrame:

@@ -10,11 +10,36 @@ data carry at least 99 times the prior's information about it.
 Typical degeneracies (``docs/method.md``):
 
 * straight-only driving: t_r and d are not observable, c_d is known only relative to t_r
-  (the yaw drift shows c_d / t_r) — c_d is then calibrated *given t_r's prior*;
-* too little lateral acceleration: d is not observable.
+  (the yaw drift shows c_d / t_r) — c_d is then calibrated *given t_r = prior*;
+* too little lateral acceleration: d is not observable;
+* a short city day (4 km) where t_r is not observable: d is known only together with t_r.
 
-Pure numpy; the covariance comes from a solve such as
-:func:`graphcal.pipeline.joint.calibrate_joint` or :func:`graphcal.localization.smooth_drive`.
+**Calibrated given X = prior.** The reported theta holds the unobservable parameters U at
+their prior mean μ_U and moves the calibrated ones C by Gaussian conditioning
+(:func:`condition_on_prior`): ``θ_C|U = θ̂_C + G (μ_U − θ̂_U)``, ``G = Σ_CU Σ_UU⁻¹``, with
+the conditional covariance ``Σ_C|U = Σ_CC − G Σ_UC``. That value and σ are right only if
+the true θ_U is μ_U. Were u_j's true value one prior σ (``σp_j``) away from μ_j, θ_i would
+be off by ``|G_ij| σp_j`` (to first order), an error its σ_i|U does not contain. So
+
+    q_ij = |G_ij| σp_j / σ_i|U
+
+is the shift of i, in its own (conditional) σ, that a prior one σ off in j causes; for a
+single unobservable j, ``G_ij = Σ_ij / Σ_jj`` and ``σ_i|j = σ_i √(1 − ρ_ij²)``, i.e.
+``q_ij = |ρ_ij| / (r_j √(1 − ρ_ij²))`` with ``r_j = σ_j / σp_j``. A calibrated i with
+``q_ij > HOLDS_GIVEN_SHIFT`` (1) for some unobservable j is **calibrated given j = prior**:
+its value and σ are conditional on j's prior. Under an honest prior (the true u_j about
+σp_j from μ_j) a parameter left "calibrated" errs by about ``√(1 + Σ_j q_ij²)`` of its σ
+(at most √2 for one unobservable j).
+
+The threshold 1 was chosen with a measurement (``docs/fleet.md``, "Values that hold only
+given a prior"): on the 32 of 300 simulated 4 km city days (seeds 0–299) where t_r, or t_r
+and d, were not observable, re-solving with j's prior mean moved by one σp_j moved each
+conditioned θ_i by q_ij of its σ (measured / predicted 0.84–1.03, median 1.00, 99 pairs), so
+q > 1 says what it means. With an unobservable prior so moved (either way), every parameter
+a threshold of 1 leaves "calibrated" stayed within 3 of its σ of the truth (35 of them, rms
+1.15 σ, largest 2.8 σ); a threshold of 1.5 left one beyond 3 σ, 3 left four (up to 5.3 σ).
+The former rule (|correlation| > 0.9) marked only d (q 37–70) and called c_d "calibrated"
+on days where it was 5.2–6.5 σ from its truth (q 8.7–26).
 """
 
 from __future__ import annotations
@@ -27,7 +52,11 @@ import numpy as np
 from graphcal.model import PARAMETER_NAMES
 
 DEFAULT_MAX_SIGMA_RATIO = 0.1
-TIE_CORRELATION = 0.9
+#: A calibrated parameter holds only given an unobservable one's prior when a prior one σ
+#: off would move it by more than this many of its (conditional) σ (module docstring).
+HOLDS_GIVEN_SHIFT = 1.0
+#: The note a verdict carries when its value and σ hold only given other parameters' prior.
+CONDITIONAL_NOTE = "(σ conditional)"
 
 
 @dataclass(frozen=True)
@@ -69,31 +98,53 @@ class Observability:
         """Names of the parameters the data did not determine."""
         return [n for n, ok in zip(PARAMETER_NAMES, self.calibrated, strict=True) if not ok]
 
+    def prior_shifts(self) -> np.ndarray:
+        """``(4, 4)`` q_ij: how far the reported (conditioned) θ_i moves, in its conditional
+        σ, were unobservable j's prior mean one prior σ off (module docstring); 0 where i is
+        not calibrated or j is. Computed in prior-σ units from ``correlation`` and
+        ``sigma_ratio`` (``Σ/σpσpᵀ = diag(r) ρ diag(r)``), so no units enter."""
+        shifts = np.zeros((len(PARAMETER_NAMES), len(PARAMETER_NAMES)))
+        c = np.flatnonzero(self.calibrated)
+        u = np.flatnonzero(~np.asarray(self.calibrated, bool))
+        if len(c) == 0 or len(u) == 0:
+            return shifts
+        ratio = np.asarray(self.sigma_ratio, float)
+        scaled = np.asarray(self.correlation, float) * np.outer(ratio, ratio)
+        gain = np.linalg.solve(scaled[np.ix_(u, u)], scaled[np.ix_(u, c)]).T  # G, prior-σ units
+        conditional = scaled[np.ix_(c, c)] - gain @ scaled[np.ix_(u, c)]
+        sigma = np.sqrt(np.maximum(np.diag(conditional), np.finfo(float).tiny))
+        shifts[np.ix_(c, u)] = np.abs(gain) / sigma[:, None]
+        return np.nan_to_num(shifts, nan=np.inf)
+
     def ties(self) -> list[tuple[str, str, float]]:
-        """``(calibrated, unobservable, correlation)`` pairs: a calibrated parameter whose
-        value is fixed only relative to one the data did not determine (|correlation| above
-        0.9), e.g. c_d given t_r's prior on a straight drive."""
-        out = []
-        for i, ok in enumerate(self.calibrated):
-            for j, other_ok in enumerate(self.calibrated):
-                if ok and not other_ok and abs(self.correlation[i, j]) > TIE_CORRELATION:
-                    out.append(
-                        (PARAMETER_NAMES[i], PARAMETER_NAMES[j], float(self.correlation[i, j]))
-                    )
+        """``(calibrated, unobservable, q)``: a calibrated parameter that holds only given
+        the unobservable one's prior — a prior one σ off would move it by q > 1 of its
+        conditional σ (:meth:`prior_shifts`) — e.g. d given t_r on a 4 km day."""
+        shifts = self.prior_shifts()
+        return [
+            (PARAMETER_NAMES[i], PARAMETER_NAMES[j], float(shifts[i, j]))
+            for i, j in zip(*np.nonzero(shifts > HOLDS_GIVEN_SHIFT), strict=True)
+        ]
+
+    def given(self) -> dict[str, list[str]]:
+        """Per calibrated parameter that holds only given others' prior: those others."""
+        out: dict[str, list[str]] = {}
+        for name, other, _ in self.ties():
+            out.setdefault(name, []).append(other)
         return out
 
     def verdicts(self) -> dict[str, str]:
-        """Per parameter: ``"calibrated"``, ``"calibrated given the prior of X"`` or
-        ``"not observable"``."""
-        given: dict[str, list[str]] = {}
-        for name, other, _ in self.ties():
-            given.setdefault(name, []).append(other)
+        """Per parameter: ``"calibrated"``, ``"not observable"`` or, for one whose value and
+        σ hold only given unobservable parameters at their prior,
+        ``"calibrated given t_r = prior (σ conditional)"`` (``"given t_r, d = prior"`` for
+        two)."""
+        given = self.given()
         out = {}
         for name, ok in zip(PARAMETER_NAMES, self.calibrated, strict=True):
             if not ok:
                 out[name] = "not observable"
             elif name in given:
-                out[name] = f"calibrated given the prior of {' and '.join(given[name])}"
+                out[name] = f"calibrated given {', '.join(given[name])} = prior {CONDITIONAL_NOTE}"
             else:
                 out[name] = "calibrated"
         return out
@@ -109,10 +160,13 @@ class Observability:
             f"{self.sigma_ratio[PARAMETER_NAMES.index(name)]:.0%})"
             for name in self.not_calibrated
         ]
+        shifts: dict[str, list[str]] = {}
+        for a, b, q in self.ties():
+            shifts.setdefault(a, []).append(f"{b}'s by {q:.1f}")
         parts += [
-            f"{a} is determined only relative to {b} (correlation {r:+.2f}), so it holds for "
-            f"{b}'s prior value"
-            for a, b, r in self.ties()
+            f"{a} holds only given {', '.join(self.given()[a])} = prior (a prior one σ off "
+            f"would move {a}: {', '.join(moves)} of its σ)"
+            for a, moves in shifts.items()
         ]
         return "; ".join(parts)
 
