@@ -23,7 +23,7 @@ from graphcal.arguments import in_range as _in_range
 from graphcal.arguments import non_negative as _non_negative
 from graphcal.arguments import whole as _whole
 from graphcal.data.consistency import runs
-from graphcal.errors import GraphcalError
+from graphcal.errors import GraphcalError, first_line
 from graphcal.pipeline.joint import without_defect_model
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
@@ -76,6 +76,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             )
     if args.vehicle is not None:
         return _simulate_robot(args, theta_true)
+    if args.reversing:
+        raise GraphcalError("--reversing drives a robot: give its profile with --vehicle")
     if theta_true is None:
         theta_true = THETA_TRUE_DEFAULT
     if args.position_noise is None:
@@ -136,7 +138,7 @@ def _simulate_robot(args: argparse.Namespace, theta_true: np.ndarray | None) -> 
     """``simulate --vehicle ROBOT``: a robot's runs and spins as motion-capture poses and
     encoder counts (``--streams DIR``, optionally ``--bag``) or a drive-log CSV (``--out``)."""
     from graphcal.pipeline.settings import load_vehicle
-    from graphcal.simulate.robot import ROBOT_THETA_TRUE, RobotSettings, simulate_robot
+    from graphcal.simulate.robot import RobotSettings, simulate_robot, theta_true_for
 
     vehicle = load_vehicle(args.vehicle)
     if not vehicle.reverses:
@@ -156,7 +158,7 @@ def _simulate_robot(args: argparse.Namespace, theta_true: np.ndarray | None) -> 
         )
     if (args.out is None) == (args.streams is None):
         raise GraphcalError("simulate --vehicle needs one of --out FILE.csv or --streams DIR")
-    overrides = {}
+    overrides: dict[str, object] = {"reversing": args.reversing}
     if args.position_noise is not None:
         overrides["position_noise"] = args.position_noise
     if args.heading_noise_deg is not None:
@@ -165,7 +167,7 @@ def _simulate_robot(args: argparse.Namespace, theta_true: np.ndarray | None) -> 
         robot = RobotSettings.from_vehicle(vehicle, **overrides)
     except ValueError as exc:
         raise GraphcalError(f"--vehicle {args.vehicle}: {exc}") from None
-    theta = ROBOT_THETA_TRUE if theta_true is None else theta_true
+    theta = theta_true_for(vehicle) if theta_true is None else theta_true
     say = _timed_progress()
     sim = simulate_robot(args.seed, args.runs, robot, theta)
     say(
@@ -300,9 +302,13 @@ def _load(args: argparse.Namespace, settings: Settings, min_distance: float = 0.
             bag=_bag_options(args),
             nominal=nominal,
             min_distance=min_distance,
+            reverses=settings.vehicle.reverses,
         )
         return imported.log, imported
-    return load_drive_log(args.log, min_distance=min_distance, nominal=nominal), None
+    log = load_drive_log(
+        args.log, min_distance=min_distance, nominal=nominal, reverses=settings.vehicle.reverses
+    )
+    return log, None
 
 
 def _distance_line(log, settings: Settings) -> str:
@@ -357,6 +363,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         max_gap=args.max_gap,
         bag=_bag_options(args),
         nominal=settings.vehicle.theta_nominal,
+        reverses=settings.vehicle.reverses,
     )
     say(f"imported {args.source}")
     log = imported.log
@@ -564,7 +571,7 @@ def _evaluate_synthetic(
             say(f"no Cramér–Rao bound: the noise-free drive {path} is missing")
     else:
         try:
-            truth_log = load_drive_log(path)
+            truth_log = load_drive_log(path, reverses=run.settings.vehicle.reverses)
         except GraphcalError as exc:
             say(f"no Cramér–Rao bound: cannot use {path}: {exc}")
     if truth_log is not None and len(truth_log) != len(run.log):
@@ -665,6 +672,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--runs", type=_whole(1), default=10, help="with a robot --vehicle: runs to drive (10)"
     )
     p.add_argument(
+        "--reversing",
+        action="store_true",
+        help="with a robot --vehicle: reverse straight back a few metres after every second run",
+    )
+    p.add_argument(
         "--streams",
         type=Path,
         default=None,
@@ -697,7 +709,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar=("C_E", "C_D", "T_R", "D"),
         default=None,
         help=f"true theta in {', '.join(DISPLAY_UNITS)} (1.985 1.2 1.585 1.5; with a robot "
-        "--vehicle 0.2639 0.1 0.205 0)",
+        "--vehicle near its nominal: 0.2639 0.1 0.205 0 for data/vehicles/mocap_robot.toml)",
     )
     p.add_argument(
         "--position-noise",
@@ -982,8 +994,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except GraphcalError as exc:
         print(f"graphcal: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        print("graphcal: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:  # a note, if any, says what was kept and how to go on
+        note = first_line(str(exc))
+        print(f"graphcal: interrupted{f'; {note}' if note else ''}", file=sys.stderr)
         return 130
     except BrokenPipeError:  # e.g. `graphcal check LOG | head`: the reader left, not an error
         devnull = os.open(os.devnull, os.O_WRONLY)

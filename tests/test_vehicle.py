@@ -121,7 +121,7 @@ def test_the_vehicle_section_gives_defaults_and_explicit_keys_win(robot):
     assert settings.vehicle.name == "delivery robot"
     for section in (settings.calibration, settings.joint):
         np.testing.assert_array_equal(section.theta_initial, robot.theta_nominal)
-        np.testing.assert_array_equal(section.theta_prior_sigmas, robot.theta_prior_sigmas)
+        np.testing.assert_array_equal(section.theta_prior_sigmas, robot.solve_prior_sigmas())
     assert settings.calibration.position_sigma == 0.05
     assert settings.calibration.pose_weights == (1.0, 1.0, 50.0)  # explicit
     assert settings.joint.pose_weights == robot.pose_weights()

@@ -385,6 +385,11 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
 WHEEL_SCALE_RANGE = (0.8, 1.25)
 MIN_SCALE_REVS = 25.0
 SCALE_WINDOW_REVS = 2.5
+#: Where too few windows are long enough (a vehicle far smaller than the nominal one), the
+#: whole log's wheel distance over its track [m, at least this long] must lie in this range:
+#: wide, since stops and turns on the spot are in it too.
+COARSE_SCALE_RANGE = (0.5, 2.0)
+COARSE_SCALE_MIN_TRACK = 10.0
 #: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°).
 HEADING_OFFSET_WARNING = np.radians(3.0)
 HEADING_OFFSET_ERROR = np.radians(15.0)
@@ -411,10 +416,12 @@ def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nomina
     clean = np.add.reduceat((~usable).astype(int), ends)[: len(rolled)] == 0
     least = SCALE_WINDOW_REVS * nominal[0]
     moving = clean & (rolled > least) & (chords > least)
-    if chords[moving].sum() < MIN_SCALE_REVS * nominal[0]:
-        return
-    ratio = rolled[moving].sum() / chords[moving].sum()
     low, high = WHEEL_SCALE_RANGE
+    if chords[moving].sum() < MIN_SCALE_REVS * nominal[0]:
+        if chords[clean].sum() < COARSE_SCALE_MIN_TRACK:
+            return
+        moving, (low, high) = clean, COARSE_SCALE_RANGE
+    ratio = rolled[moving].sum() / chords[moving].sum()
     if not low <= ratio <= high:
         wheels = provenance_of(recording.wheels)
         raise StreamError(
@@ -462,7 +469,8 @@ def _heading_offset(c: dict, usable: np.ndarray, dt: float, nominal) -> float | 
     None."""
     track = _course(c, dt, nominal)
     speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
-    moving = usable & (speed > HEADING_CHECK_REVS_PER_S * nominal[0])
+    forwards = (c["n_rl"] > 0) & (c["n_rr"] > 0)  # not a spin on the spot
+    moving = usable & forwards & (speed > HEADING_CHECK_REVS_PER_S * nominal[0])
     if moving.sum() < 10.0 / dt:
         return None
     difference = np.angle(np.exp(1j * (c["psi"] + c["beta"] - track)))[moving]

@@ -127,10 +127,14 @@ def _calibrate(log: FleetLog, settings: Settings) -> dict[str, Any]:
     nominal = settings.vehicle.theta_nominal
     length = settings.segments.length
     if is_recording(log.path):
-        imported = import_recording(log.path, nominal=nominal, min_distance=length)
+        imported = import_recording(
+            log.path, nominal=nominal, min_distance=length, reverses=settings.vehicle.reverses
+        )
         drive = imported.log
     else:
-        drive = load_drive_log(log.path, min_distance=length, nominal=nominal)
+        drive = load_drive_log(
+            log.path, min_distance=length, nominal=nominal, reverses=settings.vehicle.reverses
+        )
     run = run_calibration(drive, settings, FLEET_METHOD, workers=1)
     if run.whole is None or run.covariance is None or not np.all(np.isfinite(run.covariance)):
         raise GraphcalError("the solve gave no covariance")

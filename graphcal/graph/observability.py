@@ -57,6 +57,8 @@ DEFAULT_MAX_SIGMA_RATIO = 0.1
 HOLDS_GIVEN_SHIFT = 1.0
 #: The note a verdict carries when its value and σ hold only given other parameters' prior.
 CONDITIONAL_NOTE = "(σ conditional)"
+#: The verdict of a parameter the vehicle profile holds at its nominal value.
+HELD_VERDICT = "fixed at nominal (vehicle profile)"
 
 
 @dataclass(frozen=True)
@@ -72,6 +74,8 @@ class Observability:
         max_sigma_ratio: the threshold used.
         reasons: why a parameter is not calibrated where the σ alone does not say (a
             parameter whose apparent information the drive cannot give), by name.
+        held: ``(4,)`` True where the vehicle profile holds the parameter at its nominal
+            (``fix_d``): neither calibrated nor a degeneracy of the drive.
     """
 
     calibrated: np.ndarray
@@ -80,6 +84,7 @@ class Observability:
     weak_directions: np.ndarray
     max_sigma_ratio: float
     reasons: dict[str, str] = field(default_factory=dict)
+    held: np.ndarray = field(default_factory=lambda: np.zeros(len(PARAMETER_NAMES), bool))
 
     def without(self, name: str, reason: str) -> Observability:
         """These verdicts with ``name`` not calibrated, for ``reason``."""
@@ -90,13 +95,17 @@ class Observability:
 
     @property
     def degenerate(self) -> bool:
-        """True if some parameter is not determined by the data."""
-        return not bool(self.calibrated.all())
+        """True if some parameter that is not held is not determined by the data."""
+        return not bool((self.calibrated | self.held).all())
 
     @property
     def not_calibrated(self) -> list[str]:
-        """Names of the parameters the data did not determine."""
-        return [n for n, ok in zip(PARAMETER_NAMES, self.calibrated, strict=True) if not ok]
+        """Names of the parameters the data did not determine (held ones aside)."""
+        return [
+            n
+            for n, ok, held in zip(PARAMETER_NAMES, self.calibrated, self.held, strict=True)
+            if not (ok or held)
+        ]
 
     def prior_shifts(self) -> np.ndarray:
         """``(4, 4)`` q_ij: how far the reported (conditioned) θ_i moves, in its conditional
@@ -134,14 +143,17 @@ class Observability:
         return out
 
     def verdicts(self) -> dict[str, str]:
-        """Per parameter: ``"calibrated"``, ``"not observable"`` or, for one whose value and
+        """Per parameter: ``"calibrated"``, ``"not observable"``, :data:`HELD_VERDICT` or, for
+        one whose value and
         σ hold only given unobservable parameters at their prior,
         ``"calibrated given t_r = prior (σ conditional)"`` (``"given t_r, d = prior"`` for
         two)."""
         given = self.given()
         out = {}
-        for name, ok in zip(PARAMETER_NAMES, self.calibrated, strict=True):
-            if not ok:
+        for name, ok, held in zip(PARAMETER_NAMES, self.calibrated, self.held, strict=True):
+            if held:
+                out[name] = HELD_VERDICT
+            elif not ok:
                 out[name] = "not observable"
             elif name in given:
                 out[name] = f"calibrated given {', '.join(given[name])} = prior {CONDITIONAL_NOTE}"
@@ -175,6 +187,7 @@ def assess_observability(
     covariance: np.ndarray,
     prior_sigmas: np.ndarray,
     max_sigma_ratio: float = DEFAULT_MAX_SIGMA_RATIO,
+    held: np.ndarray | None = None,
 ) -> Observability:
     """Judge which parameters the data determined from theta's posterior ``covariance``.
 
@@ -184,6 +197,8 @@ def assess_observability(
         prior_sigmas: ``(4,)`` prior standard deviations (SI).
         max_sigma_ratio: a parameter counts as calibrated when posterior sigma / prior sigma
             is at most this.
+        held: ``(4,)`` True where a tight prior holds the parameter at its nominal (the
+            vehicle's ``fix_d``); such a parameter is never judged calibrated.
     """
     covariance = np.asarray(covariance, float)
     prior_sigmas = np.asarray(prior_sigmas, float)
@@ -195,7 +210,9 @@ def assess_observability(
     scaled = covariance / np.outer(prior_sigmas, prior_sigmas)
     eigenvalues, eigenvectors = np.linalg.eigh(scaled)
     weak = eigenvectors[:, np.sqrt(np.maximum(eigenvalues, 0.0)) > max_sigma_ratio].T
-    return Observability(ratio <= max_sigma_ratio, ratio, correlation, weak, max_sigma_ratio)
+    held = np.zeros(len(prior_sigmas), bool) if held is None else np.asarray(held, bool)
+    calibrated = (ratio <= max_sigma_ratio) & ~held
+    return Observability(calibrated, ratio, correlation, weak, max_sigma_ratio, held=held)
 
 
 def condition_on_prior(

@@ -108,6 +108,8 @@ class JointSettings:
         heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
             white noise measured in the log (:mod:`graphcal.data.noise`) instead of the
             vehicle's ``heading_sigma``.
+        fix_d: d is held at its ``theta_initial`` (the vehicle's ``fix_d``; its prior sigma in
+            ``theta_prior_sigmas`` is then the vehicle's tight one): reported as fixed.
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
@@ -131,6 +133,11 @@ class JointSettings:
     heading_bias_sigma: float = 0.02
     robust_threshold: float = 5.0
     heading_noise_from_log: bool = True
+    fix_d: bool = False
+
+    def held(self) -> np.ndarray:
+        """``(4,)`` the parameters a tight prior holds at ``theta_initial`` (``fix_d``)."""
+        return np.array([False, False, False, self.fix_d])
 
     def __post_init__(self) -> None:
         if self.slip not in SLIP_MODES:
@@ -294,7 +301,7 @@ def solve_joint(
         solved = _released(with_covariance(solved, label, workers))
         solved, statistic = _with_slip_if_shown(solved, data, weights, settings, workers, progress)
     observability = assess_observability(
-        solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
+        solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio, settings.held()
     )
     calibration = JointCalibration(
         solved.theta,

@@ -156,6 +156,6 @@ def _estimate(
     except CalibrationFailed:
         return None
     observability = assess_observability(
-        covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio
+        covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio, settings.held()
     )
     return BatchEstimate(theta, covariance, observability)

@@ -84,6 +84,7 @@ Every section and key, with the defaults::
     heading_bias_sigma = 0.02   # rad, prior of a per-segment heading bias; 0 = off
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
     heading_noise_from_log = true  # heading weight from the log's own heading noise
+    fix_d = false               # (v) d held at theta_initial (the vehicle's fix_d)
 
     [lever_arm]                 # GNSS antenna ahead of / left of the centre of gravity
     longitudinal = 0.0          # m, when known; the positions are moved by it (the
@@ -409,6 +410,7 @@ _FROM_VEHICLE_JOINT = {
     **_FROM_VEHICLE,
     "wheel_noise": lambda v: v.white_wheel_noise(),
     "tick_quantization": lambda v: v.tick_quantization(),
+    "fix_d": lambda v: v.fix_d,
 }
 #: The paper's car's segment lengths [m] (§5.1); a vehicle's scale with its size
 #: (:meth:`~graphcal.vehicle.VehicleProfile.size_scale`: its track over the car's).

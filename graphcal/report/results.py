@@ -88,6 +88,9 @@ def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None)
             entry["status"] = verdict
             entry["sigma"] = sigma
             entry["ci95"] = [entry["value"] - Z95 * sigma, entry["value"] + Z95 * sigma]
+        elif run.observability.held[i]:
+            entry["status"] = f"{verdict}: not estimated; the value is the nominal"
+            entry["sigma"] = None
         else:
             entry["status"] = (
                 "not calibrated: not observable from this drive; the value is the prior"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from graphcal.graph.observability import HELD_VERDICT
 from graphcal.model import PARAMETER_NAMES
 from graphcal.units import DEVIATION_SCALE, DISPLAY_SCALE, DISPLAY_UNITS, to_display
 
@@ -155,6 +156,8 @@ def interval_table(
             ]
         elif estimate:
             row += ["-", "none: not trusted"]
+        elif verdicts[name] == HELD_VERDICT:
+            row += ["-", "nominal value, held"]
         else:
             row += ["-", "prior value, not calibrated"]
         if crb is not None:

@@ -36,6 +36,23 @@ from graphcal.vehicle import VehicleProfile
 #: Default true parameters [c_e m, c_d m, t_r m, d s²]: an 84 mm wheel (nominal 85 mm,
 #: 0.267 m) on a 0.205 m track (nominal 0.200 m); a differential drive has no load transfer.
 ROBOT_THETA_TRUE = np.array([0.2639, 0.1e-3, 0.205, 0.0])
+#: The datasheet theta of data/vehicles/mocap_robot.toml that ROBOT_THETA_TRUE departs from.
+ROBOT_THETA_NOMINAL = np.array([0.2670, 0.0, 0.200, 0.0])
+
+
+def theta_true_for(vehicle: VehicleProfile) -> np.ndarray:
+    """A true theta for simulating ``vehicle`` [m, m, m, s²]: :data:`ROBOT_THETA_TRUE` for the
+    motion-capture robot's datasheet; for another profile the same departures from its
+    nominal (c_e 1.2 % smaller, c_d 0.04 % of c_e, t_r 2.5 % wider, d its nominal)."""
+    nominal = np.asarray(vehicle.theta_nominal, float)
+    if np.array_equal(nominal, ROBOT_THETA_NOMINAL):
+        return ROBOT_THETA_TRUE.copy()
+    c_e = nominal[0] * ROBOT_THETA_TRUE[0] / ROBOT_THETA_NOMINAL[0]
+    c_d = nominal[1] + c_e * ROBOT_THETA_TRUE[1] / ROBOT_THETA_TRUE[0]
+    t_r = nominal[2] * ROBOT_THETA_TRUE[2] / ROBOT_THETA_NOMINAL[2]
+    return np.array([c_e, c_d, t_r, nominal[3]])
+
+
 #: Fine grid [s] of the noise-free simulation the streams sample (500 Hz).
 FINE_DT = 0.002
 #: Arc-length step [m] of a run's path before it is timed.
