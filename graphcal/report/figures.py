@@ -232,6 +232,7 @@ def box_plots(
     recommended_label: str = _THETA_NAMES["calibrated"],
     recommended_style: dict | None = None,
     notes: Sequence[str] = (),
+    held: tuple[str, ...] = (),
 ) -> Figure:
     """Box plots of each parameter per step or method (paper Fig. 5).
 
@@ -242,6 +243,8 @@ def box_plots(
         theta_true, recommended: drawn as horizontal lines when given.
         not_observable: parameters the data did not determine: no recommended line, and the
             panel says so.
+        held: parameters the vehicle profile holds at their nominal (``fix_d``): the panel
+            says so.
         recommended_label, recommended_style: legend entry and line style of
             ``recommended`` (e.g. :data:`NOT_TRUSTED_THETA`, dashed, for a run that is not
             trusted).
@@ -271,7 +274,8 @@ def box_plots(
             style = recommended_style or _RECOMMENDED_LINE
             ax.axhline(recommended[i] * DISPLAY_SCALE[i], **style, label=recommended_label)
         # "not observable" on a line of its own: beside the name it overflows the panel
-        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + ("\nnot observable" if hidden else ""))
+        status = "\nnot observable" if hidden else "\nheld at nominal" if name in held else ""
+        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + status)
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(axis="y", alpha=0.3)
     fig.suptitle(title)
@@ -297,6 +301,13 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         recommended_label=_calibrated_name(run),
         recommended_style=_calibrated_line(run),
         notes=[line for step in estimates if (line := _left_out(run, step))],
+        held=tuple(
+            name
+            for name, fixed in zip(PARAMETER_NAMES, run.observability.held, strict=True)
+            if fixed
+        )
+        if run.observability is not None
+        else (),
     )
 
 
