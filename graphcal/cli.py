@@ -180,7 +180,7 @@ def _simulate_robot(args: argparse.Namespace, theta_true: np.ndarray | None) -> 
 
             written = write_synthetic_drive(sim.drive, args.out)
         else:
-            written = _write_streams(sim, Path(args.streams), args.bag, "/mocap/pose")
+            written = _write_streams(sim, Path(args.streams), args.bag, mocap=True)
     except OSError as exc:
         raise GraphcalError(f"cannot write {exc.filename or args.out}: {exc.strerror}") from exc
     for path in written:
@@ -411,8 +411,9 @@ def _simulate_streams(
     return 0
 
 
-def _write_streams(sim, directory: Path, bag: str | None, pose_topic: str | None = None):
-    """Write ``sim``'s streams and manifest into ``directory`` and, with ``bag``, a bag."""
+def _write_streams(sim, directory: Path, bag: str | None, mocap: bool = False):
+    """Write ``sim``'s streams and manifest into ``directory`` and, with ``bag``, a bag (the
+    pose as a motion-capture ``PoseStamped`` on ``/mocap/pose`` when ``mocap``)."""
     from graphcal.simulate.streams import write_streams
 
     if bag is not None:
@@ -427,8 +428,8 @@ def _write_streams(sim, directory: Path, bag: str | None, pose_topic: str | None
         from graphcal.simulate.bags import write_bag
 
         suffix = {"ros1": "drive.bag", "ros2": "drive_ros2", "mcap": "drive_mcap"}[bag]
-        topic = {} if pose_topic is None else {"pose_topic": pose_topic}
-        written.append(write_bag(sim.recording, directory / suffix, bag, **topic))
+        pose = {"pose_topic": "/mocap/pose", "pose_message": "posestamped"} if mocap else {}
+        written.append(write_bag(sim.recording, directory / suffix, bag, **pose))
     return written
 
 

@@ -38,7 +38,7 @@ def write_bag(
     imu_topic: str = "/imu/data",
     rear_left: str = "rear_left_wheel_joint",
     rear_right: str = "rear_right_wheel_joint",
-    pose_message: Literal["navsatfix", "odometry"] | None = None,
+    pose_message: Literal["navsatfix", "odometry", "posestamped"] | None = None,
 ) -> Path:
     """Write ``recording`` as a bag at ``path``, atomically (temporary path, then rename).
 
@@ -53,7 +53,9 @@ def write_bag(
         pose_message: ``"navsatfix"`` (latitude/longitude; needs the pose's ``origin``; the
             heading goes into the Imu orientation, as an INS publishes it) or ``"odometry"``
             (local x, y, the heading as orientation and the sideslip as the direction of the
-            body-frame twist); default NavSatFix when the pose has an origin.
+            body-frame twist) or ``"posestamped"`` (local x, y and the heading, as a
+            motion-capture system publishes them); default NavSatFix when the pose has an
+            origin.
 
     Returns:
         ``path``.
@@ -78,8 +80,10 @@ def write_bag(
                 f"{recording.source}: {role} times start at {float(np.min(stream.t)):.3f} s; "
                 "bags need times >= 0 s, shift the recording's clock"
             )
-    if pose_message not in (None, "navsatfix", "odometry"):
-        raise StreamError(f"pose_message {pose_message!r} is unknown; use navsatfix or odometry")
+    if pose_message not in (None, "navsatfix", "odometry", "posestamped"):
+        raise StreamError(
+            f"pose_message {pose_message!r} is unknown; use navsatfix, odometry or posestamped"
+        )
     as_fix = (
         recording.pose.origin is not None if pose_message is None else pose_message == "navsatfix"
     )
@@ -90,7 +94,7 @@ def write_bag(
     typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     messages = _Messages(typestore, ros1)
     topics = [
-        (pose_topic, *messages.pose(recording, as_fix)),
+        (pose_topic, *messages.pose(recording, as_fix, pose_message == "posestamped")),
         (wheel_topic, *messages.wheels(recording, rear_left, rear_right)),
     ]
     if recording.imu is not None:
@@ -154,8 +158,9 @@ class _Messages:
             x=0.0, y=0.0, z=float(np.sin(0.5 * yaw)), w=float(np.cos(0.5 * yaw))
         )
 
-    def pose(self, recording: Recording, as_fix: bool) -> _Topic:
-        """NavSatFix (geodetic origin) or Odometry messages of the pose stream."""
+    def pose(self, recording: Recording, as_fix: bool, stamped: bool = False) -> _Topic:
+        """NavSatFix (geodetic origin), PoseStamped (``stamped``) or Odometry messages of the
+        pose stream."""
         pose = recording.pose
         ns, sec, nanosec = _stamps(pose.t)
         t = self.types
@@ -176,6 +181,20 @@ class _Messages:
 
             return "sensor_msgs/msg/NavSatFix", ns, navsatfix
         heading = pose.heading if pose.heading is not None else np.zeros(len(ns))
+        if stamped:
+
+            def pose_stamped(k: int) -> Any:
+                position = t["geometry_msgs/msg/Point"](
+                    x=float(pose.x[k]), y=float(pose.y[k]), z=0.0
+                )
+                return t["geometry_msgs/msg/PoseStamped"](
+                    header=self._header(sec[k], nanosec[k], "mocap", k),
+                    pose=t["geometry_msgs/msg/Pose"](
+                        position=position, orientation=self._quaternion(heading[k])
+                    ),
+                )
+
+            return "geometry_msgs/msg/PoseStamped", ns, pose_stamped
         zero = self._vector(0.0, 0.0, 0.0)
         # Body-frame velocity: speed from the positions over about 1 s, direction the sideslip.
         half = max(1, round(0.5 / float(np.median(np.diff(pose.t)))))
