@@ -179,7 +179,10 @@ def test_settings_file_overrides_defaults_and_rejects_unknown_keys(tmp_path):
         ({"joint": {"lenght": 1}}, "unknown key(s) ['lenght'] in [joint]; known: ['theta_initial'"),
         ({"staged": {"step2": {"q": 1}}}, "unknown key(s) ['q'] in [staged.step2]; known:"),
         ({"calibraton": {}}, "unknown section(s) ['calibraton']; known: ['segments', 'batches'"),
-        ({"segments": {"length": 5.0}}, "segments.length 5 m is shorter than 5 tracks of the vehicle (7.75 m"),
+        (
+            {"segments": {"length": 5.0}},
+            "segments.length 5 m is shorter than 5 tracks of the vehicle (7.75 m",
+        ),
         ({"staged": {"estimations": 0}}, "[staged] heading_correction_step and estimations"),
         (
             {"staged": {"step2": {"input_bound": -1.0}}},
@@ -236,7 +239,10 @@ def test_solver_modules_do_not_import_the_settings():
         ("[staged]\nestimations = 2.5\n", "[staged] estimations must be a whole number"),
         ('[staged]\nestimate_start_poses = "no"\n', "must be true or false"),
         ("[joint]\npose_weights = [1, 0, 50]\n", "joint.pose_weights must be positive"),
-        ("[segments]\nlength = 5\n", "segments.length 5 m is shorter than 5 tracks of the vehicle (7.75 m"),
+        (
+            "[segments]\nlength = 5\n",
+            "segments.length 5 m is shorter than 5 tracks of the vehicle (7.75 m",
+        ),
         ("[joint]\ntime_offset_mean = nan\n", "joint.time_offset_mean must be a number"),
         ("[input_estimation]\nestimations = 5\n", "[input_estimation] is now [staged]"),
     ],
