@@ -570,6 +570,31 @@ def _unit_advice(field, key: str, ratio: float, limit: float, units: tuple[str, 
     return f"it must be in {radians} (REP 103)"
 
 
+#: Manifest key and its units, per quantity whose turns are compared with the track's.
+_ANGLE_UNIT_KEYS = {
+    "heading": ("heading_unit", ("rad", "deg")),
+    "yaw_rate": ("yaw_rate_unit", ("rad/s", "deg/s")),
+}
+
+
+def _check_angle_scale(angle, quantity: str, stream, times, turns, usable, grid) -> None:
+    """One line if ``angle`` [rad as declared: the heading, or the yaw rate's integral] turns
+    far more or less than the GNSS track in its clear turns (a unit mistake)."""
+    found = turns.scale(_turn_directions(angle, usable, turns.window))
+    if found is None or 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
+        return
+    ratio, k = found
+    where = provenance_of(stream)
+    key, units = _ANGLE_UNIT_KEYS[quantity]
+    advice = _unit_advice(where.fields.get(quantity), key, ratio, ANGLE_SCALE_LIMIT, units)
+    raise StreamError(
+        f"{where.at((quantity,))}: the {quantity.replace('_', ' ')} turns {ratio:.3g}x as much "
+        f"as the GNSS track in its turns (e.g. {_span(where, times, grid, turns, k)}: "
+        f"{_turn_of(angle, turns, k):.3g} rad as declared where the track turns "
+        f"{turns.track[k]:.3g} rad); {advice}"
+    )
+
+
 def check_units(
     resampled: Resampled, recording: Recording, nominal: np.ndarray = THETA_NOMINAL
 ) -> None:
@@ -592,46 +617,14 @@ def check_units(
     usable = ~resampled.masked
     pose, imu = recording.pose, recording.imu
     if pose.heading is not None:
-        found = turns.scale(_turn_directions(c["psi"], usable, turns.window))
-        if found is not None and not 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
-            ratio, k = found
-            where = provenance_of(pose)
-            advice = _unit_advice(
-                where.fields.get("heading"),
-                "heading_unit",
-                ratio,
-                ANGLE_SCALE_LIMIT,
-                ("rad", "deg"),
-            )
-            raise StreamError(
-                f"{where.at(('heading',))}: the heading turns {ratio:.3g}x as much as the GNSS "
-                f"track in its turns (e.g. {_span(where, pose.t, grid, turns, k)}: "
-                f"{_turn_of(c['psi'], turns, k):.3g} rad as declared where the track turns "
-                f"{turns.track[k]:.3g} rad); {advice}"
-            )
+        _check_angle_scale(c["psi"], "heading", pose, pose.t, turns, usable, grid)
     if imu is None:
         return
     where = provenance_of(imu)
     if imu.yaw_rate is not None:
         rate = interval_means(imu.t, imu.yaw_rate, grid)
         yaw = np.concatenate([[0.0], np.cumsum(rate[:-1] * dt)])
-        found = turns.scale(_turn_directions(yaw, usable, turns.window))
-        if found is not None and not 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
-            ratio, k = found
-            advice = _unit_advice(
-                where.fields.get("yaw_rate"),
-                "yaw_rate_unit",
-                ratio,
-                ANGLE_SCALE_LIMIT,
-                ("rad/s", "deg/s"),
-            )
-            raise StreamError(
-                f"{where.at(('yaw_rate',))}: the yaw rate turns {ratio:.3g}x as much as the "
-                f"GNSS track in its turns (e.g. {_span(where, imu.t, grid, turns, k)}: "
-                f"{_turn_of(yaw, turns, k):.3g} rad as declared where the track turns "
-                f"{turns.track[k]:.3g} "
-                f"rad); {advice}"
-            )
+        _check_angle_scale(yaw, "yaw_rate", imu, imu.t, turns, usable, grid)
     if imu.lateral_acceleration is not None:
         mean = interval_means(imu.t, imu.lateral_acceleration, grid)
         sums = np.add.reduceat(mean, turns.ends)[: len(turns.track)]
