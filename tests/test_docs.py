@@ -77,7 +77,10 @@ BLOCKS = [block for document in DOCUMENTS for block in runnable_blocks(document)
 
 def test_the_docs_have_runnable_blocks():
     """Guards the parser: a marker convention nobody's block follows would test nothing."""
-    assert any(block.document.name == "README.md" and "run_fleet" in block.code for block in BLOCKS)
+    assert any(
+        block.document.name == "README.md" and "run_calibration" in block.code for block in BLOCKS
+    )
+    assert any(block.document.name == "fleet.md" and "run_fleet" in block.code for block in BLOCKS)
 
 
 def shell_code(block: Block) -> str:
