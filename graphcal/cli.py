@@ -815,16 +815,82 @@ def build_parser() -> argparse.ArgumentParser:
             help="a longer gap in any stream is masked [s] (default: the manifest's, else 0.5)",
         )
         g.add_argument("--pose-topic", default=None, help="bag: NavSatFix/Odometry/Pose topic")
-        g.add_argument("--wheel-topic", default=None, help="bag: JointState topic")
+        g.add_argument(
+            "--wheel-topic",
+            default=None,
+            help="bag: JointState, Dataspeed WheelSpeedReport or PACMod WheelSpeedRpt topic (the "
+            "last two are found by type), or the topic of --rear-left/--rear-right FIELDs",
+        )
         g.add_argument("--imu-topic", default=None, help="bag: Imu topic (optional)")
-        g.add_argument("--rear-left", default=None, metavar="JOINT", help="bag: joint name")
-        g.add_argument("--rear-right", default=None, metavar="JOINT", help="bag: joint name")
+        field = "TOPIC:FIELD, the field dotted into nested fields and indices: /car/wheels:w[2].v"
+        g.add_argument(
+            "--rear-left", default=None, metavar="JOINT|TOPIC:FIELD", help=f"bag: joint, or {field}"
+        )
+        g.add_argument(
+            "--rear-right",
+            default=None,
+            metavar="JOINT|TOPIC:FIELD",
+            help="bag: joint, or field (of --rear-left's topic when no TOPIC: is given)",
+        )
         g.add_argument(
             "--wheel-kind",
-            choices=["angle", "angular_speed"],
+            choices=["speed", "angular_speed", "rpm", "ticks", "angle"],
             default=None,
-            help="bag: use the joints' positions [rad] or velocities [rad/s] (default: "
-            "positions if logged)",
+            help="bag: joints: positions (angle) [rad] or velocities (angular_speed) [rad/s] "
+            "(default: positions if logged); fields: any, as [wheels] kind (a vendor message: "
+            "angular_speed)",
+        )
+        g.add_argument(
+            "--speed-unit",
+            choices=["m/s", "km/h", "mph"],
+            default=None,
+            help="bag fields, --wheel-kind speed: their unit (default m/s)",
+        )
+        g.add_argument(
+            "--circumference",
+            type=_at_least(0.01, "m"),
+            default=None,
+            metavar="M",
+            help="bag fields, --wheel-kind speed: the ECU's wheel circumference [m]",
+        )
+        g.add_argument(
+            "--ticks-per-revolution",
+            type=_at_least(1.0, "ticks"),
+            default=None,
+            metavar="N",
+            help="bag fields, --wheel-kind ticks: counts per wheel revolution",
+        )
+        g.add_argument(
+            "--heading",
+            default=None,
+            metavar="TOPIC:FIELD",
+            help="bag: the heading from a field, at the pose's times (default unit rad, "
+            "convention enu: REP 103)",
+        )
+        g.add_argument(
+            "--heading-unit", choices=["rad", "deg"], default=None, help="bag: of --heading"
+        )
+        g.add_argument(
+            "--heading-convention",
+            choices=["enu", "compass"],
+            default=None,
+            help="bag: of --heading (enu: 0 = east, counter-clockwise; compass: 0 = north, "
+            "clockwise)",
+        )
+        g.add_argument(
+            "--yaw-rate",
+            default=None,
+            metavar="TOPIC:FIELD",
+            help="bag: the yaw rate from a field instead of an Imu topic (default unit rad/s)",
+        )
+        g.add_argument(
+            "--yaw-rate-unit", choices=["rad/s", "deg/s"], default=None, help="bag: of --yaw-rate"
+        )
+        g.add_argument(
+            "--lateral-acceleration",
+            default=None,
+            metavar="TOPIC:FIELD",
+            help="bag: the lateral acceleration [m/s², positive left] from a field",
         )
 
     p = sub.add_parser(

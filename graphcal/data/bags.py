@@ -8,19 +8,29 @@ streams of :mod:`graphcal.data.streams`:
   no heading), ``nav_msgs/Odometry``, ``geometry_msgs/PoseStamped`` or
   ``geometry_msgs/PoseWithCovarianceStamped`` (x, y [m]; heading = yaw of the orientation);
 * wheels: ``sensor_msgs/JointState`` of the two rear wheel joints, ``position`` [rad,
-  cumulative] → revolutions, or ``velocity`` [rad/s] → revolutions per second;
+  cumulative] → revolutions, or ``velocity`` [rad/s] → revolutions per second; or a vendor
+  wheel-speed message recognised by its type (:data:`VENDOR_WHEELS`: Dataspeed
+  ``dbw_mkz_msgs/WheelSpeedReport``, PACMod ``WheelSpeedRpt``, rad/s);
 * IMU (optional): ``sensor_msgs/Imu``, ``linear_acceleration.y`` [m/s²] and
   ``angular_velocity.z`` [rad/s] in the vehicle frame (x forward, y left; REP 103).
 
-Time is each message's ``header.stamp``; when every stamp of a topic is zero, the time the bag
-recorded the message. Every topic is read in one pass over the bag; each message is
-deserialized once and only its few numbers are kept, converted to arrays at the end.
+Any numeric field of any topic can stand for a wheel, the heading or an IMU signal, named
+``TOPIC:FIELD`` (:class:`FieldRef`: ``/car/wheels:wheels[2].speed``), checked against and read
+through the message definitions the bag carries (rosbags' typestore of the bag); a wheel
+field's kind and unit convert it as ``[wheels] kind`` does a CSV column.
+
+Time is each message's ``header.stamp``; when every stamp of a topic is zero, or its messages
+have no header, the time the bag recorded the message. Every topic is read in one pass over
+the bag; each message is deserialized once (or its numbers gathered from the raw bytes of a
+topic of one layout, :mod:`graphcal.data.bag_layout`) and only its few numbers are kept,
+converted to arrays at the end.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import sqlite3
 import struct
 from collections.abc import Callable, Iterable, Iterator
@@ -31,8 +41,24 @@ from typing import Any, Literal
 
 import numpy as np
 
-from graphcal.data.bag_layout import decode_fixed
+from graphcal.data.bag_layout import (
+    ARRAY,
+    BASE,
+    NAME,
+    PRIMITIVES,
+    SEQUENCE,
+    Steps,
+    decode_fields,
+    decode_fixed,
+)
 from graphcal.data.geodesy import GeodesyError, geodetic_to_local
+from graphcal.data.manifest import (
+    ANGLE_UNITS,
+    HEADING_CONVENTIONS,
+    SPEED_UNITS,
+    WHEEL_KINDS,
+    YAW_RATE_UNITS,
+)
 from graphcal.data.streams import (
     Field,
     ImuStream,
@@ -52,13 +78,14 @@ POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 POSE_COVARIANCE = "geometry_msgs/msg/PoseWithCovarianceStamped"
 IMU = "sensor_msgs/msg/Imu"
 JOINT_STATE = "sensor_msgs/msg/JointState"
+HEADER = "std_msgs/msg/Header"
 #: Message types usable as the pose stream.
 POSE_TYPES = (NAVSATFIX, ODOMETRY, POSE_STAMPED, POSE_COVARIANCE)
 #: Files of a ROS 2 bag's storage (also readable on their own).
 STORAGE_SUFFIXES = (".db3", ".mcap")
 #: JointState messages looked at to find the rear wheel joints when they are not named.
 JOINT_SCAN_MESSAGES = 200
-WheelKind = Literal["angle", "angular_speed"]
+WheelKind = Literal["speed", "angular_speed", "rpm", "ticks", "angle"]
 #: Decode Imu and JointState messages of one layout with numpy (False: one by one, rosbags).
 FAST_DECODING = True
 
@@ -307,6 +334,258 @@ def _joint_names(bag: _Bag, topic: str) -> list[str]:
     return sorted(names)
 
 
+# --- field paths: any numeric field of any message --------------------------------------------
+
+#: Vendor wheel-speed messages read without flags: type → (what it is, the rear-left and
+#: rear-right fields, their kind). Both report each wheel's angular speed [rad/s].
+VENDOR_WHEELS = {
+    "dbw_mkz_msgs/msg/WheelSpeedReport": (
+        "Dataspeed wheel speeds, rad/s",
+        "rear_left",
+        "rear_right",
+    ),
+    "pacmod_msgs/msg/WheelSpeedRpt": (
+        "PACMod wheel speeds, rad/s",
+        "rear_left_wheel_speed",
+        "rear_right_wheel_speed",
+    ),
+    "pacmod3_msgs/msg/WheelSpeedRpt": (
+        "PACMod wheel speeds, rad/s",
+        "rear_left_wheel_speed",
+        "rear_right_wheel_speed",
+    ),
+}
+#: Messages with the vehicle's speed but not each wheel's: refused as wheels, saying so.
+SPEED_ONLY = (
+    "autoware_auto_vehicle_msgs/msg/VelocityReport",
+    "autoware_vehicle_msgs/msg/VelocityReport",
+)
+#: Their definitions, registered when a bag carries none (a ROS 2 bag recorded before Iron).
+VENDOR_DEFINITIONS = {
+    "dbw_mkz_msgs/msg/WheelSpeedReport": (
+        "std_msgs/Header header\nfloat32 front_left\nfloat32 front_right\nfloat32 rear_left\n"
+        "float32 rear_right\n"
+    ),
+    **dict.fromkeys(
+        ("pacmod_msgs/msg/WheelSpeedRpt", "pacmod3_msgs/msg/WheelSpeedRpt"),
+        "std_msgs/Header header\nfloat64 front_left_wheel_speed\nfloat64 front_right_wheel_speed\n"
+        "float64 rear_left_wheel_speed\nfloat64 rear_right_wheel_speed\n",
+    ),
+}
+#: Kinds of a wheel field and what each needs, for messages.
+WHEEL_FIELD_KINDS = (
+    "speed [with --speed-unit and --circumference], angular_speed [rad/s], rpm, "
+    "ticks [cumulative, with --ticks-per-revolution], angle [rad, cumulative]"
+)
+_PATH = re.compile(r"[A-Za-z_]\w*(\[\d+\])*(\.[A-Za-z_]\w*(\[\d+\])*)*")
+_STEP = re.compile(r"([A-Za-z_]\w*)|\[(\d+)\]")
+#: Numeric fields listed at most in a message about a field that is not a number.
+LISTED_FIELDS = 24
+
+
+@dataclass(frozen=True)
+class FieldRef:
+    """One numeric field of a topic's messages, as the user named it.
+
+    Attributes:
+        topic: the topic (``/vehicle/wheel_speeds``).
+        path: the field path, dotted into nested fields, with array indices
+            (``wheels[2].speed``).
+        steps: the path's field names and indices (``("wheels", 2, "speed")``).
+        flag: the option that named it (``--rear-left``), or ``None`` when picked by type.
+    """
+
+    topic: str
+    path: str
+    steps: Steps
+    flag: str | None = None
+
+    @property
+    def written(self) -> str:
+        """``/vehicle/wheel_speeds:rear_left``, as on the command line."""
+        return f"{self.topic}:{self.path}"
+
+    def get(self, msg: Any) -> float | None:
+        """The field's value in a deserialized message; ``None`` if an index is beyond a
+        sequence's end."""
+        value = msg
+        try:
+            for step in self.steps:
+                value = value[step] if isinstance(step, int) else getattr(value, step)
+        except IndexError:
+            return None
+        return float(value)
+
+
+def parse_steps(path: str) -> Steps:
+    """``"wheels[2].speed"`` → ``("wheels", 2, "speed")``; :class:`ValueError` if malformed."""
+    if not _PATH.fullmatch(path):
+        raise ValueError(path)
+    return tuple(name or int(index) for name, index in _STEP.findall(path))
+
+
+def is_field_ref(text: str | None, bag_topics: dict[str, str]) -> bool:
+    """Whether an option's value is ``TOPIC:FIELD`` (a topic — absolute, or one in the bag —
+    then a colon), not a joint name."""
+    if text is None or ":" not in text:
+        return False
+    topic = text.split(":", 1)[0]
+    return topic.startswith("/") or topic in bag_topics
+
+
+def _describe(nodetype: int, desc: Any) -> str:
+    """``float32``, ``std_msgs/msg/Header``, ``float64[9]``, ``Wheel[]`` of a definition node."""
+    if nodetype == BASE:
+        return desc[0]
+    if nodetype == NAME:
+        return desc
+    (subtype, subdesc), bound = desc
+    inner = _describe(subtype, subdesc)
+    return f"{inner}[{bound}]" if nodetype == ARRAY else f"{inner}[]"
+
+
+def _listing(fielddefs: dict, msgtype: str) -> str:
+    """``header (std_msgs/msg/Header), front_left (float32), ...``: a message's fields."""
+    fields = fielddefs[msgtype][1]
+    return ", ".join(f"{name} ({_describe(*node)})" for name, node in fields) or "none"
+
+
+def _numeric_paths(fielddefs: dict, msgtype: str, prefix: str = "", depth: int = 0) -> list[str]:
+    """The message's numeric field paths (arrays as ``name[i]``), nested up to 4 levels."""
+    found: list[str] = []
+    for name, (nodetype, desc) in fielddefs[msgtype][1]:
+        path = f"{prefix}{name}"
+        while nodetype in (ARRAY, SEQUENCE):
+            (nodetype, desc), _ = desc
+            path += "[i]"
+        if nodetype == BASE and desc[0] in PRIMITIVES:
+            found.append(path)
+        elif nodetype == NAME and depth < 4 and desc in fielddefs:
+            found.extend(_numeric_paths(fielddefs, desc, f"{path}.", depth + 1))
+    return found
+
+
+def resolve_field(bag: _Bag, ref: FieldRef) -> str:
+    """The primitive type (``float32``) of ``ref``, checked against the topic's message
+    definition; :class:`StreamError` naming the option, topic, type and path and listing what
+    exists (the bag's topics, the fields at the level where the path fails)."""
+    flag = f"{ref.flag} {ref.written}" if ref.flag else ref.written
+    where = f"{bag.source}: {flag}"
+    if ref.topic not in bag.topics:
+        raise StreamError(f"{where}: no topic {ref.topic} in the bag; {bag.topic_list()}")
+    msgtype = bag.topics[ref.topic]
+    fielddefs = bag.reader.typestore.fielddefs
+    if msgtype not in fielddefs:
+        raise StreamError(
+            f"{where}: the bag carries no definition of {msgtype} (a ROS 2 bag recorded before "
+            "Iron stores none), so its fields cannot be read; record with a newer ROS 2"
+        )
+    nodetype, desc = NAME, msgtype
+    walked = ""
+    for step in ref.steps:
+        what = f"{walked} ({_describe(nodetype, desc)})" if walked else msgtype
+        if isinstance(step, str):
+            if nodetype != NAME:
+                hint = f"; index it: {walked}[0]" if nodetype in (ARRAY, SEQUENCE) else ""
+                raise StreamError(f"{where}: {what} has no fields{hint}")
+            fields = dict(fielddefs[desc][1])
+            if step not in fields:
+                raise StreamError(
+                    f"{where}: {what} has no field {step!r}; its fields: "
+                    f"{_listing(fielddefs, desc)}"
+                )
+            nodetype, desc = fields[step]
+            walked = f"{walked}.{step}" if walked else step
+            continue
+        if nodetype not in (ARRAY, SEQUENCE):
+            raise StreamError(f"{where}: {what} is not an array; drop the index [{step}]")
+        (subtype, subdesc), bound = desc
+        if nodetype == ARRAY and step >= bound:
+            raise StreamError(
+                f"{where}: {what} has {bound} elements; index 0 to {bound - 1}, not {step}"
+            )
+        nodetype, desc = subtype, subdesc
+        walked += f"[{step}]"
+    if nodetype == BASE and desc[0] in PRIMITIVES:
+        return desc[0]
+    what = f"{walked} ({_describe(nodetype, desc)})"
+    if nodetype == NAME:
+        exists = f"its fields: {_listing(fielddefs, desc)}"
+    elif nodetype in (ARRAY, SEQUENCE):
+        exists = f"index it: {walked}[0]"
+    else:
+        numeric = _numeric_paths(fielddefs, msgtype)
+        shown = ", ".join(numeric[:LISTED_FIELDS]) + (
+            ", ..." if len(numeric) > LISTED_FIELDS else ""
+        )
+        exists = f"the numeric fields of {msgtype}: {shown or 'none'}"
+    raise StreamError(f"{where}: {what} is not a number; {exists}")
+
+
+def _field_ref(bag: _Bag, flag: str, text: str, topic: str | None = None) -> FieldRef:
+    """``TOPIC:FIELD`` (or a bare field path on ``topic``) as a checked :class:`FieldRef`."""
+    if topic is None:
+        topic, path = text.split(":", 1)
+    else:
+        path = text
+    try:
+        steps = parse_steps(path)
+    except ValueError:
+        raise StreamError(
+            f"{bag.source}: {flag} {text}: {path!r} is not a field path; write TOPIC:FIELD, "
+            "the field dotted into nested fields with array indices (/vehicle/wheels:"
+            "wheels[2].speed)"
+        ) from None
+    ref = FieldRef(topic, path, steps, flag)
+    resolve_field(bag, ref)
+    return ref
+
+
+def _field_rows(bag: _Bag, msgtype: str, refs: list[FieldRef]) -> _Topic:
+    """A :class:`_Topic` of the numbers at ``refs`` (one topic of type ``msgtype``): decoded
+    from raw bytes in chunks when the messages share a layout, else one by one."""
+    fielddefs = bag.reader.typestore.fielddefs
+    first = fielddefs[msgtype][1][:1]
+    stamped = bool(first) and first[0][0] == "header" and first[0][1] == (NAME, HEADER)
+    paths = [ref.steps for ref in refs]
+
+    def decode(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray] | None:
+        if not FAST_DECODING:
+            return None
+        return decode_fields(raws, msgtype, fielddefs, paths, bag.ros1, stamped)
+
+    def extract(msg: Any) -> tuple | None:
+        values = tuple(ref.get(msg) for ref in refs)
+        return None if None in values else values
+
+    def deserialize(raw: bytes) -> Any:
+        return bag.reader.deserialize(raw, msgtype)
+
+    return _Topic(extract, decode, deserialize, stamped=stamped)
+
+
+def _field_values(
+    source: str, rows: _Topic, refs: list[FieldRef], notes: list[str]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(values, t, numbers)`` of a field topic's messages whose fields are all finite."""
+    paths = " and ".join(ref.path for ref in refs)
+    if not len(rows):
+        raise StreamError(
+            f"{source}: no message has {paths} (an index beyond the end of every message's "
+            "array); name fields that the messages carry"
+        )
+    if rows.skipped:
+        notes.append(f"{source}: skipped {rows.skipped} message(s) without {paths}")
+    values, t, numbers = rows.values(), rows.times(source, notes), rows.numbers()
+    finite = np.isfinite(values).all(axis=1)
+    if not finite.any():
+        raise StreamError(f"{source}: {paths} is not finite in any message; name another field")
+    if not finite.all():
+        notes.append(f"{source}: skipped {int((~finite).sum())} message(s) where {paths} is NaN")
+        values, t, numbers = values[finite], t[finite], numbers[finite]
+    return values, t, numbers
+
+
 # --- collecting the messages ------------------------------------------------------------------
 
 
@@ -336,6 +615,8 @@ class _Topic:
     offered: int = 0
     row_numbers: list[int] = field(default_factory=list)
     decoded_numbers: list[np.ndarray] = field(default_factory=list)
+    #: Whether the messages have a ``header`` (else the bag's receive times are their times).
+    stamped: bool = True
 
     def add(self, timestamp: int, msg: Any, number: int | None = None) -> None:
         """Keep the numbers of one message (``timestamp``: receive time [ns]; ``number``: its
@@ -347,8 +628,11 @@ class _Topic:
         if row is None:
             self.skipped += 1
             return
-        stamp = msg.header.stamp
-        self.stamps.append((stamp.sec, stamp.nanosec, timestamp))
+        if self.stamped:
+            stamp = msg.header.stamp
+            self.stamps.append((stamp.sec, stamp.nanosec, timestamp))
+        else:
+            self.stamps.append((0, 0, timestamp))
         self.rows.append(row)
         self.row_numbers.append(number)
 
@@ -401,7 +685,10 @@ class _Topic:
         sec, nanosec = stamps[:, 0], stamps[:, 1]
         if len(sec) and not (sec.any() or nanosec.any()):
             sec, nanosec = np.divmod(stamps[:, 2], 1_000_000_000)
-            notes.append(f"{source}: header stamps all zero, used the bag's receive times")
+            if self.stamped:
+                notes.append(f"{source}: header stamps all zero, used the bag's receive times")
+            else:
+                notes.append(f"{source}: the messages have no header, used the bag's receive times")
         return sec.astype(float) + 1e-9 * nanosec.astype(float)
 
 
@@ -692,6 +979,376 @@ def _imu_heading(rows: _Topic, imu: ImuStream, pose: PoseStream, notes: list[str
     return dataclasses.replace(pose, heading=heading)
 
 
+# --- what to read: the options, and the wheels, IMU and heading named as fields ---------------
+
+
+@dataclass(frozen=True)
+class BagRequest:
+    """What :func:`read_bag` was asked to read (its keyword arguments; ``None``: detect)."""
+
+    pose_topic: str | None = None
+    wheel_topic: str | None = None
+    imu_topic: str | None = None
+    rear_left: str | None = None
+    rear_right: str | None = None
+    wheel_kind: str | None = None
+    speed_unit: str | None = None
+    circumference: float | None = None
+    ticks_per_revolution: float | None = None
+    heading: str | None = None
+    heading_unit: str | None = None
+    heading_convention: str | None = None
+    yaw_rate: str | None = None
+    yaw_rate_unit: str | None = None
+    lateral_acceleration: str | None = None
+
+
+@dataclass(frozen=True)
+class _WheelFields:
+    """The rear wheels as two numeric fields of one topic, and what they hold."""
+
+    topic: str
+    left: FieldRef
+    right: FieldRef
+    kind: str
+    vendor: str | None = None
+
+
+def _check_request(source: str, r: BagRequest) -> None:
+    """One line for an option's value that is unknown or out of range."""
+    choices = (
+        ("--wheel-kind", r.wheel_kind, WHEEL_KINDS),
+        ("--speed-unit", r.speed_unit, tuple(SPEED_UNITS)),
+        ("--heading-unit", r.heading_unit, tuple(ANGLE_UNITS)),
+        ("--heading-convention", r.heading_convention, HEADING_CONVENTIONS),
+        ("--yaw-rate-unit", r.yaw_rate_unit, tuple(YAW_RATE_UNITS)),
+    )
+    for flag, value, options in choices:
+        if value is not None and value not in options:
+            raise StreamError(f"{source}: {flag} {value!r} is unknown; use {', '.join(options)}")
+    for flag, value in (
+        ("--circumference", r.circumference),
+        ("--ticks-per-revolution", r.ticks_per_revolution),
+    ):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise StreamError(f"{source}: {flag} {value} must be a positive number")
+
+
+def _register_vendor_types(bag: _Bag, notes: list[str]) -> None:
+    """Register the known vendor definitions the bag does not carry (older ROS 2 bags)."""
+    from rosbags.typesys import get_types_from_msg
+
+    store = bag.reader.typestore
+    for msgtype in sorted(set(bag.topics.values()) & set(VENDOR_DEFINITIONS)):
+        if msgtype not in store.fielddefs:
+            with bag.guard():
+                store.register(get_types_from_msg(VENDOR_DEFINITIONS[msgtype], msgtype))
+            notes.append(
+                f"{bag.source}: the bag carries no definition of {msgtype}; read with the "
+                "vendor's published one"
+            )
+
+
+def _wheel_fields(bag: _Bag, r: BagRequest, notes: list[str]) -> _WheelFields | None:
+    """The wheels as fields of a topic — named (``--rear-left TOPIC:FIELD``, or fields of a
+    ``--wheel-topic`` that is no JointState) or a vendor wheel-speed message picked by its
+    type — or ``None`` to read the joints of a JointState."""
+    left_ref, right_ref = (
+        is_field_ref(r.rear_left, bag.topics),
+        is_field_ref(r.rear_right, bag.topics),
+    )
+    topic_type = bag.topics.get(r.wheel_topic or "")
+    on_topic = topic_type is not None and topic_type != JOINT_STATE
+    if left_ref or right_ref or (on_topic and (r.rear_left or r.rear_right)):
+        if r.rear_left is None or r.rear_right is None:
+            given, other = (
+                ("--rear-left", "--rear-right")
+                if r.rear_right is None
+                else ("--rear-right", "--rear-left")
+            )
+            raise StreamError(
+                f"{bag.source}: {given} {r.rear_left or r.rear_right} names a field; pass {other} "
+                "too (TOPIC:FIELD, or a field of the same topic)"
+            )
+        # A bare field is on the other option's topic, else on --wheel-topic.
+        written = r.rear_left if left_ref else r.rear_right if right_ref else None
+        anchor = written.split(":", 1)[0] if written is not None else r.wheel_topic
+        refs = {}
+        for flag, text, is_ref in sorted(
+            (("--rear-left", r.rear_left, left_ref), ("--rear-right", r.rear_right, right_ref)),
+            key=lambda option: not option[2],  # the TOPIC:FIELD ones first
+        ):
+            refs[flag] = _field_ref(bag, flag, text, None if is_ref else anchor)
+        left, right = refs["--rear-left"], refs["--rear-right"]
+        if left.topic != right.topic:
+            raise StreamError(
+                f"{bag.source}: --rear-left {left.written} and --rear-right {right.written} are "
+                "on different topics; name two fields of one topic"
+            )
+        if r.wheel_topic is not None and r.wheel_topic != left.topic:
+            raise StreamError(
+                f"{bag.source}: --wheel-topic {r.wheel_topic} but --rear-left {left.written}; "
+                "leave --wheel-topic out or name fields of it"
+            )
+        if left.steps == right.steps:
+            raise StreamError(
+                f"{bag.source}: --rear-left and --rear-right are both {left.written}; name the "
+                "two wheels' fields"
+            )
+        vendor = VENDOR_WHEELS.get(bag.topics[left.topic])
+        kind = r.wheel_kind or ("angular_speed" if vendor else None)
+        if kind is None:
+            raise StreamError(
+                f"{bag.source}: --rear-left {left.written}: pass --wheel-kind, what the fields "
+                f"hold: {WHEEL_FIELD_KINDS}"
+            )
+        label = vendor[0] if vendor and r.wheel_kind is None else None
+        return _WheelFields(left.topic, left, right, kind, label)
+    speed_only = [t for t, msgtype in sorted(bag.topics.items()) if msgtype in SPEED_ONLY]
+    nothing_else = (r.wheel_topic, r.rear_left, r.rear_right) == (None, None, None) and not any(
+        msgtype == JOINT_STATE or msgtype in VENDOR_WHEELS for msgtype in bag.topics.values()
+    )
+    if speed_only and (topic_type in SPEED_ONLY or nothing_else):
+        topic = r.wheel_topic if topic_type in SPEED_ONLY else speed_only[0]
+        raise StreamError(
+            f"{bag.source}: {topic} ({_short(bag.topics[topic])}) has the vehicle's "
+            "longitudinal speed only, not each rear wheel's that the calibration needs; record "
+            "the wheel speeds (a JointState, the vehicle's wheel-speed report) and name them"
+        )
+    if on_topic:
+        assert r.wheel_topic is not None and topic_type is not None
+        if topic_type not in VENDOR_WHEELS:
+            raise StreamError(
+                f"{bag.source}: wheel topic {r.wheel_topic} is {topic_type}, neither JointState "
+                "nor a known wheel-speed message; name its fields with --rear-left FIELD "
+                f"--rear-right FIELD and --wheel-kind (its fields: "
+                f"{_listing(bag.reader.typestore.fielddefs, topic_type)})"
+                if topic_type in bag.reader.typestore.fielddefs
+                else f"{bag.source}: wheel topic {r.wheel_topic} is {topic_type}, of which the "
+                "bag carries no definition; pass --wheel-topic with a JointState topic"
+            )
+        return _vendor_fields(bag, r.wheel_topic, r.wheel_kind)
+    if r.rear_left is not None or r.rear_right is not None or r.wheel_topic is not None:
+        return None  # joints of a JointState
+    vendors = sorted(t for t, msgtype in bag.topics.items() if msgtype in VENDOR_WHEELS)
+    if len(vendors) > 1:
+        listed = ", ".join(f"{t} ({_short(bag.topics[t])})" for t in vendors)
+        raise StreamError(
+            f"{bag.source}: {len(vendors)} wheel-speed topics ({listed}); pass --wheel-topic "
+            "with the one to use"
+        )
+    if not vendors:
+        return None
+    picked = _vendor_fields(bag, vendors[0], r.wheel_kind)
+    joint_states = sorted(t for t, msgtype in bag.topics.items() if msgtype == JOINT_STATE)
+    rather = (
+        f", rather than the JointState {', '.join(joint_states)} (pass --wheel-topic to use it)"
+        if joint_states
+        else ""
+    )
+    vendor = VENDOR_WHEELS[bag.topics[picked.topic]][0]
+    notes.append(
+        f"wheel topic {picked.topic} ({_short(bag.topics[picked.topic])}: {vendor}) "
+        f"picked automatically{rather}"
+    )
+    return picked
+
+
+def _vendor_fields(bag: _Bag, topic: str, wheel_kind: str | None) -> _WheelFields:
+    """The rear wheels of a vendor wheel-speed message (:data:`VENDOR_WHEELS`)."""
+    vendor, left, right = VENDOR_WHEELS[bag.topics[topic]]
+    refs = [FieldRef(topic, path, (path,)) for path in (left, right)]
+    for ref in refs:
+        resolve_field(bag, ref)  # the bag's own definition of the type must have them
+    label = vendor if wheel_kind is None else None  # the vendor's unit, unless overridden
+    return _WheelFields(topic, refs[0], refs[1], wheel_kind or "angular_speed", label)
+
+
+def _wheel_conversion(
+    source: str, fields: _WheelFields | None, r: BagRequest
+) -> tuple[float, bool, float | None, str, tuple[tuple[str, str], ...]]:
+    """``(scale to revolutions [per second], cumulative, resolution [rev], unit text, declared
+    units)`` of the wheel fields' kind, as ``[wheels] kind`` converts a CSV's columns."""
+    given = {
+        "--speed-unit": r.speed_unit,
+        "--circumference": r.circumference,
+        "--ticks-per-revolution": r.ticks_per_revolution,
+    }
+    kind = fields.kind if fields is not None else r.wheel_kind
+    needs = {"speed": ("--speed-unit", "--circumference"), "ticks": ("--ticks-per-revolution",)}
+    for flag, value in given.items():
+        if value is not None and (fields is None or flag not in needs.get(kind or "", ())):
+            applies = "speed" if flag != "--ticks-per-revolution" else "ticks"
+            raise StreamError(
+                f"{source}: {flag} applies to wheels read from fields (--rear-left TOPIC:FIELD) "
+                f"with --wheel-kind {applies}; leave it out"
+            )
+    if fields is None:
+        return 1.0, True, None, "", ()
+    if kind == "speed":
+        if r.circumference is None:
+            raise StreamError(
+                f"{source}: --wheel-kind speed needs --circumference: the wheel circumference [m] "
+                "the ECU used to turn rotations into speed (from its documentation; often 2.0)"
+            )
+        unit = r.speed_unit or "m/s"
+        by_default = "" if r.speed_unit else " by default"
+        text = (
+            f"--wheel-kind speed, --speed-unit {unit}{by_default}, "
+            f"--circumference {r.circumference:g} m"
+        )
+        declared = (("kind", kind), ("speed_unit", unit), ("circumference", repr(r.circumference)))
+        return SPEED_UNITS[unit] / r.circumference, False, None, text, declared
+    if kind == "ticks":
+        if r.ticks_per_revolution is None:
+            raise StreamError(f"{source}: --wheel-kind ticks needs --ticks-per-revolution")
+        ticks = r.ticks_per_revolution
+        text = f"--wheel-kind ticks, --ticks-per-revolution {ticks:g}"
+        declared = (("kind", kind), ("ticks_per_revolution", repr(ticks)))
+        return 1.0 / ticks, True, 1.0 / ticks, text, declared
+    scale = 1.0 / 60.0 if kind == "rpm" else 1.0 / (2.0 * np.pi)
+    text = fields.vendor or f"--wheel-kind {kind}"
+    return scale, kind == "angle", None, text, (("kind", kind),)
+
+
+def _field_wheel_stream(
+    bag: _Bag, fields: _WheelFields, rows: _Topic, r: BagRequest, notes: list[str]
+) -> WheelStream:
+    """The wheel stream of two fields, converted to revolutions [per second] by their kind."""
+    source = f"{bag.source}:{fields.topic}"
+    scale, cumulative, resolution, unit, declared = _wheel_conversion(source, fields, r)
+    refs = [fields.left, fields.right]
+    values, t, numbers = _field_values(source, rows, refs, notes)
+    roles = ("rear_left", "rear_right")
+    provenance_fields = {
+        role: Field(ref.path, ref.flag, unit, declared)
+        for role, ref in zip(roles, refs, strict=True)
+    }
+    names = (fields.left.path, fields.right.path)
+    values, t, provenance = _unique(source, names, values, t, numbers, provenance_fields, notes)
+    _check_time(t, source, provenance)
+    return WheelStream(
+        t,
+        values[:, 0] * scale,
+        values[:, 1] * scale,
+        cumulative=cumulative,
+        source=source,
+        resolution=resolution,
+        provenance=provenance,
+    )
+
+
+def _imu_fields(bag: _Bag, r: BagRequest) -> list[FieldRef]:
+    """``--lateral-acceleration`` / ``--yaw-rate`` as fields of one topic (or none given)."""
+    refs = []
+    for text, flag in (
+        (r.lateral_acceleration, "--lateral-acceleration"),
+        (r.yaw_rate, "--yaw-rate"),
+    ):
+        if text is None:
+            continue
+        if is_field_ref(text, bag.topics):
+            refs.append(_field_ref(bag, flag, text))
+        elif r.imu_topic is not None:
+            refs.append(_field_ref(bag, flag, text, r.imu_topic))
+        else:
+            raise StreamError(
+                f"{bag.source}: {flag} {text}: name its topic too ({flag} TOPIC:{text}) or pass "
+                "--imu-topic"
+            )
+    topics = sorted({ref.topic for ref in refs})
+    if len(topics) > 1:
+        raise StreamError(
+            f"{bag.source}: --lateral-acceleration and --yaw-rate are on different topics "
+            f"({', '.join(topics)}); name two fields of one topic"
+        )
+    if refs and r.imu_topic is not None and r.imu_topic != topics[0]:
+        raise StreamError(
+            f"{bag.source}: --imu-topic {r.imu_topic} but {refs[0].flag} {refs[0].written}; "
+            "leave --imu-topic out or name fields of it"
+        )
+    if r.yaw_rate_unit is not None and r.yaw_rate is None:
+        raise StreamError(f"{bag.source}: --yaw-rate-unit applies to --yaw-rate TOPIC:FIELD")
+    return refs
+
+
+def _field_imu_stream(
+    bag: _Bag, refs: list[FieldRef], rows: _Topic, r: BagRequest, notes: list[str]
+) -> ImuStream:
+    """The IMU stream of ``--lateral-acceleration`` and/or ``--yaw-rate`` fields."""
+    source = f"{bag.source}:{refs[0].topic}"
+    values, t, numbers = _field_values(source, rows, refs, notes)
+    unit = r.yaw_rate_unit or "rad/s"
+    fields = {}
+    for ref in refs:
+        if ref.flag == "--yaw-rate":
+            by_default = "" if r.yaw_rate_unit else " by default"
+            fields["yaw_rate"] = Field(
+                ref.path,
+                ref.flag,
+                f"--yaw-rate-unit {unit}{by_default}",
+                (("yaw_rate_unit", unit),),
+            )
+        else:
+            fields["lateral_acceleration"] = Field(ref.path, ref.flag, "m/s², positive to the left")
+    names = tuple(ref.path for ref in refs)
+    values, t, provenance = _unique(source, names, values, t, numbers, fields, notes)
+    _check_time(t, source, provenance)
+    signals: dict[str, np.ndarray | None] = {"lateral_acceleration": None, "yaw_rate": None}
+    for column, role in enumerate(fields):
+        scale = YAW_RATE_UNITS[unit] if role == "yaw_rate" else 1.0
+        signals[role] = values[:, column] * scale
+    return ImuStream(t, signals["lateral_acceleration"], signals["yaw_rate"], source, provenance)
+
+
+def _heading_field(bag: _Bag, r: BagRequest) -> FieldRef | None:
+    """``--heading TOPIC:FIELD``, checked (or ``None``)."""
+    if r.heading is None:
+        for flag, value in (
+            ("--heading-unit", r.heading_unit),
+            ("--heading-convention", r.heading_convention),
+        ):
+            if value is not None:
+                raise StreamError(f"{bag.source}: {flag} applies to --heading TOPIC:FIELD")
+        return None
+    if not is_field_ref(r.heading, bag.topics):
+        raise StreamError(
+            f"{bag.source}: --heading {r.heading}: write TOPIC:FIELD (a topic of the bag, a "
+            f"colon, the field); {bag.topic_list()}"
+        )
+    return _field_ref(bag, "--heading", r.heading)
+
+
+def _field_heading(
+    bag: _Bag, ref: FieldRef, rows: _Topic, pose: PoseStream, r: BagRequest, notes: list[str]
+) -> PoseStream:
+    """``pose`` with the heading of a field (``--heading``), unwrapped and interpolated at the
+    pose's times; ``--heading-unit`` (default rad) and ``--heading-convention`` (default enu,
+    REP 103) as ``[gnss] heading_unit`` / ``heading_convention`` for a CSV."""
+    source = f"{bag.source}:{ref.topic}"
+    values, t, _ = _field_values(source, rows, [ref], notes)
+    unit, convention = r.heading_unit or "rad", r.heading_convention or "enu"
+    angle = values[:, 0] * ANGLE_UNITS[unit]
+    if convention == "compass":
+        angle = 0.5 * np.pi - angle
+    order = np.argsort(t, kind="stable")
+    t_sorted, yaw = t[order], np.unwrap(angle[order])
+    keep = np.concatenate([[True], np.diff(t_sorted) > 0])
+    heading = np.interp(pose.t, t_sorted[keep], yaw[keep])
+    replaced = ", replacing the pose's orientation" if pose.heading is not None else ""
+    notes.append(f"heading from {ref.written} ({unit}, {convention}) at the pose times{replaced}")
+    field = Field(
+        ref.written,
+        "--heading",
+        f"--heading-unit {unit}, --heading-convention {convention}",
+        (("heading_unit", unit), ("heading_convention", convention)),
+    )
+    provenance = pose.provenance
+    if provenance is not None:
+        provenance = dataclasses.replace(provenance, fields={**provenance.fields, "heading": field})
+    return dataclasses.replace(pose, heading=heading, provenance=provenance)
+
+
 # --- the reader -------------------------------------------------------------------------------
 
 
@@ -704,96 +1361,196 @@ def read_bag(
     rear_left: str | None = None,
     rear_right: str | None = None,
     wheel_kind: WheelKind | None = None,
+    speed_unit: str | None = None,
+    circumference: float | None = None,
+    ticks_per_revolution: float | None = None,
+    heading: str | None = None,
+    heading_unit: str | None = None,
+    heading_convention: str | None = None,
+    yaw_rate: str | None = None,
+    yaw_rate_unit: str | None = None,
+    lateral_acceleration: str | None = None,
     source: str | None = None,
 ) -> Recording:
     """Read the pose, rear-wheel and (optional) IMU streams of a ROS 1/ROS 2 bag or MCAP file.
+
+    A wheel, the heading or an IMU signal may be any numeric field of any topic, named
+    ``TOPIC:FIELD`` (``/vehicle/wheels:wheels[2].speed``: the field dotted into nested fields,
+    with array indices) and read through the bag's own message definitions; a vendor
+    wheel-speed message (:data:`VENDOR_WHEELS`) is recognised by its type.
 
     Args:
         path: a ``.bag`` file, a ``.mcap`` file or a ROS 2 bag directory.
         pose_topic: NavSatFix, Odometry, PoseStamped or PoseWithCovarianceStamped topic;
             ``None``: the only topic of one of these types.
-        wheel_topic: JointState topic; ``None``: the only one.
-        imu_topic: Imu topic; ``None``: the only one, or no IMU stream if there is none.
-        rear_left, rear_right: joint names of the rear wheels; ``None``: the two joints named
-            ``*left*`` / ``*right*`` (preferring ``*rear*``).
-        wheel_kind: ``"angle"`` (JointState position [rad], cumulative) or
-            ``"angular_speed"`` (velocity [rad/s]); ``None``: positions when every message
-            carries them, else velocities.
+        wheel_topic: JointState topic, a vendor wheel-speed topic, or a topic whose fields
+            ``rear_left`` / ``rear_right`` name; ``None``: the only vendor wheel-speed topic,
+            else the only JointState topic.
+        imu_topic: Imu topic (or the topic of bare ``yaw_rate`` / ``lateral_acceleration``
+            fields); ``None``: the only one, or no IMU stream if there is none.
+        rear_left, rear_right: joint names of the rear wheels, or fields (``TOPIC:FIELD``,
+            or a bare field of the other's topic or of ``wheel_topic``); ``None``: the two
+            joints named ``*left*`` / ``*right*`` (preferring ``*rear*``), or a vendor
+            message's rear wheels.
+        wheel_kind: what the wheels hold. A JointState: ``"angle"`` (position [rad],
+            cumulative) or ``"angular_speed"`` (velocity [rad/s]); ``None``: positions when
+            every message carries them, else velocities. Fields: also ``"speed"`` (needs
+            ``circumference`` and ``speed_unit``), ``"rpm"``, ``"ticks"`` (cumulative; needs
+            ``ticks_per_revolution``), as ``[wheels] kind`` of a manifest; a vendor message:
+            ``angular_speed`` by default.
+        speed_unit: ``"m/s"`` (default), ``"km/h"`` or ``"mph"`` of ``kind = "speed"``.
+        circumference: [m] the ECU's wheel circumference of ``kind = "speed"``.
+        ticks_per_revolution: counts per wheel revolution of ``kind = "ticks"``.
+        heading: ``TOPIC:FIELD`` of the heading (replaces the pose's; interpolated at the pose
+            times); ``heading_unit`` ``"rad"`` (default) or ``"deg"``, ``heading_convention``
+            ``"enu"`` (default, REP 103) or ``"compass"``.
+        yaw_rate, lateral_acceleration: fields of the IMU signals (instead of an Imu topic);
+            ``yaw_rate_unit`` ``"rad/s"`` (default) or ``"deg/s"``; lateral acceleration in
+            m/s², positive to the left.
         source: name of the recording in messages (default: the path).
 
     Returns:
-        The :class:`Recording`: time [s] from the header stamps, positions [m] (east/north
-        of the first fix for NavSatFix), heading [rad, ENU], wheels [rev] or [rev/s], lateral
-        acceleration [m/s²] and yaw rate [rad/s]; ``notes`` say what was picked or skipped.
+        The :class:`Recording`: time [s] from the header stamps (the bag's receive times for
+        messages without a header), positions [m] (east/north of the first fix for
+        NavSatFix), heading [rad, ENU], wheels [rev] or [rev/s], lateral acceleration [m/s²]
+        and yaw rate [rad/s]; ``notes`` say what was picked or skipped.
 
     Raises:
-        StreamError: a missing or unreadable bag, a topic or joint that is absent, of the
-            wrong type, ambiguous or empty; the message is one line.
+        StreamError: a missing or unreadable bag, a topic, joint or field that is absent, of
+            the wrong type, not a number, ambiguous or empty; the message is one line and
+            names the option, topic, message type and field path, and lists what exists.
     """
     path = Path(path)
     source = source or str(path)
-    if wheel_kind not in (None, "angle", "angular_speed"):
-        raise StreamError(
-            f"{source}: wheel kind {wheel_kind!r} is unknown; use 'angle' or 'angular_speed'"
-        )
+    request = BagRequest(
+        pose_topic,
+        wheel_topic,
+        imu_topic,
+        rear_left,
+        rear_right,
+        wheel_kind,
+        speed_unit,
+        circumference,
+        ticks_per_revolution,
+        heading,
+        heading_unit,
+        heading_convention,
+        yaw_rate,
+        yaw_rate_unit,
+        lateral_acceleration,
+    )
+    _check_request(source, request)
     bag = _Bag(path, source)
     try:
-        return _read(bag, pose_topic, wheel_topic, imu_topic, rear_left, rear_right, wheel_kind)
+        return _read(bag, request)
     finally:
         bag.close()
 
 
-def _read(
-    bag: _Bag,
-    pose_topic: str | None,
-    wheel_topic: str | None,
-    imu_topic: str | None,
-    rear_left: str | None,
-    rear_right: str | None,
-    wheel_kind: WheelKind | None,
-) -> Recording:
+def _read(bag: _Bag, r: BagRequest) -> Recording:
     notes: list[str] = []
-    picks = [
-        _pick_topic(bag, pose_topic, POSE_TYPES, "pose", "--pose-topic", True),
-        _pick_topic(bag, wheel_topic, (JOINT_STATE,), "wheel", "--wheel-topic", True),
-        _pick_topic(bag, imu_topic, (IMU,), "IMU", "--imu-topic", False),
-    ]
-    notes.extend(note for _, note in picks if note)
-    (pose, _), (wheel, _), (imu, _) = picks
-    assert pose is not None and wheel is not None
-    streams = [(pose, "pose", "--pose-topic"), (wheel, "wheel", "--wheel-topic")]
+    _register_vendor_types(bag, notes)
+    pose, pose_note = _pick_topic(bag, r.pose_topic, POSE_TYPES, "pose", "--pose-topic", True)
+    fields = _wheel_fields(bag, r, notes)
+    wheel = wheel_note = None
+    if fields is None:
+        if r.wheel_kind not in (None, "angle", "angular_speed"):
+            raise StreamError(
+                f"{bag.source}: --wheel-kind {r.wheel_kind}: a JointState gives angle (position) "
+                "or angular_speed (velocity); the other kinds apply to fields (--rear-left "
+                "TOPIC:FIELD)"
+            )
+        wheel, wheel_note = _pick_topic(
+            bag, r.wheel_topic, (JOINT_STATE,), "wheel", "--wheel-topic", True
+        )
+    _wheel_conversion(f"{bag.source}:{fields.topic if fields else wheel}", fields, r)
+    imu_refs = _imu_fields(bag, r)
+    imu = imu_note = None
+    if not imu_refs:
+        imu, imu_note = _pick_topic(bag, r.imu_topic, (IMU,), "IMU", "--imu-topic", False)
+    heading_ref = _heading_field(bag, r)
+    notes[:0] = [note for note in (pose_note, wheel_note, imu_note) if note]
+    assert pose is not None
+    streams = [(pose, "pose", "--pose-topic")]
+    if fields is not None:
+        streams.append((fields.topic, "wheel", fields.left.flag or "--wheel-topic"))
+    else:
+        assert wheel is not None
+        streams.append((wheel, "wheel", "--wheel-topic"))
     if imu is not None:
         streams.append((imu, "IMU", "--imu-topic"))
+    if imu_refs:
+        streams.append((imu_refs[0].topic, "IMU", imu_refs[0].flag or "--imu-topic"))
+    if heading_ref is not None:
+        streams.append((heading_ref.topic, "heading", "--heading"))
     for topic, role, flag in streams:
         if any(bag.counts.values()) and bag.counts.get(topic, 0) == 0:  # counts are known
             raise _no_messages(bag, topic, role, flag)
 
-    joints = _resolve_joints(bag, wheel, rear_left, rear_right, notes)
-    joint_extract, seen = _joint_extractor(*joints)
-    collected = {
-        pose: _Topic(_EXTRACT[bag.topics[pose]]),
-        wheel: bag.raw_topic(joint_extract, JOINT_STATE, joints),
-    }
+    consumers: dict[str, list[_Topic]] = {}
+
+    def consume(topic: str, rows: _Topic) -> _Topic:
+        consumers.setdefault(topic, []).append(rows)
+        return rows
+
+    pose_rows = consume(pose, _Topic(_EXTRACT[bag.topics[pose]]))
+    rows_of = [pose_rows]
+    if fields is not None:
+        wheel_rows = consume(
+            fields.topic, _field_rows(bag, bag.topics[fields.topic], [fields.left, fields.right])
+        )
+    else:
+        assert wheel is not None
+        joints = _resolve_joints(bag, wheel, r.rear_left, r.rear_right, notes)
+        joint_extract, seen = _joint_extractor(*joints)
+        wheel_rows = consume(wheel, bag.raw_topic(joint_extract, JOINT_STATE, joints))
+    rows_of.append(wheel_rows)
+    imu_rows = heading_rows = None
     if imu is not None:
-        collected[imu] = bag.raw_topic(_imu, IMU)
+        imu_rows = consume(imu, bag.raw_topic(_imu, IMU))
+    elif imu_refs:
+        imu_rows = consume(
+            imu_refs[0].topic, _field_rows(bag, bag.topics[imu_refs[0].topic], imu_refs)
+        )
+    if imu_rows is not None:
+        rows_of.append(imu_rows)
+    if heading_ref is not None:
+        heading_rows = consume(
+            heading_ref.topic, _field_rows(bag, bag.topics[heading_ref.topic], [heading_ref])
+        )
+        rows_of.append(heading_rows)
     with bag.guard():
-        for topic, timestamp, raw, msgtype in bag.raw_messages(collected):
-            rows = collected[topic]
-            if rows.decode is not None:
-                rows.add_raw(timestamp, raw)
-            else:
-                rows.add(timestamp, bag.reader.deserialize(raw, msgtype))
-        for rows in collected.values():
+        for topic, timestamp, raw, msgtype in bag.raw_messages(consumers):
+            for rows in consumers[topic]:
+                if rows.decode is not None:
+                    rows.add_raw(timestamp, raw)
+                else:
+                    rows.add(timestamp, bag.reader.deserialize(raw, msgtype))
+        for rows in rows_of:
             rows.flush()
-    for topic, role, flag in streams:
-        if not len(collected[topic]) and not collected[topic].skipped:
+    for (topic, role, flag), rows in zip(streams, rows_of, strict=True):
+        if not len(rows) and not rows.skipped:
             raise _no_messages(bag, topic, role, flag)
 
-    pose_stream = _pose_stream(bag, pose, collected[pose], notes)
-    wheels = _wheel_stream(bag, wheel, collected[wheel], joints, seen, wheel_kind, notes)
-    imu_stream = _imu_stream(bag, imu, collected[imu], notes) if imu is not None else None
-    if pose_stream.heading is None and imu_stream is not None:
-        pose_stream = _imu_heading(collected[imu], imu_stream, pose_stream, notes)
+    pose_stream = _pose_stream(bag, pose, pose_rows, notes)
+    if fields is not None:
+        wheels = _field_wheel_stream(bag, fields, wheel_rows, r, notes)
+    else:
+        assert wheel is not None
+        wheels = _wheel_stream(bag, wheel, wheel_rows, joints, seen, r.wheel_kind, notes)
+    imu_stream = None
+    if imu is not None:
+        assert imu_rows is not None
+        imu_stream = _imu_stream(bag, imu, imu_rows, notes)
+    elif imu_refs:
+        assert imu_rows is not None
+        imu_stream = _field_imu_stream(bag, imu_refs, imu_rows, r, notes)
+    if heading_ref is not None:
+        assert heading_rows is not None
+        pose_stream = _field_heading(bag, heading_ref, heading_rows, pose_stream, r, notes)
+    elif pose_stream.heading is None and imu is not None and imu_stream is not None:
+        assert imu_rows is not None
+        pose_stream = _imu_heading(imu_rows, imu_stream, pose_stream, notes)
     return Recording(pose_stream, wheels, imu_stream, bag.source, tuple(notes))
 
 

@@ -51,7 +51,8 @@ TURN_MIN_AGREEMENT = 0.25
 
 @dataclass(frozen=True)
 class BagOptions:
-    """Which topics and joints of a ROS bag to read (``None``: detect)."""
+    """Which topics, joints and fields of a ROS bag to read (``None``: detect); the keywords
+    of :func:`graphcal.data.bags.read_bag`, the CLI's bag flags by the same names."""
 
     pose_topic: str | None = None
     wheel_topic: str | None = None
@@ -59,6 +60,15 @@ class BagOptions:
     rear_left: str | None = None
     rear_right: str | None = None
     wheel_kind: str | None = None
+    speed_unit: str | None = None
+    circumference: float | None = None
+    ticks_per_revolution: float | None = None
+    heading: str | None = None
+    heading_unit: str | None = None
+    heading_convention: str | None = None
+    yaw_rate: str | None = None
+    yaw_rate_unit: str | None = None
+    lateral_acceleration: str | None = None
 
 
 @dataclass(frozen=True)
@@ -322,8 +332,8 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
     if opposite(heading) and agree(wheels_track):
         raise StreamError(
             f"{pose.source}: the heading turns opposite to the GNSS track and the wheels in "
-            f"{1 - heading:.0%} of the turns; check heading_convention (compass: 0 = north, "
-            "clockwise; enu: 0 = east, counter-clockwise)"
+            f"{1 - heading:.0%} of the turns; check {_convention_key(pose)} (compass: 0 = "
+            "north, clockwise; enu: 0 = east, counter-clockwise)"
         )
     if opposite(wheels_track) and (heading is None or agree(wheels_heading)):
         cause = f"{names} swapped" + ("" if heading is not None else " or the wheels swapped")
@@ -356,7 +366,8 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
         if abs(offset) > HEADING_OFFSET_ERROR:
             raise StreamError(
                 f"{where}: the heading differs from the direction of travel by "
-                f"{np.degrees(offset):+.0f}° on average; check heading_convention and the "
+                f"{np.degrees(offset):+.0f}° on average; check "
+                f"{_convention_key(recording.pose)} and the "
                 "heading's zero (an IMU's yaw has an arbitrary one), or leave the heading out "
                 "to use the GNSS course"
             )
@@ -431,6 +442,33 @@ def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nomina
         )
 
 
+def _is_flag(field) -> bool:
+    """Whether ``field`` was named by a command-line flag (a bag's field path, ``--rear-left``),
+    not by a manifest key."""
+    return field is not None and bool(field.key) and field.key.startswith("--")
+
+
+def _key_name(field, key: str) -> str:
+    """How the user names the unit key ``key`` of ``field``: ``[wheels] speed_unit`` (a
+    manifest) or ``--speed-unit`` (a bag's field named on the command line)."""
+    if _is_flag(field):
+        return "--" + key.replace("_", "-")
+    return f"{field.section} {key}" if field is not None and field.section else key
+
+
+def _convention_key(pose) -> str:
+    """``heading_convention``, or ``--heading-convention`` for a heading named by a flag."""
+    field = provenance_of(pose).fields.get("heading")
+    return "--heading-convention" if _is_flag(field) else "heading_convention"
+
+
+def _set_key(field, key: str, value: str) -> str:
+    """``set [wheels] speed_unit = "km/h"`` or ``pass --speed-unit km/h``."""
+    if _is_flag(field):
+        return f"pass {_key_name(field, key)} {value}"
+    return f'set {_key_name(field, key)} = "{value}"'
+
+
 def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
     """How to fix wheels that travel ``ratio`` times the GNSS track's distance: the speed
     unit that explains it, if one does, else every key that scales the wheels."""
@@ -441,18 +479,22 @@ def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
             implied = SPEED_UNITS[declared] / factor  # the ratio if the column were in `unit`
             if unit != declared and abs(ratio / implied - 1.0) < 0.1:
                 return (
-                    f'the speeds are apparently in {unit}: set [wheels] speed_unit = "{unit}" '
+                    f"the speeds are apparently in {unit}: {_set_key(field, 'speed_unit', unit)} "
                     f'(now "{declared}")'
                 )
     scaled = {"circumference": "m", "ticks_per_revolution": ""}
     for key, unit in scaled.items():
         value = None if field is None else field.declares(key)
         if value is not None:  # the wheels' distance is inversely proportional to it
+            others = "--wheel-kind, --speed-unit" if _is_flag(field) else "kind, speed_unit"
             return (
-                f"check [wheels] {key} ({float(value) * ratio:.4g}{unit and ' ' + unit} would "
-                "match the GNSS track with the nominal c_e), kind, speed_unit, the time units "
-                "and the vehicle's c_e (--vehicle)"
+                f"check {_key_name(field, key)} ({float(value) * ratio:.4g}"
+                f"{unit and ' ' + unit} would match the GNSS track with the nominal c_e), "
+                f"{others}, the time units and the vehicle's c_e (--vehicle)"
             )
+    kind = None if field is None else field.declares("kind")
+    if wheels.unit == "message" and kind is not None:  # a bag's fields (or a vendor message)
+        return f'check --wheel-kind (now "{kind}"), the fields and the vehicle\'s c_e (--vehicle)'
     if wheels.unit == "message":
         return (
             "check --wheel-kind (angle: positions [rad]; angular_speed: velocities [rad/s]), the "
@@ -562,11 +604,11 @@ def _unit_advice(field, key: str, ratio: float, limit: float, units: tuple[str, 
     declared = None if field is None else field.declares(key)
     radians, degrees = units
     if declared == radians and ratio > limit:
-        return f'it is apparently in {degrees}: set {field.section} {key} = "{degrees}"'
+        return f"it is apparently in {degrees}: {_set_key(field, key, degrees)}"
     if declared == degrees and ratio < 1.0 / limit:
-        return f'it is apparently in {radians}: set {field.section} {key} = "{radians}"'
+        return f"it is apparently in {radians}: {_set_key(field, key, radians)}"
     if declared is not None:
-        return f'check {field.section} {key} (now "{declared}"; {radians} or {degrees})'
+        return f'check {_key_name(field, key)} (now "{declared}"; {radians} or {degrees})'
     return f"it must be in {radians} (REP 103)"
 
 
@@ -711,7 +753,8 @@ def column_origins(resampled: Resampled, recording: Recording) -> dict[str, Colu
     )
     heading_field = at_pose.fields.get("heading")
     heading_fix = (
-        f"check {heading_field.section} heading_unit (deg | rad) and heading_convention "
+        f"check {_key_name(heading_field, 'heading_unit')} (deg | rad) and "
+        f"{_key_name(heading_field, 'heading_convention')} "
         "(enu | compass)"
         if heading_field is not None and heading_field.declares("heading_unit")
         else "check the pose's orientation (ENU, REP 103)"
@@ -720,6 +763,9 @@ def column_origins(resampled: Resampled, recording: Recording) -> dict[str, Colu
         "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
         "and the vehicle's c_e (--vehicle)"
         if csv
+        else "check --wheel-kind, --speed-unit, --circumference or --ticks-per-revolution and "
+        "the vehicle's c_e (--vehicle)"
+        if _is_flag(at_wheels.fields.get("rear_left"))
         else "check --wheel-kind (angle or angular_speed) and the vehicle's c_e (--vehicle)"
     )
     both = ("rear_left", "rear_right")
@@ -769,7 +815,7 @@ def column_origins(resampled: Resampled, recording: Recording) -> dict[str, Colu
         at_imu = provenance_of(imu)
         field = at_imu.fields.get("yaw_rate")
         fix = (
-            f"check {field.section} yaw_rate_unit (rad/s | deg/s)"
+            f"check {_key_name(field, 'yaw_rate_unit')} (rad/s | deg/s)"
             if field is not None and field.declares("yaw_rate_unit")
             else "angular_velocity.z must be in rad/s (REP 103)"
         )

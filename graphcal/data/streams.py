@@ -152,7 +152,8 @@ class Provenance:
         names = ", ".join(f"'{f.name}'" for f in found)
         keys = ", ".join(f.key.split("] ", 1)[-1] for f in found if f.key)
         unit = f"; {found[0].unit}" if found[0].unit else ""
-        return f"{self.word}s {names} ({found[0].section} {keys}{unit})"
+        section = f"{found[0].section} " if found[0].section else ""  # none: flags (a bag's)
+        return f"{self.word}s {names} ({section}{keys}{unit})"
 
     def at(self, quantities: tuple[str, ...], k: int | None = None) -> str:
         """``imu.csv: column 'wz' ([imu] yaw_rate, ...), line 266`` (no line if ``k`` is
