@@ -332,11 +332,17 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
     if opposite(heading) and agree(wheels_track):
         raise StreamError(
             f"{pose.source}: the heading turns opposite to the GNSS track and the wheels in "
-            f"{1 - heading:.0%} of the turns; check {_convention_key(pose)} (compass: 0 = "
-            "north, clockwise; enu: 0 = east, counter-clockwise)"
+            f"{1 - heading:.0%} of the turns; "
+            + _advice(
+                provenance_of(pose),
+                "heading",
+                f"check {_convention_key(pose)} (compass: 0 = north, clockwise; enu: 0 = east, "
+                "counter-clockwise)",
+            )
         )
     if opposite(wheels_track) and (heading is None or agree(wheels_heading)):
         cause = f"{names} swapped" + ("" if heading is not None else " or the wheels swapped")
+        cause = _advice(provenance_of(pose), "mirrored", cause)
         raise StreamError(
             f"{pose.source}: the GNSS track turns opposite to the wheels in "
             f"{1 - wheels_track:.0%} of the turns, a mirrored track: {cause}; exchange them"
@@ -366,10 +372,13 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
         if abs(offset) > HEADING_OFFSET_ERROR:
             raise StreamError(
                 f"{where}: the heading differs from the direction of travel by "
-                f"{np.degrees(offset):+.0f}° on average; check "
-                f"{_convention_key(recording.pose)} and the "
-                "heading's zero (an IMU's yaw has an arbitrary one), or leave the heading out "
-                "to use the GNSS course"
+                f"{np.degrees(offset):+.0f}° on average; "
+                + _advice(
+                    provenance_of(recording.pose),
+                    "heading",
+                    f"check {_convention_key(recording.pose)} and the heading's zero (an IMU's "
+                    "yaw has an arbitrary one), or leave the heading out to use the GNSS course",
+                )
             )
         if abs(offset) > HEADING_OFFSET_WARNING:
             warnings.append(
@@ -629,6 +638,7 @@ def _check_angle_scale(angle, quantity: str, stream, times, turns, usable, grid)
     where = provenance_of(stream)
     key, units = _ANGLE_UNIT_KEYS[quantity]
     advice = _unit_advice(where.fields.get(quantity), key, ratio, ANGLE_SCALE_LIMIT, units)
+    advice = _advice(where, quantity, advice)
     raise StreamError(
         f"{where.at((quantity,))}: the {quantity.replace('_', ' ')} turns {ratio:.3g}x as much "
         f"as the GNSS track in its turns (e.g. {_span(where, times, grid, turns, k)}: "
@@ -745,19 +755,23 @@ def column_origins(resampled: Resampled, recording: Recording) -> dict[str, Colu
 
     position = ("latitude", "longitude") if pose.origin is not None else ("x", "y")
     section = next((f.section for f in at_pose.fields.values() if f.section), "[gnss]")
-    position_fix = (
+    position_fix = _advice(
+        at_pose,
+        "position",
         f"check {section} {' and '.join(position)}"
         + (" (degrees WGS-84)" if pose.origin is not None else " (metres, east and north)")
         if at_pose.unit == "line"
-        else "check the pose topic (--pose-topic)"
+        else "check the pose topic (--pose-topic)",
     )
     heading_field = at_pose.fields.get("heading")
-    heading_fix = (
+    heading_fix = _advice(
+        at_pose,
+        "heading",
         f"check {_key_name(heading_field, 'heading_unit')} (deg | rad) and "
         f"{_key_name(heading_field, 'heading_convention')} "
         "(enu | compass)"
         if heading_field is not None and heading_field.declares("heading_unit")
-        else "check the pose's orientation (ENU, REP 103)"
+        else "check the pose's orientation (ENU, REP 103)",
     )
     wheel_fix = (
         "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
@@ -843,6 +857,13 @@ def _pose_names(geodetic: bool) -> str:
     return "latitude and longitude" if geodetic else "x and y"
 
 
+def _advice(provenance: Provenance, topic: str, default: str) -> str:
+    """``default``, or the stream's own advice on ``topic`` (``"position"``, ``"heading"``,
+    ``"mirrored"``) where its reader gives one: an NMEA log's has no columns or units to
+    check (:class:`graphcal.data.nmea.SentenceProvenance`)."""
+    return getattr(provenance, "advice", {}).get(topic, default)
+
+
 def sidecar_of(csv_path: str | os.PathLike[str]) -> Path:
     """The ``<stem>.json`` sidecar beside a drive-log CSV (as a synthetic drive's)."""
     path = Path(csv_path)
@@ -862,8 +883,9 @@ def source_files(source: str | os.PathLike[str]) -> set[Path]:
         except StreamError:
             return {path.resolve()}
         for table in (manifest.pose, manifest.wheels, manifest.imu):
-            if table and isinstance(table.get("file"), str):
-                files.add(manifest.resolve(table["file"]))
+            for key in ("file", "nmea"):  # a CSV, or an NMEA log (graphcal.data.nmea)
+                if table and isinstance(table.get(key), str):
+                    files.add(manifest.resolve(table[key]))
         if isinstance(manifest.data.get("truth"), str):
             files.add(manifest.resolve(manifest.data["truth"]))
         if manifest.bag is not None:

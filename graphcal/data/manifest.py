@@ -20,6 +20,13 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
     heading_convention = "enu"       # enu: 0 = east, counter-clockwise
                                      # compass: 0 = north, clockwise
     # sideslip = "beta"              # optional, sideslip_unit = "rad" (rad | deg); else 0
+    # nmea = "receiver.nmea"         # instead of file and columns: a receiver's NMEA 0183
+                                     # log (pip install ".[nmea]"): GGA and RMC fixes at
+                                     # their UTC times, heading from HDT/THS (never VTG's
+                                     # course); keys: nmea, date, heading, time_offset
+    # date = "2025-11-23"            # with nmea: UTC date of the first fix, for a log
+                                     # without RMC (RMC's dates are used where logged)
+    # heading = false                # with nmea: ignore HDT/THS, use the GNSS course
     [wheels]
     file = "wheels.csv"
     time = "t"
@@ -82,6 +89,7 @@ POSE_KEYS = (
     *COMMON_KEYS,
     *("latitude", "longitude", "x", "y", "heading", "heading_unit", "heading_convention"),
     *("sideslip", "sideslip_unit"),
+    *("nmea", "date"),  # an NMEA log: graphcal.data.nmea
 )
 WHEEL_KEYS = (
     *COMMON_KEYS,
@@ -338,6 +346,10 @@ def _read_columns(
 
 def _read_pose(manifest: Manifest, notes: list[str]) -> PoseStream:
     section, table = manifest.pose_name, manifest.pose
+    if "nmea" in table:
+        from graphcal.data.nmea import read_nmea_pose
+
+        return read_nmea_pose(manifest, section, table, notes)
     geodetic = "latitude" in table or "longitude" in table
     metric = "x" in table or "y" in table
     if geodetic == metric:
