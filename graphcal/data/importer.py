@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
+from graphcal.data.imu_mounting import mounted_fix
 from graphcal.data.manifest import SPEED_UNITS
 from graphcal.data.streams import (
     DEFAULT_RATE,
@@ -549,11 +550,12 @@ def _check_imu_signs(
         integral = np.concatenate([[0.0], np.cumsum(values[:-1] * dt)])
         agreement = _agreement(_turn_directions(integral, usable, window), track)
         if agreement is not None and agreement < TURN_MIN_AGREEMENT:
+            fix = mounted_fix(provenance_of(imu).fields.get(quantity))
             raise StreamError(
                 f"{provenance_of(imu).at((quantity,))}: the IMU's {name} has the opposite sign "
                 f"to the turns of the GNSS track in {1 - agreement:.0%} of them; it must be "
-                f"{hint} (ROS REP 103: x forward, y left, z up): negate the column or fix the "
-                "IMU's frame"
+                f"{hint} (ROS REP 103: x forward, y left, z up): "
+                + (fix or "negate the column or fix the IMU's frame")
             )
 
 
@@ -637,6 +639,8 @@ def _check_angle_scale(angle, quantity: str, stream, times, turns, usable, grid)
     ratio, k = found
     where = provenance_of(stream)
     key, units = _ANGLE_UNIT_KEYS[quantity]
+    if mounted_fix(where.fields.get(quantity)):  # a mounted IMU's angular_velocity
+        key = "angular_velocity_unit"
     advice = _unit_advice(where.fields.get(quantity), key, ratio, ANGLE_SCALE_LIMIT, units)
     advice = _advice(where, quantity, advice)
     raise StreamError(
@@ -823,6 +827,8 @@ def column_origins(resampled: Resampled, recording: Recording) -> dict[str, Colu
             if at_imu.unit == "line"
             else "linear_acceleration.y must be in m/s² (REP 103)"
         )
+        mounted = mounted_fix(at_imu.fields.get("lateral_acceleration"))
+        fix = f"{mounted}; drop or fill a lone spike's line" if mounted else fix
         where = within(at_imu, ("lateral_acceleration",), imu, imu.lateral_acceleration)
         origins["ay"] = ColumnOrigin("lateral acceleration", where, fix)
     elif imu is not None and imu.yaw_rate is not None:
@@ -831,7 +837,7 @@ def column_origins(resampled: Resampled, recording: Recording) -> dict[str, Colu
         fix = (
             f"check {_key_name(field, 'yaw_rate_unit')} (rad/s | deg/s)"
             if field is not None and field.declares("yaw_rate_unit")
-            else "angular_velocity.z must be in rad/s (REP 103)"
+            else mounted_fix(field) or "angular_velocity.z must be in rad/s (REP 103)"
         )
         origins["ay"] = ColumnOrigin(
             "lateral acceleration (speed × yaw rate, none logged)",

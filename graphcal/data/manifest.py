@@ -44,6 +44,15 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
     lateral_acceleration = "ay"      # m/s², positive to the left
     yaw_rate = "wz"                  # positive counter-clockwise
     yaw_rate_unit = "rad/s"          # rad/s | deg/s
+    # ... or a 3-axis IMU in its own frame (instead of lateral_acceleration / yaw_rate):
+    # acceleration = ["ax", "ay", "az"]     # specific force, gravity included
+    # acceleration_unit = "m/s²"            # m/s² (also "m/s^2") | g
+    # angular_velocity = ["wx", "wy", "wz"]
+    # angular_velocity_unit = "rad/s"       # rad/s | deg/s
+    # mounting = [0.0, 0.0, 90.0]           # required: [roll, pitch, yaw] in degrees, the
+                                     # IMU's frame in the vehicle's: v = Rz(yaw)·Ry(pitch)
+                                     # ·Rx(roll)·v_imu (URDF rpy), a 3×3 matrix (rows), or
+                                     # "estimate" (from gravity and the accelerations)
 
 ``time_unit`` and ``time_offset`` exist in every section; ``heading_unit`` and
 ``heading_convention`` are required with ``heading``. Wheel speeds from an ECU were
@@ -96,7 +105,11 @@ WHEEL_KEYS = (
     *("rear_left", "rear_right", "kind", "circumference", "speed_unit"),
     *("ticks_per_revolution", "ticks_wrap"),
 )
-IMU_KEYS = (*COMMON_KEYS, "lateral_acceleration", "yaw_rate", "yaw_rate_unit")
+IMU_KEYS = (
+    *(*COMMON_KEYS, "lateral_acceleration", "yaw_rate", "yaw_rate_unit"),
+    *("acceleration", "acceleration_unit", "angular_velocity", "angular_velocity_unit"),
+    "mounting",  # a 3-axis IMU in its own frame: graphcal.data.imu_mounting
+)
 
 
 class Manifest:
@@ -210,7 +223,7 @@ def read_manifest(path: str | os.PathLike[str] | Manifest) -> Recording:
     notes: list[str] = []
     pose = _read_pose(manifest, notes)
     wheels = _read_wheels(manifest, notes)
-    imu = _read_imu(manifest, notes) if manifest.imu is not None else None
+    imu = _read_imu(manifest, notes, pose, wheels) if manifest.imu is not None else None
     return Recording(pose=pose, wheels=wheels, imu=imu, source=manifest.source, notes=tuple(notes))
 
 
@@ -500,15 +513,24 @@ def _unwrap_counter(counts: np.ndarray, modulus: float) -> np.ndarray:
     return counts + wraps
 
 
-def _read_imu(manifest: Manifest, notes: list[str]) -> ImuStream:
+def _read_imu(
+    manifest: Manifest, notes: list[str], pose: PoseStream, wheels: WheelStream
+) -> ImuStream:
     table = manifest.imu
+    if {"acceleration", "angular_velocity", "mounting"} & set(table):
+        from graphcal.data.imu_mounting import read_mounted_imu
+
+        return read_mounted_imu(manifest, notes, pose, wheels)
     columns = {
         key: manifest.text(table, key, "imu", required=False)
         for key in ("lateral_acceleration", "yaw_rate")
     }
     columns = {key: value for key, value in columns.items() if value is not None}
     if not columns:
-        raise manifest.error("[imu] needs lateral_acceleration or yaw_rate (a column name)")
+        raise manifest.error(
+            "[imu] needs lateral_acceleration or yaw_rate (a column name), or acceleration "
+            "or angular_velocity (3 columns) with mounting"
+        )
     unit = manifest.choice(table, "yaw_rate_unit", YAW_RATE_UNITS, "imu", "rad/s")
     units = {
         "lateral_acceleration": "m/s², positive to the left",
