@@ -21,7 +21,7 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
                                      # compass: 0 = north, clockwise
     # sideslip = "beta"              # optional, sideslip_unit = "rad" (rad | deg); else 0
     # nmea = "receiver.nmea"         # instead of file and columns: a receiver's NMEA 0183
-                                     # log (pip install ".[nmea]"): GGA and RMC fixes at
+                                     # log (pip install -e ".[nmea]"): GGA and RMC fixes at
                                      # their UTC times, heading from HDT/THS (never VTG's
                                      # course); keys: nmea, date, heading, time_offset
     # date = "2025-11-23"            # with nmea: UTC date of the first fix, for a log
