@@ -889,7 +889,7 @@ def source_files(source: str | os.PathLike[str]) -> set[Path]:
         except StreamError:
             return {path.resolve()}
         for table in (manifest.pose, manifest.wheels, manifest.imu):
-            for key in ("file", "nmea"):  # a CSV, or an NMEA log (graphcal.data.nmea)
+            for key in ("file", "nmea", "can", "dbc"):  # a CSV, an NMEA log, a CAN log + DBC
                 if table and isinstance(table.get(key), str):
                     files.add(manifest.resolve(table[key]))
         if isinstance(manifest.data.get("truth"), str):

@@ -38,12 +38,24 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
     speed_unit = "m/s"               # m/s | km/h | mph (kind = speed)
     ticks_per_revolution = 96        # kind = ticks
     # ticks_wrap = 65536             # a tick counter that wraps at this count
+    # can = "drive.log"              # instead of file, time and columns: a raw CAN log
+                                     # (pip install -e ".[can]"): candump -l/-L .log or .log.gz,
+                                     # Vector .asc or .blf, python-can .csv; time: the log's
+    # dbc = "car.dbc"                # with can: the DBC that decodes it (cantools)
+    # message = "WHEEL_SPEEDS"       # with can: the DBC message, by name or frame id (0xAA);
+                                     # rear_left/rear_right name its signals, speed_unit and
+                                     # ticks_wrap default to the DBC's unit and signal range
+    # bus = 0                        # with can: only this bus ("can0" or 0; ASC/BLF: 1, 2)
     [imu]                            # optional
     file = "imu.csv"
     time = "t"
     lateral_acceleration = "ay"      # m/s², positive to the left
     yaw_rate = "wz"                  # positive counter-clockwise
     yaw_rate_unit = "rad/s"          # rad/s | deg/s
+    # message = "KINEMATICS"         # signals of a CAN message instead of columns: can and
+                                     # dbc as [wheels]' unless given (the wheels' log brings
+                                     # its bus and time_offset); yaw_rate_unit defaults to
+                                     # the DBC's unit (deg/s | rad/s)
     # ... or a 3-axis IMU in its own frame (instead of lateral_acceleration / yaw_rate):
     # acceleration = ["ax", "ay", "az"]     # specific force, gravity included
     # acceleration_unit = "m/s²"            # m/s² (also "m/s^2") | g
@@ -104,11 +116,13 @@ WHEEL_KEYS = (
     *COMMON_KEYS,
     *("rear_left", "rear_right", "kind", "circumference", "speed_unit"),
     *("ticks_per_revolution", "ticks_wrap"),
+    *("can", "dbc", "message", "bus"),  # a raw CAN log and its DBC: graphcal.data.can_log
 )
 IMU_KEYS = (
     *(*COMMON_KEYS, "lateral_acceleration", "yaw_rate", "yaw_rate_unit"),
     *("acceleration", "acceleration_unit", "angular_velocity", "angular_velocity_unit"),
     "mounting",  # a 3-axis IMU in its own frame: graphcal.data.imu_mounting
+    *("can", "dbc", "message", "bus"),  # signals of a CAN message: graphcal.data.can_log
 )
 
 
@@ -443,6 +457,10 @@ def _check_metric(x: np.ndarray, y: np.ndarray, provenance: Provenance) -> None:
 
 def _read_wheels(manifest: Manifest, notes: list[str]) -> WheelStream:
     table = manifest.wheels
+    from graphcal.data.can_log import read_can_section, reads_can
+
+    if reads_can(manifest, "wheels"):
+        return read_can_section(manifest, "wheels", notes)
     kind = manifest.choice(table, "kind", WHEEL_KINDS, "wheels", None)
     columns = {key: manifest.text(table, key, "wheels") for key in ("rear_left", "rear_right")}
     if columns["rear_left"] == columns["rear_right"]:
@@ -517,6 +535,10 @@ def _read_imu(
     manifest: Manifest, notes: list[str], pose: PoseStream, wheels: WheelStream
 ) -> ImuStream:
     table = manifest.imu
+    from graphcal.data.can_log import read_can_section, reads_can
+
+    if reads_can(manifest, "imu"):
+        return read_can_section(manifest, "imu", notes)
     if {"acceleration", "angular_velocity", "mounting"} & set(table):
         from graphcal.data.imu_mounting import read_mounted_imu
 

@@ -125,17 +125,23 @@ class Provenance:
             ``"heading"``, ``"sideslip"``, ``"rear_left"``, ``"rear_right"``,
             ``"lateral_acceleration"``, ``"yaw_rate"``, ``"time"``).
         lines: ``(M,)`` the line or message number of each sample of the stream.
-        unit: ``"line"`` (a CSV) or ``"message"`` (a bag topic).
+        unit: ``"line"`` (a CSV) or ``"message"`` (a bag topic); a CAN log's ``"line"``
+            (candump) or ``"frame"``.
+        quantity: what a quantity is called when not a CSV's column or a message's field
+            (``"signal"`` of a CAN log's DBC message), or ``None``.
     """
 
     file: str
     fields: dict[str, Field]
     lines: np.ndarray
     unit: str = "line"
+    quantity: str | None = None
 
     @property
     def word(self) -> str:
-        """What a quantity is in this kind of file: ``column`` or ``field``."""
+        """What a quantity is in this kind of file: ``column``, ``field`` or ``signal``."""
+        if self.quantity is not None:
+            return self.quantity
         return "column" if self.unit == "line" else "field"
 
     def line(self, k: int) -> str:
