@@ -21,7 +21,8 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
   Python (what ``smooth_drive`` uses); and the online fixed-lag update;
 * (h) ``graphcal import`` of a long recording (GNSS 10 Hz, wheels and IMU 100 Hz as CSV
   streams) in a child process: time and the child's own peak memory
-  (:mod:`graphcal.bench.importing`);
+  (:mod:`graphcal.bench.importing`); and of a raw CAN log of a car's bus (~2,000 frames/s,
+  candump with a DBC: :mod:`graphcal.bench.can_import`);
 * (i) the whole-log solve of the drive with the defect model (the defaults) and without it
   (``--no-defect-model``), and the ratio of their times;
 * (j) the joint solve of all selected segments with its covariance as one graph under GTSAM's
@@ -53,6 +54,7 @@ from typing import Any
 
 import numpy as np
 
+from graphcal.bench.can_import import can_import_item
 from graphcal.bench.fleet import fleet_item
 from graphcal.bench.importing import import_item
 from graphcal.bench.localization import solve_smoothing
@@ -224,6 +226,13 @@ def run_benchmarks(
             importing["seconds"],
             **{k: v for k, v in importing.items() if k != "seconds"},
         )
+    can_import = can_import_item(import_hours) if import_hours > 0 else None
+    if can_import is not None:
+        record(
+            f"(h) graphcal import of a {can_import['recording_hours']:.1f} h CAN log + DBC",
+            can_import["seconds"],
+            **{k: v for k, v in can_import.items() if k != "seconds"},
+        )
 
     scaling = None
     if scaling_km:
@@ -289,6 +298,7 @@ def run_benchmarks(
         "fleet": fleet,
         "localization": localization,
         "import": importing,
+        "import_can": can_import,
         "agreement": {
             "segments": len(small),
             "steps": int(small.n_steps.sum()),
@@ -475,6 +485,7 @@ def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -
         return {
             "config": {"import_hours": sizes["import_hours"], "python": sys.version.split()[0]},
             "import": import_item(sizes["import_hours"]),
+            "import_can": can_import_item(sizes["import_hours"]),
         }
     report = run_benchmarks(workers=args.workers, progress=progress, **sizes)
     report["config"]["quick"] = bool(getattr(args, "quick", False))
