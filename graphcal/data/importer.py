@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from graphcal.data.bags import BagRequest
 from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
 from graphcal.data.imu_mounting import mounted_fix
 from graphcal.data.manifest import SPEED_UNITS
@@ -50,26 +51,9 @@ TURN_MIN_COUNT = 5
 TURN_MIN_AGREEMENT = 0.25
 
 
-@dataclass(frozen=True)
-class BagOptions:
-    """Which topics, joints and fields of a ROS bag to read (``None``: detect); the keywords
-    of :func:`graphcal.data.bags.read_bag`, the CLI's bag flags by the same names."""
-
-    pose_topic: str | None = None
-    wheel_topic: str | None = None
-    imu_topic: str | None = None
-    rear_left: str | None = None
-    rear_right: str | None = None
-    wheel_kind: str | None = None
-    speed_unit: str | None = None
-    circumference: float | None = None
-    ticks_per_revolution: float | None = None
-    heading: str | None = None
-    heading_unit: str | None = None
-    heading_convention: str | None = None
-    yaw_rate: str | None = None
-    yaw_rate_unit: str | None = None
-    lateral_acceleration: str | None = None
+#: Which topics, joints and fields of a ROS bag to read (``None``: detect): the keywords of
+#: :func:`graphcal.data.bags.read_bag`, the CLI's bag flags by the same names.
+BagOptions = BagRequest
 
 
 @dataclass(frozen=True)
