@@ -1092,7 +1092,7 @@ def _wheel_stream(
     manifest: Manifest, source: CanSource, frames: Frames, notes: list[str]
 ) -> WheelStream:
     """The wheel stream of ``[wheels]`` from its CAN message (units as ``_read_wheels``)."""
-    from graphcal.data.manifest import SPEED_UNITS, WHEEL_KINDS
+    from graphcal.data.manifest import SPEED_UNITS, WHEEL_KINDS, wheel_scale
 
     table = source.table
     signals = source.signals
@@ -1106,16 +1106,11 @@ def _wheel_stream(
         )
         raise manifest.error(f"[wheels] needs kind (one of {', '.join(WHEEL_KINDS)}){suggestion}")
     kind = manifest.choice(table, "kind", WHEEL_KINDS, "wheels", None)
-    scale, cumulative, resolution, wraps = 1.0, kind in ("ticks", "angle"), None, {}
+    cumulative, wraps = kind in ("ticks", "angle"), {}
     declared = [f'kind = "{kind}"']
     keys: dict[str, str] = {"kind": kind}
-    if kind == "speed":
-        circumference = manifest.number(table, "circumference", None, "wheels", positive=True)
-        if circumference is None:
-            raise manifest.error(
-                "[wheels] kind = 'speed' needs circumference: the wheel circumference [m] the "
-                "ECU used to turn rotations into speed (from its documentation; often 2.0)"
-            )
+
+    def speed_unit() -> str:
         if "speed_unit" in table:
             unit = manifest.choice(table, "speed_unit", SPEED_UNITS, "wheels", None)
             declared.append(f'speed_unit = "{unit}"')
@@ -1124,34 +1119,25 @@ def _wheel_stream(
                     f"{source.dbc}: {source.message.name}'s wheel signals are in {dbc_text}; "
                     f'[wheels] speed_unit = "{unit}" overrides it'
                 )
-        elif dbc_unit is not None:
-            unit = dbc_unit
-            declared.append(f'speed_unit = "{unit}" from the DBC ({dbc_text})')
-        else:
-            hint = ' (the signals are in rpm: set kind = "rpm")' if rpm else ""
-            raise manifest.error(
-                f"[wheels] needs speed_unit ({', '.join(SPEED_UNITS)}): {source.dbc} gives "
-                f"signals {signals['rear_left'].name}, {signals['rear_right'].name} the unit "
-                f"{dbc_text}{hint}"
-            )
-        scale = SPEED_UNITS[unit] / circumference
-        declared.append(f"circumference = {circumference:g} m")
-        keys.update(speed_unit=unit, circumference=repr(circumference))
-    elif kind == "angular_speed" or kind == "angle":
-        scale = 1.0 / (2.0 * np.pi)
-    elif kind == "rpm":
-        scale = 1.0 / 60.0
-    else:  # ticks
-        ticks = manifest.number(table, "ticks_per_revolution", None, "wheels", positive=True)
-        if ticks is None:
-            raise manifest.error("[wheels] kind = 'ticks' needs ticks_per_revolution")
-        scale = resolution = 1.0 / ticks
-        declared.append(f"ticks_per_revolution = {ticks:g}")
-        keys["ticks_per_revolution"] = repr(ticks)
-    wrap = manifest.number(table, "ticks_wrap", None, "wheels", positive=True)
-    if wrap is not None and kind != "ticks":
-        raise manifest.error("[wheels] ticks_wrap applies to kind = 'ticks' only")
-    if kind == "ticks":
+            return unit
+        if dbc_unit is not None:
+            declared.append(f'speed_unit = "{dbc_unit}" from the DBC ({dbc_text})')
+            return dbc_unit
+        hint = ' (the signals are in rpm: set kind = "rpm")' if rpm else ""
+        raise manifest.error(
+            f"[wheels] needs speed_unit ({', '.join(SPEED_UNITS)}): {source.dbc} gives "
+            f"signals {signals['rear_left'].name}, {signals['rear_right'].name} the unit "
+            f"{dbc_text}{hint}"
+        )
+
+    scaling = wheel_scale(manifest, kind, speed_unit)
+    scale, resolution, wrap = scaling.scale, scaling.resolution, scaling.wrap
+    if kind == "speed":
+        declared.append(f"circumference = {scaling.circumference:g} m")
+        keys.update(speed_unit=str(scaling.speed_unit), circumference=repr(scaling.circumference))
+    elif kind == "ticks":
+        declared.append(f"ticks_per_revolution = {scaling.ticks:g}")
+        keys["ticks_per_revolution"] = repr(scaling.ticks)
         for role, signal in signals.items():
             counter_wrap = wrap if wrap is not None else _counter_range(signal)
             if counter_wrap is not None:

@@ -76,6 +76,8 @@ from __future__ import annotations
 
 import os
 import tomllib
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -455,20 +457,25 @@ def _check_metric(x: np.ndarray, y: np.ndarray, provenance: Provenance) -> None:
         )
 
 
-def _read_wheels(manifest: Manifest, notes: list[str]) -> WheelStream:
-    table = manifest.wheels
-    from graphcal.data.can_log import read_can_section, reads_can
+@dataclass(frozen=True)
+class WheelScale:
+    """How ``[wheels]``'s values become revolutions: multiply by ``scale`` [rev per unit];
+    ``resolution`` [rev] of a tick counter, ``wrap`` its wrap count; the keys read (SI)."""
 
-    if reads_can(manifest, "wheels"):
-        return read_can_section(manifest, "wheels", notes)
-    kind = manifest.choice(table, "kind", WHEEL_KINDS, "wheels", None)
-    columns = {key: manifest.text(table, key, "wheels") for key in ("rear_left", "rear_right")}
-    if columns["rear_left"] == columns["rear_right"]:
-        raise manifest.error(
-            f"[wheels] rear_left and rear_right are both {columns['rear_left']!r}; name the two "
-            "wheels' columns"
-        )
-    scale, cumulative, resolution = 1.0, kind in ("ticks", "angle"), None
+    scale: float
+    resolution: float | None = None
+    wrap: float | None = None
+    circumference: float | None = None
+    ticks: float | None = None
+    speed_unit: str | None = None
+
+
+def wheel_scale(manifest: Manifest, kind: str, speed_unit: Callable[[], str]) -> WheelScale:
+    """``[wheels]``'s ``circumference``, ``ticks_per_revolution`` and ``ticks_wrap`` for a
+    wheel signal of ``kind``, read and checked (one-line errors); ``speed_unit`` gives the
+    speed unit of kind "speed" once the circumference is known (a CSV's key, a DBC's unit)."""
+    table = manifest.wheels
+    circumference = ticks = unit = resolution = None
     if kind == "speed":
         circumference = manifest.number(table, "circumference", None, "wheels", positive=True)
         if circumference is None:
@@ -476,7 +483,7 @@ def _read_wheels(manifest: Manifest, notes: list[str]) -> WheelStream:
                 "[wheels] kind = 'speed' needs circumference: the wheel circumference [m] the "
                 "ECU used to turn rotations into speed (from its documentation; often 2.0)"
             )
-        unit = manifest.choice(table, "speed_unit", SPEED_UNITS, "wheels", "m/s")
+        unit = speed_unit()
         scale = SPEED_UNITS[unit] / circumference
     elif kind == "angular_speed" or kind == "angle":
         scale = 1.0 / (2.0 * np.pi)
@@ -490,6 +497,28 @@ def _read_wheels(manifest: Manifest, notes: list[str]) -> WheelStream:
     wrap = manifest.number(table, "ticks_wrap", None, "wheels", positive=True)
     if wrap is not None and kind != "ticks":
         raise manifest.error("[wheels] ticks_wrap applies to kind = 'ticks' only")
+    return WheelScale(scale, resolution, wrap, circumference, ticks, unit)
+
+
+def _read_wheels(manifest: Manifest, notes: list[str]) -> WheelStream:
+    table = manifest.wheels
+    from graphcal.data.can_log import read_can_section, reads_can
+
+    if reads_can(manifest, "wheels"):
+        return read_can_section(manifest, "wheels", notes)
+    kind = manifest.choice(table, "kind", WHEEL_KINDS, "wheels", None)
+    columns = {key: manifest.text(table, key, "wheels") for key in ("rear_left", "rear_right")}
+    if columns["rear_left"] == columns["rear_right"]:
+        raise manifest.error(
+            f"[wheels] rear_left and rear_right are both {columns['rear_left']!r}; name the two "
+            "wheels' columns"
+        )
+    cumulative = kind in ("ticks", "angle")
+    scaling = wheel_scale(
+        manifest, kind, lambda: manifest.choice(table, "speed_unit", SPEED_UNITS, "wheels", "m/s")
+    )
+    scale, resolution, wrap = scaling.scale, scaling.resolution, scaling.wrap
+    circumference, ticks, unit = scaling.circumference, scaling.ticks, scaling.speed_unit
     declared = [f"kind = {kind!r}".replace("'", '"')]
     if kind == "speed":
         declared += [_declared(table, "speed_unit", "m/s"), f"circumference = {circumference:g} m"]
