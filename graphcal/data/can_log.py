@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from graphcal.data.imu_mounting import MOUNTED_KEYS  # a 3-axis IMU's keys, not read from CAN
 from graphcal.data.streams import (
     Field,
     ImuStream,
@@ -64,14 +65,6 @@ CAN_ERR_FLAG = 0x20000000
 CAN_KEYS = ("can", "dbc", "message", "bus")
 #: Keys of a CSV section that a CAN log's section does not use (its frames carry the time).
 CSV_ONLY_KEYS = ("file", "topic", "time", "time_unit")
-#: Keys of a 3-axis IMU in its own frame (graphcal.data.imu_mounting), not read from CAN.
-MOUNTED_KEYS = (
-    "acceleration",
-    "acceleration_unit",
-    "angular_velocity",
-    "angular_velocity_unit",
-    "mounting",
-)
 #: How DBCs spell the units graphcal knows, by the manifest's unit name.
 SPEED_UNIT_SPELLINGS = {
     "km/h": ("km/h", "kph", "kmh", "km/hr", "kmph", "kilometers per hour"),
