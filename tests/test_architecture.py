@@ -126,3 +126,31 @@ def test_fleet_sits_on_the_pipeline_and_never_sees_a_truth():
             assert "fleet" not in _graphcal_units(imports), module
         if _unit(module) == "fleet":
             assert not {"evaluation", "localization", "simulate"} & _graphcal_units(imports), module
+
+
+#: Readable units: a file holds one job, a function one step (issue 29).
+MAX_FILE_LINES = 450
+MAX_FUNCTION_LINES = 80
+FILES = sorted(ROOT.rglob("*.py"))
+
+
+def _long_functions(path: Path) -> list[str]:
+    tree = ast.parse(path.read_text())
+    return [
+        f"{node.name} (line {node.lineno}: {node.end_lineno - node.lineno + 1} lines)"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef)
+        and node.end_lineno - node.lineno + 1 > MAX_FUNCTION_LINES
+    ]
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_files_and_functions_are_short(path):
+    assert len(path.read_text().splitlines()) <= MAX_FILE_LINES
+    assert _long_functions(path) == []
+
+
+def test_graph_never_imports_pipeline():
+    for module, imports in MODULES.items():
+        if _unit(module) == "graph":
+            assert "pipeline" not in _graphcal_units(imports), module
