@@ -24,9 +24,10 @@ import numpy as np
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData, gather_segments
 from graphcal.errors import GraphcalError, first_line
-from graphcal.graph.segment_graph import build_segment_graph, shared_keys
-from graphcal.graph.segment_systems import SegmentSystems, segment_systems
-from graphcal.graph.segmented import SegmentedGraph
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.graph_spec import shared_keys
+from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.pipeline.joint import JointSettings
 from graphcal.pipeline.run import CalibrationRun
 from graphcal.pipeline.validation import position_errors
@@ -122,9 +123,9 @@ def cramer_rao_systems(
     theta_true: np.ndarray,
     settings: JointSettings | None = None,
     workers: int = 1,
-) -> SegmentSystems:
+) -> ReducedSystems:
     """The measurements' information of every segment of ``data`` at the truth, reduced to
-    the shared variables (:mod:`graphcal.graph.segment_systems`): the joint graph without
+    the shared variables (:mod:`graphcal.graph.reduced_systems`): the joint graph without
     the prior on theta linearized as :func:`cramer_rao_bound` does, each segment eliminated
     once (in ``workers`` processes). A batch's bound is the theta block of the inverse of
     its members' summed information: exactly the bound of the batch's own graph.
@@ -141,10 +142,10 @@ def cramer_rao_systems(
         states.append(true_poses)
         corrections.append(true_inputs[:, :2] - data.segment(s)[1][:, :2])
     values = built.values_at(states, corrections, theta_true)
-    segmented = SegmentedGraph(built.graph, values, shared_keys(spec))
+    segmented = PartitionedGraph(built.graph, values, shared_keys(spec))
     try:
         with segmented.parallel(workers):
-            return segment_systems(segmented, len(data))
+            return reduced_systems(segmented, len(data))
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise GraphcalError(f"Cramér–Rao bound failed: {reason}") from exc

@@ -10,10 +10,11 @@ import pytest
 from graphcal.data.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.evaluation import cramer_rao_bounds
 from graphcal.graph import keys
-from graphcal.graph.segment_graph import build_segment_graph, shared_keys
-from graphcal.graph.segment_systems import SegmentSystems, segment_systems
-from graphcal.graph.segmented import SegmentedGraph
-from graphcal.graph.solve import marginal_covariance
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.covariance import marginal_covariance
+from graphcal.graph.graph_spec import shared_keys
+from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.pipeline.joint import JointSettings, solve_joint
 from graphcal.pipeline.joint_batches import solve_joint_batches
 
@@ -63,8 +64,8 @@ def test_all_segments_at_the_solution_give_the_whole_logs_covariance(segments):
     whole, values = solve_joint(data, BATCH_SETTINGS)
     spec = BATCH_SETTINGS.graph_spec()
     built = build_segment_graph(data, spec)
-    segmented = SegmentedGraph(built.graph, values, shared_keys(spec))
-    systems = segment_systems(segmented, len(data))
+    segmented = PartitionedGraph(built.graph, values, shared_keys(spec))
+    systems = reduced_systems(segmented, len(data))
     solution = systems.solve(np.arange(len(data))[None])
     np.testing.assert_allclose(solution.covariance[0, :4, :4], whole.covariance, rtol=1e-4)
     at_solution = np.linalg.inv(segmented.shared_information())
@@ -102,7 +103,7 @@ def test_a_batch_that_determines_nothing_is_not_solved():
     segments[0, 0, 0] = 4.0  # segment 0 informs the first variable only
     segments[1, :2, :2] = [[4.0, 0.0], [0.0, 4.0]]
     segments[1, :2, 2] = segments[1, 2, :2] = [5.0, 5.0]
-    systems = SegmentSystems((1, 2), np.array([1.0, 2.0]), segments, shared)
+    systems = ReducedSystems((1, 2), np.array([1.0, 2.0]), segments, shared)
     solution = systems.solve(np.array([[0], [1], [0]]))
     assert solution.solved.tolist() == [True, True, True]
     np.testing.assert_allclose(solution.values[1], [2.0, 3.0])  # point + (I + 4I)⁻¹ [5, 5]

@@ -10,9 +10,13 @@ import numpy as np
 from graphcal.data.drive_log import load_drive_log
 from graphcal.data.segments import gather_segments, select_segments, split_segments
 from graphcal.graph import keys
-from graphcal.graph.segment_graph import build_segment_graph, shared_keys, solve_segment_graph
-from graphcal.graph.segmented import PartGroup, SegmentedGraph
-from graphcal.graph.solve import marginal_covariance, solve_lm
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.covariance import marginal_covariance
+from graphcal.graph.graph_spec import shared_keys
+from graphcal.graph.part_group import PartGroup
+from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.graph.solve import solve_lm
 from graphcal.pipeline.joint import JointSettings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
@@ -40,12 +44,12 @@ def test_segmented_solve_matches_the_single_graph_on_the_sample_drive():
     theta = solution.theta
     reference = single.atVector(keys.THETA)
     assert np.max(np.abs(theta - reference) / np.abs(reference)) < 1e-6
-    segmented = np.linalg.inv(solution.segmented.shared_information())
+    segmented = np.linalg.inv(solution.partitioned.shared_information())
     scale = np.sqrt(np.outer(np.diag(single_covariance), np.diag(single_covariance)))
     assert np.max(np.abs(segmented - single_covariance) / scale) < 1e-4
     assert np.allclose(solution.covariance, single_covariance[:4, :4], rtol=1e-4, atol=0)
     # Every segment is its own part; the error is the single graph's at the same values.
-    assert len(solution.segmented.parts) == len(data)
+    assert len(solution.partitioned.parts) == len(data)
     assert np.isclose(solution.final_error, built.graph.error(solution.result), rtol=1e-12)
 
 
@@ -63,7 +67,7 @@ def test_segmented_graph_splits_at_the_shared_keys_only():
     graph.add(gtsam.BetweenFactorVector(d, s, np.array([-1.0]), noise))
     graph.add(gtsam.PriorFactorVector(s, np.array([0.5]), noise))
     graph.add(gtsam.PriorFactorVector(a, np.array([0.0]), noise))
-    segmented = SegmentedGraph(graph, values, [s])
+    segmented = PartitionedGraph(graph, values, [s])
     assert sorted(sorted(p.local) for p in segmented.parts) == [[a, b], [c, d]]
     assert segmented.shared_graph.size() == 1
     iterations = segmented.optimize(20, 1e-12)
@@ -100,10 +104,10 @@ def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
     spec = JointSettings().graph_spec()
     one = solve_segment_graph(data, spec, 50, 1e-10, "one process")
     built = build_segment_graph(data, spec)
-    segmented = SegmentedGraph(built.graph, built.values, shared_keys(spec))
+    segmented = PartitionedGraph(built.graph, built.values, shared_keys(spec))
     with segmented.parallel(2):
         segmented.error()  # the workers start with the first call
-        local = segmented.group
+        local = segmented.workers.local
         original = local.eliminate
         calls = []
 
@@ -147,7 +151,7 @@ def _cubic_graph() -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, int]:
 
 def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
     graph, values, s = _cubic_graph()
-    damped = SegmentedGraph(graph, values, [s])
+    damped = PartitionedGraph(graph, values, [s])
     damped.optimize(100, 1e-12)
     dampings = []
     eliminate = PartGroup.eliminate
@@ -157,7 +161,7 @@ def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
         return eliminate(self, lam)
 
     monkeypatch.setattr(PartGroup, "eliminate", recording)
-    first = SegmentedGraph(graph, values, [s])
+    first = PartitionedGraph(graph, values, [s])
     first.optimize(100, 1e-12, gauss_newton_first=True)
     # The undamped first step overshoots and is not taken; every later step is damped.
     assert dampings[0] is None and all(lam is not None for lam in dampings[1:])

@@ -3,7 +3,7 @@
 The same least-squares problem as :func:`graphcal.pipeline.batch_calibration.calibrate_batch`
 with held start poses (the paper's Step 1), written the way one would first write it in
 GTSAM: a Pose2 variable per sample and one Python odometry factor per step — the segment
-graph (:mod:`graphcal.graph.segment_graph`) with chunks of one step, the model equation as a
+graph (:mod:`graphcal.graph.builder`) with chunks of one step, the model equation as a
 tight continuity constraint. It reproduces the segment formulation's theta as the continuity
 sigma goes to zero, and is slow because each of its thousands of Python factors costs
 ~50 µs plus a copy of the optimizer's values per call (``docs/performance.md``).
@@ -18,7 +18,8 @@ import numpy as np
 
 from graphcal.data.segments import SegmentData
 from graphcal.graph import keys
-from graphcal.graph.segment_graph import SegmentGraph, build_segment_graph
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.built_graph import BuiltGraph
 from graphcal.pipeline.batch_calibration import BatchSettings
 
 #: Sigmas [m, m, rad] of the per-step model equation: tight enough that theta agrees with the
@@ -30,7 +31,7 @@ def build_naive_graph(
     data: SegmentData,
     settings: BatchSettings,
     odometry_sigmas: np.ndarray = ODOMETRY_SIGMAS,
-) -> SegmentGraph:
+) -> BuiltGraph:
     """One Python factor per step of the segments in ``data`` (start held at its measurement);
     poses start on the nominal odometry."""
     spec = dataclasses.replace(
@@ -43,7 +44,7 @@ def build_naive_graph(
 
 
 def naive_optimizer(
-    naive: SegmentGraph, max_iterations: int, values: gtsam.Values | None = None
+    naive: BuiltGraph, max_iterations: int, values: gtsam.Values | None = None
 ) -> gtsam.LevenbergMarquardtOptimizer:
     """A Levenberg–Marquardt optimizer on the naive graph, ready to ``iterate()``."""
     params = gtsam.LevenbergMarquardtParams()

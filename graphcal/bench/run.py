@@ -70,8 +70,11 @@ from graphcal.data.segments import (
     split_segments,
 )
 from graphcal.graph import keys
-from graphcal.graph.segment_graph import build_segment_graph, shared_keys, solve_segment_graph
-from graphcal.graph.solve import marginal_covariance, solve_lm
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.covariance import marginal_covariance
+from graphcal.graph.graph_spec import shared_keys
+from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.graph.solve import solve_lm
 from graphcal.localization.online import run_online
 from graphcal.model import integrate, integrate_with_jacobians
 from graphcal.pipeline.batch_calibration import calibrate_batch
@@ -314,7 +317,7 @@ def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int
     """(j) The joint solve of all selected segments with its covariance (the defaults' graph:
     theta, time offset, lever arm, heading biases), as one graph under GTSAM's
     Levenberg–Marquardt optimizer with GTSAM's marginals (the formulation before issue 14),
-    and segment by segment (:mod:`graphcal.graph.segmented`) in one and two processes, one
+    and segment by segment (:mod:`graphcal.graph.partitioned`) in one and two processes, one
     after the other; returns the ratios and the largest relative theta and covariance
     differences to the single graph."""
     spec = JointSettings().graph_spec()

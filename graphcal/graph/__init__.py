@@ -5,5 +5,5 @@
 * :mod:`~graphcal.graph.plausibility` — is an estimated theta a plausible vehicle;
 * :mod:`~graphcal.graph.observability` — which parameters the data determined;
 * :mod:`~graphcal.graph.chunking` — chunks of a segment;
-* :mod:`~graphcal.graph.segment_graph` — the one builder of chunked segment graphs.
+* :mod:`~graphcal.graph.builder` — the one builder of chunked segment graphs.
 """

@@ -29,12 +29,10 @@ from collections.abc import Callable
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.graph.segment_graph import (
-    SegmentGraphSpec,
-    SegmentSolution,
-    solve_segment_graph,
-    with_covariance,
-)
+from graphcal.graph.covariance import with_covariance
+from graphcal.graph.estimates import SolvedGraph
+from graphcal.graph.graph_spec import SegmentGraphSpec
+from graphcal.graph.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
 
 #: Median of the norm of a 2-D standard Gaussian, sqrt(2 ln 2).
 RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
@@ -63,16 +61,16 @@ def fix_weights(residuals: np.ndarray, scale: float, threshold: float) -> np.nda
 def solve_robust(
     data: SegmentData,
     spec: SegmentGraphSpec,
-    solve: Callable[..., SegmentSolution],
+    solve: Callable[..., SolvedGraph],
     threshold: float,
     rounds: int = 5,
-) -> tuple[SegmentSolution, np.ndarray | None, np.ndarray | None]:
+) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """Solve ``spec`` over ``data`` with robust fix weights.
 
     Args:
         data, spec: the segments and the graph's shape.
-        solve: ``solve(data, initial) -> SegmentSolution`` without covariance (e.g. a bound
-            :func:`~graphcal.graph.segment_graph.solve_segment_graph`; ``initial`` is
+        solve: ``solve(data, initial) -> SolvedGraph`` without covariance (e.g. a bound
+            :func:`~graphcal.graph.segment_solve.solve_segment_graph`; ``initial`` is
             ``None`` or the last solution's values).
         threshold: ``k``: fixes within ``k σ̂`` keep weight 1.
         rounds: most solves.
@@ -89,7 +87,7 @@ def solve_robust(
     weights = data.fix_weights
     residuals = None
     for _ in range(rounds - 1):
-        residuals = solution.built.fix_residuals(solution.result, solution.segmented)
+        residuals = solution.built.fix_residuals(solution.result, solution.partitioned)
         # The scale from fixes not flagged already (samples between fixes have none).
         usable = data.position_fixes() & (given >= 1.0)
         scale = residual_scale(residuals, usable, floor)
@@ -113,25 +111,24 @@ def solve_segment_graph_robust(
     workers: int = 1,
     progress: Callable[[str], None] | None = None,
     shared_start: dict[int, np.ndarray] | None = None,
-) -> tuple[SegmentSolution, np.ndarray | None, np.ndarray | None]:
-    """:func:`~graphcal.graph.segment_graph.solve_segment_graph` with robust fix weights
+) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
+    """:func:`~graphcal.graph.segment_solve.solve_segment_graph` with robust fix weights
     (:func:`solve_robust`, whose three results it returns); ``threshold`` 0 solves once
     without them. ``workers``: processes
     the segments are shared out among; ``shared_start``: where the first solve starts the
     graph-wide variables (e.g. :func:`~graphcal.graph.warm_start.warm_start`)."""
 
-    def solve(segments: SegmentData, initial) -> SegmentSolution:
+    def solve(segments: SegmentData, initial) -> SolvedGraph:
         return solve_segment_graph(
             segments,
             spec,
             max_iterations,
             relative_error_tol,
             label,
-            False,
-            initial,
+            start=BuilderStart.warm(shared_start) if initial is None else ValuesStart(initial),
+            covariance=False,
             workers=workers,
             progress=progress,
-            shared_start=shared_start if initial is None else None,
         )
 
     if threshold <= 0:

@@ -2,23 +2,23 @@
 
 from __future__ import annotations
 
-import functools
 from typing import Literal
 
 import gtsam
 import numpy as np
 
 from graphcal.errors import GraphcalError, first_line
+from graphcal.graph.levenberg_marquardt import (
+    Damping,
+    Verdict,
+    converged,
+    judge_step,
+    raised_scale,
+)
+from graphcal.graph.linear_systems import add_damping, hessian_diagonal_by_column
 
 #: Who drives the Levenberg–Marquardt iterations (:func:`solve_lm`).
 Driver = Literal["gtsam", "python"]
-#: GTSAM's LevenbergMarquardtParams defaults, which the Python driver follows.
-LAMBDA_INITIAL = 1e-5
-LAMBDA_FACTOR = 10.0
-LAMBDA_UPPER_BOUND = 1e5
-MIN_MODEL_FIDELITY = 1e-3
-#: Diagonal damping clamps each variable's Hessian diagonal to this range (GTSAM's).
-MIN_DIAGONAL, MAX_DIAGONAL = 1e-6, 1e32
 
 
 def solve_lm(
@@ -76,15 +76,15 @@ def _levenberg_marquardt(
     zero = values.zeroVectors()
     dims = np.array([len(zero.at(key)) for key in keys])
     first_column = np.concatenate([[0], np.cumsum(dims)])
+    dim_of = {key: int(dim) for key, dim in zip(keys, dims, strict=True)}
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
-    lam = LAMBDA_INITIAL
+    damping = Damping()
     iterations = 0
     while iterations < max_iterations:
         linear = graph.linearize(values)
-        diagonal = _hessian_diagonal(linear, int(first_column[-1]))
-        damping_scale = diagonal if damping_scale is None else np.maximum(damping_scale, diagonal)
-        scale = np.clip(damping_scale, MIN_DIAGONAL, MAX_DIAGONAL)
+        diagonal = hessian_diagonal_by_column(linear, int(first_column[-1]))
+        damping_scale = raised_scale(damping_scale, diagonal)
         iterations += 1
         new_error = error
         # The linearization's own error at zero: with robust noise models it differs from the
@@ -92,85 +92,31 @@ def _levenberg_marquardt(
         linear_at_zero = float(linear.error(zero))
         while True:
             damped = linear.clone()
-            root = np.sqrt(lam * scale)
-            for key, a, dim in zip(keys, first_column[:-1], dims, strict=True):
-                damped.add(
-                    gtsam.JacobianFactor(
-                        key, np.diag(root[a : a + dim]), np.zeros(dim), unit_noise(int(dim))
-                    )
-                )
+            root = damping.roots(damping_scale)
+            columns = zip(keys, first_column[:-1], dims, strict=True)
+            add_damping(damped, dim_of, {key: root[a : a + dim] for key, a, dim in columns})
             try:
                 step = damped.optimize()
             except RuntimeError:  # indeterminate at this damping: damp more, as GTSAM does
-                if lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
+                if not damping.can_increase():
                     raise
-                lam *= LAMBDA_FACTOR
+                damping.increase()
                 continue
             predicted = linear_at_zero - float(linear.error(step))
             candidate = values.retract(step)
             new_error = float(graph.error(candidate))
-            change = error - new_error
-            fidelity = change / predicted if predicted > 1e-20 else 1.0
-            if predicted >= 0 and fidelity > MIN_MODEL_FIDELITY and change >= 0:
-                values, lam = candidate, max(lam / LAMBDA_FACTOR, 1e-12)
+            judgement = judge_step(error, new_error, predicted, damping, relative_error_tol)
+            if judgement.verdict is Verdict.ACCEPT:
+                values = candidate
+                damping.decrease()
                 break
-            # GTSAM stops searching λ when the error barely changes (relative tolerance).
-            small = max(relative_error_tol * error, 1e-12)
-            if abs(change) < small or lam * LAMBDA_FACTOR >= LAMBDA_UPPER_BOUND:
+            if judgement.verdict is Verdict.AT_MINIMUM:
                 new_error = error  # no step lowers the error: at the minimum
                 break
-            lam *= LAMBDA_FACTOR
+            damping.increase()
         decrease = error - new_error
-        converged = decrease <= 1e-12 or decrease <= relative_error_tol * error
+        done = converged(decrease, error, relative_error_tol)
         error = new_error
-        if converged:
+        if done:
             break
     return values, iterations
-
-
-@functools.cache
-def unit_noise(dim: int) -> gtsam.noiseModel.Unit:
-    """``gtsam.noiseModel.Unit`` of dimension ``dim``, made once."""
-    return gtsam.noiseModel.Unit.Create(dim)
-
-
-def _hessian_diagonal(linear: gtsam.GaussianFactorGraph, n_columns: int) -> np.ndarray:
-    """Diagonal of ``JᵀJ`` of the whitened linear system, columns in sorted-key order."""
-    _, columns, entries = linear.sparseJacobian_()
-    inside = columns <= n_columns  # the augmented column (b) comes last
-    return np.bincount(
-        columns[inside].astype(int) - 1, weights=entries[inside] ** 2, minlength=n_columns
-    )
-
-
-def marginal_covariance(
-    graph: gtsam.NonlinearFactorGraph,
-    result: gtsam.Values,
-    key: int | list[int],
-    label: str,
-    error_type: type[GraphcalError] = GraphcalError,
-    driver: Driver = "gtsam",
-) -> np.ndarray:
-    """Marginal covariance of ``key`` at ``result`` (all other variables marginalized); for a
-    list of keys their joint marginal covariance, blocks in the list's order. ``driver``
-    ``"python"`` linearizes on the Python side (see :func:`solve_lm`).
-
-    Raises ``error_type`` (``"<label> failed: <reason>"``) if GTSAM cannot factor the
-    information matrix or the covariance is not finite.
-    """
-    try:
-        if driver == "python":
-            marginals = gtsam.Marginals(graph.linearize(result), result)
-        else:
-            marginals = gtsam.Marginals(graph, result)
-        if isinstance(key, list) and len(key) > 1:
-            joint = marginals.jointMarginalCovariance(gtsam.KeyVector(key))
-            covariance = np.block([[joint.at(a, b) for b in key] for a in key])
-        else:
-            covariance = marginals.marginalCovariance(key[0] if isinstance(key, list) else key)
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise error_type(f"{label} failed: covariance: {reason}") from exc
-    if not np.all(np.isfinite(covariance)):
-        raise error_type(f"{label} failed: non-finite covariance")
-    return covariance

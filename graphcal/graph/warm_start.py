@@ -17,7 +17,8 @@ import numpy as np
 
 from graphcal.data.segments import SegmentData, spread
 from graphcal.errors import GraphcalError
-from graphcal.graph.segment_graph import SegmentGraphSpec, shared_keys, solve_segment_graph
+from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
+from graphcal.graph.segment_solve import solve_segment_graph
 
 #: Segments of the sample a warm start solves.
 WARM_START_SEGMENTS = 32

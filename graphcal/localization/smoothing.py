@@ -29,11 +29,12 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import MeasuredPoseFactor, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
+from graphcal.graph.covariance import marginal_covariance
 from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
 from graphcal.graph.keys import LEVER_ARM, THETA, gap_slip, keyframe, keyframe_slip
 from graphcal.graph.observability import Observability, assess_observability
 from graphcal.graph.slip import slip_mean_sigma, slip_prior_factor, slip_step_factor
-from graphcal.graph.solve import marginal_covariance, solve_lm
+from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate, wrap_angle

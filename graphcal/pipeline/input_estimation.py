@@ -3,7 +3,7 @@
 The paper's optimal-control problem — find wheel rotations that make the model, started from
 the measured first pose with theta fixed, track the measured poses (weight Q) with smooth
 inputs (weight R on Δu) inside ±5 % of the measurement — is the segment graph
-(:mod:`graphcal.graph.segment_graph`) with the start held, theta fixed and a correction
+(:mod:`graphcal.graph.builder`) with the start held, theta fixed and a correction
 vector per chunk under the smoothness prior (R) and a size prior (the ±5 % bound, softened).
 Levenberg–Marquardt starts from zero corrections (the measured inputs), as the paper's QP
 solver does.
@@ -17,7 +17,8 @@ import numpy as np
 
 from graphcal.data.segments import SegmentData
 from graphcal.errors import CalibrationFailed, check_settings
-from graphcal.graph.segment_graph import CorrectionPrior, SegmentGraphSpec, solve_segment_graph
+from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
+from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.model import integrate
 
 #: Smallest size-prior sigma [rev] of a correction (a step at standstill still may move).

@@ -31,23 +31,19 @@ from graphcal.data.segments import SegmentData, spread
 from graphcal.errors import CalibrationFailed, check_settings, first_line
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph import keys
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.covariance import with_covariance
+from graphcal.graph.estimates import SolvedGraph, ThetaEstimate
+from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec, shared_keys
 from graphcal.graph.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
+from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.robust import solve_segment_graph_robust
-from graphcal.graph.segment_graph import (
-    CorrectionPrior,
-    SegmentGraphSpec,
-    SegmentSolution,
-    ThetaEstimate,
-    build_segment_graph,
-    shared_keys,
-    solve_segment_graph,
-    with_covariance,
-)
-from graphcal.graph.segmented import SegmentedGraph, copy_value
+from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
+from graphcal.graph.values import copy_value
 from graphcal.graph.warm_start import warm_start
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
@@ -322,7 +318,7 @@ def solve_joint(
 
 
 def position_noise(
-    solved: SegmentSolution,
+    solved: SolvedGraph,
     data: SegmentData,
     weights: np.ndarray | None,
     residuals: np.ndarray | None = None,
@@ -337,17 +333,17 @@ def position_noise(
     if used.sum() < MIN_NOISE_FIXES:
         return None
     if residuals is None:
-        residuals = solved.built.fix_residuals(solved.result, solved.segmented)
+        residuals = solved.built.fix_residuals(solved.result, solved.partitioned)
     return float(np.sqrt(np.mean(residuals[used] ** 2)))
 
 
-def _released(solution: SegmentSolution) -> SegmentSolution:
+def _released(solution: SolvedGraph) -> SolvedGraph:
     """``solution`` without its factors and its split graph (the values, estimates, spec
     and chunking stay): what is left once nothing more is solved on that graph."""
     built = dataclasses.replace(
         solution.built, graph=gtsam.NonlinearFactorGraph(), chunk_factors=()
     )
-    return dataclasses.replace(solution, built=built, segmented=None)
+    return dataclasses.replace(solution, built=built, partitioned=None)
 
 
 def _moved(
@@ -364,13 +360,13 @@ def _moved(
 
 
 def _with_slip_if_shown(
-    solved: SegmentSolution,
+    solved: SolvedGraph,
     data: SegmentData,
     weights: np.ndarray | None,
     settings: JointSettings,
     workers: int = 1,
     progress: Callable[[str], None] | None = None,
-) -> tuple[SegmentSolution, float]:
+) -> tuple[SolvedGraph, float]:
     """The solve with slip scales if the log shows slip, else ``solved`` (solved with its
     covariance); both with their covariance, and the statistic that decided.
 
@@ -388,7 +384,7 @@ def _with_slip_if_shown(
     screened = spread(len(data), SLIP_SCREEN_SEGMENTS)
     screen = build_segment_graph(weighted.take(screened), spec)
     at_solution = _moved(solved.result, screened, screen.values, shared_keys(spec))
-    screening = SegmentedGraph(screen.graph, at_solution, shared_keys(spec))
+    screening = PartitionedGraph(screen.graph, at_solution, shared_keys(spec))
     try:
         with screening.parallel(workers):
             drop = screening.gauss_newton_decrement()
@@ -409,9 +405,7 @@ def _with_slip_if_shown(
         settings.max_iterations,
         TOLERANCE,
         "joint solve",
-        True,
-        initial,
-        with_slip,
+        start=ValuesStart(initial, with_slip),
         workers=workers,
         progress=progress,
     )

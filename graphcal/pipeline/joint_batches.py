@@ -4,7 +4,7 @@ Two ways to solve the batches (``[batches] joint_solve``):
 
 * ``"linearized"`` (the default): the joint graph over all selected segments, with the
   batches' settings, is linearized once at the whole-log solution and every segment is
-  eliminated down to the shared variables (:mod:`graphcal.graph.segment_systems`); each batch
+  eliminated down to the shared variables (:mod:`graphcal.graph.reduced_systems`); each batch
   is then one Gauss–Newton step on the sum of its members' systems. One elimination of the
   log serves all batches, so the study costs about one whole-log iteration whatever the
   number of batches. The whole-log solution has every segment's variables at their optimum
@@ -26,11 +26,13 @@ import numpy as np
 from graphcal.data.segments import SegmentData
 from graphcal.errors import CalibrationFailed, GraphcalError, first_line
 from graphcal.graph import keys
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.observability import Observability, assess_observability
+from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.plausibility import check_plausible
-from graphcal.graph.segment_graph import build_segment_graph, shared_keys
-from graphcal.graph.segment_systems import segment_systems
-from graphcal.graph.segmented import SegmentedGraph, copy_value
+from graphcal.graph.reduced_systems import reduced_systems
+from graphcal.graph.values import copy_value
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
 
@@ -59,18 +61,18 @@ def solve_joint_batches(
     data: SegmentData,
     batches: np.ndarray,
     settings: JointSettings,
-    how: str = "linearized",
+    batch_solve: str = "linearized",
     start: gtsam.Values | None = None,
     workers: int = 1,
     progress: Progress | None = None,
 ) -> list[BatchEstimate | None]:
     """Each batch's joint estimate, ``None`` where its solve failed (see the module
-    docstring for ``how``).
+    docstring for ``batch_solve``).
 
     Args:
         data: the selected segments; ``batches`` ``(B, N)`` index them.
         settings: the batches' joint settings.
-        how: ``"linearized"`` or ``"exact"``.
+        batch_solve: ``"linearized"`` or ``"exact"``.
         start: for ``"linearized"``, the whole-log solution's values (the linearization
             point; its keys as in the graph of ``data``); ``None`` linearizes at the
             builder's initial values, which only suits a log where those are the solution.
@@ -78,13 +80,15 @@ def solve_joint_batches(
         progress: gets the progress lines.
 
     Raises:
-        ValueError: for an unknown ``how``.
+        ValueError: for an unknown ``batch_solve``.
         CalibrationFailed: if the linearized systems cannot be formed (a segment's own
             variables indeterminate).
     """
-    if how not in JOINT_BATCH_SOLVES:
-        raise ValueError(f"joint_solve must be one of {', '.join(JOINT_BATCH_SOLVES)}, got {how!r}")
-    if how == "exact":
+    if batch_solve not in JOINT_BATCH_SOLVES:
+        raise ValueError(
+            f"joint_solve must be one of {', '.join(JOINT_BATCH_SOLVES)}, got {batch_solve!r}"
+        )
+    if batch_solve == "exact":
         tasks = [(data.take(batch), settings) for batch in batches]
         solved = map_tasks(_exact_task, tasks, workers, progress, "joint batch solves")
         return [
@@ -117,11 +121,11 @@ def _linearized(
     values = built.values if start is None else _completed(start, built.values)
     if spec.time_offset_sigma is not None:  # the batches' frame: their prior's mean
         values.update(keys.TIME_OFFSET, np.array([spec.time_offset_mean]))
-    segmented = SegmentedGraph(built.graph, values, shared_keys(spec))
+    segmented = PartitionedGraph(built.graph, values, shared_keys(spec))
     say(f"joint batches: {len(data)} segments linearized at the whole-log solution")
     try:
         with segmented.parallel(workers):
-            systems = segment_systems(segmented, len(data))
+            systems = reduced_systems(segmented, len(data))
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = first_line(str(exc)) or type(exc).__name__
         raise CalibrationFailed(f"joint batches failed: {reason}") from exc

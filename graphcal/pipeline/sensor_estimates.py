@@ -2,7 +2,7 @@
 antenna's lever arm, and the fixes it down-weighted as outliers.
 
 The joint graph estimates the time offset and the lever arm with theta
-(:mod:`graphcal.graph.segment_graph`), each under a wide zero-mean prior; a component counts
+(:mod:`graphcal.graph.builder`), each under a wide zero-mean prior; a component counts
 as observable when the drive shrinks that prior's sigma to at most the same fraction that
 theta's parameters need (:mod:`graphcal.graph.observability`), and as detected when it is
 observable and more than :data:`DETECTION_SIGMAS` σ from zero. Detected quantities are
@@ -21,7 +21,7 @@ from graphcal.data.antenna import move_to_centre
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData
 from graphcal.data.timing import shift_wheel_rotations, whole_samples
-from graphcal.graph.segment_graph import NuisanceEstimate
+from graphcal.graph.estimates import NuisanceEstimate
 
 #: Fixes with a robust weight below this are counted as down-weighted (an outlier's weight
 #: is ``(k σ̂ / |r|)²``: below 0.9 means more than ~5 % beyond the threshold).

@@ -24,11 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph import keys
-from graphcal.graph.segmented import SegmentedGraph
-
-#: A batch's information counts as singular when its smallest eigenvalue is below this
-#: fraction of its largest (a parameter the batch does not determine at all).
-SINGULAR_RATIO = 1e-14
+from graphcal.graph.covariance import batch_covariances
+from graphcal.graph.partitioned import PartitionedGraph
 
 
 @dataclass(frozen=True)
@@ -51,7 +48,7 @@ class BatchSolution:
 
 
 @dataclass(frozen=True)
-class SegmentSystems:
+class ReducedSystems:
     """Every segment's system reduced to the shared variables at one linearization point.
 
     Attributes:
@@ -93,29 +90,28 @@ class SegmentSystems:
         if n == 0 or len(systems) == 0:
             return BatchSolution(values, covariance)
         good = np.all(np.isfinite(systems), axis=(1, 2))  # eigvalsh raises on a NaN
-        eigenvalues = np.linalg.eigvalsh(information[good])
-        good[good] = eigenvalues[:, 0] > SINGULAR_RATIO * np.abs(eigenvalues[:, -1])
+        invertible, inverse, covariance_good = batch_covariances(information[good])
+        good[good] = invertible
         if np.any(good):
-            inverse = np.linalg.inv(information[good])
-            covariance[good] = 0.5 * (inverse + inverse.transpose(0, 2, 1))
+            covariance[good] = covariance_good
             step = np.einsum("bij,bj->bi", inverse, systems[good, :n, n])
             values[good] = self.point + step
         return BatchSolution(values, covariance)
 
 
-def segment_systems(segmented: SegmentedGraph, segment_count: int) -> SegmentSystems:
-    """The :class:`SegmentSystems` of a segment graph (:mod:`graphcal.graph.segment_graph`)
-    split by ``segmented``, at its current values; ``segment_count`` segments (indexed as the
+def reduced_systems(partitioned: PartitionedGraph, segment_count: int) -> ReducedSystems:
+    """The :class:`ReducedSystems` of a segment graph (:mod:`graphcal.graph.builder`)
+    split by ``partitioned``, at its current values; ``segment_count`` segments (indexed as the
     graph's keys index them). Eliminates every part once (in the workers of
-    :meth:`SegmentedGraph.parallel` if entered).
+    :meth:`PartitionedGraph.parallel` if entered).
 
     Raises:
         ValueError: if a part of the graph holds variables of more than one segment.
         RuntimeError: from GTSAM if a segment's own variables are indeterminate.
     """
-    parts, shared = segmented.part_systems()
+    parts, shared = partitioned.part_systems()
     segments = np.zeros((segment_count, *shared.shape))
-    for part, system in zip(segmented.parts, parts, strict=True):
+    for part, system in zip(partitioned.parts, parts, strict=True):
         owners = {keys.segment_of(key) for key in part.local}
         if len(owners) != 1:
             raise ValueError(f"a part of the graph joins segments {sorted(owners)}")
@@ -123,4 +119,4 @@ def segment_systems(segmented: SegmentedGraph, segment_count: int) -> SegmentSys
         if not 0 <= owner < segment_count:
             raise ValueError(f"segment {owner} outside 0..{segment_count - 1}")
         segments[owner] += system
-    return SegmentSystems(tuple(segmented.shared), segmented.shared_vector(), segments, shared)
+    return ReducedSystems(tuple(partitioned.shared), partitioned.shared_vector(), segments, shared)

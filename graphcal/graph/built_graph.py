@@ -1,0 +1,144 @@
+"""A built segment graph: its factors, initial values and chunking, and what is read off
+its solutions (start states, corrections, fix residuals)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphcal.data.segments import SegmentData
+from graphcal.factors import pose2_from_state, state_from_pose2
+from graphcal.graph import keys
+from graphcal.graph.graph_spec import SegmentGraphSpec
+from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.model import lever_offset
+
+
+@dataclass(frozen=True)
+class ChunkFactorSlot:
+    """Where a chunk factor sits: its index in the graph, its segment and its steps
+    ``first .. end`` (tracking the poses ``first+1 .. end``), and which rows of the full
+    tracking error it keeps (``None``: all; :attr:`OdometryChunk.residual_rows`)."""
+
+    index: int
+    segment: int
+    first: int
+    end: int
+    rows: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class BuiltGraph:
+    """A built segment graph: factors, initial values and the chunking of each segment."""
+
+    graph: gtsam.NonlinearFactorGraph
+    values: gtsam.Values
+    bounds: list[np.ndarray]
+    spec: SegmentGraphSpec
+    data: SegmentData
+    chunk_factors: tuple[ChunkFactorSlot, ...] = ()
+
+    def fix_residuals(
+        self, result: gtsam.Values, partitioned: PartitionedGraph | None = None
+    ) -> np.ndarray:
+        """Position residuals ``(S, K+1, 2)`` [m] of every measured pose at ``result`` (the
+        predicted antenna position minus the measured one; zero at padding and at held
+        starts), for robust reweighting. With ``partitioned`` (this graph split at the same
+        values) each chunk is evaluated on its segment's own ``Values``: GTSAM copies the
+        ``Values`` for every Python factor call."""
+        data = self.data
+        out = np.zeros((len(data), data.poses.shape[1], 2))
+        values_of = {} if partitioned is None else partitioned.values_by_key()
+        for slot in self.chunk_factors:
+            factor = self.graph.at(slot.index)
+            values = values_of.get(int(factor.keys()[0]), result)
+            error = np.asarray(factor.unwhitenedError(values))
+            n = slot.end - slot.first
+            if slot.rows is not None:  # rows of unmeasured components stay zero
+                full = np.zeros(3 * n + 3)
+                full[slot.rows] = error
+                error = full
+            out[slot.segment, slot.first + 1 : slot.end + 1] = error[: 3 * n].reshape(n, 3)[:, :2]
+        if self.spec.start_prior_sigmas is not None:
+            starts = self.start_states(result)
+            arm = np.zeros(2)
+            if self.spec.lever_arm_sigma is not None:
+                arm = np.asarray(result.atVector(keys.LEVER_ARM))
+            antenna = starts[:, :2] + lever_offset(starts[:, 2], arm)
+            out[:, 0] = np.where(data.start_measured()[:, :1], antenna - data.poses[:, 0, :2], 0.0)
+        return out
+
+    def start_states(self, result: gtsam.Values) -> np.ndarray:
+        """Estimated (or held) start state of each segment, ``(S, 3)``."""
+        starts = self.data.poses[:, 0].copy()
+        if self.spec.start_prior_sigmas is not None:
+            for s in range(len(self.data)):
+                pose = result.atPose2(keys.segment_pose(s))
+                starts[s] = state_from_pose2(pose, self.data.poses[s, 0, 2])
+        return starts
+
+    def corrections(self, result: gtsam.Values, segment: int) -> np.ndarray:
+        """Estimated wheel-rotation corrections ``(K, 2)`` [rev] of ``segment``."""
+        if self.spec.corrections is None:
+            raise ValueError("this segment graph has no correction variables")
+        chunks = range(len(self.bounds[segment]) - 1)
+        parts = [result.atVector(keys.segment_corrections(segment, j)) for j in chunks]
+        return np.concatenate(parts).reshape(-1, 2)
+
+    def values_at(
+        self,
+        states: list[np.ndarray],
+        corrections: list[np.ndarray] | None,
+        theta: np.ndarray,
+    ) -> gtsam.Values:
+        """Values of every variable from per-segment states ``(K+1, 3)``, corrections
+        ``(K, 2)`` and theta (e.g. at the truth of a synthetic drive)."""
+        values = gtsam.Values()
+        if self.spec.estimate_theta:
+            values.insert(keys.THETA, np.asarray(theta, float))
+        insert_nuisance(values, self.spec)
+        for s, bounds in enumerate(self.bounds):
+            insert_segment(values, s, bounds, states[s], self.spec, with_heading(self.data, s))
+            if self.spec.corrections is not None and corrections is not None:
+                for j in range(len(bounds) - 1):
+                    a, b = int(bounds[j]), int(bounds[j + 1])
+                    values.insert(keys.segment_corrections(s, j), corrections[s][a:b].ravel())
+        return values
+
+
+def with_heading(data: SegmentData, s: int) -> bool:
+    """Segment ``s`` measures the heading somewhere (else it has no heading bias)."""
+    measured = data.measured_of(s)
+    return measured is None or bool(measured[:, 1].any())
+
+
+def insert_segment(
+    values: gtsam.Values,
+    s: int,
+    bounds: np.ndarray,
+    states: np.ndarray,
+    spec: SegmentGraphSpec,
+    with_heading: bool = True,
+) -> None:
+    """Insert the Pose2 variables of segment ``s`` (free start, chunk boundaries) and its
+    slip scales (at zero) and heading bias (if it measures the heading)."""
+    if spec.slip_sigma is not None:
+        for j in range(len(bounds) - 1):
+            values.insert(keys.segment_slip(s, j), np.zeros(2))
+    if spec.heading_bias_sigma is not None and with_heading:
+        values.insert(keys.segment_heading_bias(s), np.zeros(1))
+    if spec.start_prior_sigmas is not None:
+        values.insert(keys.segment_pose(s), pose2_from_state(states[0]))
+    for j in range(1, len(bounds) - 1):
+        values.insert(keys.segment_pose(s, j), pose2_from_state(states[int(bounds[j])]))
+
+
+def insert_nuisance(values: gtsam.Values, spec: SegmentGraphSpec) -> None:
+    """Insert the graph-wide time offset (at its prior mean) and lever arm (at zero) if
+    ``spec`` has them."""
+    if spec.time_offset_sigma is not None:
+        values.insert(keys.TIME_OFFSET, np.full(1, float(spec.time_offset_mean)))
+    if spec.lever_arm_sigma is not None:
+        values.insert(keys.LEVER_ARM, np.zeros(2))

@@ -1,0 +1,146 @@
+"""Covariance from information: every way graphcal turns a graph's information into a
+covariance, and theta's and the nuisance variables' covariance of a solved segment graph.
+
+Three conversions, each kept for its site's exact numbers:
+
+* :func:`covariance_from_information`: one symmetric positive definite matrix, by its
+  Cholesky factor (the shared variables of a part-by-part solve);
+* :func:`batch_covariances`: a stack of them at once, with the batches' Gauss–Newton steps
+  from the same inverse (:mod:`graphcal.graph.reduced_systems`);
+* :func:`marginal_covariance`: from a graph and its values, by GTSAM's ``Marginals`` (the
+  whole-graph solves).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gtsam
+import numpy as np
+
+from graphcal.errors import CalibrationFailed, GraphcalError, first_line
+from graphcal.graph import keys
+from graphcal.graph.built_graph import BuiltGraph
+from graphcal.graph.estimates import NuisanceEstimate, SolvedGraph
+from graphcal.graph.graph_spec import SegmentGraphSpec
+from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.solve import Driver
+
+#: A batch's information counts as singular when its smallest eigenvalue is below this
+#: fraction of its largest (a parameter the batch does not determine at all).
+SINGULAR_RATIO = 1e-14
+
+
+def covariance_from_information(information: np.ndarray) -> np.ndarray | None:
+    """The inverse of a symmetric positive definite ``information``, or ``None`` if it is
+    not (or the inverse is not finite)."""
+    try:
+        root = np.linalg.cholesky(information)
+    except np.linalg.LinAlgError:
+        return None
+    inverse_root = np.linalg.inv(root)
+    covariance = inverse_root.T @ inverse_root
+    return covariance if np.all(np.isfinite(covariance)) else None
+
+
+def batch_covariances(information: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For a stack of finite symmetric informations ``(B, n, n)``: which are invertible
+    (smallest eigenvalue above :data:`SINGULAR_RATIO` of the largest) ``(B,)``, and of those
+    ``G`` the inverses and the covariances (the inverses symmetrized), ``(G, n, n)`` each."""
+    eigenvalues = np.linalg.eigvalsh(information)
+    good = eigenvalues[:, 0] > SINGULAR_RATIO * np.abs(eigenvalues[:, -1])
+    if not np.any(good):
+        empty = np.zeros((0, *information.shape[1:]))
+        return good, empty, empty
+    inverse = np.linalg.inv(information[good])
+    return good, inverse, 0.5 * (inverse + inverse.transpose(0, 2, 1))
+
+
+def marginal_covariance(
+    graph: gtsam.NonlinearFactorGraph,
+    result: gtsam.Values,
+    key: int | list[int],
+    label: str,
+    error_type: type[GraphcalError] = GraphcalError,
+    driver: Driver = "gtsam",
+) -> np.ndarray:
+    """Marginal covariance of ``key`` at ``result`` (all other variables marginalized); for a
+    list of keys their joint marginal covariance, blocks in the list's order. ``driver``
+    ``"python"`` linearizes on the Python side (see :func:`solve_lm`).
+
+    Raises ``error_type`` (``"<label> failed: <reason>"``) if GTSAM cannot factor the
+    information matrix or the covariance is not finite.
+    """
+    try:
+        if driver == "python":
+            marginals = gtsam.Marginals(graph.linearize(result), result)
+        else:
+            marginals = gtsam.Marginals(graph, result)
+        if isinstance(key, list) and len(key) > 1:
+            joint = marginals.jointMarginalCovariance(gtsam.KeyVector(key))
+            covariance = np.block([[joint.at(a, b) for b in key] for a in key])
+        else:
+            covariance = marginals.marginalCovariance(key[0] if isinstance(key, list) else key)
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise error_type(f"{label} failed: covariance: {reason}") from exc
+    if not np.all(np.isfinite(covariance)):
+        raise error_type(f"{label} failed: non-finite covariance")
+    return covariance
+
+
+def with_covariance(solution: SolvedGraph, label: str, workers: int = 1) -> SolvedGraph:
+    """``solution`` with theta's marginal covariance and the nuisance estimates computed
+    (segment by segment, in ``workers`` processes)."""
+    if solution.covariance is not None or not solution.built.spec.estimate_theta:
+        return solution
+    partitioned = solution.partitioned
+    if partitioned is None:  # solved as one graph
+        marginal, nuisance = whole_graph_marginals(solution.built, solution.result, label)
+        return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
+    with partitioned.parallel(workers):
+        marginal, nuisance = partitioned_marginals(partitioned, solution.built.spec, label)
+    return dataclasses.replace(solution, covariance=marginal, nuisance=nuisance)
+
+
+def whole_graph_marginals(
+    built: BuiltGraph, result: gtsam.Values, label: str
+) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
+    """Theta's marginal covariance and the nuisance estimates from GTSAM's marginals."""
+    extra = built.spec.nuisance_keys()
+    joint = marginal_covariance(
+        built.graph, result, [keys.THETA, *extra.values()], label, CalibrationFailed
+    )
+    return joint[:4, :4], _nuisance(built.spec, result, joint)
+
+
+def partitioned_marginals(
+    partitioned: PartitionedGraph, spec: SegmentGraphSpec, label: str
+) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
+    """Theta's marginal covariance and the graph-wide nuisance estimates at ``partitioned``'s
+    values: the inverse of the shared variables' information, every segment's variables
+    marginalized."""
+    try:
+        information = partitioned.shared_information()
+    except RuntimeError as exc:
+        reason = first_line(str(exc)) or type(exc).__name__
+        raise CalibrationFailed(f"{label} failed: covariance: {reason}") from exc
+    joint = covariance_from_information(0.5 * (information + information.T))
+    if joint is None:
+        raise CalibrationFailed(f"{label} failed: covariance: the information is singular")
+    return joint[:4, :4], _nuisance(spec, partitioned.shared_values, joint)
+
+
+def _nuisance(
+    spec: SegmentGraphSpec, values: gtsam.Values, joint: np.ndarray
+) -> dict[str, NuisanceEstimate]:
+    """The graph-wide nuisance estimates from ``values`` and the joint covariance of theta
+    and them (in :meth:`SegmentGraphSpec.nuisance_keys` order after theta)."""
+    priors = {"time_offset": spec.time_offset_sigma, "lever_arm": spec.lever_arm_sigma}
+    nuisance, at = {}, 4
+    for name, key in spec.nuisance_keys().items():
+        value = np.asarray(values.atVector(key))
+        n = len(value)
+        nuisance[name] = NuisanceEstimate(value, joint[at : at + n, at : at + n], priors[name])
+        at += n
+    return nuisance

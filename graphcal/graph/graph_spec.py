@@ -1,0 +1,95 @@
+"""The shape of a segment graph: which variables, priors and weights it has
+(:func:`graphcal.graph.builder.build_segment_graph` builds it)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from graphcal.factors import CONTINUITY_SIGMAS
+from graphcal.graph import keys
+
+
+@dataclass(frozen=True)
+class CorrectionPrior:
+    """The prior on wheel-rotation corrections ``[dn_rl, dn_rr]`` [rev] of every step.
+
+    Attributes:
+        sigma: zero-mean size sigma [rev] (the wheel noise; or a floor with ``relative``).
+        relative: size sigma as a fraction of the measured rotation, at least ``sigma``
+            (the paper's ±5 % input bound, softened); 0 for an absolute sigma.
+        smoothness_sigma: sigma [rev] of the change of a corrected rotation from one step to
+            the next (the paper's R = 1000 is 0.032 rev), or ``None`` for no smoothness term.
+        quantization: sigma [rev] of the rounding error of each wheel's cumulative count
+            (tick quantization, :func:`~graphcal.factors.chunk_correction_prior`), or 0.
+    """
+
+    sigma: float
+    relative: float = 0.0
+    smoothness_sigma: float | None = None
+    quantization: float = 0.0
+
+    def size_sigmas(self, measured: np.ndarray) -> np.ndarray:
+        """Per step and wheel size sigmas ``(L, 2)`` [rev] for measured rotations ``(L, 2)``."""
+        return np.maximum(self.relative * np.abs(np.asarray(measured, float)), self.sigma)
+
+
+@dataclass(frozen=True)
+class SegmentGraphSpec:
+    """The shape of a segment graph (SI).
+
+    Attributes:
+        theta: theta's initial value, or its fixed value when ``estimate_theta`` is false.
+        estimate_theta: theta is a variable (key :data:`~graphcal.graph.keys.THETA`).
+        theta_prior_sigmas: sigmas of a prior on theta at ``theta``, or ``None``.
+        tracking_sigmas: ``[m, m, rad]`` of the tracking residuals.
+        start_prior_sigmas: ``[m, m, rad]`` of the priors on free start poses (x and y
+            equal), or ``None`` to hold each start at its measured pose.
+        chunk_steps: steps per chunk factor; ``None`` for one chunk per segment.
+        continuity_sigmas: ``[m, m, rad]`` of the chunk-boundary continuity.
+        corrections: the corrections' prior, or ``None`` for no correction variables.
+        slip_sigma: stationary sigma of a relative slip scale of each wheel per chunk (the
+            rotation of wheel w becomes ``n_w · (1 + s_w)``; slow slip, a tyre's load), or
+            ``None`` for none. The scales follow a first-order Gauss–Markov process with
+            correlation time ``slip_time`` [s] from chunk to chunk.
+        slip_time: that correlation time [s].
+        time_offset_sigma: prior sigma [s] of the wheels' time offset (a variable,
+            :data:`~graphcal.graph.keys.TIME_OFFSET`), or ``None`` for none.
+        time_offset_mean: that prior's mean [s] (and the variable's initial value).
+        lever_arm_sigma: prior sigma [m] of each component of the antenna's lever arm (a
+            variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
+        heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
+            or ``None`` for none.
+    """
+
+    theta: np.ndarray
+    tracking_sigmas: np.ndarray
+    estimate_theta: bool = True
+    theta_prior_sigmas: np.ndarray | None = None
+    start_prior_sigmas: np.ndarray | None = None
+    chunk_steps: int | None = None
+    continuity_sigmas: np.ndarray = field(default_factory=lambda: CONTINUITY_SIGMAS.copy())
+    corrections: CorrectionPrior | None = None
+    slip_sigma: float | None = None
+    slip_time: float = 5.0
+    time_offset_sigma: float | None = None
+    time_offset_mean: float = 0.0
+    lever_arm_sigma: float | None = None
+    heading_bias_sigma: float | None = None
+
+    def nuisance_keys(self) -> dict[str, int]:
+        """Graph-wide variables besides theta, by name: ``"time_offset"``, ``"lever_arm"``."""
+        found = {}
+        if self.time_offset_sigma is not None:
+            found["time_offset"] = keys.TIME_OFFSET
+        if self.lever_arm_sigma is not None:
+            found["lever_arm"] = keys.LEVER_ARM
+        return found
+
+
+def shared_keys(spec: SegmentGraphSpec) -> list[int]:
+    """The variables every segment of ``spec``'s graph shares: theta (if estimated), then
+    the time offset and the lever arm (if present)."""
+    found = [keys.THETA] if spec.estimate_theta else []
+    return [*found, *spec.nuisance_keys().values()]

@@ -1,0 +1,107 @@
+"""The Levenberg–Marquardt rules every graphcal solve driven from Python follows.
+
+One place for the damping λ and its update, the judgement of a trial step (gain ratio,
+accept or damp more or stop) and the convergence test, with GTSAM's
+``LevenbergMarquardtParams`` defaults: the whole-graph solve
+(:func:`graphcal.graph.solve.solve_lm`'s Python driver) and the part-by-part solve
+(:mod:`graphcal.graph.partitioned_lm`) both use them.
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+import numpy as np
+
+#: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow.
+LAMBDA_INITIAL = 1e-5
+LAMBDA_FACTOR = 10.0
+LAMBDA_UPPER_BOUND = 1e5
+MIN_MODEL_FIDELITY = 1e-3
+#: Smallest λ after a decrease.
+LAMBDA_LOWER_BOUND = 1e-12
+#: Diagonal damping clamps each variable's Hessian diagonal to this range (GTSAM's).
+MIN_DIAGONAL, MAX_DIAGONAL = 1e-6, 1e32
+#: An error decrease this small [graph error] ends the solve, whatever the relative one.
+ABSOLUTE_ERROR_TOL = 1e-12
+#: A predicted decrease at most this small counts as a perfect prediction (gain ratio 1).
+NEGLIGIBLE_PREDICTION = 1e-20
+
+
+@dataclass
+class Damping:
+    """The damping λ: raised by :data:`LAMBDA_FACTOR` after a rejected step (up to
+    :data:`LAMBDA_UPPER_BOUND`), lowered by it after an accepted one."""
+
+    lam: float = LAMBDA_INITIAL
+
+    def can_increase(self) -> bool:
+        """λ may still be raised (once more is below the upper bound)."""
+        return self.lam * LAMBDA_FACTOR < LAMBDA_UPPER_BOUND
+
+    def increase(self) -> None:
+        """λ × :data:`LAMBDA_FACTOR` (a rejected step, or an indeterminate system)."""
+        self.lam *= LAMBDA_FACTOR
+
+    def decrease(self) -> None:
+        """λ / :data:`LAMBDA_FACTOR`, at least :data:`LAMBDA_LOWER_BOUND` (an accepted step)."""
+        self.lam = max(self.lam / LAMBDA_FACTOR, LAMBDA_LOWER_BOUND)
+
+    def roots(self, scale: np.ndarray) -> np.ndarray:
+        """Square roots of the diagonal damping ``λ · clamp(scale, 1e-6, 1e32)``."""
+        return np.sqrt(self.lam * np.clip(scale, MIN_DIAGONAL, MAX_DIAGONAL))
+
+
+def raised_scale(scale: np.ndarray | None, diagonal: np.ndarray) -> np.ndarray:
+    """The damping's scale: the Hessian ``diagonal`` of the first linearization, raised to
+    the largest seen (as MINPACK scales)."""
+    return diagonal if scale is None else np.maximum(scale, diagonal)
+
+
+class Verdict(enum.Enum):
+    """What a trial step leads to."""
+
+    ACCEPT = "accept"
+    #: No step lowers the error: the current values are the minimum.
+    AT_MINIMUM = "at minimum"
+    DAMP_MORE = "damp more"
+
+
+@dataclass(frozen=True)
+class Judgement:
+    """A trial step's verdict and its gain ratio (actual over predicted decrease)."""
+
+    verdict: Verdict
+    gain_ratio: float
+
+
+def error_tolerance(error: float, relative_error_tol: float) -> float:
+    """The error change [graph error] below which a solve at ``error`` stops."""
+    return max(relative_error_tol * error, ABSOLUTE_ERROR_TOL)
+
+
+def judge_step(
+    error: float,
+    new_error: float,
+    predicted: float,
+    damping: Damping,
+    relative_error_tol: float,
+) -> Judgement:
+    """Judge a step from ``error`` to ``new_error`` whose linearization predicted a decrease
+    of ``predicted``: accepted when the error falls by at least :data:`MIN_MODEL_FIDELITY` of
+    the prediction; else the values are at the minimum when the error barely changes
+    (:func:`error_tolerance`, as GTSAM stops searching λ) or λ cannot rise, else damp more."""
+    change = error - new_error
+    ratio = change / predicted if predicted > NEGLIGIBLE_PREDICTION else 1.0
+    if predicted >= 0 and ratio > MIN_MODEL_FIDELITY and change >= 0:
+        return Judgement(Verdict.ACCEPT, ratio)
+    if abs(change) < error_tolerance(error, relative_error_tol) or not damping.can_increase():
+        return Judgement(Verdict.AT_MINIMUM, ratio)
+    return Judgement(Verdict.DAMP_MORE, ratio)
+
+
+def converged(decrease: float, error: float, relative_error_tol: float) -> bool:
+    """An iteration that lowered the error from ``error`` by ``decrease`` ends the solve: by
+    at most ``relative_error_tol`` relatively or :data:`ABSOLUTE_ERROR_TOL` absolutely."""
+    return decrease <= ABSOLUTE_ERROR_TOL or decrease <= relative_error_tol * error

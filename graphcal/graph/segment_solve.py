@@ -1,0 +1,211 @@
+"""Solving a segment graph: build (or take) it, optimize it from a chosen start, check theta's
+plausibility and compute its covariance (:mod:`graphcal.graph.covariance`).
+
+A graph that splits into segments is solved part by part
+(:class:`~graphcal.graph.partitioned.PartitionedGraph`); one that does not (theta alone, or
+one segment with theta fixed) under GTSAM's optimizer and marginals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import gtsam
+import numpy as np
+
+from graphcal.data.segments import SegmentData
+from graphcal.errors import CalibrationFailed
+from graphcal.graph import keys
+from graphcal.graph.builder import build_segment_graph
+from graphcal.graph.built_graph import BuiltGraph
+from graphcal.graph.covariance import partitioned_marginals, whole_graph_marginals
+from graphcal.graph.estimates import SolvedGraph
+from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
+from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.partitioned_lm import optimize_partitioned
+from graphcal.graph.plausibility import check_plausible
+from graphcal.graph.solve import solve_lm
+
+
+@dataclass(frozen=True)
+class BuilderStart:
+    """Start at the builder's initial values (:func:`~graphcal.graph.builder.build_segment_graph`),
+    with ``shared``'s values of graph-wide variables (by key: theta, time offset, lever arm).
+
+    Attributes:
+        shared: those values (none: the builder's own).
+        gauss_newton_first: the first step is an undamped Gauss–Newton step (``shared``
+            near the optimum, such as a warm start's).
+    """
+
+    shared: dict[int, np.ndarray] = field(default_factory=dict)
+    gauss_newton_first: bool = False
+
+    @classmethod
+    def warm(cls, shared: dict[int, np.ndarray] | None) -> BuilderStart:
+        """From a warm start's graph-wide values (``None`` or empty: the builder's own, and
+        a damped first step)."""
+        return cls(shared or {}, gauss_newton_first=bool(shared))
+
+
+@dataclass(frozen=True)
+class ValuesStart:
+    """Start at ``values`` of every variable of the graph (e.g. an earlier solution's),
+    on ``built``, that graph already built (``None``: built here)."""
+
+    values: gtsam.Values
+    built: BuiltGraph | None = None
+
+
+def solve_segment_graph(
+    data: SegmentData,
+    spec: SegmentGraphSpec,
+    max_iterations: int,
+    relative_error_tol: float,
+    label: str,
+    *,
+    start: BuilderStart | ValuesStart | None = None,
+    covariance: bool = True,
+    workers: int = 1,
+    progress: Callable[[str], None] | None = None,
+) -> SolvedGraph:
+    """Build the graph of ``spec`` over ``data`` (or take the ``start``'s) and solve it with
+    Levenberg–Marquardt from ``start`` (default: the builder's initial values), segment by
+    segment (:class:`~graphcal.graph.partitioned.PartitionedGraph`), the segments shared out
+    among ``workers`` processes (the result does not depend on it); ``progress`` gets a line
+    per iteration of a long solve.
+
+    An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
+    initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
+
+    Raises:
+        CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
+    """
+    start = BuilderStart() if start is None else start
+    if isinstance(start, ValuesStart):
+        built = start.built if start.built is not None else build_segment_graph(data, spec)
+        values, gauss_newton_first = start.values, False
+    else:
+        built = build_segment_graph(data, spec, start.shared)
+        values, gauss_newton_first = built.values, start.gauss_newton_first
+    partitioned = PartitionedGraph(built.graph, values, shared_keys(spec))
+    if len(partitioned.parts) < 2:  # nothing to split: one graph under GTSAM's optimizer
+        return _solve_whole_graph(
+            built, values, max_iterations, relative_error_tol, label, covariance
+        )
+    theta = np.asarray(spec.theta, float)
+    marginal, nuisance = None, {}
+    with partitioned.parallel(workers):
+        iterations = optimize_partitioned(
+            partitioned,
+            max_iterations,
+            relative_error_tol,
+            label,
+            CalibrationFailed,
+            progress,
+            gauss_newton_first=gauss_newton_first,
+        )
+        if spec.estimate_theta:
+            theta = np.asarray(partitioned.shared_values.atVector(keys.THETA))
+            check_plausible(
+                theta, label, spec.theta, lambda: implausibility_causes(built, partitioned.values())
+            )
+            if covariance:
+                marginal, nuisance = partitioned_marginals(partitioned, spec, label)
+    result = partitioned.values()
+    return SolvedGraph(
+        theta=theta,
+        covariance=marginal,
+        start_states=built.start_states(result),
+        iterations=iterations,
+        initial_error=partitioned.initial_error,
+        final_error=partitioned.error(),
+        result=result,
+        built=built,
+        degrees_of_freedom=partitioned.factor_dims() - partitioned.dim(),
+        nuisance=nuisance,
+        partitioned=partitioned,
+    )
+
+
+def _solve_whole_graph(
+    built: BuiltGraph,
+    start: gtsam.Values,
+    max_iterations: int,
+    relative_error_tol: float,
+    label: str,
+    covariance: bool,
+) -> SolvedGraph:
+    """:func:`solve_segment_graph` for a graph that does not split into segments (theta
+    alone, as in the batch solve of Step 1, or one segment with theta fixed, as in input
+    estimation): GTSAM's optimizer and marginals, cheaper than the split machinery there."""
+    spec = built.spec
+    initial_error = float(built.graph.error(start))
+    result, iterations = solve_lm(
+        built.graph, start, max_iterations, relative_error_tol, label, CalibrationFailed
+    )
+    theta = np.asarray(spec.theta, float)
+    marginal, nuisance = None, {}
+    if spec.estimate_theta:
+        theta = np.asarray(result.atVector(keys.THETA))
+        check_plausible(theta, label, spec.theta, lambda: implausibility_causes(built, result))
+        if covariance:
+            marginal, nuisance = whole_graph_marginals(built, result, label)
+    return SolvedGraph(
+        theta=theta,
+        covariance=marginal,
+        start_states=built.start_states(result),
+        iterations=iterations,
+        initial_error=initial_error,
+        final_error=float(built.graph.error(result)),
+        result=result,
+        built=built,
+        degrees_of_freedom=degrees_of_freedom(built.graph, result),
+        nuisance=nuisance,
+    )
+
+
+def degrees_of_freedom(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> int:
+    """Residual dimensions of ``graph`` minus the dimensions of the unknowns in ``values``."""
+    residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
+    return int(residuals - values.dim())
+
+
+#: Fix rate [Hz] below which an implausible theta names the rate among its causes, and
+#: heading sigma [rad] below which it names the heading's weight (0.05°).
+SLOW_FIX_RATE = 2.0
+TIGHT_HEADING_SIGMA = float(np.deg2rad(0.05))
+#: Mean |yaw rate| [rad/s] of the segments below which the drive leaves t_r and d to priors.
+STRAIGHT_YAW_RATE = 0.02
+
+
+def implausibility_causes(built: BuiltGraph, result: gtsam.Values) -> tuple[str, ...]:
+    """What in the data or the weights of ``built`` may have driven its solve to an
+    implausible theta (one phrase each, with the key or option to change)."""
+    data, spec = built.data, built.spec
+    causes = []
+    if data.has_heading() and float(spec.tracking_sigmas[2]) < TIGHT_HEADING_SIGMA:
+        causes.append(
+            f"the heading weighs as a {np.degrees(spec.tracking_sigmas[2]):.3f}° measurement "
+            "(check heading_unit and the heading noise, [joint] heading_noise_from_log)"
+        )
+    fixes = data.position_fixes()
+    seconds = float(data.n_steps.sum() * data.dt)
+    rate = float(fixes.sum()) / seconds if seconds > 0 else 0.0
+    if rate < SLOW_FIX_RATE:
+        causes.append(f"position fixes at only {rate:.1f} Hz")
+    if spec.time_offset_sigma is not None and result.exists(keys.TIME_OFFSET):
+        offset = float(result.atVector(keys.TIME_OFFSET)[0])
+        if abs(offset - spec.time_offset_mean) > 3.0 * spec.time_offset_sigma:
+            causes.append(
+                f"the wheels' time offset went to {offset:+.2f} s, beyond its prior "
+                f"(±{spec.time_offset_sigma:g} s): check the streams' time bases"
+            )
+    turned = np.abs(np.diff(data.poses[..., 2], axis=1))[data.valid[:, 1:]].sum()
+    if seconds > 0 and turned / seconds < STRAIGHT_YAW_RATE:
+        causes.append(
+            f"the drive barely turns (mean |yaw rate| {turned / seconds:.3f} rad/s), so t_r "
+            "and d rest on their priors"
+        )
+    return tuple(causes)

@@ -1,0 +1,47 @@
+"""Copying variables between ``gtsam.Values`` and across processes (Pose2 or vector: the
+variables of graphcal's segment graphs)."""
+
+from __future__ import annotations
+
+import gtsam
+import numpy as np
+
+#: A variable's value as plain data, picklable: ``("pose2" | "vector", array)``.
+Portable = tuple[str, np.ndarray]
+
+
+def copy_value(
+    target: gtsam.Values, source: gtsam.Values, key: int, target_key: int | None = None
+) -> None:
+    """Insert (or update) ``key``'s value from ``source`` into ``target``, as ``target_key``
+    if given (a Pose2 or a vector: the variables of graphcal's segment graphs)."""
+    try:
+        value = source.atPose2(key)
+    except RuntimeError:
+        value = source.atVector(key)
+    key = key if target_key is None else target_key
+    if target.exists(key):
+        target.update(key, value)
+    else:
+        target.insert(key, value)
+
+
+def portable(values: gtsam.Values, key: int) -> Portable:
+    """``key``'s value in ``values`` as plain data (:func:`restore` puts it back)."""
+    try:
+        pose = values.atPose2(key)
+    except RuntimeError:
+        return "vector", np.asarray(values.atVector(key))
+    return "pose2", np.array([pose.x(), pose.y(), pose.theta()])
+
+
+def restore(values: gtsam.Values, key: int, value: Portable) -> None:
+    """Update ``key`` in ``values`` to a :func:`portable` value."""
+    kind, array = value
+    values.update(key, gtsam.Pose2(*array) if kind == "pose2" else array)
+
+
+def tangent_dims(values: gtsam.Values) -> dict[int, int]:
+    """Tangent dimension of every variable of ``values``."""
+    zero = values.zeroVectors()
+    return {int(k): len(zero.at(k)) for k in values.keys()}
