@@ -1,3 +1,29 @@
+"""The one graph builder for segments of a drive: multiple shooting over chunks.
+
+Every calibration graph of graphcal is an instance of this shape, chosen by a
+:class:`~graphcal.graph.graph_spec.SegmentGraphSpec`:
+
+* per segment, its start: held at the measured pose, or a Pose2 variable under world-frame
+  position and heading priors at the measured pose (the paper's W);
+* the segment cut into chunks (:func:`~graphcal.graph.chunking.chunk_bounds`); one
+  :class:`~graphcal.factors.ChunkOdometryFactor` per chunk integrates eq. (1) from the chunk's
+  start and tracks the measured poses; Pose2 variables at the chunk boundaries, initialized
+  on the nominal odometry, carry a near-hard continuity residual;
+* optionally per chunk one vector of wheel-rotation corrections under a size prior and the
+  paper's smoothness prior on Δu (linear C++ factors);
+* theta: a 4-vector variable (optionally under a prior) or a fixed value;
+* optionally the defects of real logs as variables under zero-mean priors: the wheels' time
+  offset against the pose and the GNSS antenna's lever arm (one each for the graph) and a
+  bias of the measured heading per segment; with a lever arm or heading bias, the free
+  start poses are measured through them (:class:`~graphcal.factors.MeasuredPoseFactor`);
+* optionally per-fix weights (``SegmentData.fix_weights``) that widen the sigmas of outlying
+  fixes (robust estimation by iterative reweighting, :mod:`graphcal.graph.robust`).
+
+Users: the batch solve (one chunk per segment, no corrections), input estimation (one
+segment, theta fixed, corrections), the joint solve (start poses, corrections and theta)
+and the naive per-step benchmark (chunks of one step).
+"""
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -1,4 +1,5 @@
-"""Levenberg–Marquardt as every graphcal solve runs it."""
+"""Levenberg–Marquardt on one whole graph: GTSAM's optimizer, or the same steps driven from
+Python by the rules of :mod:`graphcal.graph.levenberg_marquardt`."""
 
 from __future__ import annotations
 
