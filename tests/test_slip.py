@@ -8,7 +8,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.pipeline.run import run_calibration, wheel_model
+from graphcal.pipeline.localization_inputs import wheel_model
+from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
