@@ -51,7 +51,7 @@ _PUBLIC = {
     "load_vehicle": "graphcal.pipeline.settings_file",
     "apply_vehicle": "graphcal.pipeline.vehicle_settings",
     "run_calibration": "graphcal.pipeline.run",
-    "CalibrationRun": "graphcal.pipeline.run",
+    "CalibrationRun": "graphcal.pipeline.calibration_run",
     "wheel_model": "graphcal.pipeline.localization_inputs",
     "prepare_localization": "graphcal.pipeline.localization_inputs",
     "write_results": "graphcal.report.results",

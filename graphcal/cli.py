@@ -34,7 +34,7 @@ from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 if TYPE_CHECKING:
     from graphcal.evaluation import Evaluation
-    from graphcal.pipeline.run import CalibrationRun
+    from graphcal.pipeline.calibration_run import CalibrationRun
 
 EXIT_BAD_INPUT = 2
 EXIT_UNTRUSTED = 3  # graphcal.pipeline.trust: written, but not to be trusted

@@ -27,8 +27,8 @@ from graphcal.errors import GraphcalError, first_line
 from graphcal.graph.segment_graph import build_segment_graph, shared_keys
 from graphcal.graph.segment_systems import SegmentSystems, segment_systems
 from graphcal.graph.segmented import SegmentedGraph
+from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.run import CalibrationRun
 from graphcal.pipeline.validation import position_errors
 
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 from typing import Any
 
 from graphcal.data.drive_log import DriveLog
-from graphcal.pipeline.run import CalibrationRun, run_calibration
+from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.sensor_estimates import correct_log
 from graphcal.pipeline.settings import Settings
 

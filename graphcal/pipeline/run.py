@@ -24,7 +24,8 @@ segments: the observability check, not the selection, then decides what the driv
 Each method is one function (``_run_staged``, ``_run_joint``, ``_run_whole``):
 :func:`~graphcal.pipeline.prepare.prepare_log` (selection, the settings the log completes,
 fix weights), the whole-log solve (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), the
-method's batches, then validation and the trust checks (``_validated``).
+method's batches, then validation and the trust checks
+(:func:`~graphcal.pipeline.calibration_run.validated_run`).
 
 Validation (§5.2): every theta is judged by its position error E_p (eq. 16 / K, averaged over
 the 300 m validation segments), next to the nominal theta of ``settings.vehicle``, whose c_e
@@ -36,126 +37,22 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import SegmentData, Segments, make_batches
+from graphcal.data.segments import make_batches
 from graphcal.errors import GraphcalError
-from graphcal.graph.observability import Observability, condition_on_prior
-from graphcal.model import PARAMETER_NAMES
+from graphcal.graph.observability import condition_on_prior
 from graphcal.pipeline.batch_study import joint_batch_study
-from graphcal.pipeline.joint import JointCalibration
+from graphcal.pipeline.calibration_run import CalibrationRun, Method, MethodResult, validated_run
 from graphcal.pipeline.prepare import PreparedLog, prepare_log
-from graphcal.pipeline.sensor_estimates import DownWeightedFixes, SensorEstimate
 from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.staged import StagedResult, run_staged
-from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
-from graphcal.pipeline.validation import position_errors
+from graphcal.pipeline.staged import run_staged
 from graphcal.pipeline.whole_log import WholeLog, models_sensors, solve_whole_log
 
 Progress = Callable[[str], None]
-Method = Literal["staged", "joint", "whole"]
 METHODS = ("staged", "joint", "whole")
-
-
-@dataclass(frozen=True)
-class CalibrationRun:
-    """Everything a calibration run produced (SI).
-
-    Attributes:
-        log, settings, method: what was run.
-        segments: all calibration segments; ``selected`` those passing the selection.
-        yaw_rate: the selection statistic of every calibration segment [rad/s].
-        data: the selected segments' signals.
-        theta: the recommended theta.
-        batches: ``(B, N)`` segment indices of the batches (``None`` for ``"whole"``).
-        batch_theta: per step or method (``"step1"``, ``"step3"``, ``"step5"``; ``"joint"``;
-            ``"whole"``), theta of each batch ``(B, 4)``; NaN rows for failed solves.
-        batch_covariance: per method that reports one (``"joint"``), the marginal covariance
-            of each batch's theta ``(B, 4, 4)``; NaN for failed solves.
-        batch_excluded: per method, why each batch is left out of the statistics (``""``
-            if it is not): a failed solve or parameters the batch does not determine.
-        covariance: covariance of the recommended theta (joint and whole methods), ``(4, 4)``.
-        observability: what the data determined about the recommended theta (joint, whole).
-        staged: the five steps' results (``method == "staged"``).
-        validation_segments, validation: the validation segments and their signals.
-        segment_errors: per validation segment, mean position error [m] of odometry with
-            ``"nominal"`` and ``"calibrated"`` theta.
-        batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
-            failed (never written to a file).
-        warnings: what a user must know before trusting the result.
-        trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
-        estimated: sensor quantities the whole-log solve estimated with theta
-            (``"time_offset"`` [s], ``"lever_arm_longitudinal"``, ``"lever_arm_lateral"``
-            [m]; :mod:`graphcal.pipeline.sensor_estimates`); observable ones are corrected
-            in ``log`` for the batches and the validation.
-        down_weighted: the fixes the robust whole-log solve down-weighted as outliers.
-        whole: the whole-log joint solve (joint and whole methods, and staged when it
-            estimates sensor quantities or outliers), ``None`` otherwise.
-    """
-
-    log: DriveLog
-    settings: Settings
-    method: Method
-    segments: Segments
-    selected: Segments
-    yaw_rate: np.ndarray
-    data: SegmentData
-    theta: np.ndarray
-    batches: np.ndarray | None
-    batch_theta: dict[str, np.ndarray]
-    batch_covariance: dict[str, np.ndarray]
-    staged: StagedResult | None
-    validation_segments: Segments
-    validation: SegmentData
-    segment_errors: dict[str, np.ndarray]
-    batch_errors: dict[str, np.ndarray]
-    batch_excluded: dict[str, np.ndarray]
-    warnings: tuple[str, ...] = ()
-    covariance: np.ndarray | None = None
-    observability: Observability | None = None
-    trust: TrustAssessment | None = None
-    estimated: dict[str, SensorEstimate] = field(default_factory=dict)
-    down_weighted: DownWeightedFixes | None = None
-    whole: JointCalibration | None = None
-
-    def verdicts(self) -> dict[str, str]:
-        """Per parameter: the observability verdict, or why it is not to be trusted
-        (:mod:`graphcal.pipeline.trust`)."""
-        out = self.observability.verdicts() if self.observability is not None else {}
-        doubts = self.trust.parameter_doubts if self.trust is not None else {}
-        for name in PARAMETER_NAMES:
-            if name in doubts and out.get(name, "calibrated").startswith("calibrated"):
-                out[name] = f"not trusted: {doubts[name]}"
-            out.setdefault(name, "calibrated")
-        return out
-
-    def batch_estimates(self, name: str) -> np.ndarray:
-        """Per-batch thetas ``(B, 4)`` of step or method ``name`` with failed and excluded
-        batches as NaN rows: what statistics and figures summarize."""
-        return without_excluded(self.batch_theta[name], self.batch_excluded.get(name))
-
-    def validation_error(self, name: str) -> float:
-        """E_p [m] of ``"nominal"`` or ``"calibrated"`` theta."""
-        return float(np.mean(self.segment_errors[name]))
-
-
-def without_excluded(thetas: np.ndarray, reasons: np.ndarray | None) -> np.ndarray:
-    """``thetas`` ``(B, 4)`` with the rows of excluded batches (a non-empty reason) as NaN."""
-    out = np.array(thetas, dtype=float)
-    if reasons is not None:
-        out[np.asarray(reasons) != ""] = np.nan
-    return out
-
-
-def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
-    """E_p [m]: the position error of eq. (16) / K averaged over the validation segments."""
-    if not np.all(np.isfinite(theta)):
-        return float("nan")
-    return float(np.mean(position_errors(validation, theta)))
 
 
 def run_calibration(
@@ -190,26 +87,11 @@ def run_calibration(
     return _RUNS[method](log, settings, workers, say)
 
 
-@dataclass(frozen=True)
-class MethodResult:
-    """What a method found, before validation; the fields are :class:`CalibrationRun`'s."""
-
-    theta: np.ndarray
-    warnings: list[str]
-    batches: np.ndarray | None = None
-    batch_theta: dict[str, np.ndarray] = field(default_factory=dict)
-    batch_covariance: dict[str, np.ndarray] = field(default_factory=dict)
-    batch_excluded: dict[str, np.ndarray] = field(default_factory=dict)
-    staged: StagedResult | None = None
-    covariance: np.ndarray | None = None
-    observability: Observability | None = None
-
-
 def _run_whole(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
     """Only the joint solve over all selected segments: the recommended theta, no batches."""
     prepared = prepare_log(log, settings, say, fall_back_to_all=True)
     solved, _ = solve_whole_log(prepared, workers, say)
-    return _validated("whole", solved.corrected, solved, _recommended(solved), say)
+    return validated_run("whole", solved.corrected, solved, _recommended(solved), say)
 
 
 def _run_joint(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
@@ -223,13 +105,17 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int, say: Progress) -
     del values  # the whole log's solution, most of the memory of a long log
     result = dataclasses.replace(
         recommended,
-        warnings=recommended.warnings + study.warnings,
+        warnings=[
+            *recommended.warnings,
+            *study.warnings,
+            *_few_segments_warning(batches, solved.corrected),
+        ],
         batches=batches,
         batch_theta=study.theta,
         batch_covariance=study.covariance,
         batch_excluded=study.excluded,
     )
-    return _validated("joint", solved.corrected, solved, result, say)
+    return validated_run("joint", solved.corrected, solved, result, say)
 
 
 def _run_staged(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
@@ -243,12 +129,12 @@ def _run_staged(log: DriveLog, settings: Settings, workers: int, say: Progress) 
     staged = run_staged(corrected.data, batches, corrected.settings, workers, say)
     result = MethodResult(
         theta=staged.final_theta,
-        warnings=list(staged.warnings),
+        warnings=[*staged.warnings, *_few_segments_warning(batches, corrected)],
         batches=batches,
         batch_theta=dict(staged.theta),
         staged=staged,
     )
-    return _validated("staged", corrected, solved, result, say)
+    return validated_run("staged", corrected, solved, result, say)
 
 
 _RUNS: dict[str, Callable[[DriveLog, Settings, int, Progress], CalibrationRun]] = {
@@ -306,139 +192,21 @@ def _batches(prepared: PreparedLog, method: Method, workers: int, say: Progress)
     return batches
 
 
-def _validated(
-    method: Method,
-    corrected: PreparedLog,
-    solved: WholeLog | None,
-    result: MethodResult,
-    say: Progress,
-) -> CalibrationRun:
-    """The run: ``result`` validated on the validation segments of ``corrected`` (the log
-    the method calibrated from), judged (:mod:`graphcal.pipeline.trust`), with every warning
-    said."""
-    validation, settings = corrected.validation, corrected.settings
-    segment_errors = {
-        "nominal": position_errors(validation, settings.vehicle.theta_nominal),
-        "calibrated": position_errors(validation, result.theta),
-    }
-    batch_errors = _batch_errors(validation, result)
-    whole = None if solved is None else solved.whole
-    trust = _trust(whole, settings, result, segment_errors)
-    warnings = [
-        *corrected.warnings,
-        *result.warnings,
-        *_few_segments_warning(result.batches, len(corrected.selected), settings),
-        *(f"not to be trusted: {doubt}" for doubt in trust.doubts),
-        *_closing_warnings(result, batch_errors, settings),
-    ]
-    for line in warnings:
-        say(f"warning: {line}")
-    say(f"validated on {len(validation)} {settings.segments.validation_length:g} m segments")
-    return CalibrationRun(
-        log=corrected.log,
-        settings=settings,
-        method=method,
-        segments=corrected.segments,
-        selected=corrected.selected,
-        yaw_rate=corrected.yaw_rate,
-        data=corrected.data,
-        theta=result.theta,
-        batches=result.batches,
-        batch_theta=result.batch_theta,
-        batch_covariance=result.batch_covariance,
-        staged=result.staged,
-        validation_segments=corrected.validation_segments,
-        validation=validation,
-        segment_errors=segment_errors,
-        batch_errors=batch_errors,
-        batch_excluded=result.batch_excluded,
-        warnings=tuple(warnings),
-        trust=trust,
-        estimated={} if solved is None else solved.estimated,
-        down_weighted=None if solved is None else solved.down_weighted,
-        whole=whole,
-        covariance=result.covariance,
-        observability=result.observability,
-    )
-
-
-def _batch_errors(validation: SegmentData, result: MethodResult) -> dict[str, np.ndarray]:
-    """Per step or method, E_p [m] of each batch's theta; NaN for failed or excluded ones."""
-    return {
-        name: np.array(
-            [
-                mean_validation_error(validation, t)
-                for t in without_excluded(thetas, result.batch_excluded.get(name))
-            ]
-        )
-        for name, thetas in result.batch_theta.items()
-    }
-
-
-def _trust(
-    whole: JointCalibration | None,
-    settings: Settings,
-    result: MethodResult,
-    segment_errors: dict[str, np.ndarray],
-) -> TrustAssessment:
-    """The trust checks (:func:`~graphcal.pipeline.trust.assess_trust`) of the whole-log
-    solve (if any), the joint batches (if any) and the validation."""
-    calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
-    joint_batches = "joint" in result.batch_covariance
-    return assess_trust(
-        iterations=whole.iterations if whole is not None else 0,
-        max_iterations=settings.joint.max_iterations if whole is not None else 1,
-        chi2_per_dof=whole.chi2_per_dof if whole is not None else None,
-        batch_theta=without_excluded(
-            result.batch_theta["joint"], result.batch_excluded.get("joint")
-        )
-        if joint_batches
-        else None,
-        batch_covariance=result.batch_covariance.get("joint"),
-        calibrated=result.observability.calibrated
-        if result.observability is not None
-        else np.ones(4, bool),
-        validation_calibrated=float(calibrated),
-        validation_nominal=float(nominal),
-    )
-
-
-def _few_segments_warning(
-    batches: np.ndarray | None, selected: int, settings: Settings
-) -> list[str]:
-    """The warning that batches hold fewer than the set number of segments."""
-    if batches is None or selected >= settings.batches.size:
+def _few_segments_warning(batches: np.ndarray, prepared: PreparedLog) -> list[str]:
+    """The warning that ``batches`` hold fewer than the set number of segments."""
+    selected, wanted = len(prepared.selected), prepared.settings.batches.size
+    if selected >= wanted:
         return []
     count, size = batches.shape
     return [
         f"only {selected} selected segments: {_plural(count, 'batch', 'batches')} of "
-        f"{size} instead of {settings.batches.size}"
+        f"{size} instead of {wanted}"
         + (
             "; every batch shares most segments, so spreads understate the uncertainty"
             if count > 1
             else "; one batch has no spread to report"
         )
     ]
-
-
-def _closing_warnings(
-    result: MethodResult, batch_errors: dict[str, np.ndarray], settings: Settings
-) -> list[str]:
-    """A calibrated circumference far from the vehicle's, and a Step 5 that validates worse
-    than Step 1."""
-    warnings = []
-    scale = circumference_warning(float(result.theta[0]), float(settings.vehicle.theta_nominal[0]))
-    if scale is not None:
-        warnings.append(scale)
-    solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
-    if result.staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
-        first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
-        if last > first:
-            warnings.append(
-                f"Step 5 validates worse than Step 1 (median {last:.2f} m vs {first:.2f} m): "
-                "too little data for the compensation; try --method joint or a longer drive"
-            )
-    return warnings
 
 
 def _plural(count: int, one: str, many: str) -> str:
