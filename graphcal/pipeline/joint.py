@@ -266,7 +266,12 @@ def solve_joint(
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
-    :mod:`graphcal.pipeline.joint_batches`)."""
+    :mod:`graphcal.pipeline.joint_batches`).
+
+    The steps: the warm start (:mod:`graphcal.pipeline.warm_start`), the solve with robust
+    fix weights (:mod:`graphcal.pipeline.robust`), the fixes' noise in its residuals, with
+    ``slip = "auto"`` the slip screen (:mod:`graphcal.pipeline.slip_screen`), and theta's
+    observability."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
     label = "joint solve"
