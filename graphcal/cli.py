@@ -27,18 +27,14 @@ from graphcal.errors import GraphcalError, first_line
 from graphcal.pipeline.joint import without_defect_model
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import METHODS
-from graphcal.pipeline.settings import (
-    Settings,
-    apply_vehicle,
-    load_settings,
-    load_vehicle,
-    vehicle_settings_in,
-)
+from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.settings_file import load_settings, load_vehicle, vehicle_settings_in
+from graphcal.pipeline.vehicle_settings import apply_vehicle
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 if TYPE_CHECKING:
     from graphcal.evaluation import Evaluation
-    from graphcal.pipeline.run import CalibrationRun
+    from graphcal.pipeline.calibration_run import CalibrationRun
 
 EXIT_BAD_INPUT = 2
 EXIT_UNTRUSTED = 3  # graphcal.pipeline.trust: written, but not to be trusted
@@ -137,7 +133,7 @@ CAR_HEADING_NOISE_DEG = 1.5
 def _simulate_robot(args: argparse.Namespace, theta_true: np.ndarray | None) -> int:
     """``simulate --vehicle ROBOT``: a robot's runs and spins as motion-capture poses and
     encoder counts (``--streams DIR``, optionally ``--bag``) or a drive-log CSV (``--out``)."""
-    from graphcal.pipeline.settings import load_vehicle
+    from graphcal.pipeline.settings_file import load_vehicle
     from graphcal.simulate.robot import RobotSettings, simulate_robot, theta_true_for
 
     vehicle = load_vehicle(args.vehicle)
@@ -234,7 +230,7 @@ def _simulate_fleet(args: argparse.Namespace, say: Callable[[str], None]) -> int
 def cmd_fleet(args: argparse.Namespace) -> int:
     """Calibrate every log of a fleet on Dask; per vehicle, changes of theta over days."""
     from graphcal.fleet.run import run_fleet
-    from graphcal.pipeline.settings import vehicle_settings_in
+    from graphcal.pipeline.settings_file import vehicle_settings_in
 
     settings = settings_from_args(args)
     keep = vehicle_settings_in(args.config) if args.config else set()

@@ -28,8 +28,8 @@ from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
+from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.run import CalibrationRun
 from graphcal.pipeline.validation import position_errors
 
 

@@ -76,8 +76,9 @@ from graphcal.data.importer import import_recording, is_recording
 from graphcal.data.manifest import load_manifest
 from graphcal.errors import first_line
 from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.parallel import default_workers
-from graphcal.pipeline.run import CalibrationRun, run_calibration
+from graphcal.pipeline.run import run_calibration
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS

@@ -16,7 +16,8 @@ from graphcal.data.segments import (
 )
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
-from graphcal.pipeline.run import NoUsableSegments, run_calibration
+from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.selection import NoUsableSegments
 from graphcal.pipeline.settings import SegmentSettings, Settings
 from graphcal.simulate.drive import write_synthetic_drive
 

@@ -13,7 +13,8 @@ from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
 
 from graphcal.evaluation import Evaluation, Truth, evaluate
-from graphcal.pipeline.run import CalibrationRun, run_calibration
+from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.report.figures import (
     batch_intervals_figure,

@@ -11,8 +11,9 @@ from matplotlib.figure import Figure
 
 from graphcal.evaluation import Evaluation, Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.joint import without_defect_model
-from graphcal.pipeline.run import CalibrationRun, run_calibration
+from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.report.figures import figures
 from graphcal.report.results import summary_text

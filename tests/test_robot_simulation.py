@@ -13,7 +13,7 @@ import pytest
 
 from graphcal.data.importer import read_recording
 from graphcal.model import PARAMETER_NAMES, integrate
-from graphcal.pipeline.settings import load_vehicle
+from graphcal.pipeline.settings_file import load_vehicle
 from graphcal.simulate.robot import FINE_DT, ROBOT_THETA_TRUE, RobotSettings, simulate_robot
 from graphcal.simulate.streams import EPOCH, write_streams
 

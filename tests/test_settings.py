@@ -22,10 +22,9 @@ from graphcal.pipeline.settings import (
     SegmentSettings,
     Settings,
     StagedSettings,
-    load_settings,
-    settings_from_dict,
     settings_to_dict,
 )
+from graphcal.pipeline.settings_file import load_settings, settings_from_dict
 
 
 def to_toml(data: dict[str, Any], prefix: str = "") -> str:

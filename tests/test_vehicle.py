@@ -18,15 +18,9 @@ from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.joint import JointSettings
 from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import (
-    SegmentSettings,
-    Settings,
-    apply_vehicle,
-    load_settings,
-    load_vehicle,
-    settings_from_dict,
-    settings_to_dict,
-)
+from graphcal.pipeline.settings import SegmentSettings, Settings, settings_to_dict
+from graphcal.pipeline.settings_file import load_settings, load_vehicle, settings_from_dict
+from graphcal.pipeline.vehicle_settings import apply_vehicle
 from graphcal.report.results import results_document, summary_text
 from graphcal.simulate.drive import NoiseLevels, VehicleMotion, simulate_drive
 from graphcal.vehicle import VehicleProfile

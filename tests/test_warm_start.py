@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-import graphcal.graph.warm_start as warm
+import graphcal.pipeline.warm_start as warm
 from graphcal.data.drive_log import load_drive_log
 from graphcal.data.segments import gather_segments, select_segments, split_segments, spread
 from graphcal.graph import keys

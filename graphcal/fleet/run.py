@@ -51,7 +51,9 @@ from graphcal.fleet.interrupt import (
 from graphcal.fleet.report import summary_lines, write_fleet_report
 from graphcal.fleet.sources import FleetLog, discover_fleet
 from graphcal.fleet.task import calibrate_fleet_log, content_hash, failed_result, result_key
-from graphcal.pipeline.settings import Settings, apply_vehicle, load_vehicle
+from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.settings_file import load_vehicle
+from graphcal.pipeline.vehicle_settings import apply_vehicle
 
 Progress = Callable[[str], None]
 

@@ -27,25 +27,20 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData, spread
-from graphcal.errors import CalibrationFailed, check_settings, first_line
+from graphcal.data.segments import SegmentData
+from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.covariance import with_covariance
-from graphcal.graph.estimates import SolvedGraph, ThetaEstimate
-from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec, shared_keys
 from graphcal.graph.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.robust import solve_segment_graph_robust
-from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
-from graphcal.graph.values import copy_value
-from graphcal.graph.warm_start import warm_start
+from graphcal.graph.estimates import SolvedGraph, ThetaEstimate
+from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
+from graphcal.pipeline.robust import solve_segment_graph_robust
+from graphcal.pipeline.slip_screen import with_slip_if_shown
+from graphcal.pipeline.warm_start import warm_start
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
 #: order, which holds for tens of milliseconds, not for seconds.
@@ -56,11 +51,6 @@ MIN_NOISE_FIXES = 100
 SLIP_MODES = ("auto", "on", "off")
 #: Relative error tolerance of the joint solves.
 TOLERANCE = 1e-7
-#: Slip is screened on this many segments spread over the log (all of a shorter log; the
-#: warm start's sample, :mod:`graphcal.graph.warm_start`): the statistic is a mean over
-#: chunks, about 380 of them in 32 segments (on the 200 km drive without slip 0.56 from 32,
-#: 0.59 from all 284 segments; the threshold is 1.3).
-SLIP_SCREEN_SEGMENTS = 32
 
 
 @dataclass(frozen=True)
@@ -100,7 +90,7 @@ class JointSettings:
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading
             (a fused heading's slow bias; 0: none).
         robust_threshold: fixes whose position residual exceeds this many times the
-            residuals' scale are down-weighted (:mod:`graphcal.graph.robust`; 0: off).
+            residuals' scale are down-weighted (:mod:`graphcal.pipeline.robust`; 0: off).
         heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
             white noise measured in the log (:mod:`graphcal.data.noise`) instead of the
             vehicle's ``heading_sigma``.
@@ -231,8 +221,9 @@ class JointCalibration(ThetaEstimate):
             ``None`` if every fix kept weight 1.
         slip_modelled: the solve has slip scales.
         slip_statistic: with ``slip = "auto"``, how much adding slip scales lowered χ², per
-            chunk, on the screened segments (all, or :data:`SLIP_SCREEN_SEGMENTS` spread over
-            a longer log; ``None`` otherwise).
+            chunk, on the screened segments (all, or
+            :data:`~graphcal.pipeline.slip_screen.SLIP_SCREEN_SEGMENTS` spread over a longer
+            log; ``None`` otherwise).
         position_noise: the fixes' position noise [m per axis] as a variance component of
             the solve: the RMS of the position residuals of the fixes that kept full weight
             (``None`` without such fixes). Measured on 12 km drives it is the true σ within
@@ -271,7 +262,12 @@ def solve_joint(
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
-    :mod:`graphcal.pipeline.joint_batches`)."""
+    :mod:`graphcal.pipeline.joint_batches`).
+
+    The steps: the warm start (:mod:`graphcal.pipeline.warm_start`), the solve with robust
+    fix weights (:mod:`graphcal.pipeline.robust`), the fixes' noise in its residuals, with
+    ``slip = "auto"`` the slip screen (:mod:`graphcal.pipeline.slip_screen`), and theta's
+    observability."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
     label = "joint solve"
@@ -292,10 +288,18 @@ def solve_joint(
     noise = position_noise(solved, data, weights, residuals)
     statistic = None
     if auto:
-        # The covariance now, and the solved graph freed before the graph with slip scales is
-        # built: the two are never held at once (on a 200 km log each is most of the memory).
-        solved = _released(with_covariance(solved, label, workers))
-        solved, statistic = _with_slip_if_shown(solved, data, weights, settings, workers, progress)
+        solved, statistic = with_slip_if_shown(
+            solved,
+            data,
+            weights,
+            settings.graph_spec(slip=True),
+            settings.slip_detection,
+            settings.max_iterations,
+            TOLERANCE,
+            label,
+            workers,
+            progress,
+        )
     observability = assess_observability(
         solved.covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio, settings.held()
     )
@@ -335,78 +339,3 @@ def position_noise(
     if residuals is None:
         residuals = solved.built.fix_residuals(solved.result, solved.partitioned)
     return float(np.sqrt(np.mean(residuals[used] ** 2)))
-
-
-def _released(solution: SolvedGraph) -> SolvedGraph:
-    """``solution`` without its factors and its split graph (the values, estimates, spec
-    and chunking stay): what is left once nothing more is solved on that graph."""
-    built = dataclasses.replace(
-        solution.built, graph=gtsam.NonlinearFactorGraph(), chunk_factors=()
-    )
-    return dataclasses.replace(solution, built=built, partitioned=None)
-
-
-def _moved(
-    result: gtsam.Values, segments: np.ndarray, values: gtsam.Values, shared: list[int]
-) -> gtsam.Values:
-    """``values`` of a graph over ``segments`` of ``result``'s graph, with ``result``'s value
-    of every variable the two share (segment ``segments[i]``'s as segment ``i``'s)."""
-    moved = gtsam.Values(values)
-    for key in values.keys():
-        source = key if key in shared else keys.in_segment(key, segments[keys.segment_of(key)])
-        if result.exists(source):
-            copy_value(moved, result, source, key)
-    return moved
-
-
-def _with_slip_if_shown(
-    solved: SolvedGraph,
-    data: SegmentData,
-    weights: np.ndarray | None,
-    settings: JointSettings,
-    workers: int = 1,
-    progress: Callable[[str], None] | None = None,
-) -> tuple[SolvedGraph, float]:
-    """The solve with slip scales if the log shows slip, else ``solved`` (solved with its
-    covariance); both with their covariance, and the statistic that decided.
-
-    Slip is a likelihood-ratio question: from the solution without slip (slip scales at
-    zero), one Gauss–Newton step of the graph with slip scales lowers χ² by about what the
-    full solve would (the scales enter nearly linearly; measured within 1 % of a
-    Levenberg–Marquardt iteration, at a third of its cost). Per chunk, that drop is
-    0.55–0.59 on drives without slip; above ``settings.slip_detection`` the solve with slip
-    continues from there to convergence. The step is taken on at most
-    :data:`SLIP_SCREEN_SEGMENTS` segments spread over the log: the statistic is a mean per
-    chunk, and a long log's screening then costs a fraction of one of its iterations.
-    """
-    spec = settings.graph_spec(slip=True)
-    weighted = data if weights is None else dataclasses.replace(data, fix_weights=weights)
-    screened = spread(len(data), SLIP_SCREEN_SEGMENTS)
-    screen = build_segment_graph(weighted.take(screened), spec)
-    at_solution = _moved(solved.result, screened, screen.values, shared_keys(spec))
-    screening = PartitionedGraph(screen.graph, at_solution, shared_keys(spec))
-    try:
-        with screening.parallel(workers):
-            drop = screening.gauss_newton_decrement()
-    except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
-        raise CalibrationFailed(f"joint solve failed: {reason}") from exc
-    chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
-    statistic = 2.0 * drop / chunks
-    if statistic <= settings.slip_detection:
-        return solved, statistic
-    with_slip, initial = screen, at_solution
-    if len(screened) < len(data):
-        with_slip = build_segment_graph(weighted, spec)
-        initial = _moved(solved.result, np.arange(len(data)), with_slip.values, shared_keys(spec))
-    final = solve_segment_graph(
-        weighted,
-        spec,
-        settings.max_iterations,
-        TOLERANCE,
-        "joint solve",
-        start=ValuesStart(initial, with_slip),
-        workers=workers,
-        progress=progress,
-    )
-    return dataclasses.replace(final, iterations=final.iterations + solved.iterations), statistic

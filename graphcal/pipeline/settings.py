@@ -1,19 +1,20 @@
 """All settings of a calibration run, with the paper's values as defaults (§4.4, §5.1).
 
 One schema: TOML sections and keys are the dataclass field names, recursively. Load a file
-with :func:`load_settings`; :func:`settings_to_dict` (or :meth:`Settings.to_dict`) gives the
-plain-data view written into ``calibration.json``. A file may set any subset; a missing key
-keeps the default of the enclosing setting.
+with :func:`~graphcal.pipeline.settings_file.load_settings`; :func:`settings_to_dict` (or
+:meth:`Settings.to_dict`) gives the plain-data view written into ``calibration.json``. A file
+may set any subset; a missing key keeps the default of the enclosing setting.
 
 The ``[vehicle]`` section (:class:`graphcal.vehicle.VehicleProfile`; also a file of its own,
-:func:`load_vehicle`) describes the vehicle: its nominal theta, the poses' and wheels' noise.
-It supplies the defaults of the settings that depend on the vehicle — ``theta_initial``,
-``theta_prior_sigmas``, ``pose_weights`` and ``position_sigma`` of ``[calibration]`` and
-``[joint]``, ``[joint] wheel_noise``, and the segment lengths of ``[segments]``: the car's
-150 m and 300 m scaled by the vehicle's track over the car's 1.55 m (19.4 m and 38.7 m for a
-0.2 m robot) (:func:`apply_vehicle`); a key given in ``[calibration]``, ``[joint]`` or
-``[segments]`` of the same file overrides it. Without ``[vehicle]`` the vehicle is the
-paper's car. The yaw-rate threshold (0.15 rad/s) stays: a robot turns faster than a car.
+:func:`~graphcal.pipeline.settings_file.load_vehicle`) describes the vehicle: its nominal theta,
+the poses' and wheels' noise. It supplies the defaults of the settings that depend on the
+vehicle — ``theta_initial``, ``theta_prior_sigmas``, ``pose_weights`` and ``position_sigma`` of
+``[calibration]`` and ``[joint]``, ``[joint] wheel_noise``, and the segment lengths of
+``[segments]``: the car's 150 m and 300 m scaled by the vehicle's track over the car's 1.55 m
+(19.4 m and 38.7 m for a 0.2 m robot)
+(:func:`~graphcal.pipeline.vehicle_settings.apply_vehicle`); a key given in ``[calibration]``,
+``[joint]`` or ``[segments]`` of the same file overrides it. Without ``[vehicle]`` the vehicle
+is the paper's car. The yaw-rate threshold (0.15 rad/s) stays: a robot turns faster than a car.
 
 Every section and key, with the defaults::
 
@@ -105,19 +106,12 @@ Every section and key, with the defaults::
 from __future__ import annotations
 
 import dataclasses
-import os
-import re
-import tomllib
-import types
-import typing
-from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from graphcal.data.segments import YawRateStatistic
-from graphcal.errors import GraphcalError
 from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.input_estimation import InputEstimationSettings
 from graphcal.pipeline.joint import JointSettings
@@ -137,10 +131,10 @@ class SegmentSettings:
 
     The defaults are the paper's car (150 m calibration and 300 m validation segments, a mean
     yaw rate above 0.15 rad/s). With a vehicle profile the lengths follow its size
-    (:func:`apply_vehicle`: scaled by its track over the car's), unless set; a segment should
-    hold a few bends and last some tens of seconds. The yaw-rate threshold stays, since a
-    small vehicle turns tighter than a car. A length must be at least
-    :data:`MIN_SEGMENT_TRACKS` tracks of the vehicle (checked by :class:`Settings`).
+    (:func:`~graphcal.pipeline.vehicle_settings.apply_vehicle`: scaled by its track over the
+    car's), unless set; a segment should hold a few bends and last some tens of seconds. The
+    yaw-rate threshold stays, since a small vehicle turns tighter than a car. A length must be
+    at least :data:`MIN_SEGMENT_TRACKS` tracks of the vehicle (checked by :class:`Settings`).
     """
 
     length: float = 150.0
@@ -279,8 +273,9 @@ class Settings:
     staged: StagedSettings = field(default_factory=StagedSettings)
     joint: JointSettings = field(default_factory=JointSettings)
     #: The vehicle: nominal theta for the log's checks, segment distances and the report.
-    #: Changing it alone leaves the other sections as they are; :func:`apply_vehicle` makes
-    #: the settings that depend on it follow.
+    #: Changing it alone leaves the other sections as they are;
+    #: :func:`~graphcal.pipeline.vehicle_settings.apply_vehicle` makes the settings that
+    #: depend on it follow.
     vehicle: VehicleProfile = field(default_factory=VehicleProfile)
     lever_arm: LeverArmSettings = field(default_factory=LeverArmSettings)
 
@@ -302,177 +297,12 @@ class Settings:
         return settings_to_dict(self)
 
 
-#: Keys of older settings files, with where they went; loading one is a one-line error.
-_MOVED = {
-    "input_estimation": (
-        "[input_estimation] is now [staged] with sub-tables [staged.step2] and [staged.step4]: "
-        "step2_tracking_weights -> staged.step2.tracking_weights, step4_tracking_weights -> "
-        "staged.step4.tracking_weights, smoothness_weight, input_bound, chunk_steps, "
-        "continuity_sigmas and max_iterations -> both staged.step2.<key> and "
-        "staged.step4.<key>, heading_correction_step, heading_correction, estimations, "
-        "trim_fraction and estimate_start_poses -> staged.<key>"
-    ),
-    "calibration.theta_nominal": "[calibration] theta_nominal is now theta_initial",
-    "joint.theta_nominal": "[joint] theta_nominal is now theta_initial",
-    "time_offset": (
-        "[time_offset] is gone: the joint solve estimates the wheels' time offset with theta "
-        "([joint] time_offset_sigma, 0 = off)"
-    ),
-    **{
-        f"lever_arm.{key}": (
-            f"[lever_arm] {key} is gone: the joint solve estimates the lever arm with theta "
-            "([joint] lever_arm_sigma, 0 = off)"
-        )
-        for key in ("estimate", "search_longitudinal", "search_lateral", "step")
-    },
-}
-
-
 def settings_to_dict(settings: Any) -> dict[str, Any]:
     """Plain data of a settings dataclass: sub-tables for dataclasses, lists for vectors.
 
     An unset optional value stays ``None`` (JSON ``null``); a TOML writer leaves it out.
     """
     return {f.name: _plain(getattr(settings, f.name)) for f in dataclasses.fields(settings)}
-
-
-def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Settings:
-    """Build :class:`Settings` from a nested dict like a TOML file's (unknown keys rejected).
-
-    With a ``vehicle`` table, the settings that depend on the vehicle follow it
-    (:func:`apply_vehicle`) except those the dict gives itself.
-    """
-    settings = _load(Settings(), data, "", source)
-    if "vehicle" not in data:
-        return settings
-    given = {
-        f"{section}.{key}" for section, _ in _DERIVED_SECTIONS for key in (data.get(section) or {})
-    }
-    return _follow_vehicle(settings, VehicleProfile(), settings.vehicle, given)
-
-
-def load_settings(path: str | os.PathLike[str]) -> Settings:
-    """Read :class:`Settings` from a TOML file (missing keys keep the paper's defaults)."""
-    return settings_from_dict(_read_toml(path, "settings"), str(path))
-
-
-def load_vehicle(path: str | os.PathLike[str]) -> VehicleProfile:
-    """Read a :class:`~graphcal.vehicle.VehicleProfile` from a TOML file.
-
-    The file's top level holds the vehicle's keys (``data/vehicles/car.toml``), or the file
-    has a ``[vehicle]`` table and nothing else. Missing keys keep the paper's car values.
-
-    Raises:
-        GraphcalError: one line naming the file and the key.
-    """
-    source = str(path)
-    data = _read_toml(path, "vehicle")
-    if isinstance(data.get("vehicle"), dict):
-        others = sorted(key for key in data if key != "vehicle")
-        if others:
-            raise GraphcalError(
-                f"{source}: a vehicle file holds only the vehicle's keys or a [vehicle] table, "
-                f"also found {others}; give a settings file with --config"
-            )
-        data = data["vehicle"]
-    return _load(VehicleProfile(), data, "vehicle", source)
-
-
-def apply_vehicle(
-    settings: Settings, vehicle: VehicleProfile, *, keep: Collection[str] = ()
-) -> Settings:
-    """``settings`` for ``vehicle``: the settings that depend on the vehicle follow it.
-
-    ``theta_initial`` and ``theta_prior_sigmas`` (from the vehicle's nominal theta and its
-    sigmas), ``pose_weights`` and ``position_sigma`` of ``calibration`` and ``joint``, and
-    ``joint.wheel_noise`` (the vehicle's effective wheel noise) take the vehicle's values,
-    unless set otherwise: named in ``keep`` (``"joint.wheel_noise"``) or holding another value
-    than the one ``settings.vehicle`` implies. A settings file's ``[vehicle]`` section is
-    applied so, keeping the keys the file gives in ``[calibration]`` and ``[joint]``.
-    """
-    known = {f"{s}.{k}" for s, d in _DERIVED_SECTIONS for k in d}
-    unknown = sorted(set(keep) - known)
-    if unknown:
-        raise ValueError(
-            f"keep names {unknown}, not settings that follow the vehicle: {sorted(known)}"
-        )
-    return _follow_vehicle(settings, settings.vehicle, vehicle, set(keep))
-
-
-#: The settings of a section that follow the vehicle, and how each derives from it.
-_FROM_VEHICLE: dict[str, Callable[[VehicleProfile], Any]] = {
-    "theta_initial": lambda v: v.theta_nominal.copy(),
-    "theta_prior_sigmas": lambda v: v.solve_prior_sigmas(),
-    "pose_weights": lambda v: v.pose_weights(),
-    "position_sigma": lambda v: v.position_sigma,
-}
-_FROM_VEHICLE_JOINT = {
-    **_FROM_VEHICLE,
-    "wheel_noise": lambda v: v.white_wheel_noise(),
-    "tick_quantization": lambda v: v.tick_quantization(),
-    "fix_d": lambda v: v.fix_d,
-}
-#: The paper's car's segment lengths [m] (§5.1); a vehicle's scale with its size
-#: (:meth:`~graphcal.vehicle.VehicleProfile.size_scale`: its track over the car's).
-CAR_SEGMENT_LENGTH = 150.0
-CAR_VALIDATION_LENGTH = 300.0
-_FROM_VEHICLE_SEGMENTS: dict[str, Callable[[VehicleProfile], Any]] = {
-    "length": lambda v: _scaled_length(CAR_SEGMENT_LENGTH, v),
-    "validation_length": lambda v: _scaled_length(CAR_VALIDATION_LENGTH, v),
-}
-_DERIVED_SECTIONS = (
-    ("calibration", _FROM_VEHICLE),
-    ("joint", _FROM_VEHICLE_JOINT),
-    ("segments", _FROM_VEHICLE_SEGMENTS),
-)
-
-
-def segment_lengths(vehicle: VehicleProfile) -> tuple[float, float]:
-    """The calibration and validation segment lengths [m] for ``vehicle``'s size."""
-    return (
-        _scaled_length(CAR_SEGMENT_LENGTH, vehicle),
-        _scaled_length(CAR_VALIDATION_LENGTH, vehicle),
-    )
-
-
-def _scaled_length(car_length: float, vehicle: VehicleProfile) -> float:
-    """``car_length`` [m] scaled to ``vehicle``'s size, to 0.1 m (exact for the car)."""
-    scale = vehicle.size_scale()
-    return car_length if scale == 1.0 else round(car_length * scale, 1)
-
-
-def _follow_vehicle(
-    settings: Settings, previous: VehicleProfile, vehicle: VehicleProfile, keep: set[str]
-) -> Settings:
-    """``settings`` with ``vehicle``; each vehicle-dependent setting not in ``keep`` that
-    still holds what ``previous`` implies takes what ``vehicle`` implies."""
-    changes: dict[str, Any] = {"vehicle": vehicle}
-    for section, derived in _DERIVED_SECTIONS:
-        current = getattr(settings, section)
-        follow = {
-            key: derive(vehicle)
-            for key, derive in derived.items()
-            if f"{section}.{key}" not in keep
-            and np.array_equal(
-                np.asarray(getattr(current, key), float), np.asarray(derive(previous), float)
-            )
-        }
-        changes[section] = dataclasses.replace(current, **follow)
-    return dataclasses.replace(settings, **changes)
-
-
-def _read_toml(path: str | os.PathLike[str], kind: str) -> dict[str, Any]:
-    """The table of TOML file ``path`` (a ``kind`` file), with one-line errors."""
-    source = str(path)
-    try:
-        with open(path, "rb") as handle:
-            return tomllib.load(handle)
-    except FileNotFoundError:
-        raise GraphcalError(f"{source}: no such {kind} file; check the path") from None
-    except IsADirectoryError:
-        raise GraphcalError(f"{source}: is a directory, not a {kind} file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise GraphcalError(f"{source}: not valid TOML ({exc})") from exc
 
 
 def _plain(value: Any) -> Any:
@@ -483,95 +313,3 @@ def _plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
-
-
-def _load(default: Any, data: Any, section: str, source: str) -> Any:
-    """``default`` with the values of ``data`` (table ``section``) replaced, checked by type."""
-    where = f"[{section}]" if section else "the file"
-    if not isinstance(data, dict):
-        raise GraphcalError(f"{source}: {where} must be a table, got {data!r}")
-    names = [f.name for f in dataclasses.fields(default)]
-    unknown = [key for key in data if key not in names]
-    for key in unknown:
-        moved = _MOVED.get(f"{section}.{key}" if section else key)
-        if moved:
-            raise GraphcalError(f"{source}: {moved}")
-    if unknown:
-        what = f"key(s) {sorted(unknown)} in [{section}]" if section else f"section(s) {unknown}"
-        raise GraphcalError(f"{source}: unknown {what}; known: {names}")
-    hints = typing.get_type_hints(type(default))
-    changes = {}
-    for key, value in data.items():
-        current = getattr(default, key)
-        if dataclasses.is_dataclass(current):
-            path = f"{section}.{key}" if section else key
-            changes[key] = _load(current, value, path, source)
-        else:
-            changes[key] = _convert(value, hints[key], current, f"[{section}] {key}", source)
-    try:
-        return dataclasses.replace(default, **changes)
-    except (TypeError, ValueError) as exc:
-        message = str(exc)
-        if section and not message.startswith(f"{section}."):
-            # A dataclass names its own section ("input_estimation.") or none at all.
-            named = re.match(r"\w+\.(?=\w)", message)
-            message = f"{section}.{message[named.end() :]}" if named else f"[{section}] {message}"
-        raise GraphcalError(f"{source}: {message}") from exc
-
-
-def _convert(value: Any, hint: Any, current: Any, name: str, source: str) -> Any:
-    """``value`` as the type ``hint`` of a field whose default is ``current``."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType) and type(None) in args:
-        if value is None:
-            return None
-        (hint,) = [a for a in args if a is not type(None)]
-        origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if hint is np.ndarray or origin is tuple:
-        n = len(current)
-        ok = (
-            isinstance(value, list | tuple)
-            and len(value) == n
-            and all(_is_number(v) and np.isfinite(v) for v in value)
-        )
-        if not ok:
-            raise GraphcalError(
-                f"{source}: {name} must be a list of {n} finite numbers, got {value!r}"
-            )
-        return (
-            np.array(value, dtype=float) if hint is np.ndarray else tuple(float(v) for v in value)
-        )
-    if origin is Literal:
-        ok, kind = value in args, "one of " + ", ".join(repr(a) for a in args)
-    elif hint is bool:
-        ok, kind = isinstance(value, bool), "true or false"
-    elif hint is int:
-        ok, kind = isinstance(value, int) and not isinstance(value, bool), "a whole number"
-    elif hint is float:
-        ok, kind = _is_number(value), "a number"
-        value = float(value) if ok else value
-    elif hint is str:
-        ok, kind = isinstance(value, str), "text"
-    else:
-        raise TypeError(f"settings field {name} has a type the loader does not know: {hint}")
-    if not ok:
-        raise GraphcalError(f"{source}: {name} must be {kind}, got {value!r}")
-    return value
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
-def vehicle_settings_in(path: str | os.PathLike[str]) -> set[str]:
-    """The settings a TOML settings file sets that a vehicle profile would otherwise set
-    (``"joint.wheel_noise"``, ...): what :func:`apply_vehicle` must ``keep`` when a vehicle
-    is given on top of the file."""
-    data = _read_toml(path, "settings")
-    return {
-        f"{section}.{key}"
-        for section, derived in _DERIVED_SECTIONS
-        if isinstance(data.get(section), dict)
-        for key in data[section]
-        if key in derived
-    }

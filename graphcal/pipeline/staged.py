@@ -153,41 +153,95 @@ def run_staged(
 ) -> StagedResult:
     """Run Steps 1–5 on the selected segments ``data`` and the ``batches`` of their indices."""
     say = progress or (lambda _line: None)
-    form = settings.staged.heading_correction
     n_batches, batch_size = batches.shape
-    theta: dict[str, np.ndarray] = {}
-    starts: dict[str, np.ndarray] = {}  # start states each batch solve used or estimated
-    failed: dict[str, np.ndarray] = {}
-    warnings: list[str] = []
 
-    def batch_solves(step: str, heading: np.ndarray, rotations: np.ndarray | None) -> None:
-        tasks = []
-        for b, batch in enumerate(batches):
-            sub = data.take(batch)
-            inputs = sub.inputs.copy()
-            if rotations is not None:
-                inputs[..., :2] = rotations[batch][:, : inputs.shape[1]]
-            sub = dataclasses.replace(
-                sub, poses=apply_heading_correction(sub.poses, heading[b], form), inputs=inputs
-            )
-            solve = settings.calibration
-            if step != "step1" and settings.staged.estimate_start_poses:
-                solve = dataclasses.replace(solve, estimate_start_poses=True)
-            tasks.append((sub, solve))
-        results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
-        failed[step] = np.array([r is None for r in results])
-        theta[step] = np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
-        starts[step] = np.array(
-            [np.full((batch_size, 3), np.nan) if r is None else r[1] for r in results]
-        )
-        if failed[step].any():
-            warnings.append(f"{step}: {int(failed[step].sum())} of {n_batches} batch solves failed")
+    def batch_solves(step: str, heading: np.ndarray, rotations: np.ndarray | None) -> _Step:
+        return _batch_solves(step, data, batches, heading, rotations, settings, workers, say)
 
     # Step 1: prior parameters, measured signals, start held at the measurement.
-    no_correction = np.zeros((n_batches, batch_size))
-    batch_solves("step1", no_correction, None)
-
+    step1 = batch_solves("step1", np.zeros((n_batches, batch_size)), None)
     # Step 2: orientation correction per segment of each batch (eq. 15).
+    heading, step2_warnings = _orientation_corrections(
+        data, batches, step1.theta, settings, workers, say
+    )
+    # Step 3: batch solves with the corrected heading.
+    step3 = batch_solves("step3", heading, None)
+    # Step 4: compensated rotations per used segment from several theta_II values.
+    step4 = _compensated_rotations(data, batches, heading, step3, settings, workers, say)
+    # Step 5: batch solves with compensated rotations and corrected heading.
+    step5 = batch_solves("step5", heading, step4.rotations)
+    steps = {"step1": step1, "step3": step3, "step5": step5}
+    return StagedResult(
+        batches,
+        {name: step.theta for name, step in steps.items()},
+        {name: step.failed for name, step in steps.items()},
+        heading,
+        step4.rotations,
+        step4.example_estimates,
+        step4.example,
+        [*step1.warnings, *step2_warnings, *step3.warnings, *step4.warnings, *step5.warnings],
+    )
+
+
+@dataclass(frozen=True)
+class _Step:
+    """One step's batch solves: theta ``(B, 4)`` and the start states ``(B, N, 3)`` each
+    used or estimated (NaN where it failed), which failed ``(B,)``, and a warning if any."""
+
+    theta: np.ndarray
+    starts: np.ndarray
+    failed: np.ndarray
+    warnings: list[str]
+
+
+def _batch_solves(
+    step: str,
+    data: SegmentData,
+    batches: np.ndarray,
+    heading: np.ndarray,
+    rotations: np.ndarray | None,
+    settings: Settings,
+    workers: int,
+    say: Callable[[str], None],
+) -> _Step:
+    """Step 1, 3 or 5: a batch solve per batch with the heading corrections ``(B, N)`` and
+    the compensated ``rotations`` ``(S, K, 2)`` (``None``: the measured ones)."""
+    form = settings.staged.heading_correction
+    n_batches, batch_size = batches.shape
+    tasks = []
+    for b, batch in enumerate(batches):
+        sub = data.take(batch)
+        inputs = sub.inputs.copy()
+        if rotations is not None:
+            inputs[..., :2] = rotations[batch][:, : inputs.shape[1]]
+        sub = dataclasses.replace(
+            sub, poses=apply_heading_correction(sub.poses, heading[b], form), inputs=inputs
+        )
+        solve = settings.calibration
+        if step != "step1" and settings.staged.estimate_start_poses:
+            solve = dataclasses.replace(solve, estimate_start_poses=True)
+        tasks.append((sub, solve))
+    results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
+    failed = np.array([r is None for r in results])
+    theta = np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
+    starts = np.array([np.full((batch_size, 3), np.nan) if r is None else r[1] for r in results])
+    warnings = []
+    if failed.any():
+        warnings.append(f"{step}: {int(failed.sum())} of {n_batches} batch solves failed")
+    return _Step(theta, starts, failed, warnings)
+
+
+def _orientation_corrections(
+    data: SegmentData,
+    batches: np.ndarray,
+    theta: np.ndarray,
+    settings: Settings,
+    workers: int,
+    say: Callable[[str], None],
+) -> tuple[np.ndarray, list[str]]:
+    """Step 2: the heading correction Δψ [rad] ``(B, N)`` of each segment of each batch with
+    its batch's Step 1 ``theta`` ``(B, 4)`` (0 where it failed), and a warning if any did."""
+    n_batches, batch_size = batches.shape
     tasks = []
     for b, batch in enumerate(batches):
         for s in batch:
@@ -196,88 +250,142 @@ def run_staged(
                 (
                     poses,
                     inputs,
-                    theta["step1"][b],
+                    theta[b],
                     settings.staged.step2,
                     settings.staged.heading_correction_step,
-                    form,
+                    settings.staged.heading_correction,
                 )
             )
     results = map_tasks(_heading_task, tasks, workers, say, "step2 orientation corrections")
     heading = np.array([0.0 if r is None else r for r in results]).reshape(n_batches, batch_size)
     n_failed = sum(r is None for r in results)
-    if n_failed:
-        warnings.append(
-            f"step2: {n_failed} input estimations failed or were skipped (their batch's Step 1 "
-            "failed); their heading was left uncorrected"
-        )
+    if not n_failed:
+        return heading, []
+    return heading, [
+        f"step2: {n_failed} input estimations failed or were skipped (their batch's Step 1 "
+        "failed); their heading was left uncorrected"
+    ]
 
-    # Step 3: batch solves with the corrected heading.
-    batch_solves("step3", heading, None)
 
-    # Step 4: compensated rotations per used segment from several theta_II values.
+@dataclass(frozen=True)
+class _Step4:
+    """Step 4's compensated rotations ``(S, K, 2)`` (measured ones for unused segments), the
+    estimates ``(E, K, 2)`` of the ``example`` segment, and warnings."""
+
+    rotations: np.ndarray
+    example_estimates: np.ndarray
+    example: int
+    warnings: list[str]
+
+
+def _compensated_rotations(
+    data: SegmentData,
+    batches: np.ndarray,
+    heading: np.ndarray,
+    step3: _Step,
+    settings: Settings,
+    workers: int,
+    say: Callable[[str], None],
+) -> _Step4:
+    """Step 4: per segment used by a batch, input estimations with the thetas of several
+    Step 3 batches (those with the segment first), averaged (trimmed mean)."""
     used = np.unique(batches)
     estimations = settings.staged.estimations
-    good_batches = np.flatnonzero(~failed["step3"])
+    good_batches = np.flatnonzero(~step3.failed)
     if len(good_batches) == 0:
         raise GraphcalError("every Step 3 batch solve failed; cannot estimate the inputs")
     tasks, owners = [], []
     fewest = estimations
     for s in used:
-        rng = np.random.default_rng([settings.batches.seed, int(s)])
-        containing = [b for b in good_batches if s in batches[b]]
-        others = [b for b in good_batches if s not in batches[b]]
-        chosen = list(rng.permutation(containing))[:estimations]
-        if len(chosen) < estimations and others:
-            extra = rng.permutation(others)[: estimations - len(chosen)]
-            chosen += list(extra)
+        chosen, containing = _estimating_batches(int(s), batches, good_batches, settings)
         fewest = min(fewest, len(chosen))
-        # The held start of each estimation: the start Step 3 estimated in that batch when it
-        # estimates starts, else the Step 2 heading correction; batches without the segment
-        # use the median over the batches with it.
         poses, inputs = data.segment(s)
-        own = {}
-        for b in containing:
-            i = list(batches[b]).index(s)
-            if settings.staged.estimate_start_poses:
-                own[b] = poses.copy()
-                own[b][0] = starts["step3"][b, i]
-            else:
-                own[b] = apply_heading_correction(poses, heading[b][i], form)
-        fallback = (
-            np.median(np.stack(list(own.values())), axis=0)
-            if own
-            else apply_heading_correction(poses, 0.0, form)
-        )
+        own, fallback = _held_starts(poses, int(s), containing, batches, heading, step3, settings)
         for b in chosen:
             corrected = own.get(b, fallback)
-            tasks.append((corrected, inputs, theta["step3"][b], settings.staged.step4))
+            tasks.append((corrected, inputs, step3.theta[b], settings.staged.step4))
             owners.append(int(s))
+    warnings = []
     if fewest < estimations:
         warnings.append(
             f"step4: only {fewest} of {estimations} input estimations per segment were possible "
             f"({len(good_batches)} batches); the compensated rotations average fewer estimates"
         )
     results = map_tasks(_rotation_task, tasks, workers, say, "step4 input estimations")
+    step4 = _averaged(data, used, np.asarray(owners), results, settings.staged.trim_fraction)
+    return dataclasses.replace(step4, warnings=warnings + step4.warnings)
+
+
+def _estimating_batches(
+    s: int, batches: np.ndarray, good_batches: np.ndarray, settings: Settings
+) -> tuple[list, list]:
+    """The Step 3 batches whose theta estimates segment ``s``'s inputs in Step 4 (a seeded
+    draw: those containing it first, then others), and the good batches containing it."""
+    estimations = settings.staged.estimations
+    rng = np.random.default_rng([settings.batches.seed, s])
+    containing = [b for b in good_batches if s in batches[b]]
+    others = [b for b in good_batches if s not in batches[b]]
+    chosen = list(rng.permutation(containing))[:estimations]
+    if len(chosen) < estimations and others:
+        extra = rng.permutation(others)[: estimations - len(chosen)]
+        chosen += list(extra)
+    return chosen, containing
+
+
+def _held_starts(
+    poses: np.ndarray,
+    s: int,
+    containing: list,
+    batches: np.ndarray,
+    heading: np.ndarray,
+    step3: _Step,
+    settings: Settings,
+) -> tuple[dict, np.ndarray]:
+    """The held start of each estimation of segment ``s`` (measured ``poses``): per batch
+    containing it, the start Step 3 estimated in that batch when it estimates starts, else
+    the Step 2 heading correction; for batches without the segment, the median over those
+    with it (the poses uncorrected if none)."""
+    form = settings.staged.heading_correction
+    own = {}
+    for b in containing:
+        i = list(batches[b]).index(s)
+        if settings.staged.estimate_start_poses:
+            own[b] = poses.copy()
+            own[b][0] = step3.starts[b, i]
+        else:
+            own[b] = apply_heading_correction(poses, heading[b][i], form)
+    fallback = (
+        np.median(np.stack(list(own.values())), axis=0)
+        if own
+        else apply_heading_correction(poses, 0.0, form)
+    )
+    return own, fallback
+
+
+def _averaged(
+    data: SegmentData,
+    used: np.ndarray,
+    owners: np.ndarray,
+    results: list,
+    trim_fraction: float,
+) -> _Step4:
+    """The compensated rotations: per used segment, the trimmed mean of its estimates
+    ``results`` (``owners``: the segment of each), with a warning about failed ones."""
     compensated = data.inputs[..., :2].copy()
-    owners_arr = np.asarray(owners)
     example = int(used[0])
     example_estimates = np.zeros((0, int(data.n_steps[example]), 2))
     n_failed = 0
     for s in used:
-        estimates = [results[i] for i in np.flatnonzero(owners_arr == s) if results[i] is not None]
-        n_failed += int((owners_arr == s).sum()) - len(estimates)
+        estimates = [results[i] for i in np.flatnonzero(owners == s) if results[i] is not None]
+        n_failed += int((owners == s).sum()) - len(estimates)
         if not estimates:
             continue
         stack = np.stack(estimates)
         k = stack.shape[1]
-        compensated[s, :k] = trimmed_mean(stack, settings.staged.trim_fraction)
+        compensated[s, :k] = trimmed_mean(stack, trim_fraction)
         if s == example:
             example_estimates = stack
+    warnings = []
     if n_failed:
         warnings.append(f"step4: {n_failed} input estimations failed and were left out")
-
-    # Step 5: batch solves with compensated rotations and corrected heading.
-    batch_solves("step5", heading, compensated)
-    return StagedResult(
-        batches, theta, failed, heading, compensated, example_estimates, example, warnings
-    )
+    return _Step4(compensated, example_estimates, example, warnings)

@@ -130,58 +130,86 @@ def assess_trust(
             of the others is the prior's and is not judged.
         validation_calibrated, validation_nominal: E_p [m] of both thetas.
     """
-    doubts: list[str] = []
-    parameter_doubts: dict[str, str] = {}
-    converged = iterations < max_iterations
-    if not converged:
-        doubts.append(
-            f"the whole-log solve stopped at its iteration limit ({max_iterations}) without "
-            "converging"
-        )
-        for name in PARAMETER_NAMES:
-            parameter_doubts[name] = "the solve did not converge"
-    if chi2_per_dof is not None and chi2_per_dof > MAX_CHI2_PER_DOF:
-        doubts.append(
-            f"the residuals do not fit the noise model: χ²/dof = {chi2_per_dof:.2f} (about 1 "
-            f"when they do; limit {MAX_CHI2_PER_DOF:g}): a defect the model does not cover "
-            "(lever arm, latency, outliers, a noisier heading) or noise levels set too low"
-        )
-        for name in PARAMETER_NAMES:
-            parameter_doubts.setdefault(name, f"residuals {chi2_per_dof:.1f}× the noise model")
     ratio = None
     if batch_theta is not None and batch_covariance is not None:
         ratio = spread_ratio(batch_theta, batch_covariance)
-    if ratio is not None:
-        spread = [
-            (name, float(r))
-            for name, r, ok in zip(PARAMETER_NAMES, ratio, calibrated, strict=True)
-            if ok and np.isfinite(r) and r > MAX_SPREAD_RATIO
-        ]
-        if spread:
-            listed = ", ".join(f"{name} {r:.1f}×" for name, r in spread)
-            doubts.append(
-                f"the batches disagree far more than their σ allows (IQR over median σ: "
-                f"{listed}; about {NORMAL_IQR:.2f} when σ is honest, limit {MAX_SPREAD_RATIO:g})"
-            )
-            for name, r in spread:
-                parameter_doubts.setdefault(name, f"batches spread {r:.1f}× their σ")
     validates_worse = bool(validation_calibrated > validation_nominal)
-    if validates_worse:
-        doubts.append(
-            f"the calibrated theta validates worse than the nominal one "
-            f"({validation_calibrated:.2f} m vs {validation_nominal:.2f} m)"
-        )
-        for name in PARAMETER_NAMES:
-            parameter_doubts.setdefault(name, "validates worse than nominal")
+    findings = [
+        _convergence(iterations, max_iterations),
+        _fit(chi2_per_dof),
+        _spread(ratio, calibrated),
+        _validation(validates_worse, validation_calibrated, validation_nominal),
+    ]
+    parameter_doubts: dict[str, str] = {}
+    for _, reasons in findings:
+        for name, reason in reasons.items():
+            parameter_doubts.setdefault(name, reason)  # the first check's reason
     return TrustAssessment(
-        converged=converged,
+        converged=iterations < max_iterations,
         iterations=iterations,
         max_iterations=max_iterations,
         chi2_per_dof=chi2_per_dof,
         spread_ratio=ratio,
         validates_worse=validates_worse,
         parameter_doubts=parameter_doubts,
-        doubts=tuple(doubts),
+        doubts=tuple(doubt for doubt, _ in findings if doubt is not None),
+    )
+
+
+#: A check's finding: the run-level doubt (``None``: passed) and why each parameter it
+#: concerns is not to be trusted.
+_Finding = tuple[str | None, dict[str, str]]
+
+
+def _convergence(iterations: int, max_iterations: int) -> _Finding:
+    """The whole-log solve stopped before its iteration limit."""
+    if iterations < max_iterations:
+        return None, {}
+    return (
+        f"the whole-log solve stopped at its iteration limit ({max_iterations}) without converging",
+        dict.fromkeys(PARAMETER_NAMES, "the solve did not converge"),
+    )
+
+
+def _fit(chi2_per_dof: float | None) -> _Finding:
+    """The residuals fit the noise model (χ² test)."""
+    if chi2_per_dof is None or not chi2_per_dof > MAX_CHI2_PER_DOF:  # NaN passes
+        return None, {}
+    return (
+        f"the residuals do not fit the noise model: χ²/dof = {chi2_per_dof:.2f} (about 1 "
+        f"when they do; limit {MAX_CHI2_PER_DOF:g}): a defect the model does not cover "
+        "(lever arm, latency, outliers, a noisier heading) or noise levels set too low",
+        dict.fromkeys(PARAMETER_NAMES, f"residuals {chi2_per_dof:.1f}× the noise model"),
+    )
+
+
+def _spread(ratio: np.ndarray | None, calibrated: np.ndarray) -> _Finding:
+    """The batches of the calibrated parameters disagree no more than their σ allows."""
+    if ratio is None:
+        return None, {}
+    spread = [
+        (name, float(r))
+        for name, r, ok in zip(PARAMETER_NAMES, ratio, calibrated, strict=True)
+        if ok and np.isfinite(r) and r > MAX_SPREAD_RATIO
+    ]
+    if not spread:
+        return None, {}
+    listed = ", ".join(f"{name} {r:.1f}×" for name, r in spread)
+    return (
+        f"the batches disagree far more than their σ allows (IQR over median σ: "
+        f"{listed}; about {NORMAL_IQR:.2f} when σ is honest, limit {MAX_SPREAD_RATIO:g})",
+        {name: f"batches spread {r:.1f}× their σ" for name, r in spread},
+    )
+
+
+def _validation(validates_worse: bool, calibrated: float, nominal: float) -> _Finding:
+    """The calibrated theta validates no worse than the nominal one."""
+    if not validates_worse:
+        return None, {}
+    return (
+        f"the calibrated theta validates worse than the nominal one "
+        f"({calibrated:.2f} m vs {nominal:.2f} m)",
+        dict.fromkeys(PARAMETER_NAMES, "validates worse than nominal"),
     )
 
 

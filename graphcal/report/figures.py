@@ -16,7 +16,7 @@ from matplotlib.ticker import MaxNLocator
 
 from graphcal.evaluation import Evaluation
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import CalibrationRun
+from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.validation import odometry_paths
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 

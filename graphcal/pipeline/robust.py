@@ -116,7 +116,7 @@ def solve_segment_graph_robust(
     (:func:`solve_robust`, whose three results it returns); ``threshold`` 0 solves once
     without them. ``workers``: processes
     the segments are shared out among; ``shared_start``: where the first solve starts the
-    graph-wide variables (e.g. :func:`~graphcal.graph.warm_start.warm_start`)."""
+    graph-wide variables (e.g. :func:`~graphcal.pipeline.warm_start.warm_start`)."""
 
     def solve(segments: SegmentData, initial) -> SolvedGraph:
         return solve_segment_graph(

@@ -1,0 +1,253 @@
+"""The result of a calibration run: what a method found (:class:`MethodResult`), validated on
+the validation segments and judged by the trust checks into a :class:`CalibrationRun`."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.segments import SegmentData, Segments
+from graphcal.graph.observability import Observability
+from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.joint import JointCalibration
+from graphcal.pipeline.prepare import PreparedLog
+from graphcal.pipeline.sensor_estimates import DownWeightedFixes, SensorEstimate
+from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.staged import StagedResult
+from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
+from graphcal.pipeline.validation import position_errors
+from graphcal.pipeline.whole_log import WholeLog
+
+Progress = Callable[[str], None]
+Method = Literal["staged", "joint", "whole"]
+
+
+@dataclass(frozen=True)
+class CalibrationRun:
+    """Everything a calibration run produced (SI).
+
+    Attributes:
+        log, settings, method: what was run.
+        segments: all calibration segments; ``selected`` those passing the selection.
+        yaw_rate: the selection statistic of every calibration segment [rad/s].
+        data: the selected segments' signals.
+        theta: the recommended theta.
+        batches: ``(B, N)`` segment indices of the batches (``None`` for ``"whole"``).
+        batch_theta: per step or method (``"step1"``, ``"step3"``, ``"step5"``; ``"joint"``;
+            ``"whole"``), theta of each batch ``(B, 4)``; NaN rows for failed solves.
+        batch_covariance: per method that reports one (``"joint"``), the marginal covariance
+            of each batch's theta ``(B, 4, 4)``; NaN for failed solves.
+        batch_excluded: per method, why each batch is left out of the statistics (``""``
+            if it is not): a failed solve or parameters the batch does not determine.
+        covariance: covariance of the recommended theta (joint and whole methods), ``(4, 4)``.
+        observability: what the data determined about the recommended theta (joint, whole).
+        staged: the five steps' results (``method == "staged"``).
+        validation_segments, validation: the validation segments and their signals.
+        segment_errors: per validation segment, mean position error [m] of odometry with
+            ``"nominal"`` and ``"calibrated"`` theta.
+        batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
+            failed (never written to a file).
+        warnings: what a user must know before trusting the result.
+        trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
+        estimated: sensor quantities the whole-log solve estimated with theta
+            (``"time_offset"`` [s], ``"lever_arm_longitudinal"``, ``"lever_arm_lateral"``
+            [m]; :mod:`graphcal.pipeline.sensor_estimates`); observable ones are corrected
+            in ``log`` for the batches and the validation.
+        down_weighted: the fixes the robust whole-log solve down-weighted as outliers.
+        whole: the whole-log joint solve (joint and whole methods, and staged when it
+            estimates sensor quantities or outliers), ``None`` otherwise.
+    """
+
+    log: DriveLog
+    settings: Settings
+    method: Method
+    segments: Segments
+    selected: Segments
+    yaw_rate: np.ndarray
+    data: SegmentData
+    theta: np.ndarray
+    batches: np.ndarray | None
+    batch_theta: dict[str, np.ndarray]
+    batch_covariance: dict[str, np.ndarray]
+    staged: StagedResult | None
+    validation_segments: Segments
+    validation: SegmentData
+    segment_errors: dict[str, np.ndarray]
+    batch_errors: dict[str, np.ndarray]
+    batch_excluded: dict[str, np.ndarray]
+    warnings: tuple[str, ...] = ()
+    covariance: np.ndarray | None = None
+    observability: Observability | None = None
+    trust: TrustAssessment | None = None
+    estimated: dict[str, SensorEstimate] = field(default_factory=dict)
+    down_weighted: DownWeightedFixes | None = None
+    whole: JointCalibration | None = None
+
+    def verdicts(self) -> dict[str, str]:
+        """Per parameter: the observability verdict, or why it is not to be trusted
+        (:mod:`graphcal.pipeline.trust`)."""
+        out = self.observability.verdicts() if self.observability is not None else {}
+        doubts = self.trust.parameter_doubts if self.trust is not None else {}
+        for name in PARAMETER_NAMES:
+            if name in doubts and out.get(name, "calibrated").startswith("calibrated"):
+                out[name] = f"not trusted: {doubts[name]}"
+            out.setdefault(name, "calibrated")
+        return out
+
+    def batch_estimates(self, name: str) -> np.ndarray:
+        """Per-batch thetas ``(B, 4)`` of step or method ``name`` with failed and excluded
+        batches as NaN rows: what statistics and figures summarize."""
+        return without_excluded(self.batch_theta[name], self.batch_excluded.get(name))
+
+    def validation_error(self, name: str) -> float:
+        """E_p [m] of ``"nominal"`` or ``"calibrated"`` theta."""
+        return float(np.mean(self.segment_errors[name]))
+
+
+def without_excluded(thetas: np.ndarray, reasons: np.ndarray | None) -> np.ndarray:
+    """``thetas`` ``(B, 4)`` with the rows of excluded batches (a non-empty reason) as NaN."""
+    out = np.array(thetas, dtype=float)
+    if reasons is not None:
+        out[np.asarray(reasons) != ""] = np.nan
+    return out
+
+
+def mean_validation_error(validation: SegmentData, theta: np.ndarray) -> float:
+    """E_p [m]: the position error of eq. (16) / K averaged over the validation segments."""
+    if not np.all(np.isfinite(theta)):
+        return float("nan")
+    return float(np.mean(position_errors(validation, theta)))
+
+
+@dataclass(frozen=True)
+class MethodResult:
+    """What a method found, before validation; the fields are :class:`CalibrationRun`'s."""
+
+    theta: np.ndarray
+    warnings: list[str]
+    batches: np.ndarray | None = None
+    batch_theta: dict[str, np.ndarray] = field(default_factory=dict)
+    batch_covariance: dict[str, np.ndarray] = field(default_factory=dict)
+    batch_excluded: dict[str, np.ndarray] = field(default_factory=dict)
+    staged: StagedResult | None = None
+    covariance: np.ndarray | None = None
+    observability: Observability | None = None
+
+
+def validated_run(
+    method: Method,
+    corrected: PreparedLog,
+    solved: WholeLog | None,
+    result: MethodResult,
+    say: Progress,
+) -> CalibrationRun:
+    """The run: ``result`` validated on the validation segments of ``corrected`` (the log
+    the method calibrated from), judged (:mod:`graphcal.pipeline.trust`), with every warning
+    said."""
+    validation, settings = corrected.validation, corrected.settings
+    segment_errors = {
+        "nominal": position_errors(validation, settings.vehicle.theta_nominal),
+        "calibrated": position_errors(validation, result.theta),
+    }
+    batch_errors = _batch_errors(validation, result)
+    whole = None if solved is None else solved.whole
+    trust = _trust(whole, settings, result, segment_errors)
+    warnings = [
+        *corrected.warnings,
+        *result.warnings,
+        *(f"not to be trusted: {doubt}" for doubt in trust.doubts),
+        *_closing_warnings(result, batch_errors, settings),
+    ]
+    for line in warnings:
+        say(f"warning: {line}")
+    say(f"validated on {len(validation)} {settings.segments.validation_length:g} m segments")
+    return CalibrationRun(
+        log=corrected.log,
+        settings=settings,
+        method=method,
+        segments=corrected.segments,
+        selected=corrected.selected,
+        yaw_rate=corrected.yaw_rate,
+        data=corrected.data,
+        theta=result.theta,
+        batches=result.batches,
+        batch_theta=result.batch_theta,
+        batch_covariance=result.batch_covariance,
+        staged=result.staged,
+        validation_segments=corrected.validation_segments,
+        validation=validation,
+        segment_errors=segment_errors,
+        batch_errors=batch_errors,
+        batch_excluded=result.batch_excluded,
+        warnings=tuple(warnings),
+        trust=trust,
+        estimated={} if solved is None else solved.estimated,
+        down_weighted=None if solved is None else solved.down_weighted,
+        whole=whole,
+        covariance=result.covariance,
+        observability=result.observability,
+    )
+
+
+def _batch_errors(validation: SegmentData, result: MethodResult) -> dict[str, np.ndarray]:
+    """Per step or method, E_p [m] of each batch's theta; NaN for failed or excluded ones."""
+    return {
+        name: np.array(
+            [
+                mean_validation_error(validation, t)
+                for t in without_excluded(thetas, result.batch_excluded.get(name))
+            ]
+        )
+        for name, thetas in result.batch_theta.items()
+    }
+
+
+def _trust(
+    whole: JointCalibration | None,
+    settings: Settings,
+    result: MethodResult,
+    segment_errors: dict[str, np.ndarray],
+) -> TrustAssessment:
+    """The trust checks (:func:`~graphcal.pipeline.trust.assess_trust`) of the whole-log
+    solve (if any), the joint batches (if any) and the validation."""
+    calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
+    batch_theta = None
+    if "joint" in result.batch_covariance:
+        batch_theta = without_excluded(
+            result.batch_theta["joint"], result.batch_excluded.get("joint")
+        )
+    observability = result.observability
+    return assess_trust(
+        iterations=whole.iterations if whole is not None else 0,
+        max_iterations=settings.joint.max_iterations if whole is not None else 1,
+        chi2_per_dof=whole.chi2_per_dof if whole is not None else None,
+        batch_theta=batch_theta,
+        batch_covariance=result.batch_covariance.get("joint"),
+        calibrated=observability.calibrated if observability is not None else np.ones(4, bool),
+        validation_calibrated=float(calibrated),
+        validation_nominal=float(nominal),
+    )
+
+
+def _closing_warnings(
+    result: MethodResult, batch_errors: dict[str, np.ndarray], settings: Settings
+) -> list[str]:
+    """A calibrated circumference far from the vehicle's, and a Step 5 that validates worse
+    than Step 1."""
+    warnings = []
+    scale = circumference_warning(float(result.theta[0]), float(settings.vehicle.theta_nominal[0]))
+    if scale is not None:
+        warnings.append(scale)
+    solved_errors = {k: e[np.isfinite(e)] for k, e in batch_errors.items()}
+    if result.staged is not None and len(solved_errors["step1"]) and len(solved_errors["step5"]):
+        first, last = np.median(solved_errors["step1"]), np.median(solved_errors["step5"])
+        if last > first:
+            warnings.append(
+                f"Step 5 validates worse than Step 1 (median {last:.2f} m vs {first:.2f} m): "
+                "too little data for the compensation; try --method joint or a longer drive"
+            )
+    return warnings

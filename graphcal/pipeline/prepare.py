@@ -1,0 +1,132 @@
+"""What every method calibrates from: the segments selected, the settings the log itself
+completes (tick rounding, heading noise), the positions moved by the known lever arm, the
+fixes the loader flagged weighted down, and the segments' signals gathered."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from graphcal.data.antenna import move_to_centre
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.noise import heading_noise
+from graphcal.data.quantization import quantization_sigma, ticks_per_revolution
+from graphcal.data.segments import SegmentData, Segments, gather_segments
+from graphcal.pipeline.selection import select
+from graphcal.pipeline.settings import Settings
+
+Progress = Callable[[str], None]
+#: Weight of a fix the loader flagged as an isolated spike (its sigma ×100).
+FLAGGED_WEIGHT = 1e-4
+
+
+@dataclass(frozen=True)
+class PreparedLog:
+    """A log ready to calibrate (SI).
+
+    Attributes:
+        log: the drive log, positions moved to the centre of gravity by the known lever arm.
+        settings: the run's settings, completed from the log (tick rounding, heading noise).
+        segments: all calibration segments; ``selected`` those passing the selection.
+        yaw_rate: the selection statistic of every calibration segment [rad/s].
+        validation_segments: the validation segments.
+        fix_weights: per sample of ``log``, the weight of its fix (``None``: all 1).
+        data, validation: the selected and the validation segments' signals.
+        warnings: what a user must know about the log (masked samples).
+    """
+
+    log: DriveLog
+    settings: Settings
+    segments: Segments
+    yaw_rate: np.ndarray
+    selected: Segments
+    validation_segments: Segments
+    fix_weights: np.ndarray | None
+    data: SegmentData
+    validation: SegmentData
+    warnings: tuple[str, ...]
+
+
+def prepare_log(
+    log: DriveLog, settings: Settings, say: Progress, fall_back_to_all: bool
+) -> PreparedLog:
+    """``log`` cut, selected (:func:`~graphcal.pipeline.selection.select`, with
+    ``fall_back_to_all``) and gathered, with the settings it completes.
+
+    Raises:
+        NoUsableSegments: no segment passes the selection, or the log is too short.
+    """
+    segments, yaw, selected, validation_segments = select(log, settings, say, fall_back_to_all)
+    settings = _with_detected_ticks(log, settings, say)
+    settings = _with_heading_noise(log, settings, say)
+    arm = settings.lever_arm
+    log = move_to_centre(log, (arm.longitudinal, arm.lateral))  # a known arm
+    flagged = None  # spikes the loader flagged get (almost) no weight
+    if log.outlying is not None:
+        flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
+    return PreparedLog(
+        log=log,
+        settings=settings,
+        segments=segments,
+        yaw_rate=yaw,
+        selected=selected,
+        validation_segments=validation_segments,
+        fix_weights=flagged,
+        data=gather_segments(log, selected, flagged),
+        validation=gather_segments(log, validation_segments),
+        warnings=_mask_warnings(log),
+    )
+
+
+def _mask_warnings(log: DriveLog) -> tuple[str, ...]:
+    """The warning about the samples masked in ``log``, if any."""
+    if log.masked is None:
+        return ()
+    seconds = float(log.masked.sum() * log.dt)
+    return (
+        f"{seconds:.1f} s of the log masked where the positions disagree with the wheels "
+        f"({len(log.mask_notes)} span(s); first: {log.mask_notes[0]}); no segment spans them",
+    )
+
+
+def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Settings:
+    """``settings`` with the joint solve's tick quantization from the resolution the
+    recording stated (``DriveLog.tick_resolution``) or the log's rotations show
+    (:mod:`graphcal.data.quantization`), unless the settings (or vehicle) give one."""
+    if settings.joint.tick_quantization > 0:
+        return settings
+    source = "the recording says"
+    if log.tick_resolution is not None:
+        ticks = round(1.0 / log.tick_resolution)
+    else:
+        ticks = ticks_per_revolution(np.column_stack([log.n_rl, log.n_rr]))
+        source = "found in the rotations"
+    if ticks is None:
+        return settings
+    say(
+        f"wheel rotations are counts of {ticks} ticks per revolution ({source}): "
+        "quantization modelled"
+    )
+    joint = dataclasses.replace(settings.joint, tick_quantization=quantization_sigma(ticks))
+    return dataclasses.replace(settings, joint=joint)
+
+
+def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Settings:
+    """``settings`` whose joint heading weight follows the log's own heading noise
+    (:mod:`graphcal.data.noise`), if ``heading_noise_from_log``."""
+    joint = settings.joint
+    if not joint.heading_noise_from_log:
+        return settings
+    sigma = heading_noise(
+        log, settings.vehicle.theta_nominal, joint.wheel_noise, joint.tick_quantization
+    )
+    if sigma is None:
+        return settings
+    x, y, _ = joint.pose_weights
+    weight = float(f"{(joint.position_sigma / sigma) ** 2:.6g}")
+    say(f"heading noise {np.degrees(sigma):.2f}° (from the log): heading weight {weight:g}")
+    joint = dataclasses.replace(joint, pose_weights=(x, y, weight))
+    return dataclasses.replace(settings, joint=joint)

@@ -1,0 +1,316 @@
+"""The whole-log solve: the joint graph over all selected segments, with what it finds about
+the sensors, corrected in the log for everything after it.
+
+Top-down, :func:`solve_whole_log` runs:
+
+1. time-offset rounds (:func:`solve_with_time_offset`): the joint solve
+   (:func:`~graphcal.pipeline.joint.solve_joint`: warm start, robust reweighting of the fixes,
+   slip screen), repeated with the wheels shifted by whole samples while it finds a time
+   offset;
+2. the fixes' own noise (:func:`_with_position_noise`) and, for a log whose lateral
+   acceleration comes from the wheels, that acceleration derived again with the solved theta;
+   the rounds again if either changed the graph;
+3. d's verdict on a drive that barely turns (:func:`_d_on_a_straight_drive`);
+4. the sensor estimates (time offset, lever arm; :mod:`graphcal.pipeline.sensor_estimates`),
+   the down-weighted fixes and the slip verdict, reported;
+5. the log corrected by the estimates, and its segments gathered again with the solve's fix
+   weights: what validation and the batches work on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import gtsam
+import numpy as np
+
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.segments import SegmentData, Segments, gather_segments
+from graphcal.data.timing import shift_wheel_rotations, whole_samples
+from graphcal.factors import pose_sigmas
+from graphcal.model import step_increments, wheel_lateral_acceleration
+from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
+from graphcal.pipeline.prepare import PreparedLog
+from graphcal.pipeline.sensor_estimates import (
+    DownWeightedFixes,
+    SensorEstimate,
+    correct_log,
+    log_weights,
+    sensor_estimates,
+)
+from graphcal.pipeline.settings import Settings
+
+Progress = Callable[[str], None]
+#: Whole-log solves at most, each after shifting the wheels by the offset found so far.
+OFFSET_ROUNDS = 4
+#: The fixes' noise from the solve replaces the settings' when they differ by more than this
+#: share (a variance component; one more solve).
+POSITION_NOISE_TOLERANCE = 0.25
+#: Mean |yaw rate| [rad/s] of the wheels (over 1 s) below which a drive whose lateral
+#: acceleration comes from the wheels does not determine d (straight roads: 0.00–0.01; a
+#: city drive's selected segments 0.25).
+D_FROM_WHEELS_MIN_YAW_RATE = 0.05
+
+
+@dataclass(frozen=True)
+class WholeLog:
+    """The whole-log solve and the log it corrected (SI).
+
+    Attributes:
+        whole: the last whole-log joint solve.
+        estimated: the sensor quantities it estimated with theta, the time offset the total
+            (``"time_offset"`` [s], ``"lever_arm_longitudinal"``, ``"lever_arm_lateral"``
+            [m]).
+        down_weighted: the fixes it down-weighted as outliers.
+        solved_log: the log it solved (its a_y derived again if from the wheels), uncorrected.
+        corrected: what comes after it works on: the log corrected by the observable
+            estimates, the settings with the fixes' noise it found, the fix weights it used
+            (per sample of the log) and the segments gathered again from that log.
+    """
+
+    whole: JointCalibration
+    estimated: dict[str, SensorEstimate]
+    down_weighted: DownWeightedFixes
+    solved_log: DriveLog
+    corrected: PreparedLog
+
+    def batch_data(self) -> SegmentData:
+        """The selected segments for batches whose graph has the time offset and lever arm
+        as variables: the wheels shifted by the whole samples of the time offset (its rest the
+        batches' prior), the antenna left where it is."""
+        batch_log = correct_log(
+            self.solved_log, self.estimated, in_whole_samples=True, move_antenna=False
+        )
+        return gather_segments(batch_log, self.corrected.selected, self.corrected.fix_weights)
+
+
+def solve_whole_log(
+    prepared: PreparedLog, workers: int, say: Progress, keep_values: bool = False
+) -> tuple[WholeLog, gtsam.Values | None]:
+    """The whole-log procedure of the module docstring on ``prepared``, and the last solve's
+    value of every variable if ``keep_values`` (the joint batches' linearization point; else
+    ``None``, freed as soon as it is not needed).
+
+    Raises:
+        CalibrationFailed: if a solve fails or gives an implausible theta.
+    """
+    log, settings = prepared.log, prepared.settings
+    gathered, validation = prepared.data, prepared.validation
+    whole, values, data, offset = solve_with_time_offset(
+        log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
+    )
+    joint = _with_position_noise(whole, settings.joint, say)
+    if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
+        log = dataclasses.replace(
+            log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, whole.theta, log.dt)
+        )
+        gathered = gather_segments(log, prepared.selected, prepared.fix_weights)
+        validation = gather_segments(log, prepared.validation_segments)
+        say("lateral acceleration of the wheels derived again with the solved theta")
+    if joint is not settings.joint or log.ay_from_wheels:
+        settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
+        whole, values, data, offset = solve_with_time_offset(
+            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
+        )
+    if not keep_values:
+        values = None
+    if log.ay_from_wheels:
+        whole = _d_on_a_straight_drive(whole, data, say)
+    estimated = _with_total_offset(
+        sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
+    )
+    down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
+    _report(whole, estimated, down_weighted, settings.joint, say)
+    weights = prepared.fix_weights
+    if whole.fix_weights is not None:
+        weights = log_weights(data, whole.fix_weights, len(log.t))
+    corrected = _corrected(prepared, log, settings, weights, estimated, validation)
+    return WholeLog(whole, estimated, down_weighted, log, corrected), values
+
+
+def solve_with_time_offset(
+    log: DriveLog,
+    data: SegmentData,
+    selected: Segments,
+    flagged: np.ndarray | None,
+    settings: JointSettings,
+    say: Progress,
+    workers: int = 1,
+) -> tuple[JointCalibration, gtsam.Values, SegmentData, float]:
+    """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
+    the offset found so far, rounded to whole samples, and the solve repeated, so that the
+    graph's first-order shift only covers the rest (at most about half a sample).
+
+    Whole samples because a shift is exact only for them: between samples it averages
+    neighbouring rotations, which smooths their noise (tick quantization above all) away
+    from what the correction prior assumes. On a 24 km drive with 96-tick encoders, slow slip
+    and 62.5 ms latency, fractional shifting moved t_r by 4.3σ (``docs/defects.md``).
+
+    ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
+    the last solve, its values, the segments it solved and the shift [s] of their wheels."""
+    whole, values = _whole_log_solve(data, settings, say, workers)
+    shift = 0.0
+    for _ in range(OFFSET_ROUNDS - 1):
+        found = sensor_estimates(whole.nuisance, settings.max_sigma_ratio).get("time_offset")
+        if found is None or not found.detected:
+            break
+        rounded = whole_samples(shift + found.value, log.dt)
+        if rounded == shift:
+            break  # what is left is less than a sample: the graph's first order covers it
+        shift = rounded
+        say(f"wheels shifted by {shift * 1e3:+.1f} ms; solved again from the shifted log")
+        data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
+        whole, values = _whole_log_solve(data, settings, say, workers)
+    return whole, values, data, shift
+
+
+def _whole_log_solve(
+    data: SegmentData, settings: JointSettings, say: Progress, workers: int
+) -> tuple[JointCalibration, gtsam.Values]:
+    """The joint solve over all ``data`` (its segments shared out among ``workers``
+    processes), with the progress lines a user waits for, and the solution's values."""
+    say(f"joint solve over all {len(data)} selected segments")
+    result, values = solve_joint(data, settings, workers, say)
+    chi2 = result.chi2_per_dof
+    fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
+    say(f"  {result.iterations} iterations{fit}")
+    return result, values
+
+
+def _with_position_noise(
+    whole: JointCalibration, settings: JointSettings, say: Progress
+) -> JointSettings:
+    """``settings`` with the position sigma the whole-log solve found in its residuals
+    (:attr:`JointCalibration.position_noise`) when it differs from theirs by more than
+    :data:`POSITION_NOISE_TOLERANCE`, the heading sigma kept; else ``settings`` itself."""
+    found = whole.position_noise
+    if found is None:
+        return settings
+    x, y, heading = settings.pose_weights
+    configured = float(pose_sigmas(settings.pose_weights, settings.position_sigma)[0])
+    say(f"position noise {found:.3f} m per axis (the fixes' residuals)")
+    if abs(found / configured - 1.0) <= POSITION_NOISE_TOLERANCE:
+        return settings
+    sigma = found * np.sqrt(x)
+    weight = float(f"{heading * (sigma / settings.position_sigma) ** 2:.6g}")
+    say(
+        f"  not the {configured:g} m the settings assume: solved again with it (heading "
+        f"weight {weight:g}, the heading's sigma kept)"
+    )
+    return dataclasses.replace(settings, position_sigma=sigma, pose_weights=(x, y, weight))
+
+
+def _d_on_a_straight_drive(
+    whole: JointCalibration, data: SegmentData, say: Progress
+) -> JointCalibration:
+    """``whole`` with d not calibrated when its lateral acceleration came from the wheels
+    (no IMU, no heading) and the drive barely turns: d · a_y then fits mostly the noise of
+    the wheels' own left/right difference (a_y is taken from it), not a load transfer."""
+    window = max(1, round(1.0 / data.dt))
+    _, omega = step_increments(data.inputs, whole.theta)
+    turned = np.cumsum(omega, axis=1)[:, window - 1 :: window]
+    rates = np.abs(np.diff(turned, axis=1)) / (window * data.dt)
+    rate = float(rates.mean()) if rates.size else 0.0
+    if rate >= D_FROM_WHEELS_MIN_YAW_RATE or not whole.observability.calibrated[3]:
+        return whole
+    reason = (
+        f"its lateral acceleration comes from the wheels, on a drive that barely turns "
+        f"(mean |yaw rate| {rate:.3f} rad/s): log an IMU"
+    )
+    say(f"d not calibrated: {reason}")
+    return dataclasses.replace(whole, observability=whole.observability.without("d", reason))
+
+
+def _with_total_offset(
+    estimates: dict[str, SensorEstimate], offset: float
+) -> dict[str, SensorEstimate]:
+    """``estimates`` with the time offset's value the total: ``offset`` the log was shifted
+    by, plus what the last solve found."""
+    found = estimates.get("time_offset")
+    if found is None or offset == 0.0:
+        return estimates
+    total = dataclasses.replace(found, value=found.value + offset)
+    return {**estimates, "time_offset": total}
+
+
+def _corrected(
+    prepared: PreparedLog,
+    log: DriveLog,
+    settings: Settings,
+    weights: np.ndarray | None,
+    estimated: dict[str, SensorEstimate],
+    validation: SegmentData,
+) -> PreparedLog:
+    """``prepared`` after the whole-log solve: ``log`` (as solved) corrected exactly by the
+    ``estimated`` sensor quantities, the solve's ``settings`` and fix ``weights``, and the
+    segments gathered again (the validation segments only if the log changed: ``validation``
+    are those of ``log``)."""
+    exact = correct_log(log, estimated)
+    if exact is not log:
+        validation = gather_segments(exact, prepared.validation_segments)
+    return dataclasses.replace(
+        prepared,
+        log=exact,
+        settings=settings,
+        fix_weights=weights,
+        data=gather_segments(exact, prepared.selected, weights),
+        validation=validation,
+    )
+
+
+def _report(
+    whole: JointCalibration,
+    estimated: dict[str, SensorEstimate],
+    down_weighted: DownWeightedFixes,
+    settings: JointSettings,
+    say: Progress,
+) -> None:
+    """The progress lines of what the whole-log solve found: the sensor estimates, the fixes
+    it down-weighted and slow wheel slip."""
+    for line in _estimate_lines(estimated):
+        say(line)
+    if whole.fix_weights is not None:
+        say(down_weighted.summary())
+    if whole.slip_statistic is not None:
+        say(slip_line(whole, settings))
+
+
+def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
+    """One line: whether the whole-log solve found slow wheel slip and modelled it."""
+    statistic = f"χ² lower by {whole.slip_statistic:.2f} per chunk with slip scales"
+    if whole.slip_modelled:
+        return (
+            f"slow wheel slip found ({statistic} > {settings.slip_detection:g}): modelled; "
+            "σ includes it"
+        )
+    return f"no slow wheel slip ({statistic} ≤ {settings.slip_detection:g})"
+
+
+#: How each sensor estimate is shown: label, unit, scale from SI, digits.
+_ESTIMATE_FORMAT = {
+    "time_offset": ("time offset: wheels late against the pose", "ms", 1e3, 1),
+    "lever_arm_longitudinal": ("GNSS antenna ahead of the centre of gravity", "m", 1.0, 3),
+    "lever_arm_lateral": ("GNSS antenna left of the centre of gravity", "m", 1.0, 3),
+}
+
+
+def _estimate_lines(estimated: dict[str, SensorEstimate]) -> list[str]:
+    """One progress line per sensor estimate."""
+    lines = []
+    for name, e in estimated.items():
+        label, unit, scale, digits = _ESTIMATE_FORMAT[name]
+        if e.observable:
+            lines.append(
+                f"{label}: {e.value * scale:+.{digits}f} ± {e.sigma * scale:.{digits}f} {unit}; "
+                f"{e.verdict}"
+            )
+        else:
+            lines.append(f"{label}: not observable from this drive")
+    return lines
+
+
+def models_sensors(settings: JointSettings) -> bool:
+    """The joint settings estimate a time offset or lever arm, or weight outliers."""
+    return max(settings.time_offset_sigma, settings.lever_arm_sigma, settings.robust_threshold) > 0
