@@ -30,13 +30,13 @@ import numpy as np
 from graphcal.data.segments import SegmentData
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
+from graphcal.graph.estimates import SolvedGraph, ThetaEstimate
+from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.graph.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
-from graphcal.graph.estimates import SolvedGraph, ThetaEstimate
-from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 from graphcal.pipeline.robust import solve_segment_graph_robust
 from graphcal.pipeline.slip_screen import with_slip_if_shown
