@@ -42,7 +42,7 @@ criteria). The final line is pass/fail against: every run trusted (a failed run 
 every calibrated parameter within 3σ, and the mean (error/σ)² over all runs at most 2 per
 parameter; a parameter calibrated in no run is noted, not failed.
 
-Calibrating as the CLI does: the settings come from ``graphcal.cli.settings_from_args`` on
+Calibrating as the CLI does: the settings come from ``graphcal.cli.options.settings_from_args`` on
 the ``graphcal calibrate`` command line built by ``graphcal.cli.build_parser`` (so they
 follow the CLI's defaults); the log is loaded as the CLI's private ``_load`` does
 (``import_recording`` for a manifest, ``load_drive_log`` for the CSV, with the vehicle's
@@ -70,7 +70,8 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.cli import build_parser, settings_from_args
+from graphcal.cli import build_parser
+from graphcal.cli.options import settings_from_args
 from graphcal.data.drive_log import load_drive_log
 from graphcal.data.importer import import_recording, is_recording
 from graphcal.data.manifest import load_manifest
