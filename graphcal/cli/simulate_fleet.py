@@ -5,11 +5,15 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from graphcal import GraphcalError
 from graphcal.cli.arguments import value_option, whole
+
+if TYPE_CHECKING:
+    from graphcal import FleetChange
 
 
 def add_fleet_options(p: argparse.ArgumentParser) -> None:
@@ -62,7 +66,7 @@ def simulate_fleet_command(args: argparse.Namespace, say: Callable[[str], None])
     return 0
 
 
-def _change(text: str):
+def _change(text: str) -> FleetChange | None:
     """``--change VEHICLE:DAY:C_E_MM`` as a :class:`graphcal.FleetChange`, or ``None``."""
     from graphcal import FleetChange
 

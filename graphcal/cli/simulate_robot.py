@@ -5,12 +5,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from graphcal import GraphcalError, load_vehicle
 from graphcal.cli.options import timed_progress
 from graphcal.cli.simulate_streams import write_streams_and_bag
+
+if TYPE_CHECKING:
+    from graphcal import RobotSettings, VehicleProfile
 
 
 def simulate_robot_command(args: argparse.Namespace, theta_true: np.ndarray | None) -> int:
@@ -61,7 +65,7 @@ def _check_robot_options(args: argparse.Namespace) -> None:
         raise GraphcalError("simulate --vehicle needs one of --out FILE.csv or --streams DIR")
 
 
-def _robot_settings(args: argparse.Namespace, vehicle):
+def _robot_settings(args: argparse.Namespace, vehicle: VehicleProfile) -> RobotSettings:
     """The robot's :class:`graphcal.RobotSettings`: the profile's, with the noise options."""
     from graphcal import RobotSettings
 
