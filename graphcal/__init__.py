@@ -23,9 +23,24 @@ _PUBLIC = {
     "DriveLog": "graphcal.data.drive_log",
     "load_drive_log": "graphcal.data.drive_log",
     "write_drive_log": "graphcal.data.drive_log",
+    "open_log": "graphcal.data.open_log",  # a CSV or a recording, by path
+    "recording_path": "graphcal.data.open_log",  # a recording's directory as its manifest
+    "log_distance_line": "graphcal.report.log_summary",  # a log described, as `check` says
+    "log_check_lines": "graphcal.report.log_summary",
+    "log_excitation_lines": "graphcal.report.log_summary",
+    "log_masked_lines": "graphcal.report.log_summary",
     "simulate_drive": "graphcal.simulate.drive",
+    "write_synthetic_drive": "graphcal.simulate.drive",  # the CSV, its truth and sidecar
+    "THETA_TRUE_DEFAULT": "graphcal.simulate.drive",  # the synthetic car's theta [SI]
     "NoiseLevels": "graphcal.simulate.drive",
     "ThetaChange": "graphcal.simulate.drive",
+    "parse_defects": "graphcal.simulate.defects",  # defects of real logs, added to a drive
+    "degrade": "graphcal.simulate.defects",
+    "DEFECT_NAMES": "graphcal.simulate.defects",
+    "ALL_NAMES": "graphcal.simulate.defects",  # the defects "all" adds
+    "simulate_robot": "graphcal.simulate.robot",  # a robot's runs, spins and stops
+    "RobotSettings": "graphcal.simulate.robot",
+    "theta_true_for": "graphcal.simulate.robot",
     "write_tum": "graphcal.data.tum",
     "read_tum": "graphcal.data.tum",
     # Recordings: streams manifests and ROS bags, resampled into drive logs.
@@ -34,12 +49,15 @@ _PUBLIC = {
     "BagOptions": "graphcal.data.importer",
     "read_recording": "graphcal.data.importer",
     "write_import": "graphcal.data.importer",
+    "check_import_output": "graphcal.data.importer",  # before an import, not after
+    "manifest_help": "graphcal.data.manifest_help",  # every manifest key with its default
     "Recording": "graphcal.data.streams",
     "resample": "graphcal.data.streams",
     "read_bag": "graphcal.data.bags",
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",
     "write_streams": "graphcal.simulate.streams",
+    "write_bag": "graphcal.simulate.bags",  # a recording as a ROS 1/2 bag or MCAP file
     # The odometry model (eqs. 1-3).
     "THETA_NOMINAL": "graphcal.model",
     "PARAMETER_NAMES": "graphcal.model",
@@ -50,6 +68,14 @@ _PUBLIC = {
     "VehicleProfile": "graphcal.vehicle",
     "load_vehicle": "graphcal.pipeline.settings_file",
     "apply_vehicle": "graphcal.pipeline.vehicle_settings",
+    "vehicle_settings_in": "graphcal.pipeline.settings_file",  # what a settings file keeps
+    "configure_settings": "graphcal.pipeline.configure",  # defaults, file, vehicle, options
+    "calibrate_file": "graphcal.pipeline.calibrate_file",  # open a log and calibrate it
+    "METHODS": "graphcal.pipeline.run",
+    "default_workers": "graphcal.pipeline.parallel",
+    "EXIT_UNTRUSTED": "graphcal.pipeline.trust",  # the exit status of an untrusted result
+    "check_output_directory": "graphcal.report.result_set",  # before a run, not after
+    "summary_text": "graphcal.report.results",
     "run_calibration": "graphcal.pipeline.run",
     "CalibrationRun": "graphcal.pipeline.calibration_run",
     "wheel_model": "graphcal.pipeline.localization_inputs",
@@ -66,12 +92,14 @@ _PUBLIC = {
     "FleetRun": "graphcal.fleet.run",
     "discover_fleet": "graphcal.fleet.sources",
     "simulate_fleet": "graphcal.simulate.fleet",
+    "FleetChange": "graphcal.simulate.fleet",
     # Evaluation against a known truth (synthetic drives).
     "evaluate": "graphcal.evaluation",
     "Evaluation": "graphcal.evaluation",
     "Truth": "graphcal.evaluation",
     "cramer_rao_bound": "graphcal.evaluation",
     "cramer_rao_bounds": "graphcal.evaluation",
+    "synthetic_truth": "graphcal.simulate.truth",  # a synthetic log's sidecar or manifest
     # Factors and values for your own GTSAM graphs.
     "PreintegratedWheelOdometry": "graphcal.factors",
     "WheelOdometryFactor": "graphcal.factors",
@@ -96,8 +124,15 @@ _PUBLIC = {
     "OnlineSettings": "graphcal.localization.online",
     "outage_errors": "graphcal.localization.dead_reckoning",
     "OutageSettings": "graphcal.localization.dead_reckoning",
+    # Benchmark (`graphcal bench`; options: graphcal.cli.bench).
+    "run_from_options": "graphcal.bench.run",
+    "write_report": "graphcal.bench.run",
+    # Units of theta as displayed: m, mm, m, mm·s²/m.
+    "DISPLAY_SCALE": "graphcal.units",
+    "DISPLAY_UNITS": "graphcal.units",
     # Errors.
     "GraphcalError": "graphcal.errors",
+    "first_line": "graphcal.errors",  # an error message's first line
 }
 
 __all__ = sorted(_PUBLIC)

@@ -11,13 +11,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-from graphcal.bench.options import add_bench_arguments
 from graphcal.bench.run import run_from_options, write_report
+from graphcal.cli.bench import add_arguments
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    add_bench_arguments(parser)
+    add_arguments(parser)
     args = parser.parse_args(argv)
     write_report(run_from_options(args, progress=print), args.out)
     print(f"wrote {args.out}")

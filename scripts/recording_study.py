@@ -42,14 +42,15 @@ criteria). The final line is pass/fail against: every run trusted (a failed run 
 every calibrated parameter within 3σ, and the mean (error/σ)² over all runs at most 2 per
 parameter; a parameter calibrated in no run is noted, not failed.
 
-Calibrating as the CLI does: the settings come from ``graphcal.cli.settings_from_args`` on
+Calibrating as the CLI does: the settings come from ``graphcal.cli.options.settings_from_args`` on
 the ``graphcal calibrate`` command line built by ``graphcal.cli.build_parser`` (so they
-follow the CLI's defaults); the log is loaded as the CLI's private ``_load`` does
+follow the CLI's defaults); the log is loaded as :func:`graphcal.open_log` does
 (``import_recording`` for a manifest, ``load_drive_log`` for the CSV, with the vehicle's
-nominal theta and the segment length as the minimum distance). One step exists only in
-``cmd_calibrate`` and is repeated here: the import's warnings are put in front of the run's
-warnings (they do not change ``run.trust``). The CLI's evaluation against
-the truth (:func:`graphcal.evaluation.evaluate`) does not change the estimate and is not run.
+nominal theta and the segment length as the minimum distance), timed apart from the
+calibration. One step of :func:`graphcal.calibrate_file` is repeated here: the import's
+warnings are put in front of the run's warnings (they do not change ``run.trust``). The
+CLI's evaluation against the truth (:func:`graphcal.evaluation.evaluate`) does not change
+the estimate and is not run.
 
 Deterministic given the seeds (except the wall times): the results do not depend on
 ``--workers``.
@@ -70,7 +71,8 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.cli import build_parser, settings_from_args
+from graphcal.cli import build_parser
+from graphcal.cli.options import settings_from_args
 from graphcal.data.drive_log import load_drive_log
 from graphcal.data.importer import import_recording, is_recording
 from graphcal.data.manifest import load_manifest
@@ -200,7 +202,7 @@ def calibrate_like_cli(
     loaded = time.perf_counter()
     run = run_calibration(log, settings, method, progress=progress, workers=workers)
     import_warnings = imported.warnings if imported is not None else ()
-    if import_warnings:  # cmd_calibrate: the import's doubts go with the result
+    if import_warnings:  # as calibrate_file: the import's doubts go with the result
         run = dataclasses.replace(run, warnings=(*import_warnings, *run.warnings))
     seconds = {"load": loaded - started, "calibrate": time.perf_counter() - loaded}
     truth = imported.truth if imported is not None else None

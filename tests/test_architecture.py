@@ -154,3 +154,30 @@ def test_graph_never_imports_pipeline():
     for module, imports in MODULES.items():
         if _unit(module) == "graph":
             assert "pipeline" not in _graphcal_units(imports), module
+
+
+def _graphcal_imports(path: Path) -> list[tuple[str, str | None]]:
+    """Every ``graphcal`` import of ``path``: (module, name), name ``None`` for ``import M``."""
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            found += [(a.name, None) for a in node.names if a.name.split(".")[0] == "graphcal"]
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "graphcal":
+            found += [(node.module, a.name) for a in node.names]
+    return found
+
+
+@pytest.mark.parametrize(
+    "path", sorted((ROOT / "cli").rglob("*.py")), ids=lambda p: str(p.relative_to(ROOT))
+)
+def test_cli_imports_only_the_public_api(path):
+    """The CLI uses what a script can: ``from graphcal import NAME`` with NAME in
+    ``graphcal.__all__`` (or ``__version__``), or another module of the CLI."""
+    import graphcal
+
+    public = {*graphcal.__all__, "__version__"}
+    for module, name in _graphcal_imports(path):
+        if module == "graphcal":
+            assert name in public, f"{name} is not in graphcal.__all__"
+        else:
+            assert _unit(module) == "cli", module

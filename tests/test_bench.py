@@ -31,10 +31,11 @@ def test_naive_per_step_graph_agrees_with_the_segment_formulation():
 def test_quick_preset_and_explicit_sizes():
     import argparse
 
-    from graphcal.bench.options import FULL, QUICK, add_bench_arguments, resolve_bench_options
+    from graphcal.bench.options import FULL, QUICK, resolve_bench_options
+    from graphcal.cli.bench import add_arguments
 
     parser = argparse.ArgumentParser()
-    add_bench_arguments(parser)
+    add_arguments(parser)
     assert resolve_bench_options(parser.parse_args([])) == FULL
     assert resolve_bench_options(parser.parse_args(["--quick"])) == QUICK
     mixed = resolve_bench_options(parser.parse_args(["--quick", "--repeats", "2"]))

@@ -126,7 +126,8 @@ def test_unknown_joint_solve_is_refused():
 
 
 def test_batch_solve_from_the_command_line_and_the_config(tmp_path):
-    from graphcal.cli import build_parser, settings_from_args
+    from graphcal.cli import build_parser
+    from graphcal.cli.options import settings_from_args
 
     parse = build_parser().parse_args
     assert settings_from_args(parse(["calibrate", "x.csv"])).batches.joint_solve == "linearized"

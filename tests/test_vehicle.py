@@ -233,7 +233,8 @@ def test_a_robot_drive_calibrates_with_its_profile(robot, robot_frame):
 
 
 def test_a_vehicle_on_the_command_line_keeps_what_the_config_sets(tmp_path):
-    from graphcal.cli import build_parser, settings_from_args
+    from graphcal.cli import build_parser
+    from graphcal.cli.options import settings_from_args
 
     config = tmp_path / "cfg.toml"
     config.write_text("[joint]\nwheel_noise = 0.0005\n")  # the car's value, set explicitly

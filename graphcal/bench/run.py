@@ -480,7 +480,7 @@ def localization_items(
 
 
 def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
-    """Run the benchmark with the options of :func:`graphcal.bench.options.add_bench_arguments`
+    """Run the benchmark with the options of :func:`graphcal.cli.bench.add_arguments`
     (sizes resolved by :func:`~graphcal.bench.options.resolve_bench_options`); returns the
     report (write it with :func:`write_report`)."""
     sizes = resolve_bench_options(args)

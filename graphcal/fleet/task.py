@@ -120,21 +120,11 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
 
 
 def _calibrate(log: FleetLog, settings: Settings) -> dict[str, Any]:
-    from graphcal.data.drive_log import load_drive_log
-    from graphcal.data.importer import import_recording, is_recording
+    from graphcal.data.open_log import open_log
     from graphcal.pipeline.run import run_calibration
 
     nominal = settings.vehicle.theta_nominal
-    length = settings.segments.length
-    if is_recording(log.path):
-        imported = import_recording(
-            log.path, nominal=nominal, min_distance=length, reverses=settings.vehicle.reverses
-        )
-        drive = imported.log
-    else:
-        drive = load_drive_log(
-            log.path, min_distance=length, nominal=nominal, reverses=settings.vehicle.reverses
-        )
+    drive, _ = open_log(log.path, settings.vehicle, min_distance=settings.segments.length)
     run = run_calibration(drive, settings, FLEET_METHOD, workers=1)
     if run.whole is None or run.covariance is None or not np.all(np.isfinite(run.covariance)):
         raise GraphcalError("the solve gave no covariance")

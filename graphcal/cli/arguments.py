@@ -1,9 +1,10 @@
-"""argparse types shared by the ``graphcal`` command and the scripts: one clear line each."""
+"""argparse types of the ``graphcal`` command's options: one clear line each."""
 
 from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -59,3 +60,14 @@ def non_negative(text: str) -> float:
     if not (np.isfinite(value) and value >= 0):
         raise argparse.ArgumentTypeError(f"must be a number >= 0, got {text!r}")
     return value
+
+
+def value_option(
+    parser: argparse.ArgumentParser | argparse._ArgumentGroup,
+    flag: str,
+    kind: Callable[[str], Any],
+    metavar: str,
+    text: str,
+) -> None:
+    """Add an option that takes one value of type ``kind`` and is ``None`` unless given."""
+    parser.add_argument(flag, type=kind, default=None, metavar=metavar, help=text)

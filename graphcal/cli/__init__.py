@@ -1,0 +1,60 @@
+"""The ``graphcal`` command line: thin wrappers around the library.
+
+One module per command (``add_arguments(parser)``, ``run(args) -> int``); the options
+several commands share are in :mod:`graphcal.cli.options`. Bad input prints one line
+``graphcal: error: …`` and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Sequence
+
+from graphcal import GraphcalError, __version__, first_line
+from graphcal.cli import bench, calibrate, check, fleet, import_, simulate
+
+EXIT_BAD_INPUT = 2
+#: Exit status after Ctrl-C.
+EXIT_INTERRUPTED = 130
+#: The commands, in the order ``graphcal --help`` lists them.
+COMMANDS = (simulate, bench, import_, check, calibrate, fleet)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``graphcal`` command."""
+    parser = argparse.ArgumentParser(
+        prog="graphcal",
+        description="Wheel-odometry calibration with noise compensation, as GTSAM factor graphs.",
+    )
+    parser.add_argument("--version", action="version", version=f"graphcal {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for command in COMMANDS:
+        p = sub.add_parser(
+            command.NAME,
+            help=command.HELP,
+            description=getattr(command, "DESCRIPTION", command.run.__doc__),
+        )
+        command.add_arguments(p)
+        p.set_defaults(func=command.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``graphcal`` console script; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        return args.func(args)
+    except GraphcalError as exc:
+        print(f"graphcal: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt as exc:  # a note, if any, says what was kept and how to go on
+        note = first_line(str(exc))
+        print(f"graphcal: interrupted{f'; {note}' if note else ''}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. `graphcal check LOG | head`: the reader left, not an error
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0

@@ -1,0 +1,7 @@
+"""``python -m graphcal.cli``: the ``graphcal`` command."""
+
+import sys
+
+from graphcal.cli import main
+
+sys.exit(main())
