@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.data.bags import BagRequest
+from graphcal.data.bag_request import BagRequest
 from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
 from graphcal.data.imu_mounting import mounted_fix
 from graphcal.data.manifest import SPEED_UNITS
@@ -134,7 +134,7 @@ def is_recording(path: str | os.PathLike[str]) -> bool:
     path = Path(path)
     if path.suffix.lower() in MANIFEST_SUFFIXES:
         return True
-    from graphcal.data.bags import is_bag
+    from graphcal.data.bag_reader import is_bag
 
     return is_bag(path)
 
@@ -146,7 +146,8 @@ def read_recording(source: str | os.PathLike[str], bag: BagOptions | None = None
         from graphcal.data.manifest import read_manifest
 
         return read_manifest(path)
-    from graphcal.data.bags import is_bag, read_bag
+    from graphcal.data.bag_reader import is_bag
+    from graphcal.data.bags import read_bag
 
     if not path.exists():
         raise StreamError(f"{source}: no such file or directory; check the path")
