@@ -33,7 +33,7 @@ _PUBLIC = {
     "ImportedLog": "graphcal.data.importer",
     "BagOptions": "graphcal.data.importer",
     "read_recording": "graphcal.data.importer",
-    "write_import": "graphcal.data.importer",
+    "write_import": "graphcal.data.import_output",
     "Recording": "graphcal.data.streams",
     "resample": "graphcal.data.streams",
     "read_bag": "graphcal.data.bags",
