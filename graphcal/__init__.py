@@ -48,8 +48,8 @@ _PUBLIC = {
     "ImportedLog": "graphcal.data.importer",
     "BagOptions": "graphcal.data.importer",
     "read_recording": "graphcal.data.importer",
-    "write_import": "graphcal.data.importer",
-    "check_import_output": "graphcal.data.importer",  # before an import, not after
+    "write_import": "graphcal.data.import_output",
+    "check_import_output": "graphcal.data.import_output",  # before an import, not after
     "manifest_help": "graphcal.data.manifest_help",  # every manifest key with its default
     "Recording": "graphcal.data.streams",
     "resample": "graphcal.data.streams",

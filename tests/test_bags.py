@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.bags import bag_topics, is_bag, pick_joints, read_bag
+from graphcal.data.bag_reader import bag_topics, is_bag
+from graphcal.data.bag_topics import pick_joints
+from graphcal.data.bags import read_bag
 from graphcal.data.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
 from graphcal.simulate.bags import write_bag
 
@@ -349,7 +351,7 @@ def test_pick_joints():
 
 @pytest.mark.parametrize("storage", list(STORAGES))
 def test_vectorized_decoding_equals_rosbags_message_by_message(bags, storage, monkeypatch):
-    import graphcal.data.bags as reader
+    import graphcal.data.bag_reader as reader
 
     fast = read_bag(bags[storage])
     monkeypatch.setattr(reader, "FAST_DECODING", False)
@@ -392,7 +394,7 @@ def _imu(t: float, rng: np.random.Generator):
 def test_real_imu_and_joint_messages_decode_vectorized_as_rosbags_does(tmp_path, monkeypatch):
     # Every number of a real IMU changes, and a JointState carries more joints than the two
     # rear wheels: only the frame id, names and lengths are the same in every message.
-    import graphcal.data.bags as reader
+    import graphcal.data.bag_reader as reader
     from graphcal.data import bag_layout
 
     rng = np.random.default_rng(3)

@@ -13,7 +13,8 @@ import pandas as pd
 import pytest
 
 from graphcal.data.drive_log import DriveLogError, load_drive_log
-from graphcal.data.importer import import_recording, read_recording, write_import
+from graphcal.data.import_output import write_import
+from graphcal.data.importer import import_recording, read_recording
 from graphcal.data.segments import split_segments
 from graphcal.data.streams import PoseStream, StreamError, fixes_on_grid, grid_rate
 from graphcal.pipeline.settings_file import load_vehicle

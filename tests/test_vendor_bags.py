@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data import bags as bags_module
+from graphcal.data import bag_reader
 from graphcal.data.bag_layout import decode_fields
 from graphcal.data.bags import read_bag
 from graphcal.data.importer import import_recording
@@ -349,14 +349,14 @@ def test_fields_decoded_from_raw_bytes_equal_rosbags_message_by_message(
         decoded.append(result is not None)
         return result
 
-    monkeypatch.setattr(bags_module, "decode_fields", spy)
+    monkeypatch.setattr(bag_reader, "decode_fields", spy)
     for path in [*custom.values(), *(written[s, DATASPEED] for s in STORAGES)]:
         decoded.clear()
         fast = read_bag(path, **args) if path in custom.values() else read_bag(path)
         assert decoded and all(decoded)  # every chunk of every field topic, vectorized
-        monkeypatch.setattr(bags_module, "FAST_DECODING", False)
+        monkeypatch.setattr(bag_reader, "FAST_DECODING", False)
         slow = read_bag(path, **args) if path in custom.values() else read_bag(path)
-        monkeypatch.setattr(bags_module, "FAST_DECODING", True)
+        monkeypatch.setattr(bag_reader, "FAST_DECODING", True)
         for a, b in ((fast.wheels.left, slow.wheels.left), (fast.wheels.t, slow.wheels.t)):
             np.testing.assert_array_equal(a, b)
         np.testing.assert_array_equal(fast.imu.yaw_rate, slow.imu.yaw_rate)

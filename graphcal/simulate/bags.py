@@ -113,7 +113,7 @@ def write_bag(
 
 def _check_replaceable(path: Path) -> None:
     """Refuse to replace anything at ``path`` that is not a bag."""
-    from graphcal.data.bags import is_bag
+    from graphcal.data.bag_reader import is_bag
 
     if path.exists() and not is_bag(path):
         raise StreamError(

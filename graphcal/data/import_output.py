@@ -1,0 +1,77 @@
+"""Writing an import: the drive-log CSV and its JSON sidecar, and the check that the output
+overwrites none of the recording's files."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+from graphcal.data.drive_log import write_drive_log
+from graphcal.data.importer import MANIFEST_SUFFIXES, ImportedLog
+from graphcal.data.streams import StreamError
+from graphcal.files import atomic_write_text
+
+
+def sidecar_of(csv_path: str | os.PathLike[str]) -> Path:
+    """The ``<stem>.json`` sidecar beside a drive-log CSV (as a synthetic drive's)."""
+    path = Path(csv_path)
+    return path.with_name(f"{path.stem}.json")
+
+
+def source_files(source: str | os.PathLike[str]) -> set[Path]:
+    """Every file a recording is read from (resolved): the manifest and the files it names,
+    or the bag and the files of its directory."""
+    path = Path(source)
+    files = {path}
+    if path.suffix.lower() in MANIFEST_SUFFIXES and path.is_file():
+        from graphcal.data.manifest import load_manifest
+
+        try:
+            manifest = load_manifest(path)
+        except StreamError:
+            return {path.resolve()}
+        for table in (manifest.pose, manifest.wheels, manifest.imu):
+            for key in ("file", "nmea", "can", "dbc"):  # a CSV, an NMEA log, a CAN log + DBC
+                if table and isinstance(table.get(key), str):
+                    files.add(manifest.resolve(table[key]))
+        if isinstance(manifest.data.get("truth"), str):
+            files.add(manifest.resolve(manifest.data["truth"]))
+        if manifest.bag is not None:
+            path = manifest.bag
+            files.add(path)
+    if path.is_dir():
+        files.update(path.iterdir())
+    return {f.resolve() for f in files}
+
+
+def check_import_output(source: str | os.PathLike[str], out: str | os.PathLike[str]) -> None:
+    """One line if ``out`` (or its sidecar) is a directory, a JSON name, or a file the
+    recording is read from; checked before the import."""
+    out = Path(out)
+    if out.is_dir():
+        raise StreamError(f"--out {out}: is a directory; give the drive-log CSV's path")
+    if out.suffix.lower() == ".json":
+        raise StreamError(
+            f"--out {out}: the drive log is a CSV and its sidecar is <name>.json; give a .csv path"
+        )
+    protected = source_files(source)
+    for path in (out, sidecar_of(out)):
+        if path.resolve() in protected:
+            raise StreamError(
+                f"--out {out}: would overwrite {path}, a file of the recording; choose another path"
+            )
+
+
+def write_import(imported: ImportedLog, csv_path: str | os.PathLike[str]) -> list[Path]:
+    """Write the drive-log CSV and its ``<stem>.json`` sidecar (each atomically; the CSV is
+    removed again if the sidecar cannot be written, so that nothing is half-written)."""
+    csv_path = Path(csv_path)
+    sidecar = sidecar_of(csv_path)
+    write_drive_log(imported.log, csv_path)
+    try:
+        atomic_write_text(sidecar, json.dumps(imported.sidecar(), indent=2) + "\n")
+    except BaseException:
+        csv_path.unlink(missing_ok=True)
+        raise
+    return [csv_path, sidecar]

@@ -1,0 +1,92 @@
+"""The named columns of a manifest section's CSV file, read and checked, with provenance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from graphcal.data.drive_log import _readable
+from graphcal.data.manifest import TIME_UNITS, Manifest
+from graphcal.data.streams import Field, Provenance, StreamError, check_time, unique_samples
+
+
+def declaration(table: dict, key: str, default: str | None = None) -> str:
+    """How a unit key reads in the manifest (``'speed_unit = "m/s"'``), for messages; a key
+    left out says its default."""
+    value = table.get(key, default)
+    text = f"{key} = {value!r}".replace("'", '"') if isinstance(value, str) else f"{key} = {value}"
+    return text if key in table else f"{text} by default"
+
+
+def read_columns(
+    manifest: Manifest,
+    section: str,
+    table: dict,
+    columns: dict[str, str],
+    notes: list[str],
+    units: dict[str, str] | None = None,
+    declared: dict[str, dict[str, str]] | None = None,
+) -> tuple[str, np.ndarray, dict[str, np.ndarray], Provenance]:
+    """Read the named columns of a section's CSV: ``(source, time [s], {role: values},
+    provenance)``, each role's column named as the user wrote it with its manifest key and
+    ``units`` (how the role's unit was declared); a time written twice is dropped when the
+    rows agree and refused when they differ (:func:`graphcal.data.streams.unique_samples`)."""
+    name = table.get("file")
+    if not isinstance(name, str) or not name:
+        raise manifest.error(f"[{section}] needs file (the stream's CSV, relative to the manifest)")
+    path = manifest.resolve(name)
+    source = str(path)
+    if not path.is_file():
+        raise StreamError(
+            f"{source}: no such file (named in {manifest.source} [{section}] file); check the path"
+        )
+    time_column = manifest.text(table, "time", section)
+    unit = manifest.choice(table, "time_unit", TIME_UNITS, section, "s")
+    offset = manifest.number(table, "time_offset", 0.0, section)
+    header = _readable(source, lambda: pd.read_csv(path, nrows=0, skipinitialspace=True))
+    available = [str(c).strip() for c in header.columns]
+    wanted = {"time": time_column, **columns}
+    for role, column in wanted.items():
+        if column not in available:
+            raise StreamError(
+                f"{source}: no column {column!r} (the manifest's [{section}] {role}); the file "
+                f"has {', '.join(available[:12])}"
+            )
+    frame = _readable(
+        source,
+        lambda: pd.read_csv(
+            path,
+            usecols=lambda c: str(c).strip() in set(wanted.values()),
+            skipinitialspace=True,
+            engine="c",
+        ),
+    )
+    frame.columns = [str(c).strip() for c in frame.columns]
+    values = {}
+    for role, column in wanted.items():
+        numeric = pd.to_numeric(frame[column], errors="coerce").to_numpy(dtype=float)
+        bad = ~np.isfinite(numeric)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise StreamError(
+                f"{source}: column {column!r}, line {row + 2}: value "
+                f"{str(frame[column].iloc[row])!r} is not a finite number; fill or drop that row"
+            )
+        values[role] = numeric
+    units = {"time": declaration(table, "time_unit", "s"), **(units or {})}
+    declared = {"time": {"time_unit": unit}, **(declared or {})}
+    fields = {
+        role: Field(
+            column, f"[{section}] {role}", units.get(role), tuple(declared.get(role, {}).items())
+        )
+        for role, column in wanted.items()
+    }
+    provenance = Provenance(source, fields, np.arange(len(frame)) + 2)  # the header is line 1
+    raw = values.pop("time")
+    keep = unique_samples(raw, values, provenance, notes, unit=unit)
+    if len(keep) < len(raw):
+        raw, provenance = raw[keep], provenance.take(keep)
+        values = {role: column[keep] for role, column in values.items()}
+    check_time(raw, source, provenance, unit)
+    t = raw * TIME_UNITS[unit] + offset
+    return source, t, values, provenance
