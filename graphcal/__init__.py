@@ -35,7 +35,7 @@ _PUBLIC = {
     "read_recording": "graphcal.data.importer",
     "write_import": "graphcal.data.importer",
     "Recording": "graphcal.data.streams",
-    "resample": "graphcal.data.streams",
+    "resample": "graphcal.data.resampling",
     "read_bag": "graphcal.data.bags",
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",

@@ -22,21 +22,16 @@ from graphcal.data.bags import BagRequest
 from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
 from graphcal.data.imu_mounting import mounted_fix
 from graphcal.data.manifest import SPEED_UNITS
-from graphcal.data.streams import (
+from graphcal.data.resampling import Resampled, resample
+from graphcal.data.stream_grid import (
     DEFAULT_RATE,
     FIX_TIME_TOLERANCE,
     MAX_GAP_S,
-    Provenance,
-    Recording,
-    Resampled,
-    StreamError,
-    course,
     grid_rate,
     interval_means,
-    provenance_of,
-    resample,
 )
-from graphcal.data.track import COURSE_MIN_REVS
+from graphcal.data.streams import Provenance, Recording, StreamError, provenance_of
+from graphcal.data.track import COURSE_MIN_REVS, course
 from graphcal.files import atomic_write_text
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 

@@ -86,8 +86,8 @@ import pandas as pd
 
 from graphcal.data.drive_log import _readable
 from graphcal.data.geodesy import geodetic_to_local
+from graphcal.data.stream_grid import MAX_GAP_S
 from graphcal.data.streams import (
-    MAX_GAP_S,
     Field,
     ImuStream,
     PoseStream,

@@ -43,12 +43,11 @@ from graphcal.data.imu_frame import (
     to_vehicle,
     turn_axis,
 )
+from graphcal.data.stream_grid import interval_means, wheel_rotations
 from graphcal.data.streams import (
     PoseStream,
     StreamError,
     WheelStream,
-    interval_means,
-    wheel_rotations,
 )
 
 #: Horizontal acceleration [m/s²] of a bin that counts as excitation of the yaw, and the
