@@ -19,7 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from graphcal.data.bags import BagRequest
-from graphcal.data.drive_log import ColumnOrigin, DriveLog, validate_frame, write_drive_log
+from graphcal.data.drive_log import DriveLog, write_drive_log
+from graphcal.data.drive_log_checks import ColumnOrigin
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.data.imu_mounting import mounted_fix
 from graphcal.data.manifest import SPEED_UNITS
 from graphcal.data.resampling import Resampled, resample
