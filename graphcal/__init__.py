@@ -52,7 +52,7 @@ _PUBLIC = {
     "check_import_output": "graphcal.data.import_output",  # before an import, not after
     "manifest_help": "graphcal.data.manifest_help",  # every manifest key with its default
     "Recording": "graphcal.data.streams",
-    "resample": "graphcal.data.streams",
+    "resample": "graphcal.data.resampling",
     "read_bag": "graphcal.data.bags",
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",

@@ -23,7 +23,7 @@ import time
 
 import numpy as np
 
-from graphcal.data.drive_log import validate_frame
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.errors import GraphcalError
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.joint import without_defect_model

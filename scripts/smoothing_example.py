@@ -27,7 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.data.drive_log import load_drive_log, validate_frame
+from graphcal.data.drive_log import load_drive_log
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.data.tum import write_tum
 from graphcal.localization.smoothing import SmoothingSettings, smooth_drive
 from graphcal.model import PARAMETER_NAMES

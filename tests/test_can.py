@@ -17,11 +17,9 @@ from cantools.database.can import Message, Signal  # noqa: E402
 from cantools.database.conversion import BaseConversion  # noqa: E402
 
 from graphcal.cli import main  # noqa: E402
-from graphcal.data.can_log import (  # noqa: E402
-    EXTENDED_FLAG,
-    decode_signals,
-    read_frames,
-)
+from graphcal.data.can_decode import decode_signals  # noqa: E402
+from graphcal.data.can_frames import EXTENDED_FLAG  # noqa: E402
+from graphcal.data.can_reader import read_frames  # noqa: E402
 from graphcal.data.importer import import_recording  # noqa: E402
 from graphcal.data.manifest import read_manifest  # noqa: E402
 from graphcal.pipeline.run import run_calibration  # noqa: E402

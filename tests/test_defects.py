@@ -9,7 +9,8 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.data.consistency import runs
-from graphcal.data.drive_log import load_drive_log, validate_frame, write_drive_log
+from graphcal.data.drive_log import load_drive_log, write_drive_log
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.simulate.defects import (
     ALL_NAMES,
     DEFECT_NAMES,

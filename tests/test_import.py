@@ -12,12 +12,8 @@ import pytest
 from graphcal.cli import main
 from graphcal.data.importer import import_recording
 from graphcal.data.segments import split_segments
-from graphcal.data.streams import (
-    Recording,
-    WheelStream,
-    interval_means,
-    wheel_rotations,
-)
+from graphcal.data.stream_grid import interval_means, wheel_rotations
+from graphcal.data.streams import Recording, WheelStream
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.run import run_calibration
 from graphcal.simulate.drive import simulate_drive
@@ -295,7 +291,8 @@ def test_a_stream_whose_time_does_not_increase_is_refused(recording, tmp_path, c
 
 def test_streams_that_overlap_too_little_are_refused():
     t = np.arange(0.0, 100.0, 0.1)
-    from graphcal.data.streams import PoseStream, StreamError, resample
+    from graphcal.data.resampling import resample
+    from graphcal.data.streams import PoseStream, StreamError
 
     pose = PoseStream(t, t, 0 * t, None, None, "p")
     wheels = WheelStream(t + 80.0, t, t, True, "w")

@@ -95,7 +95,7 @@ def test_smoothing_with_5hz_gnss_recovers_theta_and_the_trajectory(short_drive):
 @pytest.fixture(scope="module")
 def slipping_counted_log():
     """4 km whose wheels slip slowly (0.15 %) and are counted in 96 ticks per revolution."""
-    from graphcal.data.drive_log import validate_frame
+    from graphcal.data.drive_log_validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(4.0, 1), parse_defects("slip,ticks"), 1)
@@ -137,7 +137,7 @@ def test_online_covers_tick_rounding_and_slow_slip(slipping_counted_log):
 def test_prepare_localization_hands_over_the_calibrations_findings():
     from dataclasses import fields
 
-    from graphcal.data.drive_log import validate_frame
+    from graphcal.data.drive_log_validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(2.0, 3), parse_defects("latency,lever_arm"), 3)
@@ -216,7 +216,7 @@ def test_tum_round_trip(tmp_path):
 
 
 def test_smoothing_estimates_the_lever_arm_and_ignores_flagged_spikes():
-    from graphcal.data.drive_log import validate_frame
+    from graphcal.data.drive_log_validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(2.0, 3), parse_defects("lever_arm,outliers"), 3)

@@ -12,7 +12,7 @@ import pytest
 from graphcal.cli import main
 from graphcal.data.importer import import_recording
 from graphcal.data.manifest import read_manifest
-from graphcal.data.nmea import read_nmea
+from graphcal.data.nmea_fixes import read_nmea
 from graphcal.evaluation import Truth, evaluate
 from graphcal.files import atomic_write_csv
 from graphcal.pipeline.run import run_calibration

@@ -12,7 +12,8 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import DriveLog, load_drive_log, validate_frame
+from graphcal.data.drive_log import DriveLog, load_drive_log
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, SegmentSettings, Settings

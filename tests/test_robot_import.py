@@ -16,7 +16,8 @@ from graphcal.data.drive_log import DriveLogError, load_drive_log
 from graphcal.data.import_output import write_import
 from graphcal.data.importer import import_recording, read_recording
 from graphcal.data.segments import split_segments
-from graphcal.data.streams import PoseStream, StreamError, fixes_on_grid, grid_rate
+from graphcal.data.stream_grid import fixes_on_grid, grid_rate
+from graphcal.data.streams import PoseStream, StreamError
 from graphcal.pipeline.settings_file import load_vehicle
 from graphcal.simulate.robot import ROBOT_THETA_TRUE, RobotSettings, simulate_robot
 from graphcal.simulate.streams import write_streams

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import graphcal
-from graphcal.data.drive_log import DriveLogError, load_drive_log, validate_frame
+from graphcal.data.drive_log import DriveLogError, load_drive_log
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.errors import GraphcalError
 from graphcal.graph.plausibility import PLAUSIBLE_THETA, plausible_ranges
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS

@@ -8,16 +8,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.drive_log import ColumnOrigin
+from graphcal.data.drive_log_checks import ColumnOrigin
 from graphcal.data.import_keys import is_flag, key_name, stream_advice
 from graphcal.data.imu_mounting import mounted_fix
-from graphcal.data.streams import (
-    FIX_TIME_TOLERANCE,
-    Provenance,
-    Recording,
-    Resampled,
-    provenance_of,
-)
+from graphcal.data.resampling import Resampled
+from graphcal.data.stream_grid import FIX_TIME_TOLERANCE
+from graphcal.data.streams import Provenance, Recording, provenance_of
 
 
 def sample_before(t: np.ndarray, time: float) -> int:

@@ -147,19 +147,36 @@ def inconsistent_samples(
     if n < 3:
         return mask, notes, outlying
     wheels = wheel_steps(log, nominal=nominal)
-    travelled = np.concatenate([[0.0], np.cumsum(wheels)])  # net: back where it started
-    along = np.concatenate([[0.0], np.cumsum(np.abs(wheels))])  # along the path
     margin = max(1, round(SPIKE_MARGIN_S / log.dt))
-    steps = np.hypot(np.diff(log.px), np.diff(log.py))
     # The rows holding a fix (every row of a uniform log), and which of them repeat the fix
     # before (a receiver at a lower rate than the log, sample-and-hold, or a frozen one).
     rows = np.flatnonzero(log.position_measured)
     same = np.concatenate([[False], np.hypot(np.diff(log.px[rows]), np.diff(log.py[rows])) == 0])
     fixes = rows[~same]
+    frozen = _frozen_fixes(log, wheels, rows, same, fixes, notes, nominal)
+    spikes, outlying = _position_spikes(log, wheels, fixes, frozen, margin, notes, nominal)
+    turns = _heading_jumps(log, margin, frozen | spikes, notes, nominal)
+    mask = frozen | spikes | turns
+    return mask, notes, outlying & ~mask
+
+
+def _frozen_fixes(
+    log,
+    wheels: np.ndarray,
+    rows: np.ndarray,
+    same: np.ndarray,
+    fixes: np.ndarray,
+    notes: list[str],
+    nominal: np.ndarray,
+) -> np.ndarray:
+    """Samples of a fix held (repeated at the rows ``same``) for at least
+    :data:`FROZEN_MIN_S` (or five fix intervals) while the wheels travel
+    :data:`FROZEN_MIN_REVS` revolutions along the path, ``(N,)``; one note per span."""
+    along = np.concatenate([[0.0], np.cumsum(np.abs(wheels))])  # along the path
     fix_interval = float(np.median(np.diff(log.t[fixes]))) if len(fixes) > 1 else log.dt
     # Only a hold much longer than the log's usual one is a frozen fix.
     frozen_min_s = max(FROZEN_MIN_S, 5.0 * fix_interval)
-    frozen = np.zeros(n, dtype=bool)
+    frozen = np.zeros(len(log), dtype=bool)
     for a, b in runs(same):
         first, last = rows[a - 1], rows[b]  # the fix that is repeated, its last repeat
         if log.t[last] - log.t[first] >= frozen_min_s and (
@@ -170,13 +187,32 @@ def inconsistent_samples(
                 f"position frozen at t = {log.t[first]:.1f}–{log.t[last]:.1f} s while the "
                 f"wheels travelled {_metres(along[last] - along[first], nominal[0])} m: a held fix"
             )
-    # Spikes: each distinct fix against the previous one, over the wheels' travel between them.
+    return frozen
+
+
+def _position_spikes(
+    log,
+    wheels: np.ndarray,
+    fixes: np.ndarray,
+    frozen: np.ndarray,
+    margin: int,
+    notes: list[str],
+    nominal: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Samples around a jump of the distinct ``fixes`` that does not return (masked) and the
+    fixes of an isolated spike (outlying), each ``(N,)``; one note per masked span that no
+    frozen fix explains."""
+    n = len(log)
+    travelled = np.concatenate([[0.0], np.cumsum(wheels)])  # net: back where it started
+    steps = np.hypot(np.diff(log.px), np.diff(log.py))
+    # Each distinct fix against the previous one, over the wheels' travel between them.
     jump = np.hypot(np.diff(log.px[fixes]), np.diff(log.py[fixes]))
     rolled = np.abs(np.diff(travelled[fixes]))
     excess = jump - rolled
     noise = 1.4826 * np.median(np.abs(excess - np.median(excess))) if len(excess) else 0.0
     tolerance = max(SPIKE_EXCESS_REVS * nominal[0], 10.0 * noise)
     spikes = np.zeros(n, dtype=bool)
+    outlying = np.zeros(n, dtype=bool)
     jumps = np.flatnonzero(excess > tolerance)
     returned = _returns(log, fixes, travelled, jumps, tolerance)
     handled = np.zeros(len(excess), dtype=bool)  # steps explained by an isolated spike
@@ -198,8 +234,16 @@ def inconsistent_samples(
             f"{steps[a : max(a + 1, b)].max():.1f} m where the wheels moved "
             f"{np.abs(wheels[a : max(a + 1, b)]).max():.2f} m): spike"
         )
-    # Heading against the yaw the wheels imply (nominal theta), from each measured heading to
-    # the next: per step in a uniform log.
+    return spikes, outlying
+
+
+def _heading_jumps(
+    log, margin: int, explained: np.ndarray, notes: list[str], nominal: np.ndarray
+) -> np.ndarray:
+    """Samples around a heading step far from the yaw the wheels imply (nominal theta), from
+    each measured heading to the next (per step in a uniform log), ``(N,)``; one note per
+    span not ``explained`` by a frozen fix or a position jump."""
+    n = len(log)
     wheel_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * nominal[0] / nominal[2]
     headings = np.flatnonzero(log.heading_measured)
     if len(headings) == n:
@@ -220,13 +264,12 @@ def inconsistent_samples(
                 turns[max(0, k0 - margin + 1) : min(n, k1 + margin)] = True
             else:
                 turns[max(0, k - margin + 1) : min(n, k + margin + 1)] = True
-    for a, b in runs(turns & ~frozen & ~spikes):
+    for a, b in runs(turns & ~explained):
         notes.append(
             f"heading jumps at t = {log.t[a]:.1f}–{log.t[b]:.1f} s (by up to "
             f"{np.degrees(step_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
         )
-    mask = frozen | spikes | turns
-    return mask, notes, outlying & ~mask
+    return turns
 
 
 def _returns(

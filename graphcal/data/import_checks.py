@@ -18,14 +18,9 @@ from graphcal.data.import_turns import (
 from graphcal.data.import_units import check_units
 from graphcal.data.imu_mounting import mounted_fix
 from graphcal.data.manifest import SPEED_UNITS
-from graphcal.data.streams import (
-    Provenance,
-    Recording,
-    Resampled,
-    StreamError,
-    interval_means,
-    provenance_of,
-)
+from graphcal.data.resampling import Resampled
+from graphcal.data.stream_grid import interval_means
+from graphcal.data.streams import Provenance, Recording, StreamError, provenance_of
 from graphcal.model import THETA_NOMINAL
 
 

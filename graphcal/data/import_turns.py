@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from graphcal.data.import_keys import convention_key, pose_names, stream_advice
-from graphcal.data.streams import Recording, Resampled, StreamError, course, provenance_of
-from graphcal.data.track import COURSE_MIN_REVS
+from graphcal.data.resampling import Resampled
+from graphcal.data.streams import Recording, StreamError, provenance_of
+from graphcal.data.track import COURSE_MIN_REVS, course
 
 #: Window [s] over which the pose's and the wheels' turning are compared.
 TURN_WINDOW_S = 2.0

@@ -17,14 +17,9 @@ from graphcal.data.import_turns import (
     turn_directions,
 )
 from graphcal.data.imu_mounting import mounted_fix
-from graphcal.data.streams import (
-    Provenance,
-    Recording,
-    Resampled,
-    StreamError,
-    interval_means,
-    provenance_of,
-)
+from graphcal.data.resampling import Resampled
+from graphcal.data.stream_grid import interval_means
+from graphcal.data.streams import Provenance, Recording, StreamError, provenance_of
 from graphcal.model import THETA_NOMINAL
 
 #: A heading or IMU yaw rate turning more than this many times as much as the GNSS track

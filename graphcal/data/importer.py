@@ -1,10 +1,10 @@
 """Import a recording (streams manifest or ROS bag) into a validated drive log.
 
 :func:`import_recording` reads the streams (:mod:`graphcal.data.manifest`,
-:mod:`graphcal.data.bags`), puts them on the uniform grid (:func:`graphcal.data.streams.resample`),
+:mod:`graphcal.data.bags`), puts them on the uniform grid (:func:`graphcal.data.resampling.resample`),
 checks the streams against each other (:func:`graphcal.data.import_checks.check_recording`:
 swapped latitude/longitude, a compass heading declared ENU, swapped wheels, wrong units) and
-validates the result as any drive-log CSV (:func:`graphcal.data.drive_log.validate_frame`),
+validates the result as any drive-log CSV (:func:`graphcal.data.drive_log_validation.validate_frame`),
 each column naming where it came from (:func:`graphcal.data.column_origins.column_origins`).
 :func:`graphcal.data.import_output.write_import` writes the drive-log CSV and a JSON sidecar
 saying where it came from.
@@ -22,17 +22,12 @@ import numpy as np
 
 from graphcal.data.bag_request import BagRequest
 from graphcal.data.column_origins import column_origins
-from graphcal.data.drive_log import DriveLog, validate_frame
+from graphcal.data.drive_log import DriveLog
+from graphcal.data.drive_log_validation import validate_frame
 from graphcal.data.import_checks import check_recording
-from graphcal.data.streams import (
-    DEFAULT_RATE,
-    MAX_GAP_S,
-    Recording,
-    Resampled,
-    StreamError,
-    grid_rate,
-    resample,
-)
+from graphcal.data.resampling import Resampled, resample
+from graphcal.data.stream_grid import DEFAULT_RATE, MAX_GAP_S, grid_rate
+from graphcal.data.streams import Recording, StreamError
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 
 #: Suffixes of a streams manifest.

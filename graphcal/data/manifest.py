@@ -81,7 +81,8 @@ from typing import Any
 
 import numpy as np
 
-from graphcal.data.streams import MAX_GAP_S, Recording, StreamError
+from graphcal.data.stream_grid import MAX_GAP_S
+from graphcal.data.streams import Recording, StreamError
 
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 ANGLE_UNITS = {"rad": 1.0, "deg": np.pi / 180.0}

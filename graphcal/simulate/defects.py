@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
-from graphcal.data.streams import fixes_on_grid
+from graphcal.data.stream_grid import fixes_on_grid
 
 if TYPE_CHECKING:
     from graphcal.simulate.drive import SyntheticDrive

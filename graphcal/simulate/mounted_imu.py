@@ -15,7 +15,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pandas as pd
 
-from graphcal.data.imu_mounting import GRAVITY, rotation, to_sensor
+from graphcal.data.imu_frame import GRAVITY, rotation, to_sensor
 from graphcal.simulate.streams import EPOCH, SyntheticRecording
 
 
