@@ -23,11 +23,9 @@ from graphcal.data.can_reader import read_frames  # noqa: E402
 from graphcal.data.importer import import_recording  # noqa: E402
 from graphcal.data.manifest import read_manifest  # noqa: E402
 from graphcal.pipeline.run import run_calibration  # noqa: E402
+from graphcal.simulate.can_bus import IMU_ID, WHEEL_ID, CanFrames  # noqa: E402
 from graphcal.simulate.can_log import (  # noqa: E402
     CAR_DBC,
-    IMU_ID,
-    WHEEL_ID,
-    CanFrames,
     candump_text,
     write_can_log,
     write_can_recording,

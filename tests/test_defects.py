@@ -11,14 +11,13 @@ from graphcal.cli import main
 from graphcal.data.consistency import runs
 from graphcal.data.drive_log import load_drive_log, write_drive_log
 from graphcal.data.drive_log_validation import validate_frame
+from graphcal.simulate.defect_effects import ar1, gauss_markov
 from graphcal.simulate.defects import (
     ALL_NAMES,
     DEFECT_NAMES,
     HEADING_WHITE,
     Defects,
-    ar1,
     degrade,
-    gauss_markov,
     parse_defects,
 )
 from graphcal.simulate.drive import SyntheticDrive, read_sidecar, simulate_drive

@@ -14,7 +14,8 @@ import pytest
 from graphcal.data.importer import read_recording
 from graphcal.model import PARAMETER_NAMES, integrate
 from graphcal.pipeline.settings_file import load_vehicle
-from graphcal.simulate.robot import FINE_DT, ROBOT_THETA_TRUE, RobotSettings, simulate_robot
+from graphcal.simulate.robot import ROBOT_THETA_TRUE, RobotSettings, simulate_robot
+from graphcal.simulate.robot_manoeuvres import FINE_DT
 from graphcal.simulate.streams import EPOCH, write_streams
 
 VEHICLES = Path(__file__).resolve().parents[1] / "data" / "vehicles"

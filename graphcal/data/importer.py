@@ -1,10 +1,12 @@
 """Import a recording (streams manifest or ROS bag) into a validated drive log.
 
 :func:`import_recording` reads the streams (:mod:`graphcal.data.manifest`,
-:mod:`graphcal.data.bags`), puts them on the uniform grid (:func:`graphcal.data.resampling.resample`),
+:mod:`graphcal.data.bags`), puts them on the uniform grid
+(:func:`graphcal.data.resampling.resample`),
 checks the streams against each other (:func:`graphcal.data.import_checks.check_recording`:
 swapped latitude/longitude, a compass heading declared ENU, swapped wheels, wrong units) and
-validates the result as any drive-log CSV (:func:`graphcal.data.drive_log_validation.validate_frame`),
+validates the result as any drive-log CSV
+(:func:`graphcal.data.drive_log_validation.validate_frame`),
 each column naming where it came from (:func:`graphcal.data.column_origins.column_origins`).
 :func:`graphcal.data.import_output.write_import` writes the drive-log CSV and a JSON sidecar
 saying where it came from.

@@ -70,25 +70,8 @@ def write_bag(
         raise StreamError(_MISSING_ROSBAGS) from None
 
     path = Path(path)
-    if storage not in ("ros1", "ros2", "mcap"):
-        raise StreamError(f"{path}: bag storage {storage!r} is unknown; use ros1, ros2 or mcap")
-    if storage == "ros1" and path.suffix != ".bag":
-        raise StreamError(f"{path}: a ROS 1 bag is a file ending in .bag; name it so")
-    for role, stream in recording.streams().items():
-        if len(stream.t) and float(np.min(stream.t)) < 0:
-            raise StreamError(
-                f"{recording.source}: {role} times start at {float(np.min(stream.t)):.3f} s; "
-                "bags need times >= 0 s, shift the recording's clock"
-            )
-    if pose_message not in (None, "navsatfix", "odometry", "posestamped"):
-        raise StreamError(
-            f"pose_message {pose_message!r} is unknown; use navsatfix, odometry or posestamped"
-        )
-    as_fix = (
-        recording.pose.origin is not None if pose_message is None else pose_message == "navsatfix"
-    )
-    if as_fix and recording.pose.origin is None:
-        raise StreamError(f"{recording.source}: a NavSatFix needs the pose's geodetic origin")
+    _check_request(recording, path, storage, pose_message)
+    as_fix = _pose_as_fix(recording, pose_message)
     _check_replaceable(path)
     ros1 = storage == "ros1"
     typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
@@ -109,6 +92,38 @@ def write_bag(
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return path
+
+
+def _check_request(
+    recording: Recording, path: Path, storage: str, pose_message: str | None
+) -> None:
+    """Refuse an unknown storage or pose message, a ROS 1 path not ending in ``.bag`` and
+    negative times."""
+    if storage not in ("ros1", "ros2", "mcap"):
+        raise StreamError(f"{path}: bag storage {storage!r} is unknown; use ros1, ros2 or mcap")
+    if storage == "ros1" and path.suffix != ".bag":
+        raise StreamError(f"{path}: a ROS 1 bag is a file ending in .bag; name it so")
+    for role, stream in recording.streams().items():
+        if len(stream.t) and float(np.min(stream.t)) < 0:
+            raise StreamError(
+                f"{recording.source}: {role} times start at {float(np.min(stream.t)):.3f} s; "
+                "bags need times >= 0 s, shift the recording's clock"
+            )
+    if pose_message not in (None, "navsatfix", "odometry", "posestamped"):
+        raise StreamError(
+            f"pose_message {pose_message!r} is unknown; use navsatfix, odometry or posestamped"
+        )
+
+
+def _pose_as_fix(recording: Recording, pose_message: str | None) -> bool:
+    """Whether the pose is written as NavSatFix (the default when it has a geodetic origin);
+    refused without that origin."""
+    as_fix = (
+        recording.pose.origin is not None if pose_message is None else pose_message == "navsatfix"
+    )
+    if as_fix and recording.pose.origin is None:
+        raise StreamError(f"{recording.source}: a NavSatFix needs the pose's geodetic origin")
+    return as_fix
 
 
 def _check_replaceable(path: Path) -> None:

@@ -1,16 +1,11 @@
 """A synthetic car's raw CAN log and its DBC, from the streams of ``graphcal simulate
 --streams`` (issue 28).
 
-:func:`can_frames` turns a :class:`~graphcal.simulate.streams.SyntheticRecording` into the
-frames a car's bus carries: the rear wheels' speeds in ``WHEEL_SPEEDS`` (0xAA) as the ABS
-sends them — km/h, big-endian 15-bit signals with scale 0.01 and offset −67.67, at the
-recording's wheel rate (50 Hz for a car) —, the IMU's yaw rate [deg/s] and lateral
-acceleration [m/s²] in page 0 of the multiplexed, little-endian, signed ``KINEMATICS``
-(0x130) at the IMU's rate, page 1 at 10 Hz, unrelated messages (some in the DBC, some not,
-one with an extended id), and a few corrupt frames: ``WHEEL_SPEEDS`` with 5 bytes (a wrong
-DLC) and ``KINEMATICS`` with an undefined multiplexer value. Every frame's time is a whole
-microsecond (as SocketCAN stamps) and every signal is quantized exactly as the DBC encodes it
-(``raw = round((value − offset) / scale)``, decoded ``raw · scale + offset``).
+:data:`CAR_DBC` defines the frames :func:`graphcal.simulate.can_bus.can_frames` makes of a
+:class:`~graphcal.simulate.streams.SyntheticRecording`: the rear wheels' speeds in
+``WHEEL_SPEEDS`` (0xAA), the IMU's yaw rate and lateral acceleration in the multiplexed
+``KINEMATICS`` (0x130), unrelated messages (some in the DBC, some not, one with an extended
+id) and a few corrupt frames.
 
 :func:`write_can_recording` writes the DBC, the log in candump (``-L``, python-can's
 writer), Vector ASC and BLF, and for each format the decoded-CSV twin: the decoded wheel
@@ -26,9 +21,18 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from graphcal.files import atomic_write_csv, atomic_write_text
+from graphcal.simulate.can_bus import (
+    EXTENDED_FLAG,
+    IMU_ID,
+    LIGHT_TRAFFIC,
+    WHEEL_ID,
+    WHEEL_MESSAGE,
+    CanFrames,
+    Decoded,
+    can_frames,
+)
 from graphcal.simulate.streams import SyntheticRecording, write_streams
 
 #: The DBC of the synthetic car (opendbc's style: Motorola wheel speeds, a multiplexed IMU).
@@ -79,21 +83,6 @@ CM_ SG_ 170 WHEEL_SPEED_RL "Rear-left wheel speed from the ABS, 50 Hz";
 CM_ SG_ 170 WHEEL_SPEED_RR "Rear-right wheel speed from the ABS, 50 Hz";
 VAL_ 956 GEAR 0 "P" 1 "R" 2 "N" 3 "D" ;
 """
-WHEEL_MESSAGE, WHEEL_ID = "WHEEL_SPEEDS", 0xAA
-IMU_MESSAGE, IMU_ID = "KINEMATICS", 0x130
-EXTENDED_FLAG = 1 << 31
-#: Unrelated traffic of a light log (tests): ``(frame key, rate [Hz])``; ENGINE, BRAKE,
-#: GEAR and DIAGNOSTIC (extended) are in the DBC, 0x2E4 and 0x3D3 are not.
-LIGHT_TRAFFIC = (
-    (0x1C4, 50.0),
-    (0x224, 50.0),
-    (0x3BC, 10.0),
-    (0x18DAF110 | EXTENDED_FLAG, 1.0),
-    (0x2E4, 20.0),
-    (0x3D3, 20.0),
-)
-#: Rate [Hz] of KINEMATICS' page 1 (steering).
-STEERING_RATE = 10.0
 
 
 def car_traffic(total_rate: float = 1850.0, seed: int = 3) -> tuple[tuple[int, float], ...]:
@@ -114,181 +103,6 @@ def car_traffic(total_rate: float = 1850.0, seed: int = 3) -> tuple[tuple[int, f
         used.add(key)
         rate += hz
     return tuple(traffic)
-
-
-@dataclass(frozen=True)
-class CanFrames:
-    """Frames of a CAN log, sorted by time.
-
-    Attributes:
-        micros: time of each frame [µs since the Unix epoch], int64 ``(n,)``.
-        key: frame id, ``| EXTENDED_FLAG`` for a 29-bit id, ``(n,)``.
-        data: payloads ``(n, 8)`` uint8; length: bytes of each (its DLC), ``(n,)``.
-        corrupt: frames that do not decode (wrong DLC, undefined multiplexer value).
-    """
-
-    micros: np.ndarray
-    key: np.ndarray
-    data: np.ndarray
-    length: np.ndarray
-    corrupt: np.ndarray
-
-    @property
-    def t(self) -> np.ndarray:
-        """Time [s] of each frame (the float a log's text ``%.6f`` reads back as)."""
-        return self.micros / 1e6
-
-    def __len__(self) -> int:
-        return len(self.micros)
-
-
-@dataclass(frozen=True)
-class Decoded:
-    """What the DBC decodes from the frames of the wheel and IMU messages (the reference).
-
-    Attributes:
-        wheels: ``t`` [s] and ``rl``, ``rr`` [km/h] of each good WHEEL_SPEEDS frame.
-        imu: ``t`` [s], ``ay`` [m/s²] and ``wz`` [deg/s] of each good KINEMATICS page-0 frame.
-    """
-
-    wheels: pd.DataFrame
-    imu: pd.DataFrame
-
-
-def _quantize(value: np.ndarray, scale: float, offset: float, bits: int, signed: bool):
-    """Raw integers and decoded values of ``value`` as the DBC encodes it (cantools:
-    ``round((value - offset) / scale)``, clipped to the signal's range)."""
-    raw = np.round((np.asarray(value, dtype=float) - offset) / scale)
-    low, high = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1) if signed else (0, 2**bits - 1)
-    raw = np.clip(raw, low, high).astype(np.int64)
-    return raw, raw.astype(np.float64) * scale + offset
-
-
-def _pack(data: np.ndarray, raw: np.ndarray, start: int, bits: int, big: bool) -> None:
-    """Write raw integers (two's complement if negative) into payloads ``data`` at a DBC
-    signal's place: Motorola (``big``) with ``start`` its most significant bit, Intel with
-    ``start`` its least significant bit."""
-    value = raw.astype(np.int64) & ((1 << bits) - 1)
-    for k in range(bits):  # bit k of the value, counted from its least significant bit
-        bit = (value >> k) & 1
-        if big:
-            msb = 8 * (start // 8) + 7 - start % 8  # position 0 = MSB of byte 0
-            position = msb + bits - 1 - k
-            byte, shift = position // 8, 7 - position % 8
-        else:
-            position = start + k
-            byte, shift = position // 8, position % 8
-        data[:, byte] |= (bit << shift).astype(np.uint8)
-
-
-def can_frames(
-    sim: SyntheticRecording,
-    traffic: tuple[tuple[int, float], ...] = LIGHT_TRAFFIC,
-    corrupt: int = 3,
-    seed: int = 0,
-    window: tuple[int, int] | None = None,
-) -> tuple[CanFrames, Decoded]:
-    """The frames of a synthetic car's bus for the recording ``sim`` (module docstring) and
-    what the DBC decodes from them; ``corrupt`` WHEEL_SPEEDS frames with 5 bytes and as many
-    KINEMATICS frames with multiplexer value 3 are added. ``window``: only the frames in
-    ``[start, end)`` [µs] (consecutive windows make up the whole log, for logs of hours)."""
-    if sim.settings.wheel_kind != "speed":
-        raise ValueError("can_frames needs a recording with wheel speeds (wheel_kind 'speed')")
-    wheel_all = np.round(sim.wheels["t"].to_numpy() * 1e6).astype(np.int64)
-    imu_all = np.round(sim.imu["t"].to_numpy() * 1e6).astype(np.int64)
-    start_us = int(min(wheel_all[0], imu_all[0]))
-    end_us = int(max(wheel_all[-1], imu_all[-1]))
-    # unrelated traffic from a whole second before the first sample (the log's first frame
-    # is at a whole millisecond, as an ASC header's date has it)
-    first_us = (start_us // 1_000_000 - 1) * 1_000_000
-    low, high = window if window is not None else (first_us, end_us + 1)
-    rng = np.random.default_rng(np.random.SeedSequence([seed, 28, max(low, 0)]))
-    parts: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
-
-    def inside(micros: np.ndarray) -> np.ndarray:
-        return (micros >= low) & (micros < high)
-
-    def add(micros, key, data, length=None, bad=None):
-        n = len(micros)
-        parts.append(
-            (
-                np.asarray(micros, dtype=np.int64),
-                np.full(n, key, dtype=np.int64),
-                data,
-                np.full(n, 8, dtype=np.int64) if length is None else length,
-                np.zeros(n, dtype=bool) if bad is None else bad,
-            )
-        )
-
-    # the wheels: km/h, big-endian 15-bit, scale 0.01, offset -67.67
-    rows = np.flatnonzero(inside(wheel_all))
-    wheel_us = wheel_all[rows]
-    kmh = {side: sim.wheels[side].to_numpy()[rows] * 3.6 for side in ("rl", "rr")}
-    raw_rl, rl = _quantize(kmh["rl"], 0.01, -67.67, 15, False)
-    raw_rr, rr = _quantize(kmh["rr"], 0.01, -67.67, 15, False)
-    front = 0.5 * (kmh["rl"] + kmh["rr"]) + 0.05 * rng.standard_normal(len(wheel_us))
-    raw_front, _ = _quantize(front, 0.01, -67.67, 15, False)
-    data = np.zeros((len(wheel_us), 8), dtype=np.uint8)
-    for raw, start in ((raw_front, 7), (raw_front, 8), (raw_rl, 25), (raw_rr, 42)):
-        _pack(data, raw, start, 15, True)
-    _pack(data, rows % 16, 59, 4, True)
-    add(wheel_us, WHEEL_ID, data)
-    wheels = pd.DataFrame({"t": wheel_us / 1e6, "rl": rl, "rr": rr})
-
-    # the IMU: KINEMATICS page 0, little-endian signed: yaw rate [deg/s], lateral acc. [m/s²]
-    rows = np.flatnonzero(inside(imu_all))
-    imu_us = imu_all[rows]
-    raw_wz, wz = _quantize(np.degrees(sim.imu["wz"].to_numpy()[rows]), 0.005, 0.0, 16, True)
-    raw_ay, ay = _quantize(sim.imu["ay"].to_numpy()[rows], 0.002, 0.0, 13, True)
-    data = np.zeros((len(imu_us), 8), dtype=np.uint8)
-    _pack(data, raw_wz, 8, 16, False)
-    _pack(data, raw_ay, 26, 13, False)
-    add(imu_us, IMU_ID, data)
-    imu = pd.DataFrame({"t": imu_us / 1e6, "ay": ay, "wz": wz})
-    steer_us = _periodic(start_us + 3_000, end_us, round(1e6 / STEERING_RATE), low, high)
-    data = np.zeros((len(steer_us), 8), dtype=np.uint8)
-    _pack(data, np.ones(len(steer_us), dtype=np.int64), 0, 2, False)
-    _pack(data, rng.integers(-900, 900, len(steer_us)), 8, 16, False)
-    add(steer_us, IMU_ID, data)
-
-    for number, (key, rate) in enumerate(traffic):
-        period = round(1e6 / rate)
-        phase = 0 if number == 0 else int(np.random.default_rng([seed, key]).integers(1, period))
-        micros = _periodic(first_us + phase, end_us, period, low, high)
-        add(micros, key, rng.integers(0, 256, (len(micros), 8), dtype=np.uint8))
-
-    # corrupt frames: WHEEL_SPEEDS with 5 bytes, KINEMATICS with multiplexer value 3
-    if corrupt:
-        at = np.linspace(0.2, 0.8, corrupt)
-        wheel_bad = wheel_all[(at * len(wheel_all)).astype(int)] + 7_000
-        imu_bad = imu_all[(at * len(imu_all)).astype(int)] + 4_000
-        wheel_bad, imu_bad = wheel_bad[inside(wheel_bad)], imu_bad[inside(imu_bad)]
-        data = np.zeros((len(wheel_bad), 8), dtype=np.uint8)
-        data[:, :5] = rng.integers(0, 256, (len(wheel_bad), 5), dtype=np.uint8)
-        bad = np.ones(len(wheel_bad), dtype=bool)
-        add(wheel_bad, WHEEL_ID, data, np.full(len(wheel_bad), 5), bad)
-        data = rng.integers(0, 256, (len(imu_bad), 8), dtype=np.uint8)
-        data[:, 0] = (data[:, 0] & 0xFC) | 3
-        add(imu_bad, IMU_ID, data, None, np.ones(len(imu_bad), dtype=bool))
-
-    micros = np.concatenate([p[0] for p in parts])
-    order = np.argsort(micros, kind="stable")
-    frames = CanFrames(
-        micros=micros[order],
-        key=np.concatenate([p[1] for p in parts])[order],
-        data=np.concatenate([p[2] for p in parts])[order],
-        length=np.concatenate([p[3] for p in parts])[order],
-        corrupt=np.concatenate([p[4] for p in parts])[order],
-    )
-    return frames, Decoded(wheels, imu)
-
-
-def _periodic(first: int, end: int, period: int, low: int, high: int) -> np.ndarray:
-    """The times ``first + k · period`` [µs] up to ``end`` that lie in ``[low, high)``."""
-    k0 = max(0, -(-(low - first) // period))
-    stop = min(end, high - 1)
-    k1 = (stop - first) // period + 1 if stop >= first else 0
-    return first + period * np.arange(k0, max(k0, k1), dtype=np.int64)
 
 
 def write_car_candump(

@@ -20,7 +20,7 @@ import numpy as np
 from graphcal.data.drive_log import DriveLog, write_drive_log
 from graphcal.files import atomic_write_text
 from graphcal.model import PARAMETER_NAMES, integrate, wheel_rotations_for_motion
-from graphcal.simulate.route import ROUTES
+from graphcal.simulate.route import ROUTES, Route
 
 if TYPE_CHECKING:
     from graphcal.simulate.defects import Defects
@@ -154,29 +154,65 @@ def simulate_drive(
     route_seed, noise_seed, heading_seed = np.random.SeedSequence(seed).spawn(3)
 
     path = ROUTES[route](1000.0 * length_km, np.random.default_rng(route_seed))
+    heading0 = np.random.default_rng(heading_seed).uniform(-np.pi, np.pi)
+    sampled = _sampled_motion(path, motion, dt, heading0)
+    truth = _true_log(sampled, heading0, theta_true, motion, theta_change)
+    measured = _measured_log(truth, noise, np.random.default_rng(noise_seed))
+    return SyntheticDrive(
+        measured, truth, theta_true, noise, int(seed), float(length_km), motion, route, theta_change
+    )
+
+
+@dataclass(frozen=True)
+class _SampledMotion:
+    """The route driven, at the sampling times: time ``t`` [s], travelled distance
+    ``distance`` [m], ``speed`` [m/s], ``curvature`` [1/m] and ``course`` [rad]."""
+
+    t: np.ndarray
+    distance: np.ndarray
+    speed: np.ndarray
+    curvature: np.ndarray
+    course: np.ndarray
+
+
+def _sampled_motion(
+    path: Route, motion: VehicleMotion, dt: float, heading0: float
+) -> _SampledMotion:
+    """The route driven with its speed profile, resampled every ``dt`` [s]: time along the
+    route by the trapezoidal rule on ds / v, the course integrated from ``heading0`` [rad]."""
     s, kappa = path.arc_length, path.curvature
     speed = _speed_profile(s, kappa, path.speed_limit, motion)
-    # Time along the route (trapezoidal rule on ds / v), then resample at the sampling interval.
     time_at_s = np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s) / (speed[1:] + speed[:-1]))])
     course_at_s = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(s))])
     t = np.arange(0.0, time_at_s[-1], dt)
     s_t = np.interp(t, time_at_s, s)
     v_t = np.interp(t, time_at_s, speed)
     kappa_t = np.interp(s_t, s, kappa)
-    heading0 = np.random.default_rng(heading_seed).uniform(-np.pi, np.pi)
     course_t = heading0 + np.interp(s_t, s, course_at_s)
+    return _SampledMotion(t, s_t, v_t, kappa_t, course_t)
 
+
+def _true_log(
+    sampled: _SampledMotion,
+    heading0: float,
+    theta_true: np.ndarray,
+    motion: VehicleMotion,
+    theta_change: ThetaChange | None,
+) -> DriveLog:
+    """The noise-free log: sideslip and lateral acceleration from the motion, the wheel
+    rotations eqs. (2)–(3) inverted, the poses eq. (1) integrated from them."""
+    v_t, kappa_t = sampled.speed, sampled.curvature
     lateral_acceleration = v_t**2 * kappa_t
     sideslip = kappa_t * (motion.rear_axle_to_cg - motion.sideslip_speed_gain * v_t**2)
-    heading = course_t - sideslip
-    distance = np.diff(s_t)
+    heading = sampled.course - sideslip
+    distance = np.diff(sampled.distance)
     yaw_increment = np.diff(heading)
     n_rl, n_rr = wheel_rotations_for_motion(
         distance, yaw_increment, lateral_acceleration[:-1], theta_true
     )
     change = len(distance)  # first step driven with theta_change.theta_after
     if theta_change is not None:
-        change = int(np.searchsorted(s_t[:-1], 1000.0 * theta_change.at_km))
+        change = int(np.searchsorted(sampled.distance[:-1], 1000.0 * theta_change.at_km))
         after_rl, after_rr = wheel_rotations_for_motion(
             distance, yaw_increment, lateral_acceleration[:-1], theta_change.theta_after
         )
@@ -188,9 +224,8 @@ def simulate_drive(
     if theta_change is not None:  # both thetas reproduce the same motion; continue with the new
         rest = integrate(poses[-1], inputs[change:-1], theta_change.theta_after)
         poses = np.concatenate([poses, rest[1:]])
-
-    truth = DriveLog(
-        t=t,
+    return DriveLog(
+        t=sampled.t,
         px=poses[:, 0],
         py=poses[:, 1],
         psi=poses[:, 2],
@@ -200,10 +235,13 @@ def simulate_drive(
         ay=lateral_acceleration,
         source="<synthetic truth>",
     )
-    rng = np.random.default_rng(noise_seed)
-    n = len(t)
-    measured = DriveLog(
-        t=t.copy(),
+
+
+def _measured_log(truth: DriveLog, noise: NoiseLevels, rng: np.random.Generator) -> DriveLog:
+    """``truth`` with Gaussian noise at ``noise``'s levels, drawn signal by signal."""
+    n = len(truth.t)
+    return DriveLog(
+        t=truth.t.copy(),
         px=truth.px + noise.position * rng.standard_normal(n),
         py=truth.py + noise.position * rng.standard_normal(n),
         psi=truth.psi + noise.heading * rng.standard_normal(n),
@@ -212,9 +250,6 @@ def simulate_drive(
         beta=truth.beta + noise.sideslip * rng.standard_normal(n),
         ay=truth.ay + noise.lateral_acceleration * rng.standard_normal(n),
         source="<synthetic>",
-    )
-    return SyntheticDrive(
-        measured, truth, theta_true, noise, int(seed), float(length_km), motion, route, theta_change
     )
 
 

@@ -4,10 +4,11 @@ The robot drives ``runs`` runs of 5–15 m (straight and gently curved, some arc
 radius, 0.1–1.5 m/s with acceleration and deceleration ramps), each ended by a stop and
 followed by a spin on the spot (±90–360°, the wheels turning in opposite directions) that
 points it roughly back to where it started, so that it stays in the hall; optionally it
-reverses a little after every second run. The motion is simulated noise-free on a fine grid
-(:data:`FINE_DT`): the wheel rotations are eqs. (2)–(3) inverted with ``theta_true`` and the
-true poses eq. (1) integrated from them (:func:`graphcal.model.integrate`), so the truth is
-exactly the model's. The pose is the axle midpoint: no sideslip, no lever arm.
+reverses a little after every second run (:mod:`graphcal.simulate.robot_manoeuvres`). The
+motion is simulated noise-free on a fine grid (:data:`FINE_DT`): the wheel rotations are
+eqs. (2)–(3) inverted with ``theta_true`` and the true poses eq. (1) integrated from them
+(:func:`graphcal.model.integrate`), so the truth is exactly the model's. The pose is the
+axle midpoint: no sideslip, no lever arm.
 
 The streams sample that truth as a lab records it, each on its own clock: motion-capture poses
 (x, y [m] in the hall's frame, heading [rad] wrapped to ±π) at 20–100 Hz with 1 mm / 0.2°
@@ -30,6 +31,7 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.data.streams import PoseStream, Recording, WheelStream
 from graphcal.model import integrate, partial_steps, wheel_rotations_for_motion, wrap_angle
 from graphcal.simulate.drive import NoiseLevels, SyntheticDrive
+from graphcal.simulate.robot_manoeuvres import FINE_DT, MANOEUVRES, plan_manoeuvres
 from graphcal.simulate.streams import EPOCH, StreamSettings, SyntheticRecording, manifest_text
 from graphcal.vehicle import VehicleProfile
 
@@ -51,14 +53,6 @@ def theta_true_for(vehicle: VehicleProfile) -> np.ndarray:
     c_d = nominal[1] + c_e * ROBOT_THETA_TRUE[1] / ROBOT_THETA_TRUE[0]
     t_r = nominal[2] * ROBOT_THETA_TRUE[2] / ROBOT_THETA_NOMINAL[2]
     return np.array([c_e, c_d, t_r, nominal[3]])
-
-
-#: Fine grid [s] of the noise-free simulation the streams sample (500 Hz).
-FINE_DT = 0.002
-#: Arc-length step [m] of a run's path before it is timed.
-PATH_STEP = 0.002
-#: Kinds of manoeuvre in :attr:`RobotRecording.manoeuvres`.
-MANOEUVRES = ("stop", "run", "spin", "reverse")
 
 
 @dataclass(frozen=True)
@@ -204,133 +198,39 @@ class RobotRecording(SyntheticRecording):
         }
 
 
-def _trapezoid(total: float, peak: float, accel: float) -> np.ndarray:
-    """Progress (distance or angle, from 0 to ``total`` >= 0) at ``k * FINE_DT`` of a move
-    that accelerates at ``accel`` to at most ``peak``, holds and decelerates to rest."""
-    peak = min(peak, math.sqrt(accel * total))
-    t_ramp = peak / accel
-    t_hold = (total - peak * t_ramp) / peak if peak > 0 else 0.0
-    duration = 2.0 * t_ramp + t_hold
-    t = FINE_DT * np.arange(math.ceil(duration / FINE_DT) + 1)
-    up = 0.5 * accel * np.minimum(t, t_ramp) ** 2
-    hold = peak * np.clip(t - t_ramp, 0.0, t_hold)
-    down_t = np.clip(t - t_ramp - t_hold, 0.0, t_ramp)
-    down = peak * down_t - 0.5 * accel * down_t**2
-    return np.minimum(up + hold + down, total)
+@dataclass(frozen=True)
+class _FineTruth:
+    """The noise-free motion on the fine grid: times ``t`` [s] from 0, eq. (1)'s ``inputs``
+    ``(N, 4)`` and ``states`` ``(N+1, 3)`` with ``theta``, the cumulative wheel rotations
+    [rev] by side (``rl``, ``rr``) and all of it as a drive log ``log``."""
 
+    t: np.ndarray
+    inputs: np.ndarray
+    states: np.ndarray
+    theta: np.ndarray
+    cumulative: dict[str, np.ndarray]
+    log: DriveLog
 
-def _run_path(length: float, rng: np.random.Generator, s: RobotSettings) -> tuple[np.ndarray, ...]:
-    """Arc length [m] and course change [rad] of a run at ``k * FINE_DT``."""
-    n_pieces = math.ceil(length / min(s.piece_length[0], 0.5 * math.pi * s.tight_radius[0])) + 1
-    tight = rng.random(n_pieces) < s.tight_share
-    straight = ~tight & (rng.random(n_pieces) < 0.4)
-    side = rng.choice([-1.0, 1.0], n_pieces)
-    radius = rng.uniform(*s.tight_radius, n_pieces)
-    turn = rng.uniform(0.5 * math.pi, math.pi, n_pieces)  # of a tight arc [rad]
-    gentle = rng.uniform(*s.gentle_curvature, n_pieces)
-    kappa_piece = side * np.where(tight, 1.0 / radius, np.where(straight, 0.0, gentle))
-    piece = np.where(tight, radius * turn, rng.uniform(*s.piece_length, n_pieces))
-    edges = np.cumsum(piece)
-    arc = np.linspace(0.0, length, math.ceil(length / PATH_STEP) + 1)
-    kappa = kappa_piece[np.minimum(np.searchsorted(edges, arc), n_pieces - 1)]
-    # Curvature eased over 0.2 m (a moving average), as a robot's controller turns in.
-    half = max(1, round(0.1 / PATH_STEP))
-    padded = np.concatenate([np.full(half, kappa[0]), kappa, np.full(half, kappa[-1])])
-    summed = np.concatenate([[0.0], np.cumsum(padded)])
-    kappa = (summed[2 * half + 1 :] - summed[: -2 * half - 1]) / (2 * half + 1)
+    def states_at(self, t: np.ndarray) -> np.ndarray:
+        """The model's states ``(len(t), 3)`` at times ``t`` within the fine grid: eq. (1)
+        over the part of the fine step each falls in (:func:`graphcal.model.partial_steps`)."""
+        t_fine, states, inputs = self.t, self.states, self.inputs
+        k = np.clip(np.searchsorted(t_fine, t, side="left") - 1, 0, len(inputs) - 1)
+        fraction = np.clip((t - t_fine[k]) / (t_fine[k + 1] - t_fine[k]), 0.0, 1.0)
+        pairs = np.stack([states[k], states[k + 1]], axis=1)  # (Q, 2, 3)
+        (out,) = partial_steps(pairs, inputs[k][:, None, :], self.theta, fraction[:, None])
+        out = out[:, 0, :]
+        at_start = fraction == 0.0
+        out[at_start] = states[k[at_start]]
+        return out
 
-    # Fastest speed within the run's cruise speed, the bend's limits and the ramps: forward
-    # v² <= 2 a s' over the distance s' from the start, backward likewise to the end.
-    cruise = rng.uniform(*s.cruise_speed)
-    abs_kappa = np.maximum(np.abs(kappa), 1e-9)
-    v_max = np.minimum.reduce(
-        [
-            np.full(len(arc), cruise),
-            np.sqrt(s.lateral_acceleration_limit / abs_kappa),
-            s.yaw_rate_limit / abs_kappa,
-        ]
-    )
-    v_max[0] = v_max[-1] = 0.0
-    a2 = 2.0 * s.acceleration
-    forward = a2 * arc + np.minimum.accumulate(v_max**2 - a2 * arc)
-    backward = -a2 * arc + np.minimum.accumulate((v_max**2 + a2 * arc)[::-1])[::-1]
-    speed = np.sqrt(np.maximum(np.minimum(forward, backward), 0.0))
-    mean = 0.5 * (speed[1:] + speed[:-1])
-    time_at = np.concatenate([[0.0], np.cumsum(np.diff(arc) / mean)])
-    course = np.concatenate([[0.0], np.cumsum(0.5 * (kappa[1:] + kappa[:-1]) * np.diff(arc))])
-    t = FINE_DT * np.arange(math.ceil(time_at[-1] / FINE_DT) + 1)
-    s_t = np.interp(t, time_at, arc)
-    return s_t, np.interp(s_t, arc, course)
-
-
-def _plan(
-    runs: int, rng: np.random.Generator, s: RobotSettings, heading0: float
-) -> tuple[np.ndarray, np.ndarray, pd.DataFrame]:
-    """Distance [m] and yaw [rad] of every fine step, and the manoeuvres' table."""
-    distance: list[np.ndarray] = []
-    yaw: list[np.ndarray] = []
-    rows: list[tuple[str, int, int, float, float]] = []
-    position, heading = np.zeros(2), heading0
-    steps = 0
-
-    def add(kind: str, travel: np.ndarray, turn: np.ndarray) -> None:
-        nonlocal position, heading, steps
-        d, w = np.diff(travel), np.diff(turn)
-        course = heading + np.concatenate([[0.0], np.cumsum(w)[:-1]]) + 0.5 * w
-        position = position + np.array([np.sum(d * np.cos(course)), np.sum(d * np.sin(course))])
-        heading += float(np.sum(w))
-        distance.append(d)
-        yaw.append(w)
-        rows.append((kind, steps, steps + len(d), float(np.sum(d)), float(np.sum(w))))
-        steps += len(d)
-
-    def stop() -> None:
-        n = math.ceil(rng.uniform(*s.stop_duration) / FINE_DT)
-        add("stop", np.zeros(n + 1), np.zeros(n + 1))
-
-    stop()
-    for k in range(runs):
-        travel, turn = _run_path(rng.uniform(*s.run_length), rng, s)
-        add("run", travel, turn)
-        stop()
-        if s.reversing and k % 2 == 1:
-            back = -_trapezoid(rng.uniform(*s.reverse_length), s.reverse_speed, s.acceleration)
-            add("reverse", back, np.zeros_like(back))
-            stop()
-        if k == runs - 1:
-            break
-        # Spin to face roughly back to the start (±45°), by 90–360° either way.
-        home = math.atan2(-position[1], -position[0]) + rng.uniform(-0.25, 0.25) * math.pi
-        angle = float(wrap_angle(home - heading))
-        low, high = s.spin_angle
-        while abs(angle) < low:
-            angle += math.copysign(2.0 * math.pi, angle if angle != 0 else 1.0)
-        if abs(angle) > high:
-            angle = math.copysign(rng.uniform(low, high), angle)
-        spin = math.copysign(1.0, angle) * _trapezoid(
-            abs(angle), rng.uniform(*s.spin_rate), s.spin_acceleration
-        )
-        add("spin", np.zeros_like(spin), spin)
-        stop()
-    frame = pd.DataFrame(rows, columns=["kind", "start", "end", "distance", "yaw"])
-    frame["start"] *= FINE_DT
-    frame["end"] *= FINE_DT
-    return np.concatenate(distance), np.concatenate(yaw), frame
-
-
-def _states_at(
-    t: np.ndarray, t_fine: np.ndarray, states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
-) -> np.ndarray:
-    """The model's states ``(len(t), 3)`` at times ``t`` within the fine grid: eq. (1) over
-    the part of the fine step each falls in (:func:`graphcal.model.partial_steps`)."""
-    k = np.clip(np.searchsorted(t_fine, t, side="left") - 1, 0, len(inputs) - 1)
-    fraction = np.clip((t - t_fine[k]) / (t_fine[k + 1] - t_fine[k]), 0.0, 1.0)
-    pairs = np.stack([states[k], states[k + 1]], axis=1)  # (Q, 2, 3)
-    (out,) = partial_steps(pairs, inputs[k][:, None, :], theta, fraction[:, None])
-    out = out[:, 0, :]
-    at_start = fraction == 0.0
-    out[at_start] = states[k[at_start]]
-    return out
+    def counts(self, t: np.ndarray, offsets: np.ndarray, tpr: int) -> dict[str, np.ndarray]:
+        """The encoders' cumulative counts at times ``t``: ``tpr`` ticks per revolution,
+        floored, each counter from a random start ``offsets`` [ticks] within a tick."""
+        return {
+            side: np.floor(np.interp(t, self.t, cum) * tpr + offset).astype(np.int64)
+            for (side, cum), offset in zip(self.cumulative.items(), offsets, strict=True)
+        }
 
 
 def _repeat_last(x: np.ndarray) -> np.ndarray:
@@ -378,9 +278,33 @@ def simulate_robot(
     motion_seed, pose_seed, wheel_seed, log_seed = np.random.SeedSequence(seed).spawn(4)
     motion_rng = np.random.default_rng(motion_seed)
     heading0 = float(motion_rng.uniform(-math.pi, math.pi))
-    distance, yaw, manoeuvres = _plan(runs, motion_rng, s, heading0)
+    distance, yaw, manoeuvres = plan_manoeuvres(runs, motion_rng, s, heading0)
+    fine = _fine_truth(distance, yaw, heading0, theta_true)
+    pose_frame = _motion_capture(fine, s, np.random.default_rng(pose_seed))
+    wheel_frame, offsets = _encoders(fine, s, np.random.default_rng(wheel_seed))
+    truth, measured = _drive_logs(fine, s, offsets, np.random.default_rng(log_seed))
+    levels = NoiseLevels(position=s.position_noise, heading=s.heading_noise, wheel_rotation=0.0)
+    total = float(np.sum(np.abs(distance)))
+    drive = SyntheticDrive(
+        measured, truth, theta_true, levels, int(seed), total / 1000.0, route="robot"
+    )
+    return RobotRecording(
+        recording=_recording(pose_frame, wheel_frame, s.ticks_per_revolution),
+        drive=drive,
+        settings=s.stream_settings(),
+        gnss=pose_frame,
+        wheels=wheel_frame,
+        imu=None,
+        robot=s,
+        fine=fine.log,
+        manoeuvres=manoeuvres,
+    )
 
-    # Noise-free truth on the fine grid: eqs. (2)-(3) inverted, eq. (1) integrated.
+
+def _fine_truth(
+    distance: np.ndarray, yaw: np.ndarray, heading0: float, theta_true: np.ndarray
+) -> _FineTruth:
+    """Noise-free truth on the fine grid: eqs. (2)-(3) inverted, eq. (1) integrated."""
     n_steps = len(distance)
     t_fine = FINE_DT * np.arange(n_steps + 1)
     ay = distance * yaw / FINE_DT**2  # speed × yaw rate [m/s²]
@@ -388,7 +312,7 @@ def simulate_robot(
     zero = np.zeros(n_steps)
     inputs = np.column_stack([n_rl, n_rr, zero, ay])
     states = integrate(np.array([0.0, 0.0, heading0]), inputs, theta_true)
-    fine = DriveLog(
+    log = DriveLog(
         t=t_fine,
         px=states[:, 0],
         py=states[:, 1],
@@ -403,20 +327,23 @@ def simulate_robot(
         "rl": np.concatenate([[0.0], np.cumsum(n_rl)]),
         "rr": np.concatenate([[0.0], np.cumsum(n_rr)]),
     }
+    return _FineTruth(t_fine, inputs, states, theta_true, cumulative, log)
 
-    # Motion capture: its own clock (starts 0.3 s in, ends 0.2 s early), wrapped heading.
-    end = float(t_fine[-1])
-    pose_rng = np.random.default_rng(pose_seed)
-    first_pose = 0.3 + pose_rng.uniform(0.0, 1.0 / s.pose_rate)
-    t_pose = _times(first_pose, end - 0.2, s.pose_rate, 0.0, pose_rng)
-    true_pose = _states_at(t_pose, t_fine, states, inputs, theta_true)
-    noise = pose_rng.standard_normal((len(t_pose), 3)) * [
+
+def _motion_capture(fine: _FineTruth, s: RobotSettings, rng: np.random.Generator) -> pd.DataFrame:
+    """Motion-capture poses ``t, x, y, heading``: its own clock (starts 0.3 s in, ends 0.2 s
+    early), noisy, the heading wrapped."""
+    end = float(fine.t[-1])
+    first_pose = 0.3 + rng.uniform(0.0, 1.0 / s.pose_rate)
+    t_pose = _times(first_pose, end - 0.2, s.pose_rate, 0.0, rng)
+    true_pose = fine.states_at(t_pose)
+    noise = rng.standard_normal((len(t_pose), 3)) * [
         s.position_noise,
         s.position_noise,
         s.heading_noise,
     ]
     measured_pose = true_pose + noise
-    pose_frame = pd.DataFrame(
+    return pd.DataFrame(
         {
             "t": EPOCH + t_pose,
             "x": measured_pose[:, 0],
@@ -425,21 +352,21 @@ def simulate_robot(
         }
     )
 
-    # Encoders: cumulative counts, floored, from a random start within a tick; start 0.5 s in.
-    wheel_rng = np.random.default_rng(wheel_seed)
-    offsets = wheel_rng.uniform(0.0, 1.0, 2)
-    t_wheels = _times(0.5, end, s.wheel_rate, s.clock_jitter, wheel_rng)
-    tpr = s.ticks_per_revolution
 
-    def counts(t: np.ndarray) -> dict[str, np.ndarray]:
-        return {
-            side: np.floor(np.interp(t, t_fine, cum) * tpr + offset).astype(np.int64)
-            for (side, cum), offset in zip(cumulative.items(), offsets, strict=True)
-        }
+def _encoders(
+    fine: _FineTruth, s: RobotSettings, rng: np.random.Generator
+) -> tuple[pd.DataFrame, np.ndarray]:
+    """The encoders' cumulative counts ``t, rl, rr`` (floored, from a random start within a
+    tick; starting 0.5 s in, with clock jitter) and those starts [ticks]."""
+    offsets = rng.uniform(0.0, 1.0, 2)
+    t_wheels = _times(0.5, float(fine.t[-1]), s.wheel_rate, s.clock_jitter, rng)
+    counts = fine.counts(t_wheels, offsets, s.ticks_per_revolution)
+    return pd.DataFrame({"t": EPOCH + t_wheels, **counts}), offsets
 
-    wheel_frame = pd.DataFrame({"t": EPOCH + t_wheels, **counts(t_wheels)})
 
-    recording = Recording(
+def _recording(pose_frame: pd.DataFrame, wheel_frame: pd.DataFrame, tpr: int) -> Recording:
+    """The streams as the manifest reader would return them (SI, no IMU)."""
+    return Recording(
         pose=PoseStream(
             t=pose_frame["t"].to_numpy(),
             x=pose_frame["x"].to_numpy(),
@@ -460,12 +387,22 @@ def simulate_robot(
         source="<synthetic robot streams>",
     )
 
-    # Drive-log view at s.rate: true states at the rows, rotations between rows; measured
-    # poses with the motion capture's noise and rotations from the counters.
-    t_log = np.arange(0.0, end + 1e-9, 1.0 / s.rate)
-    true_log = _states_at(t_log, t_fine, states, inputs, theta_true)
-    true_rot = {side: _per_row(np.interp(t_log, t_fine, cum)) for side, cum in cumulative.items()}
-    counted = {side: _per_row(c.astype(float) / tpr) for side, c in counts(t_log).items()}
+
+def _drive_logs(
+    fine: _FineTruth, s: RobotSettings, offsets: np.ndarray, rng: np.random.Generator
+) -> tuple[DriveLog, DriveLog]:
+    """The drive-log view at ``s.rate``, truth and measured: true states at the rows,
+    rotations between rows; measured poses with the motion capture's noise and rotations
+    from the counters (started at ``offsets``)."""
+    tpr = s.ticks_per_revolution
+    theta_true = fine.theta
+    t_log = np.arange(0.0, float(fine.t[-1]) + 1e-9, 1.0 / s.rate)
+    true_log = fine.states_at(t_log)
+    true_rot = {side: _per_row(np.interp(t_log, fine.t, c)) for side, c in fine.cumulative.items()}
+    counted = {
+        side: _per_row(c.astype(float) / tpr)
+        for side, c in fine.counts(t_log, offsets, tpr).items()
+    }
     speed = 0.5 * (true_rot["rl"] + true_rot["rr"]) * theta_true[0] * s.rate
     yaw_rate = _per_row(true_log[:, 2]) * s.rate
     log_ay = speed * yaw_rate
@@ -480,8 +417,7 @@ def simulate_robot(
         ay=log_ay,
         source="<synthetic robot truth>",
     )
-    log_rng = np.random.default_rng(log_seed)
-    log_noise = log_rng.standard_normal((len(t_log), 3)) * [
+    log_noise = rng.standard_normal((len(t_log), 3)) * [
         s.position_noise,
         s.position_noise,
         s.heading_noise,
@@ -498,19 +434,4 @@ def simulate_robot(
         source="<synthetic robot>",
         tick_resolution=1.0 / tpr,
     )
-    levels = NoiseLevels(position=s.position_noise, heading=s.heading_noise, wheel_rotation=0.0)
-    total = float(np.sum(np.abs(distance)))
-    drive = SyntheticDrive(
-        measured, truth, theta_true, levels, int(seed), total / 1000.0, route="robot"
-    )
-    return RobotRecording(
-        recording=recording,
-        drive=drive,
-        settings=s.stream_settings(),
-        gnss=pose_frame,
-        wheels=wheel_frame,
-        imu=None,
-        robot=s,
-        fine=fine,
-        manoeuvres=manoeuvres,
-    )
+    return truth, measured

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from graphcal.data.drive_log import DriveLog
 from graphcal.data.geodesy import local_to_geodetic
 from graphcal.data.streams import ImuStream, PoseStream, Recording, WheelStream
 from graphcal.files import atomic_write_csv, atomic_write_text
@@ -132,12 +133,21 @@ def simulate_streams(
     settings = settings or StreamSettings()
     quiet = NoiseLevels(0.0, 0.0, 0.0, 0.0, 0.0)
     drive = simulate_drive(length_km, seed, theta_true, quiet, FINE_DT, motion, route)
-    truth = drive.truth
     rng = np.random.default_rng(np.random.SeedSequence([seed, 11]))
+    gnss = _gnss_frame(drive.truth, settings, rng)
+    wheels = _wheel_frame(drive.truth, settings, rng)
+    imu = _imu_frame(drive.truth, settings, rng)
+    recording = _recording(gnss, wheels, imu, settings)
+    return SyntheticRecording(recording, drive, settings, gnss, wheels, imu)
+
+
+def _gnss_frame(
+    truth: DriveLog, settings: StreamSettings, rng: np.random.Generator
+) -> pd.DataFrame:
+    """GNSS/INS fixes ``t, lat, lon, heading, beta``: position, compass heading [deg],
+    sideslip [rad]; they start 0.5 s late."""
     t_fine = EPOCH + truth.t
     start, end = float(t_fine[0]), float(t_fine[-1])
-
-    # GNSS/INS: position, compass heading [deg], sideslip [rad]; starts 0.5 s late.
     t_gnss = _times(start + 0.5, end - 0.3, settings.gnss_rate, 0.037, 0.0, rng)
     east = np.interp(t_gnss, t_fine, truth.px) + settings.position_noise * rng.standard_normal(
         len(t_gnss)
@@ -151,11 +161,18 @@ def simulate_streams(
     sideslip = sideslip + settings.sideslip_noise * rng.standard_normal(len(t_gnss))
     latitude, longitude = local_to_geodetic(east, north, settings.origin)
     compass = np.mod(90.0 - np.degrees(heading), 360.0)
-    gnss = pd.DataFrame(
+    return pd.DataFrame(
         {"t": t_gnss, "lat": latitude, "lon": longitude, "heading": compass, "beta": sideslip}
     )
 
-    # Rear wheels on the CAN bus: cumulative rotation [rev] of the fine simulation.
+
+def _wheel_frame(
+    truth: DriveLog, settings: StreamSettings, rng: np.random.Generator
+) -> pd.DataFrame:
+    """Rear wheels on the CAN bus, ``t, rl, rr``: speeds [m/s] or cumulative tick counts of
+    the fine simulation's rotation."""
+    t_fine = EPOCH + truth.t
+    start, end = float(t_fine[0]), float(t_fine[-1])
     cumulative = {
         side: np.concatenate([[0.0], np.cumsum(n[:-1])])
         for side, n in (("rl", truth.n_rl), ("rr", truth.n_rr))
@@ -176,11 +193,18 @@ def simulate_streams(
             speed = rev_per_s * settings.circumference
             noise = settings.wheel_speed_noise * rng.standard_normal(len(t_wheels))
             wheels[side] = np.maximum(speed + noise, 0.0)
+    return wheels
 
-    # IMU: lateral acceleration [m/s²] and yaw rate [rad/s]; starts 0.2 s late.
+
+def _imu_frame(truth: DriveLog, settings: StreamSettings, rng: np.random.Generator) -> pd.DataFrame:
+    """IMU samples ``t, ay, wz``: lateral acceleration [m/s²] and yaw rate [rad/s]; they
+    start 0.2 s late."""
+    t_fine = EPOCH + truth.t
+    start, end = float(t_fine[0]), float(t_fine[-1])
+    rate_t = 0.5 * (t_fine[1:] + t_fine[:-1])  # rates hold between fine samples
     t_imu = _times(start + 0.2, end, settings.imu_rate, 0.0051, settings.clock_jitter, rng)
     yaw_rate = np.diff(truth.psi) / np.diff(truth.t)
-    imu = pd.DataFrame(
+    return pd.DataFrame(
         {
             "t": t_imu,
             "ay": np.interp(t_imu, t_fine, truth.ay)
@@ -189,8 +213,6 @@ def simulate_streams(
             + settings.yaw_rate_noise * rng.standard_normal(len(t_imu)),
         }
     )
-    recording = _recording(gnss, wheels, imu, settings)
-    return SyntheticRecording(recording, drive, settings, gnss, wheels, imu)
 
 
 def _recording(
