@@ -21,7 +21,8 @@ from graphcal.factors import pose_sigmas
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import CalibrationRun, slip_line
-from graphcal.report.figures import figures, trusted
+from graphcal.report.figure_style import trusted
+from graphcal.report.figures import figures
 from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
     NOT_OBSERVABLE,
