@@ -27,7 +27,8 @@ from graphcal.pipeline.settings import (
     settings_from_dict,
     settings_to_dict,
 )
-from graphcal.report.results import results_document, summary_text
+from graphcal.report.document import results_document
+from graphcal.report.results import summary_text
 from graphcal.simulate.drive import NoiseLevels, VehicleMotion, simulate_drive
 from graphcal.vehicle import VehicleProfile
 
