@@ -305,17 +305,10 @@ def wheel_rotations_for_motion(
 def end_wheel_rotation_jacobian(
     states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
 ) -> np.ndarray:
-    """d (final state) / d wheel rotations: the last row of :func:`wheel_rotation_jacobian`.
-
-    Args:
-        states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
-        inputs: ``(..., K, 4)``.
-        theta: ``(4,)`` or ``(..., 4)``.
-
-    Returns:
-        ``(..., 3, K, 2)``: entry ``[:, j, :]`` is d x_K / d [n_rl, n_rr]_j [m/rev, m/rev,
-        rad/rev], in O(K) memory (no ``(K+1, K)`` lever table).
-    """
+    """d (final state) / d wheel rotations ``(..., 3, K, 2)``: the last row of
+    :func:`wheel_rotation_jacobian`, with the same arguments. Entry ``[:, j, :]`` is
+    d x_K / d [n_rl, n_rr]_j [m/rev, m/rev, rad/rev], in O(K) memory (no ``(K+1, K)`` lever
+    table)."""
     states = np.asarray(states, dtype=float)
     direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
     # lever_j = p_K - p_{j+1}: the rest of the path turns about p_{j+1} by d omega_j.

@@ -23,9 +23,10 @@ from graphcal.files import atomic_save_figure
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
-from graphcal.report.figures import box_plots
-from graphcal.report.results import run_statistics, uncertainty_summary, write_results
+from graphcal.report.document import run_statistics, uncertainty_summary
+from graphcal.report.results import write_results
 from graphcal.report.tables import PAPER_IQR_REDUCTION, iqr_reduction
+from graphcal.report.theta_figures import box_plots
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS, DISPLAY_SCALE, DISPLAY_UNITS
 

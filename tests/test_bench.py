@@ -43,7 +43,7 @@ def test_quick_preset_and_explicit_sizes():
 
 
 def test_segmented_bench_item_agrees_with_the_single_graph():
-    from graphcal.bench.run import segmented_items
+    from graphcal.bench.whole_log_items import segmented_items
 
     log = simulate_drive(3.0, seed=4).measured
     data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))

@@ -17,14 +17,13 @@ from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.report.figures import (
-    batch_intervals_figure,
     figures,
-    parameters_figure,
     route_figure,
     trajectory_figure,
     validation_figure,
     wheel_rotations_figure,
 )
+from graphcal.report.theta_figures import batch_intervals_figure, parameters_figure
 from graphcal.simulate.drive import SyntheticDrive, simulate_drive
 
 

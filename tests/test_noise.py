@@ -78,7 +78,7 @@ def test_position_noise_is_read_from_the_solve_and_used():
     assert run.whole.chi2_per_dof == pytest.approx(1.0, abs=0.1)
     sigma = np.sqrt(np.diag(run.covariance))
     assert np.all(np.abs(run.theta - drive.theta_true) < 3 * sigma)
-    from graphcal.report.results import results_document
+    from graphcal.report.document import results_document
 
     noise = results_document(run)["noise"]  # reported with the result
     assert noise["position_sigma_m"] == pytest.approx(0.6, rel=0.1)

@@ -22,7 +22,8 @@ from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import SegmentSettings, Settings, settings_to_dict
 from graphcal.pipeline.settings_file import load_settings, load_vehicle, settings_from_dict
 from graphcal.pipeline.vehicle_settings import apply_vehicle
-from graphcal.report.results import results_document, summary_text
+from graphcal.report.document import results_document
+from graphcal.report.results import summary_text
 from graphcal.simulate.drive import NoiseLevels, VehicleMotion, simulate_drive
 from graphcal.vehicle import VehicleProfile
 

@@ -12,28 +12,21 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+#: Each size of the two presets, side by side: ``(full benchmark, --quick)``.
+PRESET_SIZES = {
+    "length_km": (24.0, 8.0),
+    "repeats": (3, 1),
+    "naive_iterations": (2, 1),
+    "pipeline_batches": (20, 4),
+    "agreement_segments": (3, 2),
+    "import_hours": (3.0, 0.25),
+    "scaling_km": ((50.0, 100.0, 200.0), (4.0, 8.0, 16.0)),
+    "fleet_vehicles": (6, 2),
+}
 #: The full benchmark's sizes.
-FULL = {
-    "length_km": 24.0,
-    "repeats": 3,
-    "naive_iterations": 2,
-    "pipeline_batches": 20,
-    "agreement_segments": 3,
-    "import_hours": 3.0,
-    "scaling_km": (50.0, 100.0, 200.0),
-    "fleet_vehicles": 6,
-}
+FULL = {name: full for name, (full, _) in PRESET_SIZES.items()}
 #: ``--quick``: every item once, on an 8 km drive, with a short recording.
-QUICK = {
-    "length_km": 8.0,
-    "repeats": 1,
-    "naive_iterations": 1,
-    "pipeline_batches": 4,
-    "agreement_segments": 2,
-    "import_hours": 0.25,
-    "scaling_km": (4.0, 8.0, 16.0),
-    "fleet_vehicles": 2,
-}
+QUICK = {name: quick for name, (_, quick) in PRESET_SIZES.items()}
 
 
 def resolve_bench_options(args: argparse.Namespace) -> dict[str, Any]:

@@ -211,9 +211,58 @@ def chunk_errors(
     field of the result has the leading chunk axis; the error has every tracking row (a
     chunk's :attr:`~OdometryChunk.residual_rows` picks its own)."""
     count, n_steps = inputs.shape[:2]
-    rotations = inputs
+    rotations = _wheel_rotations(inputs, corrections, slip, time_offset, rotation_rates)
+    states, d_start, d_theta = integrate_with_jacobians(start, rotations, theta, jacobians)
+    tracked = measured_poses is not None
+    fixes = _predict_fixes(states, rotations, theta, fractions if tracked else None, jacobians)
+    error, layout = _error_pieces(
+        (count, n_steps), states, fixes, measured_poses, end, lever_arm, heading_bias
+    )
+    if not jacobians:
+        return ChunkError(error)
+    dim = error.shape[1]
+    n_tracked = 3 * n_steps if tracked else 0
+    d_end = None if end is None else _end_jacobian(count, dim)
+    d_corrections = d_slip = d_time = None
     if corrections is not None or slip is not None or time_offset is not None:
-        rotations = inputs.copy()
+        full = wheel_rotation_jacobian(states, rotations, theta)
+        d_rotations = layout.stack(full, fixes.d_rotations, own_step=True)  # (C, dim, L, 2)
+        if corrections is not None:
+            d_corrections = d_rotations
+        if slip is not None:  # d n_w / d slip_w = measured n_w, summed over the steps
+            d_slip = np.einsum("cdlw,clw->cdw", d_rotations, inputs[..., [N_RL, N_RR]])
+        if time_offset is not None:  # d n_w / d tau = the rotation rate change
+            d_time = np.einsum("cdlw,clw->cd", d_rotations, rotation_rates)[..., None]
+    d_arm = None
+    if lever_arm is not None:
+        d_arm = _lever_arm_jacobian(fixes.states if tracked else None, count, dim, n_tracked)
+    d_bias = None if heading_bias is None else _heading_bias_jacobian(count, dim, n_tracked)
+    return ChunkError(
+        error,
+        layout.stack(d_start),
+        layout.stack(d_theta, fixes.d_theta),
+        d_corrections,
+        d_end,
+        d_slip,
+        d_time,
+        d_arm,
+        d_bias,
+    )
+
+
+def _wheel_rotations(
+    inputs: np.ndarray,
+    corrections: np.ndarray | None,
+    slip: np.ndarray | None,
+    time_offset: np.ndarray | None,
+    rotation_rates: np.ndarray | None,
+) -> np.ndarray:
+    """The inputs ``(C, L, 4)`` with the wheel rotations [rev] the model integrates: the
+    measured ones scaled by the slip, shifted by the time offset and corrected (``inputs``
+    itself, not a copy, when none of these is given)."""
+    if corrections is None and slip is None and time_offset is None:
+        return inputs
+    rotations = inputs.copy()
     if slip is not None:
         rotations[..., N_RL] += inputs[..., N_RL] * slip[:, 0:1]
         rotations[..., N_RR] += inputs[..., N_RR] * slip[:, 1:2]
@@ -222,29 +271,62 @@ def chunk_errors(
     if corrections is not None:
         rotations[..., N_RL] += corrections[..., 0]
         rotations[..., N_RR] += corrections[..., 1]
-    states, d_start, d_theta = integrate_with_jacobians(start, rotations, theta, jacobians)
-    # Error pieces, the state rows each piece differentiates, and per row how the piece's
-    # x and y move with the state's heading beyond the state's own (the lever arm turning
-    # with it, ``(C, rows, 2)``; None: not at all).
+    return rotations
+
+
+@dataclass(frozen=True)
+class _Fixes:
+    """Where the tracked measurements are predicted: ``states (C, L, 3)``, at the samples
+    (``steps`` ``None``) or part-way through the steps (``steps``: the result of
+    :func:`graphcal.model.partial_steps`; ``whole (C, L)``: the measurements at their
+    samples)."""
+
+    states: np.ndarray
+    steps: tuple[np.ndarray, ...] | None = None
+    whole: np.ndarray | None = None
+
+    @property
+    def d_theta(self) -> np.ndarray | None:
+        """Direct d fix / d theta through the part-step ``(C, L, 3, 4)``, or ``None``."""
+        return None if self.steps is None else self.steps[2]
+
+    @property
+    def d_rotations(self) -> np.ndarray | None:
+        """Direct d fix / d step k-1's own rotations ``(C, L, 3, 2)``, or ``None``."""
+        return None if self.steps is None else self.steps[3]
+
+
+def _predict_fixes(
+    states: np.ndarray,
+    rotations: np.ndarray,
+    theta: np.ndarray,
+    fractions: np.ndarray | None,
+    jacobians: bool,
+) -> _Fixes:
+    """The predicted measurements: the states at the samples, or each measurement at its own
+    time within its step (``fractions``)."""
+    if fractions is None:
+        return _Fixes(states[:, 1:])
+    steps = partial_steps(states, rotations, theta, fractions, jacobians)
+    return _Fixes(steps[0], steps, fractions == 1.0)
+
+
+def _error_pieces(
+    shape: tuple[int, int],
+    states: np.ndarray,
+    fixes: _Fixes,
+    measured_poses: np.ndarray | None,
+    end: np.ndarray | None,
+    lever_arm: np.ndarray | None,
+    heading_bias: np.ndarray | None,
+) -> tuple[np.ndarray, _JacobianRows]:
+    """The error ``(C, dim)``: the tracking residuals (given measured poses) then the
+    continuity residual (given an end); and the rows of the Jacobians that go with it.
+    ``shape``: ``(C, L)``."""
+    count, n_steps = shape
     parts, rows, turns = [], [], []
-    tracked = measured_poses is not None
-    partial = fractions is not None and tracked
-    if partial:  # each measurement predicted at its own time within its step
-        parts_of = partial_steps(states, rotations, theta, fractions, jacobians)
-        at_fix, whole = parts_of[0], fractions == 1.0
-    else:
-        at_fix = states[:, 1:]
-    if tracked:
-        residual = at_fix - measured_poses[:, 1:]
-        turn = None
-        if lever_arm is not None:
-            cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
-            ahead, left = lever_arm[:, 0:1], lever_arm[:, 1:2]
-            residual[..., 0] += cos * ahead - sin * left
-            residual[..., 1] += sin * ahead + cos * left
-            turn = np.stack([-sin * ahead - cos * left, cos * ahead - sin * left], axis=-1)
-        if heading_bias is not None:
-            residual[..., 2] += heading_bias[:, None]
+    if measured_poses is not None:
+        residual, turn = _tracking_residuals(fixes.states, measured_poses, lever_arm, heading_bias)
         parts.append(residual.reshape(count, -1))
         rows.append(slice(1, None))
         turns.append(turn)
@@ -256,80 +338,104 @@ def chunk_errors(
         turns.append(None)
     if not parts:
         raise ValueError("a chunk needs measured poses to track or an end to reach")
-    error = np.concatenate(parts, axis=1)
-    if not jacobians:
-        return ChunkError(error)
+    return np.concatenate(parts, axis=1), _JacobianRows(count, n_steps, fixes, rows, turns)
 
-    def at_fixes(full: np.ndarray, direct: np.ndarray | None, own_step: bool) -> np.ndarray:
+
+def _tracking_residuals(
+    at_fix: np.ndarray,
+    measured_poses: np.ndarray,
+    lever_arm: np.ndarray | None,
+    heading_bias: np.ndarray | None,
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """``measurement_k − measured_k`` of the poses ``k = 1..L`` ``(C, L, 3)``, the predicted
+    measurement ``[p_k + R(ψ_k) · arm, ψ_k + bias]``; and how its x and y move with the
+    heading beyond the state's own (the lever arm turning with it, ``(C, L, 2)``; ``None``
+    without a lever arm)."""
+    residual = at_fix - measured_poses[:, 1:]
+    turn = None
+    if lever_arm is not None:
+        cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
+        ahead, left = lever_arm[:, 0:1], lever_arm[:, 1:2]
+        residual[..., 0] += cos * ahead - sin * left
+        residual[..., 1] += sin * ahead + cos * left
+        turn = np.stack([-sin * ahead - cos * left, cos * ahead - sin * left], axis=-1)
+    if heading_bias is not None:
+        residual[..., 2] += heading_bias[:, None]
+    return residual, turn
+
+
+@dataclass(frozen=True)
+class _JacobianRows:
+    """How state Jacobians ``(C, L+1, 3, ...)`` become the error's rows: the error pieces in
+    order, the state rows each differentiates (``slice(1, None)``: the tracked poses,
+    ``slice(-1, None)``: the end) and per piece how its x and y move with the state's
+    heading beyond the state's own (``(C, rows, 2)``; ``None``: not at all)."""
+
+    count: int
+    n_steps: int
+    fixes: _Fixes
+    rows: list[slice]
+    turns: list[np.ndarray | None]
+
+    def at_fixes(self, full: np.ndarray, direct: np.ndarray | None, own_step: bool) -> np.ndarray:
         """Tracked rows of a state Jacobian ``(C, L+1, 3, ...)``: at the samples, or through
         the part-steps (chain rule through state k-1 plus ``direct`` through step k-1;
         with ``own_step``, ``direct (C, L, 3, 2)`` acts on step k-1's own rotations only,
         the diagonal of a ``(C, L, 3, L, 2)`` Jacobian)."""
-        if not partial:
+        if self.fixes.steps is None:
             return full[:, 1:]
-        _, d_state, *_ = parts_of
+        _, d_state, *_ = self.fixes.steps
         out = np.einsum("clij,clj...->cli...", d_state, full[:, :-1])
         if direct is not None and own_step:
-            steps = np.arange(n_steps)
+            steps = np.arange(self.n_steps)
             out[:, steps, :, steps, :] += np.moveaxis(direct, 1, 0)
         elif direct is not None:
             out += direct
+        whole = self.fixes.whole
         if whole.any():  # measurements at their samples: the state itself
             out[whole] = full[:, 1:][whole]
         return out
 
     def stack(
-        full: np.ndarray, direct: np.ndarray | None = None, own_step: bool = False
+        self, full: np.ndarray, direct: np.ndarray | None = None, own_step: bool = False
     ) -> np.ndarray:
-        # (C, L+1, 3, ...) -> (C, dim, ...)
+        """The error's Jacobian ``(C, dim, ...)`` from a state Jacobian ``(C, L+1, 3, ...)``
+        (``direct``, ``own_step``: :meth:`at_fixes`)."""
         blocks = []
-        for r, turn in zip(rows, turns, strict=True):
-            block = at_fixes(full, direct, own_step) if r == slice(1, None) else full[:, r]
+        for r, turn in zip(self.rows, self.turns, strict=True):
+            block = self.at_fixes(full, direct, own_step) if r == slice(1, None) else full[:, r]
             if turn is not None:  # x and y gain the heading's derivative times the turn
                 block = block.copy()
                 heading = block[:, :, 2]
                 trailing = (...,) + (None,) * (block.ndim - 3)
                 block[:, :, 0] += turn[..., 0][trailing] * heading
                 block[:, :, 1] += turn[..., 1][trailing] * heading
-            blocks.append(block.reshape(count, -1, *full.shape[3:]))
+            blocks.append(block.reshape(self.count, -1, *full.shape[3:]))
         return np.concatenate(blocks, axis=1)
 
-    dim = error.shape[1]
-    n_tracked = 3 * n_steps if tracked else 0
-    d_end = None
-    if end is not None:
-        d_end = np.zeros((count, dim, 3))
-        d_end[:, -3:] = -np.eye(3)
-    d_corrections = d_slip = d_time = None
-    if corrections is not None or slip is not None or time_offset is not None:
-        # With part-steps, step k-1's own rotations move the fix of pose k directly.
-        direct = parts_of[3] if partial else None
-        full = wheel_rotation_jacobian(states, rotations, theta)
-        d_rotations = stack(full, direct, own_step=True)  # (C, dim, L, 2)
-        if corrections is not None:
-            d_corrections = d_rotations
-        if slip is not None:  # d n_w / d slip_w = measured n_w, summed over the steps
-            d_slip = np.einsum("cdlw,clw->cdw", d_rotations, inputs[..., [N_RL, N_RR]])
-        if time_offset is not None:  # d n_w / d tau = the rotation rate change
-            d_time = np.einsum("cdlw,clw->cd", d_rotations, rotation_rates)[..., None]
-    d_arm = d_bias = None
-    if lever_arm is not None:
-        d_arm = np.zeros((count, dim, 2))
-        if tracked:
-            cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
-            d_arm[:, 0:n_tracked:3] = np.stack([cos, -sin], axis=-1)
-            d_arm[:, 1:n_tracked:3] = np.stack([sin, cos], axis=-1)
-    if heading_bias is not None:
-        d_bias = np.zeros((count, dim, 1))
-        d_bias[:, 2:n_tracked:3] = 1.0
-    return ChunkError(
-        error,
-        stack(d_start),
-        stack(d_theta, parts_of[2] if partial else None),
-        d_corrections,
-        d_end,
-        d_slip,
-        d_time,
-        d_arm,
-        d_bias,
-    )
+
+def _end_jacobian(count: int, dim: int) -> np.ndarray:
+    """d error / d end state ``(C, dim, 3)``: minus the identity on the continuity rows."""
+    d_end = np.zeros((count, dim, 3))
+    d_end[:, -3:] = -np.eye(3)
+    return d_end
+
+
+def _lever_arm_jacobian(
+    at_fix: np.ndarray | None, count: int, dim: int, n_tracked: int
+) -> np.ndarray:
+    """d error / d lever arm ``(C, dim, 2)``: ``R(ψ_k)`` on the tracked x and y rows
+    (``at_fix`` ``None``: no tracked rows)."""
+    d_arm = np.zeros((count, dim, 2))
+    if at_fix is not None:
+        cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
+        d_arm[:, 0:n_tracked:3] = np.stack([cos, -sin], axis=-1)
+        d_arm[:, 1:n_tracked:3] = np.stack([sin, cos], axis=-1)
+    return d_arm
+
+
+def _heading_bias_jacobian(count: int, dim: int, n_tracked: int) -> np.ndarray:
+    """d error / d heading bias ``(C, dim, 1)``: 1 on the tracked heading rows."""
+    d_bias = np.zeros((count, dim, 1))
+    d_bias[:, 2:n_tracked:3] = 1.0
+    return d_bias

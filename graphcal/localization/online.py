@@ -150,130 +150,192 @@ def run_online(
     keyframes = gnss_keyframes(log, settings.gnss_rate_hz)
     if len(keyframes) < 2:
         raise GraphcalError("online: the log is shorter than two GNSS intervals")
+    run = _OnlineRun(log, settings, keyframes)
+    t0 = run.start()
+    report_every = max(1, len(keyframes) // 10)
+    for i in range(1, len(keyframes)):
+        t = run.add_keyframe(i)
+        if i % report_every == 0:
+            say(f"online: {t - t0:.0f} s driven, c_e {run.theta[0]:.5f} m")
+    return run.result()
+
+
+def _fixed_lag_smoother(settings: OnlineSettings) -> gtsam.IncrementalFixedLagSmoother:
+    """iSAM2 under a fixed lag of ``settings.lag_s`` seconds."""
     params = gtsam.ISAM2Params()
     params.setRelinearizeThreshold(settings.relinearize_threshold)
     params.relinearizeSkip = settings.relinearize_skip
-    smoother = gtsam.IncrementalFixedLagSmoother(settings.lag_s, params)
-    position_noise = gnss_noise(settings.gnss_sigma, settings.gnss_huber)
-    usable = dict(zip(keyframes.tolist(), gnss_usable(log, keyframes).tolist(), strict=True))
-    offsets = dict(
-        zip(keyframes.tolist(), fix_offsets(log, keyframes, settings.theta_initial[0]), strict=True)
-    )
-    heading_noise = (
-        None
-        if settings.heading_sigma is None
-        else gtsam.noiseModel.Isotropic.Sigma(1, settings.heading_sigma)
-    )
-    walk = gtsam.noiseModel.Diagonal.Sigmas(
-        np.asarray(settings.theta_random_walk, float) * np.sqrt(settings.theta_slice_s)
-    )
-    inputs = log.inputs
+    return gtsam.IncrementalFixedLagSmoother(settings.lag_s, params)
 
-    def measurement_factors(key: int, k: int) -> list:
+
+class _KeyframeMeasurements:
+    """The GNSS factors of the keyframes: a position prior at a usable fix (a measured-pose
+    factor with a known offset behind the pose when the fix was taken before the row's
+    time) and, with a heading sigma, a heading prior where the heading was measured."""
+
+    def __init__(self, log: DriveLog, keyframes: np.ndarray, settings: OnlineSettings):
+        self.log, self.settings = log, settings
+        self.position_noise = gnss_noise(settings.gnss_sigma, settings.gnss_huber)
+        self.usable = dict(
+            zip(keyframes.tolist(), gnss_usable(log, keyframes).tolist(), strict=True)
+        )
+        self.offsets = dict(
+            zip(
+                keyframes.tolist(),
+                fix_offsets(log, keyframes, settings.theta_initial[0]),
+                strict=True,
+            )
+        )
+        self.heading_noise = (
+            None
+            if settings.heading_sigma is None
+            else gtsam.noiseModel.Isotropic.Sigma(1, settings.heading_sigma)
+        )
+
+    def factors(self, key: int, k: int) -> list:
+        """The factors on pose ``key`` of the keyframe at sample ``k``."""
+        log, usable, offsets = self.log, self.usable, self.offsets
         out = []
         if usable[int(k)] and offsets[int(k)] == 0.0:
             point = gtsam.Point2(log.px[k], log.py[k])
-            out.append(gtsam.PoseTranslationPrior2D(key, point, position_noise))
+            out.append(gtsam.PoseTranslationPrior2D(key, point, self.position_noise))
         elif usable[int(k)]:  # a fix taken before the row's time: a known offset behind
-            sigmas = np.full(3, settings.gnss_sigma)
+            sigmas = np.full(3, self.settings.gnss_sigma)
             offset = np.array([offsets[int(k)], 0.0])
             factor = MeasuredPoseFactor(
-                key, log.poses[k], sigmas, None, None, False, settings.gnss_huber, offset
+                key, log.poses[k], sigmas, None, None, False, self.settings.gnss_huber, offset
             )
             out.append(factor.factor())
-        if heading_noise is not None and log.heading_measured[k]:
-            out.append(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), heading_noise))
+        if self.heading_noise is not None and log.heading_measured[k]:
+            out.append(gtsam.PoseRotationPrior2D(key, gtsam.Rot2(log.psi[k]), self.heading_noise))
         return out
 
-    # First keyframe and first theta.
-    theta = np.asarray(settings.theta_initial, float)
-    graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
-    t0 = float(log.t[keyframes[0]])
-    values.insert(_pose_key(0), pose2_from_state(log.poses[keyframes[0]]))
-    values.insert(_theta_key(0), theta)
-    for f in measurement_factors(_pose_key(0), keyframes[0]):
-        graph.add(f)
-    graph.add(
-        gtsam.PoseRotationPrior2D(
-            _pose_key(0),
-            gtsam.Rot2(log.psi[keyframes[0]]),
-            gtsam.noiseModel.Isotropic.Sigma(1, settings.initial_heading_sigma),
-        )
-    )
-    graph.add(theta_prior_factor(_theta_key(0), np.asarray(settings.theta_prior_sigmas), theta))
-    stamps = {_pose_key(0): t0, _theta_key(0): t0}
-    smoother.update(graph, values, _timestamps(stamps))
 
-    state = log.poses[keyframes[0]].copy()
-    states = [state]
-    slice_index, slice_start = 0, t0
-    slice_t, slice_theta, slice_sigma = [], [], []
-    update_seconds, update_t = [], []
-    travelled = log.travelled_distance()
-    report_every = max(1, len(keyframes) // 10)
-    for i in range(1, len(keyframes)):
-        a, b = int(keyframes[i - 1]), int(keyframes[i])
+class _OnlineRun:
+    """The smoother of :func:`run_online` as it goes: the latest state and theta, the theta
+    slice open now, and what the result keeps (closed slices, filtered states, update
+    times)."""
+
+    def __init__(self, log: DriveLog, settings: OnlineSettings, keyframes: np.ndarray):
+        self.log, self.settings, self.keyframes = log, settings, keyframes
+        self.inputs = log.inputs
+        self.smoother = _fixed_lag_smoother(settings)
+        self.measurements = _KeyframeMeasurements(log, keyframes, settings)
+        self.walk = gtsam.noiseModel.Diagonal.Sigmas(
+            np.asarray(settings.theta_random_walk, float) * np.sqrt(settings.theta_slice_s)
+        )
+        self.theta = np.asarray(settings.theta_initial, float)
+        self.state = log.poses[keyframes[0]].copy()
+        self.states = [self.state]
+        self.slice_index, self.slice_start = 0, 0.0
+        self.slice_t: list[float] = []
+        self.slice_theta: list[np.ndarray] = []
+        self.slice_sigma: list[np.ndarray] = []
+        self.update_seconds: list[float] = []
+        self.update_t: list[float] = []
+
+    def start(self) -> float:
+        """Add the first keyframe (its GNSS factors and a heading prior from the log) and
+        the first theta with its prior; return the first keyframe's time [s]."""
+        log, settings, first = self.log, self.settings, self.keyframes[0]
+        graph, values = gtsam.NonlinearFactorGraph(), gtsam.Values()
+        t0 = float(log.t[first])
+        values.insert(_pose_key(0), pose2_from_state(log.poses[first]))
+        values.insert(_theta_key(0), self.theta)
+        for f in self.measurements.factors(_pose_key(0), first):
+            graph.add(f)
+        graph.add(
+            gtsam.PoseRotationPrior2D(
+                _pose_key(0),
+                gtsam.Rot2(log.psi[first]),
+                gtsam.noiseModel.Isotropic.Sigma(1, settings.initial_heading_sigma),
+            )
+        )
+        prior_sigmas = np.asarray(settings.theta_prior_sigmas)
+        graph.add(theta_prior_factor(_theta_key(0), prior_sigmas, self.theta))
+        stamps = {_pose_key(0): t0, _theta_key(0): t0}
+        self.smoother.update(graph, values, _timestamps(stamps))
+        self.slice_start = t0
+        return t0
+
+    def close_slice(
+        self, t: float, graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, stamps: dict
+    ) -> None:
+        """Keep the open slice's theta and sigma as of ``t`` [s] and open the next slice,
+        joined to it by the random walk (into ``graph``, ``values`` and ``stamps``)."""
+        covariance = self.smoother.marginalCovariance(_theta_key(self.slice_index))
+        self.slice_t.append(t)
+        self.slice_theta.append(self.theta)
+        self.slice_sigma.append(np.sqrt(np.diag(covariance)))
+        self.slice_index, self.slice_start = self.slice_index + 1, t
+        previous, key = _theta_key(self.slice_index - 1), _theta_key(self.slice_index)
+        values.insert(key, self.theta)
+        graph.add(gtsam.BetweenFactorVector(previous, key, np.zeros(4), self.walk))
+        stamps[previous] = t
+
+    def add_keyframe(self, i: int) -> float:
+        """Add keyframe ``i`` (a new theta slice first when the open one is over), update
+        the smoother and take its estimates of the keyframe's state and theta; return the
+        keyframe's time [s]."""
+        log, settings = self.log, self.settings
+        a, b = int(self.keyframes[i - 1]), int(self.keyframes[i])
         t = float(log.t[b])
         graph, values, stamps = gtsam.NonlinearFactorGraph(), gtsam.Values(), {}
-        if t - slice_start >= settings.theta_slice_s:  # close the slice, open the next
-            slice_t.append(t)
-            slice_theta.append(theta)
-            slice_sigma.append(
-                np.sqrt(np.diag(smoother.marginalCovariance(_theta_key(slice_index))))
-            )
-            slice_index, slice_start = slice_index + 1, t
-            values.insert(_theta_key(slice_index), theta)
-            graph.add(
-                gtsam.BetweenFactorVector(
-                    _theta_key(slice_index - 1), _theta_key(slice_index), np.zeros(4), walk
-                )
-            )
-            stamps[_theta_key(slice_index - 1)] = t
+        if t - self.slice_start >= settings.theta_slice_s:  # close the slice, open the next
+            self.close_slice(t, graph, values, stamps)
+        predicted = integrate(self.state, self.inputs[a:b], self.theta)[-1]
+        values.insert(_pose_key(i), pose2_from_state(predicted))
+        for f in self.measurements.factors(_pose_key(i), b):
+            graph.add(f)
+        graph.add(self.odometry_factor(i, a, b))
+        stamps[_pose_key(i)] = t
+        stamps[_theta_key(self.slice_index)] = t
+        start = time.perf_counter()
+        try:
+            self.smoother.update(graph, values, _timestamps(stamps))
+        except RuntimeError as exc:
+            raise GraphcalError(f"online update at t = {t:.1f} s failed: {exc}") from exc
+        self.update_seconds.append(time.perf_counter() - start)
+        self.update_t.append(t)
+        estimate = self.smoother.calculateEstimatePose2(_pose_key(i))
+        self.state = state_from_pose2(estimate, float(predicted[2]))
+        self.theta = np.asarray(self.smoother.calculateEstimateVector(_theta_key(self.slice_index)))
+        self.states.append(self.state)
+        return t
+
+    def odometry_factor(self, i: int, a: int, b: int) -> gtsam.NonlinearFactor:
+        """The wheel-odometry factor from keyframe ``i-1`` (sample ``a``) to ``i`` (sample
+        ``b``) on the open slice's theta, with the slip's noise if modelled."""
+        log, settings = self.log, self.settings
         slip_noise = None
         if settings.slip_sigma > 0:
             slip_noise = slip_noise_covariance(
                 float(log.t[b] - log.t[a]), settings.slip_sigma, settings.slip_time
             )
-        predicted = integrate(state, inputs[a:b], theta)[-1]
-        values.insert(_pose_key(i), pose2_from_state(predicted))
-        for f in measurement_factors(_pose_key(i), b):
-            graph.add(f)
-        graph.add(
-            keyframe_odometry_factor(
-                _pose_key(i - 1),
-                _pose_key(i),
-                _theta_key(slice_index),
-                inputs[a:b],
-                theta=theta,
-                wheel_noise=settings.wheel_noise,
-                quantization=settings.tick_quantization,
-                slip_noise=slip_noise,
-            )
+        return keyframe_odometry_factor(
+            _pose_key(i - 1),
+            _pose_key(i),
+            _theta_key(self.slice_index),
+            self.inputs[a:b],
+            theta=self.theta,
+            wheel_noise=settings.wheel_noise,
+            quantization=settings.tick_quantization,
+            slip_noise=slip_noise,
         )
-        stamps[_pose_key(i)] = t
-        stamps[_theta_key(slice_index)] = t
-        start = time.perf_counter()
-        try:
-            smoother.update(graph, values, _timestamps(stamps))
-        except RuntimeError as exc:
-            raise GraphcalError(f"online update at t = {t:.1f} s failed: {exc}") from exc
-        update_seconds.append(time.perf_counter() - start)
-        update_t.append(t)
-        state = state_from_pose2(smoother.calculateEstimatePose2(_pose_key(i)), float(predicted[2]))
-        theta = np.asarray(smoother.calculateEstimateVector(_theta_key(slice_index)))
-        states.append(state)
-        if i % report_every == 0:
-            say(f"online: {t - t0:.0f} s driven, c_e {theta[0]:.5f} m")
-    return OnlineResult(
-        np.asarray(slice_t),
-        np.interp(slice_t, log.t, travelled),
-        np.asarray(slice_theta),
-        np.asarray(slice_sigma),
-        np.asarray(update_seconds),
-        np.asarray(update_t),
-        np.asarray(states),
-        keyframes,
-    )
+
+    def result(self) -> OnlineResult:
+        """Theta per closed slice, the filtered states and the update times."""
+        travelled = self.log.travelled_distance()
+        return OnlineResult(
+            np.asarray(self.slice_t),
+            np.interp(self.slice_t, self.log.t, travelled),
+            np.asarray(self.slice_theta),
+            np.asarray(self.slice_sigma),
+            np.asarray(self.update_seconds),
+            np.asarray(self.update_t),
+            np.asarray(self.states),
+            self.keyframes,
+        )
 
 
 def _timestamps(stamps: dict[int, float]) -> gtsam.FixedLagSmootherKeyTimestampMap:

@@ -8,275 +8,35 @@ non-finite numbers never reach a file (failed batches are empty cells in ``batch
 from __future__ import annotations
 
 import json
-import math
 import os
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from graphcal import __version__
 from graphcal.evaluation import Evaluation
-from graphcal.factors import pose_sigmas
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.whole_log import slip_line
-from graphcal.report.figures import figures, trusted
+from graphcal.report.document import (
+    results_document,
+    run_statistics,
+    uncertainty_summary,
+    validation_summary,
+)
+from graphcal.report.figure_style import trusted
+from graphcal.report.figures import figures
 from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
     NOT_OBSERVABLE,
-    PAPER_IQR_REDUCTION,
-    Z95,
     estimates_table,
     interval_table,
-    iqr_reduction,
-    step_statistics,
     steps_table,
     theta_table,
     validation_table,
 )
-from graphcal.units import DEVIATION_SCALE, DISPLAY_UNITS, to_display
-
-
-def _named(theta: np.ndarray) -> dict[str, float]:
-    return {n: float(v) for n, v in zip(PARAMETER_NAMES, theta, strict=True)}
-
-
-def _finite(obj: object) -> object:
-    """Replace non-finite floats by ``None`` so no NaN ever reaches a result file."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [_finite(v) for v in obj]
-    return obj
-
-
-def _theta_true(evaluation: Evaluation | None) -> np.ndarray | None:
-    return None if evaluation is None else evaluation.theta_true
-
-
-def run_statistics(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict[str, dict]:
-    """Per step or method: :func:`step_statistics` of its per-batch thetas (batches left
-    out for a failed solve or an unobservable parameter excluded); with an evaluation, also
-    bias and RMSE to the truth."""
-    truth = _theta_true(evaluation)
-    return {name: step_statistics(run.batch_estimates(name), truth) for name in run.batch_theta}
-
-
-THETA_UNITS = {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"}
-
-
-def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict[str, dict]:
-    """Per parameter: value (SI), its standard deviation, 95 % interval and verdict.
-
-    A parameter the data did not determine keeps its prior (nominal) value, has no sigma or
-    interval and says so in ``status``. Staged runs have no covariance of the recommended
-    theta (a median over batches); their entries carry the value and the method.
-    """
-    out: dict[str, dict] = {}
-    for i, name in enumerate(PARAMETER_NAMES):
-        entry: dict = {"value": float(run.theta[i]), "unit": THETA_UNITS[name]}
-        if run.covariance is None or run.observability is None:
-            entry["status"] = "calibrated (staged: median of Step 5 over the batches)"
-            out[name] = entry
-            continue
-        sigma = float(np.sqrt(run.covariance[i, i]))
-        verdict = run.verdicts()[name]
-        if run.observability.calibrated[i]:
-            entry["status"] = verdict
-            entry["sigma"] = sigma
-            entry["ci95"] = [entry["value"] - Z95 * sigma, entry["value"] + Z95 * sigma]
-        elif run.observability.held[i]:
-            entry["status"] = f"{verdict}: not estimated; the value is the nominal"
-            entry["sigma"] = None
-        else:
-            entry["status"] = (
-                "not calibrated: not observable from this drive; the value is the prior"
-            )
-            entry["sigma"] = None
-            entry["prior_sigma"] = float(run.settings.joint.theta_prior_sigmas[i])
-        entry["sigma_over_prior_sigma"] = float(run.observability.sigma_ratio[i])
-        crb = None if evaluation is None else evaluation.crb
-        if crb is not None and run.observability.calibrated[i]:
-            entry["cramer_rao_sigma"] = float(np.sqrt(crb[i, i]))
-        out[name] = entry
-    return out
-
-
-def uncertainty_summary(
-    run: CalibrationRun, evaluation: Evaluation | None = None
-) -> dict[str, dict]:
-    """Per method with covariances: median per-batch sigma (SI) and, given an evaluation, NEES
-    and the Cramér–Rao bound.
-
-    ``nees_mean`` is the mean NEES over the batches (4 with 4 parameters when the reported
-    covariance matches the actual errors). ``crb_sigma`` is the root mean Cramér–Rao
-    variance over the batches that have it (``crb_batches``), the RMSE an efficient method
-    reaches; ``rmse_over_crb`` compares the batches' RMSE with it. Excluded batches are left
-    out.
-    """
-    out: dict[str, dict] = {}
-    for name, covariances in run.batch_covariance.items():
-        good = np.all(np.isfinite(covariances), axis=(1, 2))
-        if name in run.batch_excluded:
-            good &= run.batch_excluded[name] == ""
-        if not good.any():
-            continue
-        sigmas = np.sqrt(np.diagonal(covariances[good], axis1=1, axis2=2))
-        entry: dict = {
-            "sigma_per_batch_median": dict(
-                zip(PARAMETER_NAMES, map(float, np.median(sigmas, axis=0)), strict=True)
-            )
-        }
-        if evaluation is not None:
-            errors = run.batch_theta[name][good] - evaluation.theta_true
-            nees = evaluation.batch_nees[name][good]
-            entry["nees_mean"] = float(np.mean(nees))
-            entry["nees_batches"] = len(nees)
-            crb = evaluation.batch_crb.get(name)
-            bounded = good & np.all(np.isfinite(crb), axis=(1, 2)) if crb is not None else None
-            if bounded is not None and bounded.any():
-                variances = np.diagonal(crb[bounded], axis1=1, axis2=2)
-                crb_sigma = np.sqrt(np.mean(variances, axis=0))
-                entry["crb_batches"] = int(bounded.sum())
-                rmse = np.sqrt(np.mean(errors**2, axis=0))
-                entry["crb_sigma"] = dict(zip(PARAMETER_NAMES, map(float, crb_sigma), strict=True))
-                entry["rmse_over_crb"] = dict(
-                    zip(PARAMETER_NAMES, map(float, rmse / crb_sigma), strict=True)
-                )
-        out[name] = entry
-    return out
-
-
-def validation_summary(
-    run: CalibrationRun, evaluation: Evaluation | None = None
-) -> dict[str, float]:
-    """E_p [m] of nominal, recommended and (when known) true theta."""
-    out = {
-        "nominal": run.validation_error("nominal"),
-        "calibrated": run.validation_error("calibrated"),
-    }
-    if evaluation is not None:
-        out["reachable (true theta)"] = evaluation.reachable_error
-    return out
-
-
-def _gtsam_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("gtsam")
-    except PackageNotFoundError:
-        return "unknown"
-
-
-def results_document(run: CalibrationRun, *, evaluation: Evaluation | None = None) -> dict:
-    """The content of ``calibration.json`` (SI values; display units in ``theta_display``).
-
-    It depends only on the log, the settings and (for synthetic drives) the evaluation —
-    never on the number of workers — so the same inputs give a byte-identical file.
-    """
-    stats = run_statistics(run, evaluation)
-    doc: dict = {
-        "theta": _named(run.theta),
-        "theta_units": THETA_UNITS,
-        "theta_display": {
-            f"{n} [{u}]": float(v)
-            for n, u, v in zip(PARAMETER_NAMES, DISPLAY_UNITS, to_display(run.theta), strict=True)
-        },
-        "theta_nominal": _named(run.settings.vehicle.theta_nominal),
-        "parameters": parameter_summary(run, evaluation),
-        "method": run.method,
-        "log": {
-            "file": run.log.source,
-            "samples": len(run.log),
-            "dt_s": run.log.dt,
-            "duration_s": float(run.log.t[-1] - run.log.t[0]),
-            "distance_m": float(
-                run.log.travelled_distance(run.settings.vehicle.theta_nominal[0])[-1]
-            ),
-        },
-        "segments": {
-            "calibration": len(run.segments),
-            "selected": len(run.selected),
-            "validation": len(run.validation),
-        },
-        "steps": stats,
-        "uncertainty": uncertainty_summary(run, evaluation),
-        "validation_error_m": {
-            **validation_summary(run, evaluation),
-            "per_step_median": {
-                step: float(np.nanmedian(e)) if np.isfinite(e).any() else None
-                for step, e in run.batch_errors.items()
-            },
-        },
-    }
-    if run.batches is not None:
-        doc["batches"] = {
-            "count": len(run.batches),
-            "size": int(run.batches.shape[1]),
-            "failed": {
-                name: int((~np.all(np.isfinite(t), axis=1)).sum())
-                for name, t in run.batch_theta.items()
-            },
-            # Which batches (rows of batches.csv) failed, per step or method.
-            "failed_batches": {
-                name: np.flatnonzero(~np.all(np.isfinite(t), axis=1)).tolist()
-                for name, t in run.batch_theta.items()
-                if not np.all(np.isfinite(t))
-            },
-            "excluded": {
-                name: {
-                    reason: int((reasons == reason).sum()) for reason in sorted(set(reasons) - {""})
-                }
-                for name, reasons in run.batch_excluded.items()
-            },
-        }
-    if run.staged is not None:
-        doc["iqr_reduction_percent"] = {
-            "step1_to_step5": iqr_reduction(stats["step1"], stats["step5"]),
-            "paper": PAPER_IQR_REDUCTION,
-        }
-
-    if evaluation is not None:
-        doc["theta_true"] = _named(evaluation.theta_true)
-        doc["theta_error"] = _named(evaluation.theta_error)
-    if run.observability is not None and run.observability.degenerate:
-        # Only parameters the data determined carry a number outside ``parameters``.
-        doc["not_calibrated"] = run.observability.not_calibrated
-        for name in run.observability.not_calibrated:
-            i = PARAMETER_NAMES.index(name)
-            doc["theta_display"][f"{name} [{DISPLAY_UNITS[i]}]"] = None
-            if "theta_error" in doc:
-                doc["theta_error"][name] = None
-    if run.trust is not None:
-        doc["trust"] = run.trust.to_dict()
-    if run.estimated:
-        doc["estimated"] = {name: e.to_dict() for name, e in run.estimated.items()}
-    if run.down_weighted is not None:
-        doc["down_weighted_fixes"] = run.down_weighted.to_dict()
-    if run.whole is not None:
-        joint = run.settings.joint
-        used = pose_sigmas(joint.pose_weights, joint.position_sigma)
-        doc["noise"] = {  # what the whole-log solve weighted the pose with, per component
-            "position_sigma_m": float(used[0]),
-            "heading_sigma_deg": float(np.degrees(used[2])),
-            "position_sigma_from_residuals_m": run.whole.position_noise,
-            "heading_from_log": bool(joint.heading_noise_from_log),
-        }
-    if run.whole is not None and run.whole.slip_statistic is not None:
-        doc["wheel_slip"] = {
-            "modelled": run.whole.slip_modelled,
-            "chi2_drop_per_chunk": run.whole.slip_statistic,
-            "detection_threshold": run.settings.joint.slip_detection,
-        }
-    doc["warnings"] = list(run.warnings)
-    doc["settings"] = run.settings.to_dict()
-    doc["versions"] = {"graphcal": __version__, "gtsam": _gtsam_version()}
-    return _finite(doc)
+from graphcal.units import DEVIATION_SCALE
 
 
 def batches_frame(run: CalibrationRun, evaluation: Evaluation | None = None) -> pd.DataFrame:
@@ -314,7 +74,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
     A run that failed a trust check shows its theta as ``estimated (not trusted)``, never as
     calibrated or recommended.
     """
-    truth = _theta_true(evaluation)
+    truth = None if evaluation is None else evaluation.theta_true
     ours = "calibrated" if trusted(run) else NOT_TRUSTED_ROW
     rows = {"nominal": run.settings.vehicle.theta_nominal, ours: run.theta}
     if truth is not None:
@@ -362,32 +122,38 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
             )
         )
     for name, entry in uncertainty_summary(run, evaluation).items():
-        sigma = entry["sigma_per_batch_median"]
-        line = (
-            f"{name}: per-batch 1σ (median) "
-            + ", ".join(
-                f"{p} {sigma[p] * DEVIATION_SCALE[i]:.3f}" for i, p in enumerate(PARAMETER_NAMES)
-            )
-            + " (mm; d in mm·s²/m)"
-        )
-        if "nees_mean" in entry:
-            line += (
-                f"; NEES {entry['nees_mean']:.2f} over {entry['nees_batches']} "
-                + ("batch " if entry["nees_batches"] == 1 else "batches ")
-                + "(4 = consistent)"
-            )
-        if "crb_sigma" in entry:
-            line += "\n" + (
-                f"{name}: RMSE / Cramér–Rao bound "
-                + ", ".join(f"{p} {entry['rmse_over_crb'][p]:.2f}" for p in PARAMETER_NAMES)
-                + " (1 = efficient)"
-            )
-        parts.append(line)
+        parts.append(_uncertainty_line(name, entry))
     errors = validation_summary(run, evaluation)
     parts.append(validation_table({ours if k == "calibrated" else k: v for k, v in errors.items()}))
     if run.warnings:
         parts.append("\n".join(f"warning: {w}" for w in run.warnings))
     return "\n\n".join(parts)
+
+
+def _uncertainty_line(name: str, entry: dict) -> str:
+    """A method's line of the summary: its median per-batch 1σ and, with the truth, its
+    NEES and RMSE over the Cramér–Rao bound (``entry``: :func:`uncertainty_summary`'s)."""
+    sigma = entry["sigma_per_batch_median"]
+    line = (
+        f"{name}: per-batch 1σ (median) "
+        + ", ".join(
+            f"{p} {sigma[p] * DEVIATION_SCALE[i]:.3f}" for i, p in enumerate(PARAMETER_NAMES)
+        )
+        + " (mm; d in mm·s²/m)"
+    )
+    if "nees_mean" in entry:
+        line += (
+            f"; NEES {entry['nees_mean']:.2f} over {entry['nees_batches']} "
+            + ("batch " if entry["nees_batches"] == 1 else "batches ")
+            + "(4 = consistent)"
+        )
+    if "crb_sigma" in entry:
+        line += "\n" + (
+            f"{name}: RMSE / Cramér–Rao bound "
+            + ", ".join(f"{p} {entry['rmse_over_crb'][p]:.2f}" for p in PARAMETER_NAMES)
+            + " (1 = efficient)"
+        )
+    return line
 
 
 def write_results(

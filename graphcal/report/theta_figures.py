@@ -1,0 +1,249 @@
+"""Figures of the batches' theta: box plots of each parameter per step (paper Fig. 5) and
+every batch's estimate with its ±2σ interval next to the run's theta.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+from graphcal.evaluation import Evaluation
+from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.report.figure_style import (
+    RECOMMENDED_LINE,
+    STEP_LABELS,
+    THETA_NAMES,
+    TRUE_LINE,
+    calibrated_line,
+    calibrated_name,
+    draw_boxes,
+    left_out,
+    legend_below,
+    number_of,
+    step_captions,
+)
+from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
+
+
+def _shown(label: str, shown: int, total: int) -> str:
+    """A step's tick label, with a second line saying how many of its batches it shows when
+    not all: ``(7 of 10)``, or ``(none shown)`` instead of ``(0 of 10)``."""
+    if shown == total:
+        return label
+    return f"{label}\n({shown} of {total})" if shown else f"{label}\n(none shown)"
+
+
+def _theta_true(evaluation: Evaluation | None) -> np.ndarray | None:
+    return None if evaluation is None else evaluation.theta_true
+
+
+def box_plots(
+    estimates: dict[str, np.ndarray],
+    title: str,
+    theta_true: np.ndarray | None = None,
+    recommended: np.ndarray | None = None,
+    not_observable: tuple[str, ...] = (),
+    *,
+    recommended_label: str = THETA_NAMES["calibrated"],
+    recommended_style: dict | None = None,
+    notes: Sequence[str] = (),
+    held: tuple[str, ...] = (),
+) -> Figure:
+    """Box plots of each parameter per step or method (paper Fig. 5).
+
+    Args:
+        estimates: per step or method (``"step1"``, ``"step5"``, ``"joint"``, ...), thetas
+            ``(B, 4)`` in SI; NaN rows are left out (a tick label says how many are left).
+        title: figure title.
+        theta_true, recommended: drawn as horizontal lines when given.
+        not_observable: parameters the data did not determine: no recommended line, and the
+            panel says so.
+        held: parameters the vehicle profile holds at their nominal (``fix_d``): the panel
+            says so.
+        recommended_label, recommended_style: legend entry and line style of
+            ``recommended`` (e.g. :data:`NOT_TRUSTED_THETA`, dashed, for a run that is not
+            trusted).
+        notes: caption lines below the legend, after the explanation of each step shown
+            (:data:`STEP_NOTES`), e.g. why batches are not shown.
+    """
+    fig = Figure(figsize=(11, 4.4), layout="constrained")
+    names = list(estimates)
+    axes = []
+    for i, name in enumerate(PARAMETER_NAMES):
+        ax = fig.add_subplot(1, 4, i + 1)
+        axes.append(ax)
+        data, labels = [], []
+        for step in names:
+            t = estimates[step][:, i]
+            data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
+            labels.append(_shown(STEP_LABELS.get(step, step), len(data[-1]), len(t)))
+        draw_boxes(ax, data, labels, vertical=True, label="one batch's estimate")
+        if not any(len(d) for d in data):
+            # low in the panel: the lines of theta run through its middle
+            ax.text(0.5, 0.12, "no batch estimate\nto show (see below)", transform=ax.transAxes,
+                    ha="center", va="center", color="0.4")  # fmt: skip
+        if theta_true is not None:
+            ax.axhline(theta_true[i] * DISPLAY_SCALE[i], **TRUE_LINE, label="true θ")
+        hidden = name in not_observable
+        if recommended is not None and not hidden:
+            style = recommended_style or RECOMMENDED_LINE
+            ax.axhline(recommended[i] * DISPLAY_SCALE[i], **style, label=recommended_label)
+        # "not observable" on a line of its own: beside the name it overflows the panel
+        status = "\nnot observable" if hidden else "\nheld at nominal" if name in held else ""
+        ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + status)
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.grid(axis="y", alpha=0.3)
+    fig.suptitle(title)
+    legend_below(fig, axes, ncols=4, caption=[*step_captions(None, names), *notes])
+    return fig
+
+
+def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
+    """Box plots of each parameter over the batches of a run (paper Fig. 5)."""
+    assert run.batches is not None
+    estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
+    hidden = tuple(run.observability.not_calibrated) if run.observability is not None else ()
+    title = (
+        f"Estimates of θ over {number_of(len(run.batches), 'batch', 'batches')}, by step "
+        "(box: quartiles, whiskers: data within 1.5 IQR)"
+    )
+    return box_plots(
+        estimates,
+        title,
+        _theta_true(evaluation),
+        run.theta,
+        hidden,
+        recommended_label=calibrated_name(run),
+        recommended_style=calibrated_line(run),
+        notes=[line for step in estimates if (line := left_out(run, step))],
+        held=tuple(
+            name
+            for name, fixed in zip(PARAMETER_NAMES, run.observability.held, strict=True)
+            if fixed
+        )
+        if run.observability is not None
+        else (),
+    )
+
+
+def batch_intervals_figure(
+    run: CalibrationRun,
+    evaluation: Evaluation | None = None,
+    *,
+    name: str = "joint",
+    limit: int = 60,
+) -> Figure:
+    """Every batch's estimate of ``name`` next to the run's theta and its ±2σ band (labelled
+    not trusted when a trust check failed).
+
+    Up to ``limit`` batches get ±2σ bars; more are drawn as points, and the title says so.
+    Excluded batches are grey crosses; failed solves (no estimate) are counted in the title.
+    """
+    thetas, covariances = run.batch_theta[name], run.batch_covariance[name]
+    count = len(thetas)
+    excluded = run.batch_excluded.get(name, np.full(count, "", dtype=object))
+    finite = np.all(np.isfinite(thetas), axis=1)
+    bars = count <= limit
+    kinds = (
+        (finite & (excluded == ""), "o", "tab:blue", "batch ±2σ" if bars else "batch estimate"),
+        (finite & (excluded != ""), "x", "0.55", "excluded batch"),
+    )
+    fig = Figure(figsize=(11, 6.6), layout="constrained")
+    axes = []
+    for i in range(len(PARAMETER_NAMES)):
+        ax = fig.add_subplot(2, 2, i + 1)
+        axes.append(ax)
+        _batch_estimates(ax, thetas[:, i], covariances[:, i, i], i, kinds, bars)
+        title = f"{PARAMETER_NAMES[i]} [{DISPLAY_UNITS[i]}]" + _run_interval(ax, run, i)
+        sigmas = np.sqrt(covariances[kinds[0][0], i, i]) * DISPLAY_SCALE[i]
+        if not bars and np.isfinite(sigmas).any():  # the bars' size, in words
+            title += f"; median batch 2σ: ±{2.0 * np.nanmedian(sigmas):#.2g}"
+        if evaluation is not None:
+            ax.axhline(evaluation.theta_true[i] * DISPLAY_SCALE[i], **TRUE_LINE, label="true θ")
+        ax.set_title(title)
+        _batch_axis(ax, count)
+    fig.suptitle(_batch_intervals_title(name, count, int(np.sum(~finite)), bars, limit))
+    legend_below(fig, axes, ncols=5)
+    return fig
+
+
+def _batch_estimates(
+    ax: Axes,
+    theta: np.ndarray,
+    variance: np.ndarray,
+    i: int,
+    kinds: tuple[tuple[np.ndarray, str, str, str], ...],
+    bars: bool,
+) -> None:
+    """Parameter ``i`` of each batch ``(B,)`` (SI; its variances ``(B,)``) in display
+    units, per kind (mask, marker, colour, label): with ±2σ bars, or points without."""
+    scale = DISPLAY_SCALE[i]
+    batch = np.arange(len(theta))
+    value = theta * scale
+    for mask, marker, colour, label in kinds:
+        if not mask.any():
+            continue
+        if bars:
+            bar = 2.0 * np.sqrt(variance[mask]) * scale
+            ax.errorbar(
+                batch[mask],
+                value[mask],
+                yerr=bar,
+                fmt=marker,
+                ms=3,
+                lw=0.8,
+                color=colour,
+                label=label,
+            )
+        else:
+            size = 2.0 if marker == "o" else 4.0
+            ax.plot(batch[mask], value[mask], marker, ms=size, alpha=0.7, color=colour, label=label)
+
+
+def _run_interval(ax: Axes, run: CalibrationRun, i: int) -> str:
+    """The run's parameter ``i`` and its ±2σ band, if the run has a covariance; returns what
+    the panel's title gains (``": not observable"`` for a parameter the data did not
+    determine)."""
+    if run.covariance is None or run.observability is None:
+        return ""
+    if not run.observability.calibrated[i]:
+        return ": not observable"
+    theta_name = calibrated_name(run)
+    scale = DISPLAY_SCALE[i]
+    centre = run.theta[i] * scale
+    half = 2.0 * np.sqrt(run.covariance[i, i]) * scale
+    ax.axhspan(
+        centre - half,
+        centre + half,
+        color="tab:blue",
+        alpha=0.15,
+        lw=0,
+        label=f"{theta_name} ±2σ",
+    )
+    ax.axhline(centre, **calibrated_line(run), label=theta_name)
+    return ""
+
+
+def _batch_axis(ax: Axes, count: int) -> None:
+    """The batch numbers along x, whole numbers only; grid, no offset on y."""
+    ax.set_xlabel("batch number")
+    ax.set_xlim(-0.5, max(count, 1) - 0.5)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True, min_n_ticks=1))
+    ax.ticklabel_format(axis="y", useOffset=False)
+    ax.grid(alpha=0.3)
+
+
+def _batch_intervals_title(name: str, count: int, failed: int, bars: bool, limit: int) -> str:
+    """The figure's title: which step, how many batches shown (failed ones counted), and
+    whether they have ±2σ bars."""
+    if failed:
+        shown = f"{count - failed} of {count} batches ({failed} failed, no estimate)"
+    else:
+        shown = f"all {count} batches" if count > 1 else "the only batch"
+    detail = " with ±2σ (95 %) bars" if bars else f"; ±2σ bars drawn only up to {limit} batches"
+    return f"{STEP_LABELS.get(name, name).capitalize()} estimates of {shown}{detail}"
