@@ -33,7 +33,7 @@ _PUBLIC = {
     "write_synthetic_drive": "graphcal.simulate.drive",  # the CSV, its truth and sidecar
     "THETA_TRUE_DEFAULT": "graphcal.simulate.drive",  # the synthetic car's theta [SI]
     "NoiseLevels": "graphcal.simulate.drive",
-    "ThetaChange": "graphcal.simulate.drive",
+    "ThetaStep": "graphcal.simulate.drive",
     "parse_defects": "graphcal.simulate.defects",  # defects of real logs, added to a drive
     "degrade": "graphcal.simulate.defects",
     "DEFECT_NAMES": "graphcal.simulate.defects",
@@ -130,8 +130,9 @@ _PUBLIC = {
     # Units of theta as displayed: m, mm, m, mm·s²/m.
     "DISPLAY_SCALE": "graphcal.units",
     "DISPLAY_UNITS": "graphcal.units",
-    # Errors.
+    # Errors and progress.
     "GraphcalError": "graphcal.errors",
+    "Progress": "graphcal.progress",  # the type of every progress callback
     "first_line": "graphcal.errors",  # an error message's first line
 }
 

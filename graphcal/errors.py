@@ -19,6 +19,16 @@ def first_line(message: str) -> str:
     return next((line.strip() for line in message.splitlines() if line.strip()), "")
 
 
+def exception_reason(exc: BaseException) -> str:
+    """An exception in one line: its message's first line, or its type's name if it has none."""
+    return first_line(str(exc)) or type(exc).__name__
+
+
+def is_number(value: object) -> bool:
+    """A real number as TOML or JSON gives it (``int`` or ``float``, not ``bool``)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def check_settings(
     section: str,
     positive_vectors: dict | None = None,
@@ -35,9 +45,6 @@ def check_settings(
         except (TypeError, ValueError):
             return [math.nan]
 
-    def number(value: object) -> bool:
-        return isinstance(value, int | float) and not isinstance(value, bool)
-
     for key, value in (positive_vectors or {}).items():
         if not all(math.isfinite(v) and v > 0 for v in numbers(value)):
             shown = [float(f"{v:.6g}") for v in numbers(value)]
@@ -47,10 +54,10 @@ def check_settings(
             shown = [float(f"{v:.6g}") for v in numbers(value)]
             raise ValueError(f"{section}.{key} must be finite numbers, got {shown}")
     for key, value in (positive or {}).items():
-        if not (number(value) and math.isfinite(value) and value > 0):
+        if not (is_number(value) and math.isfinite(value) and value > 0):
             raise ValueError(f"{section}.{key} must be a positive number, got {value!r}")
     for key, value in (non_negative or {}).items():
-        if not (number(value) and math.isfinite(value) and value >= 0):
+        if not (is_number(value) and math.isfinite(value) and value >= 0):
             raise ValueError(f"{section}.{key} must be a number >= 0, got {value!r}")
     for key, value in (at_least_one or {}).items():
         if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):

@@ -16,14 +16,13 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData, gather_segments
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
@@ -31,6 +30,7 @@ from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.joint import JointSettings
 from graphcal.pipeline.validation import position_errors
+from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -147,7 +147,7 @@ def cramer_rao_systems(
         with segmented.parallel(workers):
             return reduced_systems(segmented, len(data))
     except (RuntimeError, np.linalg.LinAlgError) as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise GraphcalError(f"Cramér–Rao bound failed: {reason}") from exc
 
 
@@ -165,7 +165,7 @@ def nees(theta: np.ndarray, covariance: np.ndarray, theta_true: np.ndarray) -> n
 def evaluate(
     run: CalibrationRun,
     truth: Truth,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     workers: int = 1,
 ) -> Evaluation:
     """Compare ``run`` with the ``truth`` of its drive (see the module docstring).

@@ -33,7 +33,7 @@ from graphcal.localization.online import OnlineResult, OnlineSettings, run_onlin
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.localization_inputs import prepare_localization
 from graphcal.simulate.defects import degrade, parse_defects
-from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaChange, simulate_drive
+from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaStep, simulate_drive
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS
 
 
@@ -86,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
 
     after = THETA_TRUE_DEFAULT + np.array([args.step_mm * 1e-3, 0.0, 0.0, 0.0])
     drive = simulate_drive(
-        args.length_km, seed=args.seed, theta_change=ThetaChange(args.change_km, after)
+        args.length_km, seed=args.seed, theta_change=ThetaStep(args.change_km, after)
     )
     log = drive.measured
     if args.defects:

@@ -65,7 +65,7 @@ import re
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -81,6 +81,7 @@ from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import run_calibration
+from graphcal.progress import Progress
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS
@@ -180,7 +181,7 @@ def manifest_variant(manifest: Path, heading: str, imu: str) -> Path:
 
 
 def calibrate_like_cli(
-    path: Path, method: str, workers: int, progress: Callable[[str], None] | None
+    path: Path, method: str, workers: int, progress: Progress | None
 ) -> tuple[CalibrationRun, tuple[str, ...], np.ndarray | None, dict[str, float]]:
     """Load and calibrate ``path`` as ``graphcal calibrate PATH --method METHOD`` does.
 
@@ -214,7 +215,7 @@ def run_record(
     theta_true: np.ndarray,
     method: str,
     workers: int,
-    progress: Callable[[str], None] | None,
+    progress: Progress | None,
 ) -> dict:
     """One calibration's numbers (SI); ``failed`` holds the exception's first line, if any."""
     record: dict = {"source": path.name, "failed": None}
@@ -271,7 +272,7 @@ def run_study(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     runs: list[dict] = []
     csv_runs: list[dict] = []
 
-    def progress_for(label: str) -> Callable[[str], None] | None:
+    def progress_for(label: str) -> Progress | None:
         if not args.verbose:
             return None
         return lambda line: print(f"    [{label}] {line}", file=sys.stderr, flush=True)

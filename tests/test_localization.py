@@ -22,7 +22,7 @@ from graphcal.localization.online import OnlineSettings, run_online
 from graphcal.localization.smoothing import SmoothingSettings, smooth_drive
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.model import THETA_NOMINAL, integrate
-from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaChange, simulate_drive
+from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaStep, simulate_drive
 
 
 def test_public_names_all_resolve():
@@ -177,7 +177,7 @@ def test_states_round_trip_through_values_with_unwrapped_heading():
 @pytest.mark.slow
 def test_online_estimate_follows_a_tyre_pressure_drop():
     after = THETA_TRUE_DEFAULT + [-0.003, 0.0, 0.0, 0.0]
-    drive = simulate_drive(length_km=3.5, seed=11, theta_change=ThetaChange(1.5, after))
+    drive = simulate_drive(length_km=3.5, seed=11, theta_change=ThetaStep(1.5, after))
     result = run_online(drive.measured, OnlineSettings())
     last_km = result.distance_m > result.distance_m[-1] - 1000.0
     assert np.all(np.abs(result.theta[last_km, 0] - after[0]) < 1e-3)

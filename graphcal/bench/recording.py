@@ -18,6 +18,7 @@ from typing import Any
 from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData, Segments
 from graphcal.pipeline.settings import Settings
+from graphcal.progress import Progress
 from graphcal.simulate.drive import SyntheticDrive
 
 
@@ -40,7 +41,7 @@ class Recorder:
     """The report's rows, one per item: its name, median time [s], the process's peak
     memory after it [MB] and the item's own numbers; each said as a progress line."""
 
-    def __init__(self, say: Callable[[str], None]):
+    def __init__(self, say: Progress):
         self.say = say
         self.rows: list[dict[str, Any]] = []
 

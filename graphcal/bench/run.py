@@ -63,6 +63,7 @@ from graphcal.bench.options import resolve_bench_options
 from graphcal.bench.recording import BenchRun, Recorder
 from graphcal.bench.scaling import scaling_item
 from graphcal.bench.whole_log_items import batch_study_items, segmented_items, whole_log_items
+from graphcal.progress import Progress
 
 #: The report's entries after ``config`` and ``items``, in their order in the JSON.
 REPORT_ENTRIES = (
@@ -89,7 +90,7 @@ def run_benchmarks(
     import_hours: float = 3.0,
     scaling_km: tuple[float, ...] = (),
     fleet_vehicles: int = 0,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> dict[str, Any]:
     """Run every item of :data:`ITEMS`; return ``{"config": ..., "items": [...],
     "agreement": ...}`` (the entries of :data:`REPORT_ENTRIES` after the items)."""
@@ -249,7 +250,7 @@ ITEMS: tuple[Callable[[BenchRun], dict[str, Any]], ...] = (
 )
 
 
-def run_from_options(args: Any, progress: Callable[[str], None] | None = None) -> dict[str, Any]:
+def run_from_options(args: Any, progress: Progress | None = None) -> dict[str, Any]:
     """Run the benchmark with the options of :func:`graphcal.cli.bench.add_arguments`
     (sizes resolved by :func:`~graphcal.bench.options.resolve_bench_options`); returns the
     report (write it with :func:`write_report`)."""

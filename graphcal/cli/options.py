@@ -7,17 +7,16 @@ import argparse
 import dataclasses
 import sys
 import time
-from collections.abc import Callable
 from pathlib import Path
 
-from graphcal import BagOptions, Settings, configure_settings
+from graphcal import BagOptions, Progress, Settings, configure_settings
 from graphcal.cli.arguments import at_least, in_range, non_negative, value_option
 
 #: The bag flags' help: a field of a topic, dotted into nested fields and indices.
 FIELD_HELP = "TOPIC:FIELD, the field dotted into nested fields and indices: /car/wheels:w[2].v"
 
 
-def timed_progress() -> Callable[[str], None]:
+def timed_progress() -> Progress:
     """A progress callback: each line on stderr after the seconds since this call."""
     start = time.perf_counter()
 

@@ -4,13 +4,12 @@ runs (:mod:`graphcal.cli.simulate_robot`) or a fleet (:mod:`graphcal.cli.simulat
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from graphcal import DISPLAY_SCALE, DISPLAY_UNITS, GraphcalError
+from graphcal import DISPLAY_SCALE, DISPLAY_UNITS, GraphcalError, Progress
 from graphcal.cli.arguments import at_least, non_negative, value_option, whole
 from graphcal.cli.options import timed_progress
 from graphcal.cli.simulate_fleet import add_fleet_options, simulate_fleet_command
@@ -218,7 +217,7 @@ def _simulate_car(
     theta_true: np.ndarray,
     noise: NoiseLevels,
     defects,
-    say: Callable[[str], None],
+    say: Progress,
 ) -> int:
     """``simulate --out FILE.csv``: the car's drive, with ``--defects``, its truth and sidecar."""
     from graphcal import degrade, simulate_drive, write_synthetic_drive

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from graphcal import GraphcalError
+from graphcal import GraphcalError, Progress
 from graphcal.cli.arguments import value_option, whole
 
 if TYPE_CHECKING:
@@ -36,7 +35,7 @@ def add_fleet_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def simulate_fleet_command(args: argparse.Namespace, say: Callable[[str], None]) -> int:
+def simulate_fleet_command(args: argparse.Namespace, say: Progress) -> int:
     """``simulate --fleet DIR``: a synthetic fleet with per-vehicle truths and one change."""
     from graphcal import simulate_fleet
 

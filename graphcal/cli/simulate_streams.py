@@ -5,19 +5,18 @@ from __future__ import annotations
 
 import argparse
 import importlib.util
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from graphcal import GraphcalError
+from graphcal import GraphcalError, Progress
 
 #: The file or directory ``--bag KIND`` writes in the streams directory.
 BAG_NAMES = {"ros1": "drive.bag", "ros2": "drive_ros2", "mcap": "drive_mcap"}
 
 
 def simulate_streams_command(
-    args: argparse.Namespace, theta_true: np.ndarray, say: Callable[[str], None]
+    args: argparse.Namespace, theta_true: np.ndarray, say: Progress
 ) -> int:
     """``simulate --streams DIR``: raw GNSS, wheel and IMU streams with a manifest."""
     from graphcal import StreamSettings, simulate_streams

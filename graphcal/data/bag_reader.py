@@ -25,7 +25,7 @@ from graphcal.data.bag_rows import TopicRows
 from graphcal.data.bag_topics import HEADER, BagContents
 from graphcal.data.bag_vendors import VENDOR_DEFINITIONS
 from graphcal.data.streams import StreamError
-from graphcal.errors import first_line
+from graphcal.errors import exception_reason, first_line
 
 #: Files of a ROS 2 bag's storage (also readable on their own).
 STORAGE_SUFFIXES = (".db3", ".mcap")
@@ -141,7 +141,7 @@ class BagReader:
                 "path and its permissions"
             ) from None
         except self.errors as error:
-            text = first_line(str(error)) or type(error).__name__
+            text = exception_reason(error)
             raise StreamError(
                 f"{self.source}: cannot read the bag ({type(error).__name__}: {text}); it is "
                 f"corrupt, truncated or of an unsupported format{_REPAIR.get(self.path.suffix, '')}"

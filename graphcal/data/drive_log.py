@@ -32,7 +32,7 @@ from typing import TypeVar
 import numpy as np
 import pandas as pd
 
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError, exception_reason
 from graphcal.files import atomic_write_csv
 from graphcal.model import THETA_NOMINAL
 
@@ -267,7 +267,7 @@ def _readable(source: str, read: Callable[[], T]) -> T:
         EOFError,
         ValueError,
     ) as exc:
-        first = first_line(str(exc)) or type(exc).__name__
+        first = exception_reason(exc)
         raise DriveLogError(
             f"{source}: not a readable CSV ({first}); export the log as CSV"
         ) from exc

@@ -49,8 +49,8 @@ class DayEstimate:
 
 
 @dataclass(frozen=True)
-class ThetaChange:
-    """A change of a vehicle's theta.
+class DetectedChange:
+    """A change of a vehicle's theta that the day-to-day test detected.
 
     Attributes:
         day: the first day with the new theta.
@@ -96,7 +96,7 @@ class VehicleHistory:
 
     vehicle: str
     days: list[DayEstimate]
-    changes: list[ThetaChange]
+    changes: list[DetectedChange]
     theta: np.ndarray | None
     covariance: np.ndarray | None
     current_days: list[str]
@@ -142,7 +142,7 @@ def vehicle_history(
     vehicle: str, days: list[DayEstimate], alpha: float = CHANGE_ALPHA
 ) -> VehicleHistory:
     """Changes and the current theta of one vehicle from its days' estimates (in order)."""
-    changes: list[ThetaChange] = []
+    changes: list[DetectedChange] = []
     regime: list[DayEstimate] = []
     for day in days:
         if regime:
@@ -157,7 +157,7 @@ def vehicle_history(
     return VehicleHistory(vehicle, days, changes, theta, covariance, [d.day for d in regime])
 
 
-def _test(regime: list[DayEstimate], day: DayEstimate, alpha: float) -> ThetaChange | None:
+def _test(regime: list[DayEstimate], day: DayEstimate, alpha: float) -> DetectedChange | None:
     theta, covariance = combine(regime)
     difference = day.theta - theta
     total = day.covariance + covariance
@@ -168,7 +168,7 @@ def _test(regime: list[DayEstimate], day: DayEstimate, alpha: float) -> ThetaCha
         return None
     sigma = np.sqrt(np.diag(total))
     parameter = PARAMETER_NAMES[int(np.argmax(np.abs(difference) / sigma))]
-    return ThetaChange(day.day, parameter, difference, sigma, chi2, dof, p_value)
+    return DetectedChange(day.day, parameter, difference, sigma, chi2, dof, p_value)
 
 
 def flag_fleet_outliers(histories: list[VehicleHistory], z: float = FLEET_OUTLIER_Z) -> None:

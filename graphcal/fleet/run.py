@@ -25,7 +25,7 @@ import logging
 import os
 import re
 import time
-from collections.abc import Callable, Collection
+from collections.abc import Collection
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,8 +54,7 @@ from graphcal.fleet.task import calibrate_fleet_log, content_hash, failed_result
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.settings_file import load_vehicle
 from graphcal.pipeline.vehicle_settings import apply_vehicle
-
-Progress = Callable[[str], None]
+from graphcal.progress import Progress
 
 #: How often [s] a run waiting for results checks for Ctrl-C.
 POLL_SECONDS = 0.1

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from graphcal import __version__
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError, exception_reason, first_line
 from graphcal.fleet.sources import FleetLog
 from graphcal.pipeline.settings import Settings
 
@@ -111,7 +111,7 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
         out.update(_calibrate(log, settings))
         out["status"] = "ok"
     except GraphcalError as exc:  # the log itself: the same again on every run
-        out["reason"] = first_line(str(exc)) or type(exc).__name__
+        out["reason"] = exception_reason(exc)
     except Exception as exc:  # the machine (a path it cannot see, memory) or a bug: retried
         out["reason"] = f"{type(exc).__name__}: {first_line(str(exc))}"
         out["retry"] = True

@@ -18,7 +18,7 @@ import dataclasses
 import gtsam
 import numpy as np
 
-from graphcal.errors import CalibrationFailed, GraphcalError, first_line
+from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
 from graphcal.graph import keys
 from graphcal.graph.built_graph import BuiltGraph
 from graphcal.graph.estimates import NuisanceEstimate, SolvedGraph
@@ -82,7 +82,7 @@ def marginal_covariance(
         else:
             covariance = marginals.marginalCovariance(key[0] if isinstance(key, list) else key)
     except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise error_type(f"{label} failed: covariance: {reason}") from exc
     if not np.all(np.isfinite(covariance)):
         raise error_type(f"{label} failed: non-finite covariance")
@@ -123,7 +123,7 @@ def partitioned_marginals(
     try:
         information = partitioned.shared_information()
     except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise CalibrationFailed(f"{label} failed: covariance: {reason}") from exc
     joint = covariance_from_information(0.5 * (information + information.T))
     if joint is None:

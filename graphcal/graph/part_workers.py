@@ -18,7 +18,7 @@ from typing import Any
 import gtsam
 import numpy as np
 
-from graphcal.errors import first_line
+from graphcal.errors import exception_reason
 from graphcal.graph.part_group import PartGroup
 from graphcal.graph.values import Portable, copy_value, restore
 
@@ -129,7 +129,7 @@ def _serve(connection, group: PartGroup) -> None:
         try:
             connection.send(("ok", request.apply(group)))
         except Exception as exc:  # reported to the optimizer, which raises it
-            connection.send(("error", f"{first_line(str(exc)) or type(exc).__name__}"))
+            connection.send(("error", f"{exception_reason(exc)}"))
 
 
 def _balanced_runs(sizes: list[int], count: int) -> list[tuple[int, int]]:

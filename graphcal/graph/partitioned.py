@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 
 import gtsam
 import numpy as np
@@ -41,6 +41,7 @@ from graphcal.graph.part_workers import PartWorkers
 from graphcal.graph.partition import GraphPart, partition
 from graphcal.graph.partitioned_lm import optimize
 from graphcal.graph.values import copy_value, tangent_dims
+from graphcal.progress import Progress
 
 
 class PartitionedGraph:
@@ -203,7 +204,7 @@ class PartitionedGraph:
         self,
         max_iterations: int,
         relative_error_tol: float,
-        progress: Callable[[str], None] | None = None,
+        progress: Progress | None = None,
         *,
         gauss_newton_first: bool = False,
     ) -> int:

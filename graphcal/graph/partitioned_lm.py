@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import gtsam
 import numpy as np
 
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.levenberg_marquardt import (
     LAMBDA_INITIAL,
     Damping,
@@ -32,6 +31,7 @@ from graphcal.graph.levenberg_marquardt import (
     raised_scale,
 )
 from graphcal.graph.linear_systems import predicted_decrease, vector_values
+from graphcal.progress import Progress
 
 if TYPE_CHECKING:
     from graphcal.graph.partitioned import PartitionedGraph
@@ -181,7 +181,7 @@ def optimize(
     graph: PartitionedGraph,
     max_iterations: int,
     relative_error_tol: float,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     *,
     gauss_newton_first: bool = False,
 ) -> int:
@@ -233,7 +233,7 @@ def optimize_partitioned(
     relative_error_tol: float,
     label: str,
     error_type: type[GraphcalError] = GraphcalError,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     *,
     gauss_newton_first: bool = False,
 ) -> int:
@@ -248,5 +248,5 @@ def optimize_partitioned(
             gauss_newton_first=gauss_newton_first,
         )
     except (RuntimeError, np.linalg.LinAlgError) as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise error_type(f"{label} failed: {reason}") from exc

@@ -8,7 +8,6 @@ one segment with theta fixed) under GTSAM's optimizer and marginals.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import gtsam
@@ -26,6 +25,7 @@ from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.partitioned_lm import optimize_partitioned
 from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.solve import solve_lm
+from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ def solve_segment_graph(
     start: BuilderStart | ValuesStart | None = None,
     covariance: bool = True,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> SolvedGraph:
     """Build the graph of ``spec`` over ``data`` (or take the ``start``'s) and solve it with
     Levenberg–Marquardt from ``start`` (default: the builder's initial values), segment by

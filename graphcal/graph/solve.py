@@ -8,7 +8,7 @@ from typing import Literal
 import gtsam
 import numpy as np
 
-from graphcal.errors import GraphcalError, first_line
+from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.levenberg_marquardt import (
     Damping,
     Verdict,
@@ -62,7 +62,7 @@ def solve_lm(
         optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
         return optimizer.optimize(), int(optimizer.iterations())
     except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise error_type(f"{label} failed: {reason}") from exc
 
 

@@ -10,7 +10,7 @@ and mean position error against the truth.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import gtsam
@@ -26,6 +26,7 @@ from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.model import integrate
+from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -89,7 +90,7 @@ def outage_errors(
     truth: DriveLog,
     thetas: dict[str, np.ndarray],
     settings: OutageSettings | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> pd.DataFrame:
     """Position errors of dead reckoning through simulated GNSS outages.
 

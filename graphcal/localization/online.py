@@ -20,7 +20,6 @@ standard deviation of about 0.3 mm.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import gtsam
@@ -38,6 +37,7 @@ from graphcal.graph.slip import slip_noise_covariance
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
 from graphcal.localization.smoothing import gnss_noise, gnss_usable
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate
+from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -141,7 +141,7 @@ class OnlineResult:
 def run_online(
     log: DriveLog,
     settings: OnlineSettings | None = None,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> OnlineResult:
     """Feed ``log`` keyframe by keyframe into a fixed-lag smoother that estimates the
     trajectory and a slowly varying theta; return theta per slice and the update times."""

@@ -65,11 +65,7 @@ class BatchSettings:
         )
 
 
-#: Result of one batch solve: theta, its covariance, the start states and LM statistics.
-BatchCalibration = ThetaEstimate
-
-
-def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) -> BatchCalibration:
+def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) -> ThetaEstimate:
     """Estimate theta from the segments in ``data`` (one batch, eq. 11) with Levenberg–Marquardt.
 
     Raises:

@@ -10,7 +10,6 @@ samples with the rest of the offset as their prior, the lever arm a variable.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import gtsam
@@ -21,8 +20,7 @@ from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import SensorEstimate
 from graphcal.pipeline.staged import step1_thetas
 from graphcal.pipeline.whole_log import WholeLog
-
-Progress = Callable[[str], None]
+from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)

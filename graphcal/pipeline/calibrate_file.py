@@ -10,8 +10,9 @@ import os
 from graphcal.data.importer import BagOptions, ImportedLog
 from graphcal.data.open_log import open_log
 from graphcal.pipeline.calibration_run import CalibrationRun, Method
-from graphcal.pipeline.run import Progress, run_calibration
+from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings
+from graphcal.progress import Progress
 
 
 def calibrate_file(

@@ -3,7 +3,6 @@ the validation segments and judged by the trust checks into a :class:`Calibratio
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -21,8 +20,8 @@ from graphcal.pipeline.staged import StagedResult
 from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
 from graphcal.pipeline.validation import position_errors
 from graphcal.pipeline.whole_log import WholeLog
+from graphcal.progress import Progress
 
-Progress = Callable[[str], None]
 Method = Literal["staged", "joint", "whole"]
 
 

@@ -21,7 +21,6 @@ likelihood estimate of theta, start poses and true rotations together.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import gtsam
@@ -41,6 +40,7 @@ from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 from graphcal.pipeline.robust import solve_segment_graph_robust
 from graphcal.pipeline.slip_screen import with_slip_if_shown
 from graphcal.pipeline.warm_start import warm_start
+from graphcal.progress import Progress
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
 #: order, which holds for tens of milliseconds, not for seconds.
@@ -241,7 +241,7 @@ def calibrate_joint(
     data: SegmentData,
     settings: JointSettings | None = None,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> JointCalibration:
     """Estimate theta, start poses and wheel-rotation corrections of a batch in one solve
     (with the time offset, lever arm and heading biases, and robust fix weights, if the
@@ -258,7 +258,7 @@ def solve_joint(
     data: SegmentData,
     settings: JointSettings | None = None,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,

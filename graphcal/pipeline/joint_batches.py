@@ -17,14 +17,13 @@ Two ways to solve the batches (``[batches] joint_solve``):
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.errors import CalibrationFailed, GraphcalError, first_line
+from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.graph_spec import shared_keys
@@ -35,11 +34,10 @@ from graphcal.graph.reduced_systems import reduced_systems
 from graphcal.graph.values import copy_value
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
+from graphcal.progress import Progress
 
 #: ``[batches] joint_solve``: how the joint method solves its batches.
 JOINT_BATCH_SOLVES = ("linearized", "exact")
-
-Progress = Callable[[str], None]
 
 
 @dataclass(frozen=True)
@@ -127,7 +125,7 @@ def _linearized(
         with segmented.parallel(workers):
             systems = reduced_systems(segmented, len(data))
     except (RuntimeError, np.linalg.LinAlgError) as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise CalibrationFailed(f"joint batches failed: {reason}") from exc
     solution = systems.solve(batches)
     out: list[BatchEstimate | None] = []

@@ -12,6 +12,8 @@ from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 
+from graphcal.progress import Progress
+
 R = TypeVar("R")
 
 
@@ -27,7 +29,7 @@ def map_tasks(
     function: Callable[..., R],
     tasks: Sequence[tuple[Any, ...]],
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     label: str = "tasks",
 ) -> list[R]:
     """``[function(*task) for task in tasks]``, in ``workers`` processes when more than one.

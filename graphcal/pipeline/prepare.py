@@ -5,7 +5,6 @@ fixes the loader flagged weighted down, and the segments' signals gathered."""
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,8 +16,8 @@ from graphcal.data.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.data.segments import SegmentData, Segments, gather_segments
 from graphcal.pipeline.selection import select
 from graphcal.pipeline.settings import Settings
+from graphcal.progress import Progress
 
-Progress = Callable[[str], None]
 #: Weight of a fix the loader flagged as an isolated spike (its sigma ×100).
 FLAGGED_WEIGHT = 1e-4
 

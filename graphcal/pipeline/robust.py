@@ -33,6 +33,7 @@ from graphcal.graph.covariance import with_covariance
 from graphcal.graph.estimates import SolvedGraph
 from graphcal.graph.graph_spec import SegmentGraphSpec
 from graphcal.graph.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
+from graphcal.progress import Progress
 
 #: Median of the norm of a 2-D standard Gaussian, sqrt(2 ln 2).
 RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
@@ -109,7 +110,7 @@ def solve_segment_graph_robust(
     threshold: float,
     covariance: bool = True,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
     shared_start: dict[int, np.ndarray] | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """:func:`~graphcal.graph.segment_solve.solve_segment_graph` with robust fix weights

@@ -50,8 +50,8 @@ from graphcal.pipeline.prepare import PreparedLog, prepare_log
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import run_staged
 from graphcal.pipeline.whole_log import WholeLog, models_sensors, solve_whole_log
+from graphcal.progress import Progress
 
-Progress = Callable[[str], None]
 METHODS = ("staged", "joint", "whole")
 
 

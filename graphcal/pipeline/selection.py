@@ -4,8 +4,6 @@ to change when the log has none."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
@@ -17,8 +15,7 @@ from graphcal.pipeline.vehicle_settings import (
     CAR_VALIDATION_LENGTH,
     segment_lengths,
 )
-
-Progress = Callable[[str], None]
+from graphcal.progress import Progress
 
 
 class NoUsableSegments(GraphcalError, ValueError):

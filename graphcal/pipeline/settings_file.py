@@ -14,7 +14,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from graphcal.errors import GraphcalError
+from graphcal.errors import GraphcalError, is_number
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.vehicle_settings import DERIVED_SECTIONS, follow_vehicle
 from graphcal.vehicle import VehicleProfile
@@ -163,7 +163,7 @@ def _convert(value: Any, hint: Any, current: Any, name: str, source: str) -> Any
         ok = (
             isinstance(value, list | tuple)
             and len(value) == n
-            and all(_is_number(v) and np.isfinite(v) for v in value)
+            and all(is_number(v) and np.isfinite(v) for v in value)
         )
         if not ok:
             raise GraphcalError(
@@ -179,7 +179,7 @@ def _convert(value: Any, hint: Any, current: Any, name: str, source: str) -> Any
     elif hint is int:
         ok, kind = isinstance(value, int) and not isinstance(value, bool), "a whole number"
     elif hint is float:
-        ok, kind = _is_number(value), "a number"
+        ok, kind = is_number(value), "a number"
         value = float(value) if ok else value
     elif hint is str:
         ok, kind = isinstance(value, str), "text"
@@ -188,7 +188,3 @@ def _convert(value: Any, hint: Any, current: Any, name: str, source: str) -> Any
     if not ok:
         raise GraphcalError(f"{source}: {name} must be {kind}, got {value!r}")
     return value
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool)

@@ -12,13 +12,12 @@ and a long log's screening then costs a fraction of one of its iterations.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 
 import gtsam
 import numpy as np
 
 from graphcal.data.segments import SegmentData, spread
-from graphcal.errors import CalibrationFailed, first_line
+from graphcal.errors import CalibrationFailed, exception_reason
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.built_graph import BuiltGraph
@@ -28,6 +27,7 @@ from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.graph.values import copy_value
+from graphcal.progress import Progress
 
 #: Slip is screened on this many segments spread over the log (all of a shorter log; the
 #: warm start's sample, :mod:`graphcal.pipeline.warm_start`): the statistic is a mean over
@@ -46,7 +46,7 @@ def with_slip_if_shown(
     relative_error_tol: float,
     label: str,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> tuple[SolvedGraph, float]:
     """The solve with slip scales if the log shows slip, else ``solved``; both with their
     covariance, and the statistic that decided (see the module docstring).
@@ -100,7 +100,7 @@ def _chi2_drop_per_chunk(
         with screening.parallel(workers):
             drop = screening.gauss_newton_decrement()
     except RuntimeError as exc:
-        reason = first_line(str(exc)) or type(exc).__name__
+        reason = exception_reason(exc)
         raise CalibrationFailed(f"joint solve failed: {reason}") from exc
     chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
     return 2.0 * drop / chunks

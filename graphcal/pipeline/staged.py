@@ -17,7 +17,6 @@ order, so the result does not depend on the number of workers.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,6 +28,7 @@ from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.settings import Settings
+from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -79,7 +79,7 @@ def step1_thetas(
     batches: np.ndarray,
     settings: Settings,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> np.ndarray:
     """Step 1 alone: theta ``(B, 4)`` of each batch from the measured signals with the start
     poses held at their measurement; NaN rows for failed solves. The uncompensated baseline
@@ -149,7 +149,7 @@ def run_staged(
     batches: np.ndarray,
     settings: Settings,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> StagedResult:
     """Run Steps 1–5 on the selected segments ``data`` and the ``batches`` of their indices."""
     say = progress or (lambda _line: None)
@@ -202,7 +202,7 @@ def _batch_solves(
     rotations: np.ndarray | None,
     settings: Settings,
     workers: int,
-    say: Callable[[str], None],
+    say: Progress,
 ) -> _Step:
     """Step 1, 3 or 5: a batch solve per batch with the heading corrections ``(B, N)`` and
     the compensated ``rotations`` ``(S, K, 2)`` (``None``: the measured ones)."""
@@ -237,7 +237,7 @@ def _orientation_corrections(
     theta: np.ndarray,
     settings: Settings,
     workers: int,
-    say: Callable[[str], None],
+    say: Progress,
 ) -> tuple[np.ndarray, list[str]]:
     """Step 2: the heading correction Δψ [rad] ``(B, N)`` of each segment of each batch with
     its batch's Step 1 ``theta`` ``(B, 4)`` (0 where it failed), and a warning if any did."""
@@ -285,7 +285,7 @@ def _compensated_rotations(
     step3: _Step,
     settings: Settings,
     workers: int,
-    say: Callable[[str], None],
+    say: Progress,
 ) -> _Step4:
     """Step 4: per segment used by a batch, input estimations with the thetas of several
     Step 3 batches (those with the segment first), averaged (trimmed mean)."""

@@ -11,14 +11,13 @@ its quadratic range. The optimum is the whole log's either way: only the path to
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from graphcal.data.segments import SegmentData, spread
 from graphcal.errors import GraphcalError
 from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.progress import Progress
 
 #: Segments of the sample a warm start solves.
 WARM_START_SEGMENTS = 32
@@ -33,7 +32,7 @@ def warm_start(
     max_iterations: int,
     relative_error_tol: float,
     workers: int = 1,
-    progress: Callable[[str], None] | None = None,
+    progress: Progress | None = None,
 ) -> dict[int, np.ndarray] | None:
     """The graph-wide variables (theta, time offset, lever arm, by key) solved on
     :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, for the whole-log

@@ -20,7 +20,6 @@ Top-down, :func:`solve_whole_log` runs:
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import gtsam
@@ -41,8 +40,8 @@ from graphcal.pipeline.sensor_estimates import (
     sensor_estimates,
 )
 from graphcal.pipeline.settings import Settings
+from graphcal.progress import Progress
 
-Progress = Callable[[str], None]
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this

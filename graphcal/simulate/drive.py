@@ -77,13 +77,13 @@ class SyntheticDrive:
     length_km: float
     motion: VehicleMotion = field(default_factory=VehicleMotion)
     route: str = "city"
-    theta_change: ThetaChange | None = None
+    theta_change: ThetaStep | None = None
     defects: Defects | None = None
     defect_seed: int | None = None
 
 
 @dataclass(frozen=True)
-class ThetaChange:
+class ThetaStep:
     """A sudden change of the true parameters during a drive (e.g. a tyre-pressure drop).
 
     Attributes:
@@ -93,11 +93,6 @@ class ThetaChange:
 
     at_km: float
     theta_after: np.ndarray
-
-    def theta_at(self, theta_true: np.ndarray, distance_m: np.ndarray) -> np.ndarray:
-        """True theta ``(N, 4)`` at travelled distances ``distance_m`` ``(N,)`` [m]."""
-        after = np.asarray(distance_m)[:, None] >= 1000.0 * self.at_km
-        return np.where(after, np.asarray(self.theta_after, float), np.asarray(theta_true, float))
 
 
 def _speed_profile(
@@ -127,7 +122,7 @@ def simulate_drive(
     dt: float = 0.025,
     motion: VehicleMotion | None = None,
     route: str = "city",
-    theta_change: ThetaChange | None = None,
+    theta_change: ThetaStep | None = None,
 ) -> SyntheticDrive:
     """Simulate a city/suburban drive of ``length_km`` km sampled every ``dt`` seconds.
 
@@ -197,7 +192,7 @@ def _true_log(
     heading0: float,
     theta_true: np.ndarray,
     motion: VehicleMotion,
-    theta_change: ThetaChange | None,
+    theta_change: ThetaStep | None,
 ) -> DriveLog:
     """The noise-free log: sideslip and lateral acceleration from the motion, the wheel
     rotations eqs. (2)–(3) inverted, the poses eq. (1) integrated from them."""

@@ -15,7 +15,8 @@ from graphcal.simulate.drive import read_sidecar, truth_path
 
 if TYPE_CHECKING:
     from graphcal.data.importer import ImportedLog
-    from graphcal.pipeline.run import CalibrationRun, Progress
+    from graphcal.pipeline.calibration_run import CalibrationRun
+    from graphcal.progress import Progress
 
 
 def synthetic_truth(
