@@ -1,14 +1,13 @@
 """Covariance from information: every way graphcal turns a graph's information into a
 covariance, and theta's and the nuisance variables' covariance of a solved segment graph.
 
-Three conversions, each kept for its site's exact numbers:
+Two routes:
 
-* :func:`covariance_from_information`: one symmetric positive definite matrix, by its
-  Cholesky factor (the shared variables of a part-by-part solve);
-* :func:`batch_covariances`: a stack of them at once, with the batches' Gauss–Newton steps
-  from the same inverse (:mod:`graphcal.graph.reduced_systems`);
+* :func:`covariance_from_information`: from an information matrix (or a stack of them):
+  the shared variables of a part-by-part solve, every batch of
+  :mod:`graphcal.graph.reduced_systems`;
 * :func:`marginal_covariance`: from a graph and its values, by GTSAM's ``Marginals`` (the
-  whole-graph solves).
+  whole-graph solves, where no information matrix is formed in Python).
 """
 
 from __future__ import annotations
@@ -31,29 +30,23 @@ from graphcal.graph.solve import Driver
 SINGULAR_RATIO = 1e-14
 
 
-def covariance_from_information(information: np.ndarray) -> np.ndarray | None:
-    """The inverse of a symmetric positive definite ``information``, or ``None`` if it is
-    not (or the inverse is not finite)."""
-    try:
-        root = np.linalg.cholesky(information)
-    except np.linalg.LinAlgError:
-        return None
-    inverse_root = np.linalg.inv(root)
-    covariance = inverse_root.T @ inverse_root
-    return covariance if np.all(np.isfinite(covariance)) else None
-
-
-def batch_covariances(information: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For a stack of finite symmetric informations ``(B, n, n)``: which are invertible
-    (smallest eigenvalue above :data:`SINGULAR_RATIO` of the largest) ``(B,)``, and of those
-    ``G`` the inverses and the covariances (the inverses symmetrized), ``(G, n, n)`` each."""
-    eigenvalues = np.linalg.eigvalsh(information)
-    good = eigenvalues[:, 0] > SINGULAR_RATIO * np.abs(eigenvalues[:, -1])
-    if not np.any(good):
-        empty = np.zeros((0, *information.shape[1:]))
-        return good, empty, empty
-    inverse = np.linalg.inv(information[good])
-    return good, inverse, 0.5 * (inverse + inverse.transpose(0, 2, 1))
+def covariance_from_information(information: np.ndarray) -> np.ndarray:
+    """The covariance of a symmetric information matrix ``(n, n)``, or of each of a stack
+    ``(B, n, n)``: its inverse, symmetrized. NaN where the information is not finite or is
+    singular (its smallest eigenvalue at most :data:`SINGULAR_RATIO` of its largest: a
+    variable the measurements do not determine at all)."""
+    stack = information.reshape(-1, *information.shape[-2:])
+    covariance = np.full(stack.shape, np.nan)
+    finite = np.all(np.isfinite(stack), axis=(1, 2))  # eigvalsh raises on a NaN
+    if stack.shape[-1] > 0 and np.any(finite):
+        eigenvalues = np.linalg.eigvalsh(stack[finite])
+        good = finite.copy()
+        good[finite] = eigenvalues[:, 0] > SINGULAR_RATIO * np.abs(eigenvalues[:, -1])
+        if np.any(good):
+            inverse = np.linalg.inv(stack[good])
+            covariance[good] = 0.5 * (inverse + inverse.transpose(0, 2, 1))
+    covariance[~np.all(np.isfinite(covariance), axis=(1, 2))] = np.nan
+    return covariance.reshape(information.shape)
 
 
 def marginal_covariance(
@@ -126,7 +119,7 @@ def partitioned_marginals(
         reason = exception_reason(exc)
         raise CalibrationFailed(f"{label} failed: covariance: {reason}") from exc
     joint = covariance_from_information(0.5 * (information + information.T))
-    if joint is None:
+    if not np.all(np.isfinite(joint)):
         raise CalibrationFailed(f"{label} failed: covariance: the information is singular")
     return joint[:4, :4], _nuisance(spec, partitioned.shared_values, joint)
 

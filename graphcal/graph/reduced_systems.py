@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph import keys
-from graphcal.graph.covariance import batch_covariances
+from graphcal.graph.covariance import covariance_from_information
 from graphcal.graph.partitioned import PartitionedGraph
 
 
@@ -89,13 +89,11 @@ class ReducedSystems:
         covariance = np.full((len(systems), n, n), np.nan)
         if n == 0 or len(systems) == 0:
             return BatchSolution(values, covariance)
-        good = np.all(np.isfinite(systems), axis=(1, 2))  # eigvalsh raises on a NaN
-        invertible, inverse, covariance_good = batch_covariances(information[good])
-        good[good] = invertible
-        if np.any(good):
-            covariance[good] = covariance_good
-            step = np.einsum("bij,bj->bi", inverse, systems[good, :n, n])
-            values[good] = self.point + step
+        good = np.all(np.isfinite(systems), axis=(1, 2))
+        covariance[good] = covariance_from_information(information[good])
+        good &= np.all(np.isfinite(covariance), axis=(1, 2))
+        step = np.einsum("bij,bj->bi", covariance[good], systems[good, :n, n])
+        values[good] = self.point + step
         return BatchSolution(values, covariance)
 
 
