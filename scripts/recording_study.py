@@ -82,7 +82,7 @@ from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.parallel import default_workers
 from graphcal.pipeline.run import run_calibration
 from graphcal.progress import Progress
-from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
+from graphcal.simulate.drive import VehicleMotion, simulate_drive, write_synthetic_drive
 from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS
 
@@ -126,7 +126,7 @@ class Case:
 
 
 def write_recording(
-    directory: Path, seed: int, length_km: float, rate: float, wheels: str
+    directory: Path, seed: int, length_km: float, rate: float, wheels: str, motion: VehicleMotion
 ) -> tuple[Path, np.ndarray, np.ndarray]:
     """Simulate the streams of one GNSS rate and wheel kind into ``directory``.
 
@@ -138,7 +138,7 @@ def write_recording(
         wheel_kind="ticks" if wheels == "ticks" else "speed",
         ticks_per_revolution=TICKS_PER_REVOLUTION,
     )
-    sim = simulate_streams(length_km, seed, settings=settings, route=ROUTE)
+    sim = simulate_streams(length_km, seed, settings=settings, motion=motion, route=ROUTE)
     write_streams(sim, directory)
     truth = json.loads((directory / "truth.json").read_text())["theta_true"]
     theta_true = np.array([truth[name] for name in PARAMETER_NAMES])
@@ -271,6 +271,7 @@ def run_study(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     cases = cases_of(args)
     runs: list[dict] = []
     csv_runs: list[dict] = []
+    motion = VehicleMotion(sideslip_speed_gain=args.sideslip_gain)
 
     def progress_for(label: str) -> Progress | None:
         if not args.verbose:
@@ -280,7 +281,7 @@ def run_study(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
     with tempfile.TemporaryDirectory(prefix="recording_study-") as tmp:
         root = Path(tmp)
         for seed in args.seeds:
-            drive = simulate_drive(args.length_km, seed, route=ROUTE)
+            drive = simulate_drive(args.length_km, seed, motion=motion, route=ROUTE)
             csv_path = root / f"seed{seed}" / "drive.csv"
             csv_path.parent.mkdir(parents=True)
             write_synthetic_drive(drive, csv_path)
@@ -297,7 +298,7 @@ def run_study(args: argparse.Namespace) -> tuple[list[dict], list[dict]]:
                 for wheels in args.wheels:
                     directory = root / f"seed{seed}" / f"gnss{rate:g}hz-{wheels}"
                     manifest, truth, this_track = write_recording(
-                        directory, seed, args.length_km, rate, wheels
+                        directory, seed, args.length_km, rate, wheels, motion
                     )
                     if not np.array_equal(truth, theta_true):
                         raise RuntimeError(f"seed {seed}: {directory.name} has another theta_true")
@@ -532,6 +533,13 @@ def build_arguments() -> argparse.ArgumentParser:
     )
     parser.add_argument("--out", type=Path, default=None, help="write every run as JSON here")
     parser.add_argument("--markdown", type=Path, default=None, help="write the tables here")
+    parser.add_argument(
+        "--sideslip-gain",
+        type=float,
+        default=VehicleMotion().sideslip_speed_gain,
+        help="the simulated car's sideslip speed gain k [s²/m] (beta = kappa (l_r - k v²); "
+        "scripts/rear_axle_slide.py shows what it does to the rear axle)",
+    )
     parser.add_argument(
         "--verbose", action="store_true", help="print the library's progress lines to stderr"
     )
