@@ -37,7 +37,7 @@ _PUBLIC = {
     "parse_defects": "graphcal.simulate.defects",  # defects of real logs, added to a drive
     "degrade": "graphcal.simulate.defects",
     "DEFECT_NAMES": "graphcal.simulate.defects",
-    "ALL_NAMES": "graphcal.simulate.defects",  # the defects "all" adds
+    "DEFECTS_IN_ALL": "graphcal.simulate.defects",  # the defects "all" adds
     "simulate_robot": "graphcal.simulate.robot",  # a robot's runs, spins and stops
     "RobotSettings": "graphcal.simulate.robot",
     "theta_true_for": "graphcal.simulate.robot",
@@ -125,8 +125,8 @@ _PUBLIC = {
     "outage_errors": "graphcal.localization.dead_reckoning",
     "OutageSettings": "graphcal.localization.dead_reckoning",
     # Benchmark (`graphcal bench`; options: graphcal.cli.bench).
-    "run_from_options": "graphcal.bench.run",
-    "write_report": "graphcal.bench.run",
+    "run_bench": "graphcal.bench.run",
+    "write_bench_report": "graphcal.bench.run",
     # Units of theta as displayed: m, mm, m, mm·s²/m.
     "DISPLAY_SCALE": "graphcal.units",
     "DISPLAY_UNITS": "graphcal.units",

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from graphcal.bench.run import run_from_options, write_report
+from graphcal.bench.run import run_bench, write_bench_report
 from graphcal.cli.bench import add_arguments
 
 
@@ -19,7 +19,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_arguments(parser)
     args = parser.parse_args(argv)
-    write_report(run_from_options(args, progress=print), args.out)
+    write_bench_report(run_bench(args, progress=print), args.out)
     print(f"wrote {args.out}")
     return 0
 

@@ -4,7 +4,7 @@ with the defect model (the defaults) and without it (``--no-defect-model``).
     python scripts/defect_study.py [--length-km 24] [--seeds 0 1 2] [--models after before]
         [--method whole] [--batches 60] [--workers 2] [--joint KEY=VALUE ...] [--jsonl F]
 
-For every condition (``none``, each name of ``graphcal.simulate.defects.ALL_NAMES``, ``all``)
+For every condition (``none``, each name of ``graphcal.simulate.defects.DEFECTS_IN_ALL``, ``all``)
 and seed: ``simulate_drive`` + ``degrade``, validated and screened as ``graphcal calibrate``
 loads a CSV (jumps and frozen fixes masked, isolated spikes flagged), then the method
 (``whole`` by default; ``joint`` adds the batches and their NEES), and per parameter the
@@ -29,7 +29,7 @@ from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.joint import without_defect_model
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings
-from graphcal.simulate.defects import ALL_NAMES, degrade, parse_defects
+from graphcal.simulate.defects import DEFECTS_IN_ALL, degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 from graphcal.units import DEVIATION_SCALE
 
@@ -100,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--length-km", type=float, default=24.0)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--conditions", nargs="+", default=["none", *ALL_NAMES, "all"])
+    parser.add_argument("--conditions", nargs="+", default=["none", *DEFECTS_IN_ALL, "all"])
     parser.add_argument("--models", nargs="+", choices=["after", "before"], default=["after"])
     parser.add_argument("--method", choices=["whole", "joint"], default="whole")
     parser.add_argument("--batches", type=int, default=60)

@@ -13,8 +13,8 @@ from graphcal.data.drive_log import load_drive_log, write_drive_log
 from graphcal.data.drive_log_validation import validate_frame
 from graphcal.simulate.defect_effects import ar1, gauss_markov
 from graphcal.simulate.defects import (
-    ALL_NAMES,
     DEFECT_NAMES,
+    DEFECTS_IN_ALL,
     HEADING_WHITE,
     Defects,
     degrade,
@@ -238,7 +238,7 @@ def test_parse_defects_names_values_and_all():
     assert parse_defects("") == Defects() == parse_defects("none")
     d = parse_defects("outliers, latency=0.1,lever_arm=1.5")
     assert d.outlier_share == 0.005 and d.latency == 0.1 and d.lever_arm == (1.5, 0.0)
-    assert parse_defects("all").names == ALL_NAMES
+    assert parse_defects("all").names == DEFECTS_IN_ALL
     held = parse_defects("all,hold")
     assert held.gnss_hold and held.gnss_rate == 10.0 and "gnss10hz" not in held.names
     assert not parse_defects("all,dropouts").outage_hold
@@ -280,7 +280,7 @@ def test_cli_simulate_all_defects_is_a_valid_log_with_its_defects_named(tmp_path
     args = ["simulate", "--length-km", "2", "--seed", "2", "--out", str(out), "--defects", "all"]
     assert main(args) == 0
     meta = json.loads((tmp_path / "all.json").read_text())
-    assert meta["defects"]["names"] == list(ALL_NAMES)
+    assert meta["defects"]["names"] == list(DEFECTS_IN_ALL)
     assert meta["defects"]["seed"] == 2
     assert meta["defects"]["settings"]["latency"] == 0.05
     assert read_sidecar(out, len(load_drive_log(out)))["theta_true"][0] == 1.985

@@ -250,10 +250,10 @@ ITEMS: tuple[Callable[[BenchRun], dict[str, Any]], ...] = (
 )
 
 
-def run_from_options(args: Any, progress: Progress | None = None) -> dict[str, Any]:
+def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
     """Run the benchmark with the options of :func:`graphcal.cli.bench.add_arguments`
     (sizes resolved by :func:`~graphcal.bench.options.resolve_bench_options`); returns the
-    report (write it with :func:`write_report`)."""
+    report (write it with :func:`write_bench_report`)."""
     sizes = resolve_bench_options(args)
     if getattr(args, "only_import", False):
         return {
@@ -266,6 +266,6 @@ def run_from_options(args: Any, progress: Progress | None = None) -> dict[str, A
     return report
 
 
-def write_report(report: dict[str, Any], path: str | Path) -> None:
+def write_bench_report(report: dict[str, Any], path: str | Path) -> None:
     """Write the benchmark report as JSON."""
     Path(path).write_text(json.dumps(report, indent=2) + "\n")

@@ -76,15 +76,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Time graphcal's solves next to the naive per-step GTSAM formulation; write JSON."""
-    from graphcal import run_from_options, write_report
+    from graphcal import run_bench, write_bench_report
 
-    report = run_from_options(args, progress=print)
+    report = run_bench(args, progress=print)
     if "naive_over_graphcal_per_iteration" in report:
         print(f"(a)/(b) per iteration: {report['naive_over_graphcal_per_iteration']:.0f}x")
     else:
         print(f"(h) import: {report['import']}")
     try:
-        write_report(report, args.out)
+        write_bench_report(report, args.out)
     except OSError as exc:
         raise GraphcalError(f"cannot write {args.out}: {exc.strerror or exc}") from exc
     print(f"wrote {args.out}")

@@ -133,14 +133,14 @@ def _add_noise_options(p: argparse.ArgumentParser) -> None:
 
 def _add_defects_option(p: argparse.ArgumentParser) -> None:
     """``--defects LIST``: the defects of real logs to add."""
-    from graphcal import ALL_NAMES, DEFECT_NAMES
+    from graphcal import DEFECT_NAMES, DEFECTS_IN_ALL
 
     p.add_argument(
         "--defects",
         default=None,
         metavar="LIST",
         help="add defects of real logs to the drive-log output, comma-separated: "
-        f"{', '.join(DEFECT_NAMES)}, or all (= {', '.join(ALL_NAMES)}); a name alone takes "
+        f"{', '.join(DEFECT_NAMES)}, or all (= {', '.join(DEFECTS_IN_ALL)}); a name alone takes "
         "its realistic default, name=VALUE sets its size in SI units (gnss10hz/hold: Hz; "
         "outliers: share; outages/dropouts: count; heading_bias: rad/√s; latency: s; "
         "lever_arm: LONG[:LAT] m; ticks: per revolution; slip: relative σ), e.g. "

@@ -201,7 +201,7 @@ DEFECT_NAMES: tuple[str, ...] = tuple(DEFECTS)
 #: What ``all`` switches on: every defect but ``hold`` and ``dropouts``, the alternatives to
 #: interpolated fixes and to outages that hold the last fix (``all,hold`` or ``all,dropouts``
 #: switches to them).
-ALL_NAMES: tuple[str, ...] = tuple(
+DEFECTS_IN_ALL: tuple[str, ...] = tuple(
     n for n in DEFECT_NAMES if n not in ("hold", "interpolated", "dropouts")
 )
 
@@ -263,7 +263,7 @@ def parse_defects(text: str) -> Defects:
 
     A name switches that defect on at its realistic default; ``name=value`` sets its main
     knob (SI units, :data:`DEFECTS`); ``lever_arm=LONG:LAT`` both of its components. ``all``
-    switches on every name of :data:`ALL_NAMES`; names after it override it (``all,hold``,
+    switches on every name of :data:`DEFECTS_IN_ALL`; names after it override it (``all,hold``,
     ``all,dropouts``, ``all,latency=0.1``). ``outages`` and ``dropouts`` together are refused
     (both set the one kind of outage), as are ``gnss10hz`` and ``hold``. Empty or ``none``:
     no defect.
@@ -279,7 +279,7 @@ def parse_defects(text: str) -> Defects:
         name, _, value = entry.partition("=")
         name, value = name.strip().lower(), value.strip() if "=" in entry else None
         if name == "all" and value is None:
-            for each in ALL_NAMES:
+            for each in DEFECTS_IN_ALL:
                 _switch(each, None, fields)
             continue
         if name not in DEFECTS:
