@@ -122,9 +122,7 @@ def _config(bench: BenchRun) -> dict[str, Any]:
     return {
         "length_km": bench.length_km,
         "repeats": bench.repeats,
-        # 2 after the fleet item, whatever the run's workers: the report has said so since
-        # the fleet item came (its loop over 1 and 2 workers reused the name).
-        "workers": 2 if bench.fleet_vehicles > 0 else bench.workers,
+        "workers": bench.workers,
         "naive_iterations": bench.naive_iterations,
         "pipeline_batches": bench.pipeline_batches,
         "import_hours": bench.import_hours,
