@@ -99,7 +99,7 @@ _PUBLIC = {
     "Truth": "graphcal.evaluation",
     "cramer_rao_bound": "graphcal.evaluation",
     "cramer_rao_bounds": "graphcal.evaluation",
-    "synthetic_truth": "graphcal.simulate.truth",  # a synthetic log's sidecar or manifest
+    "synthetic_truth": "graphcal.evaluation",  # a synthetic log's sidecar or manifest
     # Factors and values for your own GTSAM graphs.
     "PreintegratedWheelOdometry": "graphcal.factors",
     "WheelOdometryFactor": "graphcal.factors",
