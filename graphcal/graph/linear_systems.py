@@ -28,19 +28,15 @@ def hessian_diagonal_by_column(linear: gtsam.GaussianFactorGraph, n_columns: int
 def hessian_diagonal_by_key(
     linear: gtsam.GaussianFactorGraph, dims: dict[int, int]
 ) -> dict[int, np.ndarray]:
-    """Diagonal of ``JᵀJ`` of the whitened ``linear``, per key of ``dims`` (zero for keys
-    ``linear`` does not have), summed factor by factor (the same quantity as
-    :func:`hessian_diagonal_by_column`, rounded in another order)."""
-    diagonal = {k: np.zeros(dim) for k, dim in dims.items()}
-    for i in range(linear.size()):
-        factor = linear.at(i)
-        matrix, _ = factor.jacobian()
-        squares = np.einsum("ij,ij->j", matrix, matrix)
-        at = 0
-        for key in factor.keys():
-            dim = dims[key]
-            diagonal[key] += squares[at : at + dim]
-            at += dim
+    """:func:`hessian_diagonal_by_column` cut into the keys of ``dims`` (zero for keys
+    ``linear`` does not have); its columns follow the sorted keys of ``linear``."""
+    present = sorted(linear.keys())
+    flat = hessian_diagonal_by_column(linear, sum(dims[key] for key in present))
+    diagonal = {key: np.zeros(dim) for key, dim in dims.items()}
+    at = 0
+    for key in present:
+        diagonal[key] = flat[at : at + dims[key]]
+        at += dims[key]
     return diagonal
 
 
