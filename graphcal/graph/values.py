@@ -6,7 +6,8 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-#: A variable's value as plain data, picklable: ``("pose2" | "vector", array)``.
+#: A variable's value as plain data, picklable: ``("pose2", [x, y, cos, sin])`` or
+#: ``("vector", array)``.
 Portable = tuple[str, np.ndarray]
 
 
@@ -32,13 +33,20 @@ def portable(values: gtsam.Values, key: int) -> Portable:
         pose = values.atPose2(key)
     except RuntimeError:
         return "vector", np.asarray(values.atVector(key))
-    return "pose2", np.array([pose.x(), pose.y(), pose.theta()])
+    rotation = pose.rotation()
+    return "pose2", np.array([pose.x(), pose.y(), rotation.c(), rotation.s()])
 
 
 def restore(values: gtsam.Values, key: int, value: Portable) -> None:
-    """Update ``key`` in ``values`` to a :func:`portable` value."""
+    """Update ``key`` in ``values`` to a :func:`portable` value, to the bit: a Pose2 travels
+    as its rotation's cosine and sine (rebuilt from its angle, they differ in the last bits,
+    and so would a result computed with workers from one computed without)."""
     kind, array = value
-    values.update(key, gtsam.Pose2(*array) if kind == "pose2" else array)
+    if kind == "pose2":
+        rotation = gtsam.Rot2.fromCosSin(array[2], array[3])
+        values.update(key, gtsam.Pose2(rotation, array[:2]))
+    else:
+        values.update(key, array)
 
 
 def tangent_dims(values: gtsam.Values) -> dict[int, int]:
