@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from graphcal.data.stream_grid import interval_means
 from graphcal.data.streams import StreamError
 
 #: Standard gravity [m/s²].
@@ -78,9 +79,19 @@ def tilt(vector: np.ndarray) -> float:
     return float(np.arccos(np.clip(vector[2] / np.linalg.norm(vector), -1.0, 1.0)))
 
 
+def bin_means(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` ``(N, 3)`` at times ``t`` [s] averaged over :data:`ESTIMATE_BIN_S` bins,
+    ``(M, 3)``: a turn lasts seconds, a bump's pitch and roll a fraction of a bin."""
+    edges = np.arange(t[0], t[-1], ESTIMATE_BIN_S)
+    if len(edges) < 2:
+        return np.empty((0, 3))
+    return np.column_stack([interval_means(t, values[:, i], edges) for i in range(3)])[:-1]
+
+
 def turn_axis(rates: np.ndarray) -> np.ndarray | None:
-    """The main axis of ``rates`` ``(N, 3)`` [rad/s] (the eigenvector of their second moment
-    with the largest eigenvalue, pointing up), or ``None`` if they turn too little."""
+    """The main axis of ``rates`` ``(N, 3)`` [rad/s], one row per :data:`ESTIMATE_BIN_S` bin
+    (the eigenvector of their second moment with the largest eigenvalue, pointing up), or
+    ``None`` if they turn too little."""
     turning = np.linalg.norm(rates, axis=1) > TURNING_MIN
     if turning.sum() * ESTIMATE_BIN_S < TURNING_MIN_S:
         return None
@@ -115,7 +126,9 @@ def check_mounting(
 ) -> None:
     """One line if a given mounting does not put the IMU's gravity up or its turns about the
     vehicle's z (each within :data:`MAX_TILT_DEG`): a wrong mounting, or columns in another
-    order or frame; ``where`` prefixes it (``"manifest.toml: [imu] mounting = [5, 0, 90]"``)."""
+    order or frame; ``where`` prefixes it (``"manifest.toml: [imu] mounting = [5, 0, 90]"``).
+    ``rates`` are :func:`bin_means` of the gyro: judged sample by sample, a highway's bumps
+    (pitch rates of 0.3 rad/s for a tenth of a second) looked like turns about the y axis."""
     fix = 'check the angles and their order, or set mounting = "estimate"'
     if force is not None:
         up = to_vehicle(matrix, check_gravity(force, where, unit)[None])[0]

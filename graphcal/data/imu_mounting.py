@@ -12,7 +12,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from graphcal.data.imu_frame import GRAVITY, check_mounting, degrees_text, rotation, to_vehicle
+from graphcal.data.imu_frame import (
+    GRAVITY,
+    bin_means,
+    check_mounting,
+    degrees_text,
+    rotation,
+    to_vehicle,
+)
 from graphcal.data.mounting_estimate import estimate_mounting
 from graphcal.data.streams import Field, ImuStream, PoseStream, StreamError, WheelStream
 
@@ -196,7 +203,8 @@ def read_mounted_imu(
     else:
         matrix = mounting
         mounting_value = _toml(table["mounting"])
-        check_mounting(matrix, force, rate, f"{where} = {mounting_value}", acceleration_declared)
+        binned = None if rate is None else bin_means(t, rate)
+        check_mounting(matrix, force, binned, f"{where} = {mounting_value}", acceleration_declared)
     mounting_text = f"mounting = {mounting_value}"
     fields = dict(provenance.fields)
     if accelerations is not None:
