@@ -220,12 +220,17 @@ def _resampled(
     a faster pose stream, said in a note) with gaps longer than ``max_gap`` [s] masked."""
     followed = None
     if rate is None:
-        rate = grid_rate(recording.pose)
-        if rate != DEFAULT_RATE:
+        rate = grid_rate(recording.pose, wheels=recording.wheels)
+        if rate > DEFAULT_RATE:
             followed = (
                 f"drive log at {rate:g} Hz, just faster than the pose stream, so that each "
                 f"pose sample has its own row (none given; --rate or the manifest's rate "
                 f"chooses another)"
+            )
+        elif rate < DEFAULT_RATE:
+            followed = (
+                f"drive log at {rate:g} Hz, the wheels' own rate: each of their samples a row "
+                f"(none given; --rate or the manifest's rate chooses another)"
             )
     resampled = resample(
         recording,

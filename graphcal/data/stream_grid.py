@@ -53,13 +53,21 @@ class StreamSummary:
         )
 
 
-def grid_rate(pose: PoseStream, default: float = DEFAULT_RATE) -> float:
-    """The drive log's rate [Hz] when none is given: ``default``, or for a pose stream faster
-    than that (motion capture, a lidar pose at 50–100 Hz) a grid interval just shorter than
-    the stream's shortest interval, so that no two fixes share a grid interval and none is
-    left out. The rate is rounded up to 4 significant digits (a 50 Hz stream whose stamps
-    are 0.02 s apart within float rounding gets 50.01 Hz); intervals shorter than
-    :data:`POSE_JITTER_SHARE` of the median are jitter and not followed."""
+def grid_rate(
+    pose: PoseStream, default: float = DEFAULT_RATE, wheels: WheelStream | None = None
+) -> float:
+    """The drive log's rate [Hz] when none is given: ``default``, or the ``wheels``' own rate
+    when they are sampled slower (a robot's 20 Hz encoders: interpolated onto 40 Hz, each
+    count difference would be split in two halves whose errors are one error), or for a pose
+    stream faster than either a grid interval just shorter than the stream's shortest
+    interval, so that no two fixes share a grid interval and none is left out. A rate is
+    rounded up to 4 significant digits (a 50 Hz stream whose stamps are 0.02 s apart within
+    float rounding gets 50.01 Hz); pose intervals shorter than :data:`POSE_JITTER_SHARE` of
+    the median are jitter and not followed."""
+    if wheels is not None and len(wheels.t) > 1:
+        wheel_step = float(np.median(np.diff(np.asarray(wheels.t, dtype=float))))
+        if wheel_step > 0 and 1.0 / wheel_step < default:
+            default = max(_rounded_up(1.0 / wheel_step), RATE_RANGE[0])
     step = np.diff(np.asarray(pose.t, dtype=float))
     if len(step) == 0:
         return default
@@ -67,10 +75,13 @@ def grid_rate(pose: PoseStream, default: float = DEFAULT_RATE) -> float:
     if not median > 0 or 1.0 / median <= default:
         return default
     shortest = max(float(step.min()), POSE_JITTER_SHARE * median)
-    needed = (1.0 + 1e-6) / shortest
-    decimals = 3 - int(np.floor(np.log10(needed)))
-    rate = float(np.ceil(needed * 10.0**decimals) / 10.0**decimals)
-    return min(rate, RATE_RANGE[1])
+    return min(_rounded_up((1.0 + 1e-6) / shortest), RATE_RANGE[1])
+
+
+def _rounded_up(rate: float) -> float:
+    """``rate`` [Hz] rounded up to 4 significant digits."""
+    decimals = 3 - int(np.floor(np.log10(rate)))
+    return float(np.ceil(rate * 10.0**decimals) / 10.0**decimals)
 
 
 def gap_threshold(t: np.ndarray, max_gap: float = MAX_GAP_S) -> float:
