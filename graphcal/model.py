@@ -35,6 +35,20 @@ THETA_NOMINAL = np.array([2.0, 0.0, 1.55, 0.0])
 THETA_PRIOR_SIGMAS = np.array([0.1, 0.01, 0.2, 0.01])
 
 
+def reference_sigmas(nominal: np.ndarray = THETA_NOMINAL) -> np.ndarray:
+    """``(4,)`` the fixed yardstick verdicts measure a parameter's σ against (SI):
+    :data:`THETA_PRIOR_SIGMAS` scaled to a vehicle of ``nominal`` theta — c_e, c_d and d by
+    its c_e, t_r by its track, relative to the paper's car (a vehicle without positive c_e
+    and t_r keeps the car's). Unlike a profile's prior sigmas, which a user sets, it does not
+    move with a setting."""
+    nominal = np.asarray(nominal, float)
+    if not (nominal[C_E] > 0 and nominal[T_R] > 0):
+        return THETA_PRIOR_SIGMAS.copy()
+    scale = np.full(4, nominal[C_E] / THETA_NOMINAL[C_E])
+    scale[T_R] = nominal[T_R] / THETA_NOMINAL[T_R]
+    return THETA_PRIOR_SIGMAS * scale
+
+
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray:
     """Wrap angles [rad] to [-pi, pi)."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi

@@ -14,7 +14,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import smoothed_yaw_rate, split_segments, yaw_rate_statistic
+from graphcal.data.segments import (
+    SegmentData,
+    smoothed_yaw_rate,
+    split_segments,
+    yaw_rate_statistic,
+)
 
 #: |yaw rate| [rad/s] above which driving counts as turning.
 TURNING_YAW_RATE = 0.1
@@ -101,3 +106,43 @@ def drive_excitation(
         max_lateral_acceleration=max_ay,
         expected=expected,
     )
+
+
+def lever_arm_sigma(
+    data: SegmentData, position_sigma: float, heading_sigma: float, prior_sigma: float
+) -> np.ndarray:
+    """The σ [m] ``(2,)`` (ahead, left) a solve could at best give the GNSS antenna's lever
+    arm on these segments, from their track alone: per segment, its fixes and headings fit
+    by a free start pose (translation and rotation) and the lever arm, with the segment's
+    path held at its track (θ and the wheels' errors are free in a solve, so a solve
+    determines the arm less well, never better), under the arm's ``prior_sigma`` [m].
+
+    A lever arm moves the antenna by ``R(ψ_k) · arm``: on a straight road that is a constant
+    offset, the start pose's; only the heading's changes tell it apart. Without them an arm
+    in the graph is a free direction, and with noisy fixes and no heading the solve uses it
+    to follow the fixes' noise (turning the path through cheap wheel corrections at a tiny
+    t_r: the real highway minute ran t_r to 0.04–0.5 m)."""
+    fixes = data.position_fixes()
+    psi = data.poses[..., 2]
+    offset = data.poses[..., :2] - data.poses[:, :1, :2]
+    cos, sin = np.cos(psi), np.sin(psi)
+    zero, one = np.zeros_like(psi), np.ones_like(psi)
+    # d antenna position / d [translation x, y, start rotation, arm ahead, arm left], (S, K, 2, 5)
+    jacobian = np.stack(
+        [
+            np.stack([one, zero, -offset[..., 1], cos, -sin], axis=-1),
+            np.stack([zero, one, offset[..., 0], sin, cos], axis=-1),
+        ],
+        axis=-2,
+    )
+    weights = fixes / position_sigma**2
+    info = np.einsum("sk,skri,skrj->sij", weights, jacobian, jacobian)
+    headings = data.valid if data.measured is None else data.valid & data.measured[..., 1]
+    info[:, 2, 2] += headings.sum(axis=1) / heading_sigma**2
+    pose, arm = slice(0, 3), slice(3, 5)
+    pose_info = info[:, pose, pose] + 1e-12 * np.eye(3)
+    reduced = info[:, arm, arm] - info[:, arm, pose] @ np.linalg.solve(
+        pose_info, info[:, pose, arm]
+    )
+    total = reduced.sum(axis=0) + np.eye(2) / prior_sigma**2
+    return np.sqrt(np.diag(np.linalg.inv(total)))

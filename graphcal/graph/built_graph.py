@@ -45,11 +45,19 @@ class BuiltGraph:
     ) -> np.ndarray:
         """Position residuals ``(S, K+1, 2)`` [m] of every measured pose at ``result`` (the
         predicted antenna position minus the measured one; zero at padding and at held
-        starts), for robust reweighting. With ``partitioned`` (this graph split at the same
-        values) each chunk is evaluated on its segment's own ``Values``: GTSAM copies the
-        ``Values`` for every Python factor call."""
+        starts), for robust reweighting: :meth:`pose_residuals` without the heading."""
+        return self.pose_residuals(result, partitioned)[..., :2]
+
+    def pose_residuals(
+        self, result: gtsam.Values, partitioned: PartitionedGraph | None = None
+    ) -> np.ndarray:
+        """Pose residuals ``(S, K+1, 3)`` [m, m, rad] of every measured pose at ``result``
+        (predicted minus measured; zero where a component was not measured, at padding and
+        at held starts). With ``partitioned`` (this graph split at the same values) each
+        chunk is evaluated on its segment's own ``Values``: GTSAM copies the ``Values`` for
+        every Python factor call."""
         data = self.data
-        out = np.zeros((len(data), data.poses.shape[1], 2))
+        out = np.zeros((len(data), data.poses.shape[1], 3))
         values_of = {} if partitioned is None else partitioned.values_by_key()
         for slot in self.chunk_factors:
             factor = self.graph.at(slot.index)
@@ -60,15 +68,38 @@ class BuiltGraph:
                 full = np.zeros(3 * n + 3)
                 full[slot.rows] = error
                 error = full
-            out[slot.segment, slot.first + 1 : slot.end + 1] = error[: 3 * n].reshape(n, 3)[:, :2]
+            out[slot.segment, slot.first + 1 : slot.end + 1] = error[: 3 * n].reshape(n, 3)
         if self.spec.start_prior_sigmas is not None:
             starts = self.start_states(result)
             arm = np.zeros(2)
             if self.spec.lever_arm_sigma is not None:
                 arm = np.asarray(result.atVector(keys.LEVER_ARM))
             antenna = starts[:, :2] + lever_offset(starts[:, 2], arm)
-            out[:, 0] = np.where(data.start_measured()[:, :1], antenna - data.poses[:, 0, :2], 0.0)
+            measured = data.start_measured()
+            out[:, 0, :2] = np.where(measured[:, :1], antenna - data.poses[:, 0, :2], 0.0)
+            heading = np.angle(np.exp(1j * (starts[:, 2] - data.poses[:, 0, 2])))
+            out[:, 0, 2] = np.where(measured[:, 1], heading, 0.0)
         return out
+
+    def correction_chi2(
+        self, result: gtsam.Values, partitioned: PartitionedGraph | None = None
+    ) -> tuple[float, int]:
+        """χ² of the wheel-rotation corrections' priors at ``result`` and their number of
+        rows: how far the corrections went against the wheel noise assumed."""
+        values_of = {} if partitioned is None else partitioned.values_by_key()
+        chunk = {slot.index for slot in self.chunk_factors}
+        correction = ord(chr(gtsam.Symbol(keys.segment_corrections(0, 0)).chr()))
+        total, rows = 0.0, 0
+        for i in range(self.graph.size()):
+            factor = self.graph.at(i)
+            if factor is None or i in chunk:
+                continue
+            factor_keys = [int(k) for k in factor.keys()]
+            if any(gtsam.Symbol(k).chr() != correction for k in factor_keys):
+                continue
+            total += 2.0 * factor.error(values_of.get(factor_keys[0], result))
+            rows += int(factor.dim())
+        return total, rows
 
     def start_states(self, result: gtsam.Values) -> np.ndarray:
         """Estimated (or held) start state of each segment, ``(S, 3)``."""

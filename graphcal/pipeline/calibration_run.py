@@ -13,6 +13,7 @@ from graphcal.data.segments import SegmentData, Segments
 from graphcal.graph.observability import Observability
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration
+from graphcal.pipeline.model_check import ModelCheck
 from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.sensor_estimates import DownWeightedFixes, SensorEstimate
 from graphcal.pipeline.settings import Settings
@@ -59,6 +60,8 @@ class CalibrationRun:
         down_weighted: the fixes the robust whole-log solve down-weighted as outliers.
         whole: the whole-log joint solve (joint and whole methods, and staged when it
             estimates sensor quantities or outliers), ``None`` otherwise.
+        model_check: the defect model against theta alone on held-apart segments
+            (:mod:`graphcal.pipeline.model_check`), ``None`` when not run.
     """
 
     log: DriveLog
@@ -85,6 +88,7 @@ class CalibrationRun:
     estimated: dict[str, SensorEstimate] = field(default_factory=dict)
     down_weighted: DownWeightedFixes | None = None
     whole: JointCalibration | None = None
+    model_check: ModelCheck | None = None
 
     def verdicts(self) -> dict[str, str]:
         """Per parameter: the observability verdict, or why it is not to be trusted
@@ -135,6 +139,7 @@ class MethodResult:
     staged: StagedResult | None = None
     covariance: np.ndarray | None = None
     observability: Observability | None = None
+    model_check: ModelCheck | None = None
 
 
 def validated_run(
@@ -189,6 +194,7 @@ def validated_run(
         whole=whole,
         covariance=result.covariance,
         observability=result.observability,
+        model_check=result.model_check,
     )
 
 

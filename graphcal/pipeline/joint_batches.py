@@ -27,7 +27,7 @@ from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.observability import Observability, assess_observability
+from graphcal.graph.observability import Observability
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.reduced_systems import reduced_systems
@@ -157,7 +157,4 @@ def _estimate(
         check_plausible(theta, "joint batch", reference=reference)
     except CalibrationFailed:
         return None
-    observability = assess_observability(
-        covariance, settings.theta_prior_sigmas, settings.max_sigma_ratio, settings.held()
-    )
-    return BatchEstimate(theta, covariance, observability)
+    return BatchEstimate(theta, covariance, settings.observability(covariance))

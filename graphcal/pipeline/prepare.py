@@ -11,9 +11,11 @@ import numpy as np
 
 from graphcal.data.antenna import move_to_centre
 from graphcal.data.drive_log import DriveLog
+from graphcal.data.excitation import lever_arm_sigma
 from graphcal.data.noise import heading_noise
 from graphcal.data.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.data.segments import SegmentData, Segments, gather_segments
+from graphcal.factors import pose_sigmas
 from graphcal.pipeline.selection import select
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import Progress
@@ -35,6 +37,8 @@ class PreparedLog:
         fix_weights: per sample of ``log``, the weight of its fix (``None``: all 1).
         data, validation: the selected and the validation segments' signals.
         warnings: what a user must know about the log (masked samples).
+        left_out: sensor quantities the settings estimate but the drive cannot show, left
+            out of the graph (:func:`_with_observable_lever_arm`): name → prior sigma.
     """
 
     log: DriveLog
@@ -47,6 +51,7 @@ class PreparedLog:
     data: SegmentData
     validation: SegmentData
     warnings: tuple[str, ...]
+    left_out: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
 def prepare_log(
@@ -66,6 +71,8 @@ def prepare_log(
     flagged = None  # spikes the loader flagged get (almost) no weight
     if log.outlying is not None:
         flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
+    data = gather_segments(log, selected, flagged)
+    settings, left_out = _with_observable_lever_arm(data, settings, say)
     return PreparedLog(
         log=log,
         settings=settings,
@@ -74,10 +81,33 @@ def prepare_log(
         selected=selected,
         validation_segments=validation_segments,
         fix_weights=flagged,
-        data=gather_segments(log, selected, flagged),
+        data=data,
         validation=gather_segments(log, validation_segments),
         warnings=_mask_warnings(log),
+        left_out=left_out,
     )
+
+
+def _with_observable_lever_arm(
+    data: SegmentData, settings: Settings, say: Progress
+) -> tuple[Settings, dict[str, float]]:
+    """``settings`` without the lever arm as a variable when the selected segments cannot
+    show it even at best (:func:`~graphcal.data.excitation.lever_arm_sigma` above the
+    observability threshold, ``max_sigma_ratio`` × its prior sigma: a drive that barely
+    turns), and what was left out (name → prior sigma)."""
+    joint = settings.joint
+    if joint.lever_arm_sigma <= 0:
+        return settings, {}
+    sigmas = pose_sigmas(joint.pose_weights, joint.position_sigma)
+    best = lever_arm_sigma(data, sigmas[0], sigmas[2], joint.lever_arm_sigma)
+    if best.min() <= joint.max_sigma_ratio * joint.lever_arm_sigma:
+        return settings, {}
+    say(
+        f"GNSS antenna's lever arm not estimated: this drive turns too little to show it "
+        f"(at best ±{best.max():.2f} m from these segments)"
+    )
+    joint = dataclasses.replace(joint, lever_arm_sigma=0.0)
+    return dataclasses.replace(settings, joint=joint), {"lever_arm": settings.joint.lever_arm_sigma}
 
 
 def _mask_warnings(log: DriveLog) -> tuple[str, ...]:

@@ -38,6 +38,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
+import gtsam
 import numpy as np
 
 from graphcal.data.drive_log import DriveLog
@@ -46,6 +47,7 @@ from graphcal.errors import GraphcalError
 from graphcal.graph.observability import condition_on_prior
 from graphcal.pipeline.batch_study import joint_batch_study
 from graphcal.pipeline.calibration_run import CalibrationRun, Method, MethodResult, validated_run
+from graphcal.pipeline.model_check import ModelCheck, check_model, theta_alone
 from graphcal.pipeline.prepare import PreparedLog, prepare_log
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import run_staged
@@ -90,16 +92,17 @@ def run_calibration(
 def _run_whole(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
     """Only the joint solve over all selected segments: the recommended theta, no batches."""
     prepared = prepare_log(log, settings, say, fall_back_to_all=True)
-    solved, _ = solve_whole_log(prepared, workers, say)
-    return validated_run("whole", solved.corrected, solved, _recommended(solved), say)
+    solved, _, check = _solve_checked(prepared, workers, say)
+    result = dataclasses.replace(_recommended(solved), model_check=check)
+    return validated_run("whole", solved.corrected, solved, result, say)
 
 
 def _run_joint(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
     """The joint solve over all selected segments (the recommended theta), then the batch
     study from its solution (:mod:`graphcal.pipeline.batch_study`)."""
     prepared = prepare_log(log, settings, say, fall_back_to_all=True)
-    solved, values = solve_whole_log(prepared, workers, say, keep_values=True)
-    recommended = _recommended(solved)
+    solved, values, check = _solve_checked(prepared, workers, say, keep_values=True)
+    recommended = dataclasses.replace(_recommended(solved), model_check=check)
     batches = _batches(solved.corrected, "joint", workers, say)
     study = joint_batch_study(solved, batches, values, workers, say)
     del values  # the whole log's solution, most of the memory of a long log
@@ -123,7 +126,7 @@ def _run_staged(log: DriveLog, settings: Settings, workers: int, say: Progress) 
     whole-log solve corrected, if the settings model the sensors; the recommended theta is
     the median of Step 5."""
     prepared = prepare_log(log, settings, say, fall_back_to_all=False)
-    solved = _whole_log_corrections(prepared, workers, say)
+    solved, check = _whole_log_corrections(prepared, workers, say)
     corrected = prepared if solved is None else solved.corrected
     batches = _batches(corrected, "staged", workers, say)
     staged = run_staged(corrected.data, batches, corrected.settings, workers, say)
@@ -133,6 +136,7 @@ def _run_staged(log: DriveLog, settings: Settings, workers: int, say: Progress) 
         batches=batches,
         batch_theta=dict(staged.theta),
         staged=staged,
+        model_check=check,
     )
     return validated_run("staged", corrected, solved, result, say)
 
@@ -144,16 +148,43 @@ _RUNS: dict[str, Callable[[DriveLog, Settings, int, Progress], CalibrationRun]] 
 }
 
 
-def _whole_log_corrections(prepared: PreparedLog, workers: int, say: Progress) -> WholeLog | None:
+def _whole_log_corrections(
+    prepared: PreparedLog, workers: int, say: Progress
+) -> tuple[WholeLog | None, ModelCheck | None]:
     """The staged method's first step: when the joint settings model the sensors (a time
-    offset, a lever arm, outlying fixes), the joint whole-log solve
-    (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), whose estimates correct the log
-    the five steps calibrate from; its theta is not the staged result, but the run reports
-    the solve (``CalibrationRun.whole``) and the trust checks judge it. ``None`` otherwise."""
+    offset, a lever arm, outlying fixes), the joint whole-log solve with its model check
+    (:func:`_solve_checked`), whose estimates correct the log the five steps calibrate from;
+    its theta is not the staged result, but the run reports the solve
+    (``CalibrationRun.whole``) and the trust checks judge it. ``None`` otherwise."""
     if not models_sensors(prepared.settings.joint):
-        return None
-    solved, _ = solve_whole_log(prepared, workers, say)
-    return solved
+        return None, None
+    solved, _, check = _solve_checked(prepared, workers, say)
+    return solved, check
+
+
+def _solve_checked(
+    prepared: PreparedLog, workers: int, say: Progress, keep_values: bool = False
+) -> tuple[WholeLog, gtsam.Values | None, ModelCheck | None]:
+    """The whole-log solve (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), then, if
+    the settings ask for it and its defect model found something, the model check
+    (:mod:`graphcal.pipeline.model_check`): when theta alone predicts held-apart segments at
+    least as well, the whole-log solve again without the defect model's sensor terms."""
+    solved, values = solve_whole_log(prepared, workers, say, keep_values=keep_values)
+    if not prepared.settings.joint.model_check:
+        return solved, values, None
+    check = check_model(prepared, solved, workers, say)
+    if check is None:
+        return solved, values, None
+    say(check.line())
+    if not check.theta_alone:
+        return solved, values, check
+    del values
+    joint = theta_alone(prepared.settings.joint)
+    simpler = dataclasses.replace(
+        prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out={}
+    )
+    solved, values = solve_whole_log(simpler, workers, say, keep_values=keep_values)
+    return solved, values, check
 
 
 def _recommended(solved: WholeLog) -> MethodResult:

@@ -95,6 +95,16 @@ def sensor_estimates(
     return found
 
 
+def not_estimated(left_out: dict[str, float]) -> dict[str, SensorEstimate]:
+    """The components of nuisance variables left out of the graph because the drive cannot
+    show them (name → prior sigma): not observable, at their prior (0)."""
+    return {
+        name: SensorEstimate(name, 0.0, sigma, sigma, False)
+        for variable, sigma in left_out.items()
+        for name in COMPONENTS[variable]
+    }
+
+
 def correct_log(
     log: DriveLog,
     estimates: dict[str, SensorEstimate],

@@ -74,7 +74,7 @@ Every section and key, with the defaults::
     chunk_steps = 50
     continuity_sigmas = [0.001, 0.001, 0.0001]      # m, m, rad
     max_iterations = 50
-    max_sigma_ratio = 0.1       # calibrated = data shrink the prior sigma to at most this
+    max_sigma_ratio = 0.1       # calibrated = σ at most this share of its reference sigma
     slip = "auto"               # slow wheel slip modelled: auto (when the log shows it) | on | off
     slip_sigma = 0.0015         # its relative scale per wheel and chunk (0.15 %)
     slip_time = 5.0             # s, its correlation time from chunk to chunk
@@ -86,6 +86,8 @@ Every section and key, with the defaults::
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
     heading_noise_from_log = true  # heading weight from the log's own heading noise
     fix_d = false               # (v) d held at theta_initial (the vehicle's fix_d)
+    model_check = true          # a time offset, lever arm or slip found: checked against
+                                # theta alone on held-apart segments; the better one is used
 
     [lever_arm]                 # GNSS antenna ahead of / left of the centre of gravity
     longitudinal = 0.0          # m, when known; the positions are moved by it (the

@@ -24,6 +24,11 @@ from graphcal.report.tables import (
 from graphcal.units import DISPLAY_UNITS, to_display
 
 
+def _degrees(radians: float | None) -> float | None:
+    """``radians`` in degrees, ``None`` kept."""
+    return None if radians is None else float(np.degrees(radians))
+
+
 def _named(theta: np.ndarray) -> dict[str, float]:
     return {n: float(v) for n, v in zip(PARAMETER_NAMES, theta, strict=True)}
 
@@ -279,6 +284,8 @@ def _findings_sections(run: CalibrationRun) -> dict:
         out["trust"] = run.trust.to_dict()
     if run.estimated:
         out["estimated"] = {name: e.to_dict() for name, e in run.estimated.items()}
+    if run.model_check is not None:
+        out["model_check"] = run.model_check.to_dict()
     if run.down_weighted is not None:
         out["down_weighted_fixes"] = run.down_weighted.to_dict()
     if run.whole is not None:
@@ -288,6 +295,11 @@ def _findings_sections(run: CalibrationRun) -> dict:
             "position_sigma_m": float(used[0]),
             "heading_sigma_deg": float(np.degrees(used[2])),
             "position_sigma_from_residuals_m": run.whole.position_noise,
+            "fix_error_correlation": run.whole.noise.position_correlation,
+            "heading_sigma_from_residuals_deg": _degrees(run.whole.noise.heading),
+            "heading_error_correlation": run.whole.noise.heading_correlation,
+            "wheel_noise_rev": float(joint.wheel_noise),
+            "wheel_correction_chi2_per_row": run.whole.noise.wheel_chi2,
             "heading_from_log": bool(joint.heading_noise_from_log),
         }
     if run.whole is not None and run.whole.slip_statistic is not None:
