@@ -20,7 +20,7 @@ import pytest
 from graphcal import open_log
 from graphcal.cli import main
 from graphcal.pipeline.configure import configure_settings
-from graphcal.pipeline.held_apart import holding_apart, time_windows, validation_errors, window
+from graphcal.pipeline.held_apart import holding_apart, time_window, time_windows, validation_errors
 from graphcal.pipeline.run import run_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -53,7 +53,7 @@ def _held_apart(source: Path, defect_model: bool = True) -> tuple[float, float]:
     nominal, calibrated = [], []
     for start, end in time_windows(log, 3):
         run = run_calibration(holding_apart(log, np.array([[start, end]])), settings, "whole")
-        errors = validation_errors(window(log, start, end), run.theta, settings)
+        errors = validation_errors(time_window(log, start, end), run.theta, settings)
         nominal.append(np.mean(errors.nominal))
         calibrated.append(np.mean(errors.calibrated))
     return float(np.mean(nominal)), float(np.mean(calibrated))
