@@ -3,16 +3,13 @@
 from __future__ import annotations
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1] / "graphcal"
-STANDARD = {
-    "__future__", "argparse", "collections", "concurrent", "dataclasses", "gc", "importlib",
-    "itertools", "json", "math", "os", "pathlib", "resource", "statistics", "sys", "tempfile",
-    "time", "tomllib", "typing",
-}  # fmt: skip
+STANDARD = set(sys.stdlib_module_names)
 
 
 def _module_name(path: Path) -> str:

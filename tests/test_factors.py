@@ -142,6 +142,32 @@ def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, track
     assert_jacobians(factor, values)
 
 
+def test_a_chunk_of_one_run_reads_its_element_of_the_runs_time_offsets(segment, rng):
+    # A recording of three runs has one time offset each: a chunk of run 1 reads element 1
+    # (its error is the one-run factor's at that offset) and its Jacobian has only that column.
+    poses, inputs = segment[0][:31], segment[1][:30]
+    OFFSET = gtsam.symbol("o", 0)
+    chunk = OdometryChunk(
+        inputs, poses, float(poses[0, 2]), rotation_rate_changes(inputs[:, :2], 0.025)
+    )
+    factor = ChunkOdometryFactor(
+        chunk, X0, T, corrections=C(0), end=X1, time_offset=OFFSET, time_offset_slot=(1, 3)
+    ).factor()
+    single = ChunkOdometryFactor(chunk, X0, T, corrections=C(0), end=X1, time_offset=OFFSET)
+    values = gtsam.Values()
+    values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
+    values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
+    values.insert(C(0), rng.normal(0, 1e-3, 60))
+    values.insert(T, THETA)
+    values.insert(OFFSET, np.array([-0.2, 0.04, 0.3]))
+    assert_jacobians(factor, values)
+    alone = gtsam.Values(values)
+    alone.update(OFFSET, np.array([0.04]))
+    np.testing.assert_allclose(
+        factor.unwhitenedError(values), single.factor().unwhitenedError(alone), atol=1e-12
+    )
+
+
 def test_chunks_in_one_batch_give_what_each_gives_alone(segment, rng):
     # Chunks of two shapes (30 steps with an end, 20 steps without) share one batch; each
     # answer must equal the chunk's own evaluation, also after the values change and when a

@@ -41,6 +41,9 @@ COLUMNS = ("t", "px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
 MASK_COLUMN = "masked"
 #: Optional column: the time [s] of the row's fix when it was taken between two rows.
 FIX_TIME_COLUMN = "t_fix"
+#: Optional column: the run (0, 1, …) a row belongs to, where a recording is several runs
+#: whose clocks were each set apart (a robot's runs): each run has its own wheel time offset.
+RUN_COLUMN = "run"
 #: Columns that may be empty in a row (no fix, no heading there).
 SPARSE_COLUMNS = ("px", "py", "psi")
 
@@ -90,17 +93,28 @@ class DriveLog:
     fix_lag: np.ndarray | None = field(default=None, compare=False)
     tick_resolution: float | None = field(default=None, compare=False)
     ay_from_wheels: bool = field(default=False, compare=False)
+    run: np.ndarray | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
         if len(set(lengths.values())) != 1 or len(lengths["t"]) != 1:
             raise ValueError(f"DriveLog columns must be equally long 1-D arrays, got {lengths}")
-        for name in ("masked", "outlying", "fix_lag"):
+        for name in ("masked", "outlying", "fix_lag", "run"):
             flags = getattr(self, name)
             if flags is not None and np.shape(flags) != lengths["t"]:
                 raise ValueError(f"DriveLog.{name} must have one entry per sample")
         if self.measured is not None and np.shape(self.measured) != (len(self.t), 2):
             raise ValueError("DriveLog.measured must be (N, 2) booleans [position, heading]")
+
+    @property
+    def runs(self) -> int:
+        """How many runs the log holds (1 without a ``run`` column)."""
+        return 1 if self.run is None else int(self.run[-1]) + 1
+
+    def run_of(self, rows: np.ndarray) -> np.ndarray:
+        """The run of each of ``rows`` (all 0 for a log of one run)."""
+        rows = np.asarray(rows)
+        return np.zeros(rows.shape, np.int64) if self.run is None else self.run[rows]
 
     @property
     def sparse(self) -> bool:
@@ -166,6 +180,8 @@ class DriveLog:
         frame = measurement_frame(columns, self.measured, self.fix_lag)
         if self.masked is not None:
             frame[MASK_COLUMN] = self.masked.astype(np.int8)
+        if self.run is not None:
+            frame[RUN_COLUMN] = self.run.astype(np.int64)
         return frame
 
     @classmethod

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from graphcal.data.consistency import runs
-from graphcal.data.drive_log import FIX_TIME_COLUMN, MASK_COLUMN
+from graphcal.data.drive_log import FIX_TIME_COLUMN, MASK_COLUMN, RUN_COLUMN
 from graphcal.data.drive_log_checks import ColumnOrigin, fail, first_row
 from graphcal.data.streams import time_text
 
@@ -115,3 +115,36 @@ def marked_samples(
     if marked is None or not marked.any():
         return None, ()
     return marked, tuple(notes)
+
+
+def run_column(frame: pd.DataFrame, source: str) -> np.ndarray | None:
+    """The optional ``run`` column (:data:`~graphcal.data.drive_log.RUN_COLUMN`): whole
+    numbers from 0, never decreasing; ``None`` without it or when every row is run 0."""
+    if RUN_COLUMN not in frame.columns:
+        return None
+    raw = pd.to_numeric(frame[RUN_COLUMN], errors="coerce").to_numpy(dtype=float)
+    bad = ~(np.isfinite(raw) & (raw >= 0) & (raw == np.round(raw)))
+    if bad.any():
+        row = first_row(bad)
+        raise fail(
+            source,
+            RUN_COLUMN,
+            row,
+            f"value {frame[RUN_COLUMN].iloc[row]!r} is not a run number (0, 1, 2, …)",
+            "number the runs 0, 1, 2, … in the order they were recorded",
+        )
+    steps = np.diff(raw)
+    if (steps < 0).any() or (steps > 1).any():
+        row = first_row(np.concatenate([[False], (steps < 0) | (steps > 1)]))
+        raise fail(
+            source,
+            RUN_COLUMN,
+            row,
+            f"run {raw[row]:g} after run {raw[row - 1]:g}",
+            "the runs must follow one another: 0, then 1, then 2, …",
+        )
+    if raw[0] != 0:
+        raise fail(source, RUN_COLUMN, 0, f"the first run is {raw[0]:g}", "number runs from 0")
+    if raw[-1] == 0:
+        return None
+    return raw.astype(np.int64)

@@ -25,7 +25,7 @@ from graphcal.data.drive_log_checks import (
     numeric_columns,
     sampling_interval,
 )
-from graphcal.data.drive_log_flags import marked_samples, measured_components
+from graphcal.data.drive_log_flags import marked_samples, measured_components, run_column
 from graphcal.data.track import fill_track
 from graphcal.model import THETA_NOMINAL
 
@@ -87,6 +87,7 @@ def validate_frame(
         mask_notes=marked_notes,
         measured=measured if not measured.all() else None,
         fix_lag=lag,
+        run=run_column(frame, source),
     )
     check_heading_units(log, nominal=nominal, origins=origins)
     log = _screened(log, source, nominal, origins)

@@ -134,15 +134,19 @@ def resample(
     )
     masked, mask_notes = _mask(grid, reversing)
     imu = recording.imu
+    columns = {
+        "t": grid.since_start,
+        **fixes.columns,
+        "n_rl": n_rl,
+        "n_rr": n_rr,
+        "beta": beta,
+        "ay": ay,
+    }
+    run = _runs(grid, notes)
+    if run is not None:
+        columns["run"] = run
     return Resampled(
-        columns={
-            "t": grid.since_start,
-            **fixes.columns,
-            "n_rl": n_rl,
-            "n_rr": n_rr,
-            "beta": beta,
-            "ay": ay,
-        },
+        columns=columns,
         masked=masked,
         mask_notes=tuple(mask_notes),
         streams=tuple(grid.summaries),
@@ -298,6 +302,21 @@ def _lateral_acceleration(
         nominal = np.array([wheel_circumference, 0.0, track_width, 0.0])
         return wheel_lateral_acceleration(n_rl, n_rr, nominal, dt, YAW_RATE_WINDOW_S)
     return speed * yaw_rate
+
+
+def _runs(grid: _Grid, notes: list[str]) -> np.ndarray | None:
+    """The run of each grid row when the wheels' stream stops and starts again (a recording
+    of several runs, each with its clocks set apart: its own wheel time offset), with a
+    note; ``None`` for one run."""
+    wheels = next(s for s in grid.summaries if s.role == "wheels")
+    ends = [b for a, b in wheels.gaps if grid.start < b and a < grid.end]
+    if not ends:
+        return None
+    notes.append(
+        f"the wheels' stream stops and starts again {len(ends)} time(s): {len(ends) + 1} runs, "
+        "each with its own wheel time offset (column run)"
+    )
+    return np.searchsorted(np.asarray(ends), grid.t, side="right").astype(np.int64)
 
 
 def _mask(grid: _Grid, reversing: np.ndarray) -> tuple[np.ndarray, list[str]]:

@@ -64,6 +64,8 @@ class SegmentData:
             (``DriveLog.measured``; elsewhere ``poses`` holds the track), or ``None`` for all.
         fix_fraction: ``(S, K+1)`` in ``(0, 1]``: each sample's measurement was taken at this
             fraction of the step before it (``DriveLog.fix_fraction``), or ``None`` for all 1.
+        run: ``(S,)`` the run of the log each segment lies in (``DriveLog.run``; a segment
+            never spans two), or ``None`` for all in run 0; ``runs`` the log's number of runs.
     """
 
     poses: np.ndarray
@@ -75,9 +77,15 @@ class SegmentData:
     fix_weights: np.ndarray | None = None
     measured: np.ndarray | None = None
     fix_fraction: np.ndarray | None = None
+    run: np.ndarray | None = None
+    runs: int = 1
 
     def __len__(self) -> int:
         return len(self.n_steps)
+
+    def run_of(self, index: int) -> int:
+        """The run segment ``index`` lies in."""
+        return 0 if self.run is None else int(self.run[index])
 
     def position_fixes(self) -> np.ndarray:
         """``(S, K+1)``: real samples whose position was measured at the sample itself or
@@ -135,6 +143,8 @@ class SegmentData:
             rows(self.fix_weights),
             rows(self.measured),
             rows(self.fix_fraction),
+            None if self.run is None else self.run[index],
+            self.runs,
         )
 
     def measured_of(self, index: int) -> np.ndarray | None:
@@ -344,5 +354,15 @@ def gather_segments(
     if fraction is not None:
         fraction = fraction[index]
     return SegmentData(
-        poses, inputs, segments.n_steps.copy(), valid, log.dt, index, weights, measured, fraction
+        poses,
+        inputs,
+        segments.n_steps.copy(),
+        valid,
+        log.dt,
+        index,
+        weights,
+        measured,
+        fraction,
+        None if log.run is None else log.run[segments.start],
+        log.runs,
     )

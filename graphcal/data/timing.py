@@ -15,30 +15,50 @@ import numpy as np
 from graphcal.data.drive_log import DriveLog
 
 
-def shift_wheel_rotations(log: DriveLog, offset: float) -> DriveLog:
-    """``log`` with its wheel rotations taken ``offset`` seconds later (SI).
+def shift_wheel_rotations(log: DriveLog, offset: float | np.ndarray) -> DriveLog:
+    """``log`` with its wheel rotations taken ``offset`` seconds later (SI): one offset, or
+    one per run of the log (``DriveLog.run``), each run shifted within itself.
 
     ``offset`` > 0 corrects wheels that are late against the pose: the rotation of interval
-    ``k`` becomes the measured rotation over ``[t_k + offset, t_k+1 + offset]``. The ends,
-    where the shifted interval leaves the log, repeat the nearest measured rate.
+    ``k`` becomes the measured rotation over ``[t_k + offset, t_k+1 + offset]``. The ends
+    (of the log, or of a run), where the shifted interval leaves them, repeat the nearest
+    measured rate.
     """
-    if offset == 0.0:
+    offsets = np.atleast_1d(np.asarray(offset, float))
+    if not offsets.any():
         return log
-    t = log.t
-    step = np.append(np.diff(t), np.diff(t)[-1])  # row k's interval (the last repeats)
-    ends = np.append(t, t[-1] + step[-1])
+    if len(offsets) not in (1, log.runs):
+        raise ValueError(f"{len(offsets)} time offsets for a log of {log.runs} runs")
+    if log.run is None:
+        spans = [(0, len(log.t), float(offsets[0]))]
+    else:
+        offsets = np.broadcast_to(offsets, (log.runs,))
+        starts = np.searchsorted(log.run, np.arange(log.runs))
+        ends = np.append(starts[1:], len(log.t))
+        spans = [(int(a), int(b), float(o)) for a, b, o in zip(starts, ends, offsets, strict=True)]
     shifted = {}
     for name in ("n_rl", "n_rr"):
-        cumulative = np.concatenate([[0.0], np.cumsum(getattr(log, name))])
-        at = np.interp(ends + offset, ends, cumulative)
-        # Beyond the log, continue at the first / last interval's rate.
-        before, after = ends + offset < ends[0], ends + offset > ends[-1]
-        rate_first = getattr(log, name)[0] / step[0]
-        rate_last = getattr(log, name)[-1] / step[-1]
-        at[before] = (ends[before] + offset - ends[0]) * rate_first
-        at[after] = cumulative[-1] + (ends[after] + offset - ends[-1]) * rate_last
-        shifted[name] = np.diff(at)
+        rotations = np.array(getattr(log, name), dtype=float)
+        for a, b, value in spans:
+            if value != 0.0 and b - a > 1:
+                rotations[a:b] = _shifted(log.t[a:b], rotations[a:b], value)
+        shifted[name] = rotations
     return dataclasses.replace(log, **shifted)
+
+
+def _shifted(t: np.ndarray, rotations: np.ndarray, offset: float) -> np.ndarray:
+    """The rotations per interval of samples at ``t`` taken ``offset`` [s] later
+    (:func:`shift_wheel_rotations` of one span)."""
+    step = np.append(np.diff(t), np.diff(t)[-1])  # row k's interval (the last repeats)
+    ends = np.append(t, t[-1] + step[-1])
+    cumulative = np.concatenate([[0.0], np.cumsum(rotations)])
+    at = np.interp(ends + offset, ends, cumulative)
+    # Beyond the span, continue at the first / last interval's rate.
+    before, after = ends + offset < ends[0], ends + offset > ends[-1]
+    rate_first, rate_last = rotations[0] / step[0], rotations[-1] / step[-1]
+    at[before] = (ends[before] + offset - ends[0]) * rate_first
+    at[after] = cumulative[-1] + (ends[after] + offset - ends[-1]) * rate_last
+    return np.diff(at)
 
 
 def whole_samples(offset: float, dt: float) -> float:

@@ -58,7 +58,9 @@ class ChunkOdometryFactor:
         continuity_sigmas: ``[m, m, rad]`` of the continuity residual
             (default :data:`CONTINUITY_SIGMAS`).
         slip: key of the chunk's 2-vector of relative wheel-slip scales, or ``None``.
-        time_offset: key of the 1-vector wheel time offset [s], or ``None``.
+        time_offset: key of the wheel time offset [s], or ``None``: a vector of one element
+            per run of the log, of which this chunk's wheels read element
+            ``time_offset_slot[0]`` of ``time_offset_slot[1]`` (default the one of one).
         lever_arm: key of the 2-vector antenna lever arm [m], or ``None``.
         heading_bias: key of the 1-vector heading bias [rad], or ``None``.
         fix_weights: ``(L,)`` weight in (0, 1] of each tracked position (robust
@@ -86,10 +88,14 @@ class ChunkOdometryFactor:
         heading_bias: int | None = None,
         fix_weights: np.ndarray | None = None,
         batch: ChunkBatch | None = None,
+        time_offset_slot: tuple[int, int] = (0, 1),
     ):
         self.chunk = chunk
         self.slip_key = slip
         self.time_offset_key = time_offset
+        self.time_offset_slot, self.time_offset_size = (int(n) for n in time_offset_slot)
+        if not 0 <= self.time_offset_slot < self.time_offset_size:
+            raise ValueError(f"time offset element {time_offset_slot} out of range")
         self.lever_arm_key = lever_arm
         self.heading_bias_key = heading_bias
         self.start_key, self.start_state = _slot(start, 3, "start")
@@ -120,7 +126,7 @@ class ChunkOdometryFactor:
             ("corrections", self.corrections_key, 2 * chunk.n_steps),
             ("theta", self.theta_key, 4),
             ("slip", self.slip_key, 2),
-            ("time_offset", self.time_offset_key, 1),
+            ("time_offset", self.time_offset_key, self.time_offset_size),
             ("lever_arm", self.lever_arm_key, 2),
             ("heading_bias", self.heading_bias_key, 1),
         )
@@ -189,7 +195,7 @@ class ChunkOdometryFactor:
             corrections,
             end,
             read.get("slip"),
-            None if time_offset is None else time_offset[0],
+            None if time_offset is None else time_offset[self.time_offset_slot],
             read.get("lever_arm"),
             None if bias is None else bias[0],
         )
@@ -206,6 +212,8 @@ class ChunkOdometryFactor:
             self.chunk.rotation_rates is None,
             self.chunk.fractions is None,
             *(key is None for key in self._slot_keys()),
+            self.time_offset_slot,
+            self.time_offset_size,
         )
 
     def jacobian_blocks(
@@ -224,9 +232,13 @@ class ChunkOdometryFactor:
             blocks.append(result.corrections.reshape(count, dim, -1))
         if self.theta_key is not None:
             blocks.append(result.theta)
+        time_offset = result.time_offset
+        if self.time_offset_key is not None and self.time_offset_size > 1:
+            time_offset = np.zeros((count, dim, self.time_offset_size))
+            time_offset[..., self.time_offset_slot] = result.time_offset[..., 0]
         for key, block in (
             (self.slip_key, result.slip),
-            (self.time_offset_key, result.time_offset),
+            (self.time_offset_key, time_offset),
             (self.lever_arm_key, result.lever_arm),
             (self.heading_bias_key, result.heading_bias),
         ):

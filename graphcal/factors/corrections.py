@@ -16,6 +16,8 @@ The size and smoothness terms are linear in the corrections, so they are linear 
 
 from __future__ import annotations
 
+import functools
+
 import gtsam
 import numpy as np
 
@@ -55,11 +57,7 @@ def chunk_correction_prior(
     n = 2 * len(measured)
     sizes = np.asarray(size, float).reshape(-1)
     if quantization > 0:
-        covariance = np.diag(sizes**2) + quantization**2 * (
-            2.0 * np.eye(n) - np.eye(n, k=2) - np.eye(n, k=-2)
-        )
-        whiten = np.linalg.inv(np.linalg.cholesky(covariance))  # W Σ Wᵀ = I
-        a, b = [whiten], [np.zeros(n)]
+        a, b = [_whitening(sizes.tobytes(), float(quantization))], [np.zeros(n)]
     else:
         a, b = [np.diag(1.0 / sizes)], [np.zeros(n)]
     if smooth_sigma is not None and n > 2:
@@ -69,6 +67,23 @@ def chunk_correction_prior(
         key, np.vstack(a), np.concatenate(b), gtsam.noiseModel.Unit.Create(len(np.concatenate(b)))
     )
     return _linear(factor, [(key, n)])
+
+
+@functools.lru_cache(maxsize=32)
+def _whitening(sizes: bytes, quantization: float) -> np.ndarray:
+    """``W`` with ``W Σ Wᵀ = I`` for the corrections' covariance ``Σ`` of white ``sizes``
+    (the float64 bytes of ``(2L,)`` sigmas) and differenced counts rounded by
+    ``quantization``. The chunks of a log share a few of these (one wheel noise, the same
+    chunk length), so each is computed once: inverting it for every chunk of every graph
+    was half of a robot's calibration."""
+    size = np.frombuffer(sizes, dtype=float)
+    n = len(size)
+    covariance = np.diag(size**2) + quantization**2 * (
+        2.0 * np.eye(n) - np.eye(n, k=2) - np.eye(n, k=-2)
+    )
+    whiten = np.linalg.inv(np.linalg.cholesky(covariance))
+    whiten.setflags(write=False)
+    return whiten
 
 
 def chunk_boundary_smoothness(

@@ -93,6 +93,7 @@ class _Segment:
     fractions: np.ndarray | None
     nominal: np.ndarray
     bounds: np.ndarray
+    run: int = 0
 
 
 def _vector_prior(key: int, size: int, sigma: float, mean: float = 0.0) -> gtsam.PriorFactorVector:
@@ -114,6 +115,7 @@ def build_segment_graph(
     ``spec``'s); with a start theta, an estimated start is moved (with its path, rigidly) to
     fit the measured positions.
     """
+    spec = spec.for_runs(data.runs)
     graph = gtsam.NonlinearFactorGraph()
     values = gtsam.Values()
     wide = _add_graph_wide(graph, values, spec, shared_start or {})
@@ -151,7 +153,13 @@ def _add_graph_wide(
     time_offset_key = lever_arm_key = None
     if spec.time_offset_sigma is not None:
         time_offset_key = keys.TIME_OFFSET
-        graph.add(_vector_prior(time_offset_key, 1, spec.time_offset_sigma, spec.time_offset_mean))
+        graph.add(
+            gtsam.PriorFactorVector(
+                time_offset_key,
+                spec.time_offset_means(),
+                gtsam.noiseModel.Isotropic.Sigma(spec.time_offset_runs, spec.time_offset_sigma),
+            )
+        )
     if spec.lever_arm_sigma is not None:
         lever_arm_key = keys.LEVER_ARM
         graph.add(_vector_prior(lever_arm_key, 2, spec.lever_arm_sigma))
@@ -186,7 +194,7 @@ def _segment(data: SegmentData, s: int, spec: SegmentGraphSpec, wide: _GraphWide
             fitted = measured[:, 0] * (1.0 if weights is None else weights)
         nominal = aligned_trajectory(nominal, poses, fitted, wide.arm)
     bounds = chunk_bounds(len(inputs), spec.chunk_steps)
-    return _Segment(s, poses, inputs, weights, measured, fractions, nominal, bounds)
+    return _Segment(s, poses, inputs, weights, measured, fractions, nominal, bounds, data.run_of(s))
 
 
 def _add_segment(
@@ -271,6 +279,7 @@ def _add_chunks(
             continuity_sigmas=wide.continuity,
             slip=None if spec.slip_sigma is None else keys.segment_slip(s, j),
             time_offset=wide.time_offset_key,
+            time_offset_slot=(segment.run, spec.time_offset_runs),
             lever_arm=wide.lever_arm_key,
             heading_bias=bias_key,
             fix_weights=None if weights is None else weights[a + 1 : b + 1],

@@ -170,6 +170,6 @@ def insert_nuisance(values: gtsam.Values, spec: SegmentGraphSpec) -> None:
     """Insert the graph-wide time offset (at its prior mean) and lever arm (at zero) if
     ``spec`` has them."""
     if spec.time_offset_sigma is not None:
-        values.insert(keys.TIME_OFFSET, np.full(1, float(spec.time_offset_mean)))
+        values.insert(keys.TIME_OFFSET, spec.time_offset_means())
     if spec.lever_arm_sigma is not None:
         values.insert(keys.LEVER_ARM, np.zeros(2))

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,8 +56,12 @@ class SegmentGraphSpec:
             correlation time ``slip_time`` [s] from chunk to chunk.
         slip_time: that correlation time [s].
         time_offset_sigma: prior sigma [s] of the wheels' time offset (a variable,
-            :data:`~graphcal.graph.keys.TIME_OFFSET`), or ``None`` for none.
-        time_offset_mean: that prior's mean [s] (and the variable's initial value).
+            :data:`~graphcal.graph.keys.TIME_OFFSET`, one element per run of the log), or
+            ``None`` for none.
+        time_offset_mean: that prior's mean [s] (and the variable's initial value): one for
+            every run, or one per run.
+        time_offset_runs: the runs the time offset has an element for (the log's; the
+            builder sets it from the data, :meth:`for_runs`).
         lever_arm_sigma: prior sigma [m] of each component of the antenna's lever arm (a
             variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
@@ -74,9 +79,27 @@ class SegmentGraphSpec:
     slip_sigma: float | None = None
     slip_time: float = 5.0
     time_offset_sigma: float | None = None
-    time_offset_mean: float = 0.0
+    time_offset_mean: float | tuple[float, ...] = 0.0
+    time_offset_runs: int = 1
     lever_arm_sigma: float | None = None
     heading_bias_sigma: float | None = None
+
+    def for_runs(self, runs: int) -> SegmentGraphSpec:
+        """This spec for a log of ``runs`` runs (one time offset element each)."""
+        if runs == self.time_offset_runs:
+            return self
+        return dataclasses.replace(self, time_offset_runs=runs)
+
+    def time_offset_means(self) -> np.ndarray:
+        """``(time_offset_runs,)`` the time offset prior's mean per run [s]."""
+        means = np.atleast_1d(np.asarray(self.time_offset_mean, float))
+        if len(means) == 1:
+            return np.full(self.time_offset_runs, float(means[0]))
+        if len(means) != self.time_offset_runs:
+            raise ValueError(
+                f"time_offset_mean has {len(means)} values for {self.time_offset_runs} runs"
+            )
+        return means
 
     def nuisance_keys(self) -> dict[str, int]:
         """Graph-wide variables besides theta, by name: ``"time_offset"``, ``"lever_arm"``."""

@@ -15,6 +15,19 @@ from graphcal.model import C_E, PARAMETER_NAMES, T_R, THETA_NOMINAL
 PLAUSIBLE_THETA = np.array([[0.5, 5.0], [-0.1, 0.1], [0.5, 3.0], [-0.05, 0.05]])
 
 
+class ImplausibleTheta(CalibrationFailed):
+    """A solve whose theta left the plausible ranges (:func:`plausible_ranges`).
+
+    Attributes:
+        names: the parameters outside their range, in :data:`~graphcal.model.PARAMETER_NAMES`
+            order.
+    """
+
+    def __init__(self, message: str, names: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.names = names
+
+
 def plausible_ranges(reference: np.ndarray = THETA_NOMINAL) -> np.ndarray:
     """``(4, 2)`` plausible ranges of theta for a vehicle whose nominal theta is ``reference``.
 
@@ -36,7 +49,8 @@ def check_plausible(
     reference: np.ndarray = THETA_NOMINAL,
     causes: Callable[[], tuple[str, ...]] | None = None,
 ) -> None:
-    """Raise :class:`~graphcal.errors.CalibrationFailed` unless theta is finite and inside
+    """Raise :class:`~graphcal.errors.CalibrationFailed` unless theta is finite, and
+    :class:`ImplausibleTheta` unless it is inside
     the plausible ranges of a vehicle with nominal theta ``reference`` (:func:`plausible_ranges`;
     by default the paper's car, :data:`PLAUSIBLE_THETA`). ``causes()``, called only for an
     implausible theta, names what in the data or the weights likely drove the solve there
@@ -48,14 +62,17 @@ def check_plausible(
     ranges = plausible_ranges(reference)
     outside = (theta < ranges[:, 0]) | (theta > ranges[:, 1])
     if outside.any():
+        names = tuple(PARAMETER_NAMES[i] for i in np.flatnonzero(outside))
         bad = ", ".join(f"{PARAMETER_NAMES[i]} = {theta[i]:.4g}" for i in np.flatnonzero(outside))
         found = causes() if causes is not None else ()
         if found:
-            raise CalibrationFailed(
+            raise ImplausibleTheta(
                 f"{label} gave an implausible theta ({bad}, SI units); likely cause: "
-                + "; ".join(found)
+                + "; ".join(found),
+                names,
             )
-        raise CalibrationFailed(
+        raise ImplausibleTheta(
             f"{label} gave an implausible theta ({bad}, SI units); check the units of the "
-            "wheel rotations (rev per sample), sideslip (rad) and lateral acceleration (m/s²)"
+            "wheel rotations (rev per sample), sideslip (rad) and lateral acceleration (m/s²)",
+            names,
         )

@@ -112,7 +112,7 @@ def solve_segment_graph(
                 theta, label, spec.theta, lambda: implausibility_causes(built, partitioned.values())
             )
             if covariance:
-                marginal, nuisance = partitioned_marginals(partitioned, spec, label)
+                marginal, nuisance = partitioned_marginals(partitioned, built.spec, label)
     result = partitioned.values()
     return SolvedGraph(
         theta=theta,
@@ -196,8 +196,10 @@ def implausibility_causes(built: BuiltGraph, result: gtsam.Values) -> tuple[str,
     if rate < SLOW_FIX_RATE:
         causes.append(f"position fixes at only {rate:.1f} Hz")
     if spec.time_offset_sigma is not None and result.exists(keys.TIME_OFFSET):
-        offset = float(result.atVector(keys.TIME_OFFSET)[0])
-        if abs(offset - spec.time_offset_mean) > 3.0 * spec.time_offset_sigma:
+        offsets = np.asarray(result.atVector(keys.TIME_OFFSET))
+        beyond = np.abs(offsets - spec.time_offset_means()) > 3.0 * spec.time_offset_sigma
+        if beyond.any():
+            offset = float(offsets[np.argmax(beyond)])
             causes.append(
                 f"the wheels' time offset went to {offset:+.2f} s, beyond its prior "
                 f"(±{spec.time_offset_sigma:g} s): check the streams' time bases"

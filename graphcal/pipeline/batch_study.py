@@ -17,7 +17,7 @@ import numpy as np
 
 from graphcal.data.timing import whole_samples
 from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
-from graphcal.pipeline.sensor_estimates import SensorEstimate
+from graphcal.pipeline.sensor_estimates import SensorEstimate, run_of
 from graphcal.pipeline.staged import step1_thetas
 from graphcal.pipeline.whole_log import WholeLog
 from graphcal.progress import Progress
@@ -114,12 +114,12 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
     return out
 
 
-def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict[str, float]:
-    """The joint batches' time-offset prior: what the whole-log estimate leaves beyond the
-    whole-sample shift of their log, with its σ (no variable if the whole-log solve had
-    none)."""
-    found = estimated.get("time_offset")
-    if found is None:
+def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict:
+    """The joint batches' time-offset prior: what the whole-log estimate of each run leaves
+    beyond the whole-sample shift of its log, with their largest σ (no variable if the
+    whole-log solve had none)."""
+    found = [e for e in estimated.values() if run_of(e.name)[0] == "time_offset"]
+    if not found:
         return {"time_offset_sigma": 0.0}
-    rest = found.value - (whole_samples(found.value, dt) if found.detected else 0.0)
-    return {"time_offset_sigma": found.sigma, "time_offset_mean": rest}
+    rest = [e.value - (whole_samples(e.value, dt) if e.detected else 0.0) for e in found]
+    return {"time_offset_sigma": max(e.sigma for e in found), "time_offset_means": tuple(rest)}

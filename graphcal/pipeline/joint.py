@@ -99,6 +99,9 @@ class JointSettings:
         model_check: when the defect model finds a time offset, a lever arm or slip, check
             it against theta alone on held-apart segments and calibrate with the one that
             predicts them better (:mod:`graphcal.pipeline.model_check`).
+        time_offset_means: the time offset prior's mean per run of the log [s] (the rest
+            each run's shift left, for the batches and the model check), overriding
+            ``time_offset_mean``; empty: ``time_offset_mean`` for every run. Not a setting.
         held_at_prior: parameters the data did not determine, which a run holds at
             ``theta_initial`` by a tight prior (:meth:`holding`, :meth:`solve_prior_sigmas`);
             each is judged on the data's information all the same. Not a setting.
@@ -128,6 +131,7 @@ class JointSettings:
     fix_d: bool = False
     model_check: bool = True
     held_at_prior: tuple[str, ...] = field(default=(), metadata={"run_state": True})
+    time_offset_means: tuple[float, ...] = field(default=(), metadata={"run_state": True})
 
     def held(self) -> np.ndarray:
         """``(4,)`` the parameters a tight prior holds at ``theta_initial`` (``fix_d``)."""
@@ -166,7 +170,8 @@ class JointSettings:
             raise ValueError(
                 f"joint.slip must be one of {', '.join(SLIP_MODES)}, got {self.slip!r}"
             )
-        if not abs(self.time_offset_mean) <= MAX_TIME_OFFSET_MEAN:  # NaN fails too
+        means = (self.time_offset_mean, *self.time_offset_means)
+        if not all(abs(m) <= MAX_TIME_OFFSET_MEAN for m in means):  # NaN fails too
             raise ValueError(
                 f"joint.time_offset_mean must be a number of seconds within "
                 f"±{MAX_TIME_OFFSET_MEAN:g}, got {self.time_offset_mean!r}"
@@ -221,7 +226,7 @@ class JointSettings:
             slip_sigma=self.slip_sigma if slip else None,
             slip_time=self.slip_time,
             time_offset_sigma=_optional(self.time_offset_sigma),
-            time_offset_mean=self.time_offset_mean,
+            time_offset_mean=self.time_offset_means or self.time_offset_mean,
             lever_arm_sigma=_optional(self.lever_arm_sigma),
             heading_bias_sigma=_optional(self.heading_bias_sigma),
         )

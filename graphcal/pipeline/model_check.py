@@ -4,22 +4,20 @@ alone — judged by how well each predicts segments it did not see.
 The joint solve estimates, with theta, what real recordings get wrong: the wheels' time
 offset, the GNSS antenna's lever arm, a fused heading's bias per segment and slow wheel slip
 (:mod:`graphcal.pipeline.joint`). Each is a direction the solve may also use for something
-else — the model's own misfit, a per-run clock error, a skid-steer robot's scrubbing — and
-then takes what belongs to theta: on a real robot the time offset came out +98 ms (its runs
-lie between −40 and +320 ms) and the slip scales absorbed c_d; theta from such a solve
-predicts the robot's other runs worse (56 % below nominal) than theta alone (71 %).
+else — the model's own misfit, a skid-steer robot's scrubbing, noise of the fixes — and then
+takes what belongs to theta.
 
 So when the whole-log solve found one of them (a time offset or lever arm detected, slip
-modelled), :func:`check_model` cross-validates: the selected segments, in time order, are cut
-into :data:`GROUPS` groups, alternately in two folds; each model calibrates from one fold and
-dead-reckons the other's segments (eq. 16 / K), each path fitted to its fixes rigidly
-(:func:`~graphcal.pipeline.validation.position_errors` with ``aligned``: the shape of the
-path is judged, not a start heading whose noise alone is metres over a segment), with theta
-only (a sensor term is the recording's, not
-the odometry's: both thetas are judged on the same uncorrected segments). When theta alone
-predicts them better (by more than :data:`MARGIN`), the simpler model is the right one for
-this recording and the run calibrates with it (:class:`ModelCheck`). A longer log is checked on
-:data:`CHECK_SEGMENTS` segments spread over it: a model's fit does not need every segment.
+modelled), :func:`check_model` cross-validates: the selected segments, in time order, are
+cut into :data:`GROUPS` groups, alternately in two folds; each model calibrates from one
+fold and dead-reckons the other's segments (eq. 16 / K), each path fitted to its fixes
+rigidly (:func:`~graphcal.pipeline.validation.position_errors` with ``aligned``: the shape
+of the path is judged, not a start heading whose noise alone is metres over a segment), with
+theta only (a sensor term is the recording's, not the odometry's: both thetas are judged on
+the same uncorrected segments). When theta alone predicts them better (by more than
+:data:`MARGIN`), the simpler model is the right one for this recording and the run
+calibrates with it (:class:`ModelCheck`). A longer log is checked on :data:`CHECK_SEGMENTS`
+segments spread over it: a model's fit does not need every segment.
 """
 
 from __future__ import annotations
@@ -35,6 +33,7 @@ from graphcal.errors import CalibrationFailed
 from graphcal.graph.observability import condition_on_prior
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.prepare import PreparedLog
+from graphcal.pipeline.sensor_estimates import detected_offsets, time_offsets
 from graphcal.pipeline.validation import position_errors
 from graphcal.pipeline.whole_log import WholeLog
 from graphcal.progress import Progress
@@ -110,8 +109,7 @@ def defects_found(solved: WholeLog) -> tuple[str, ...]:
     """What the whole-log solve's defect model found: a time offset or lever arm detected,
     slow wheel slip modelled."""
     found = []
-    offset = solved.estimated.get("time_offset")
-    if offset is not None and offset.detected:
+    if detected_offsets(solved.estimated, solved.solved_log.runs).any():
         found.append("time offset")
     arm = [solved.estimated.get(f"lever_arm_{side}") for side in ("longitudinal", "lateral")]
     if any(e is not None and e.detected for e in arm):
@@ -151,12 +149,15 @@ def check_model(
     segments = selected.subset(picked)
     log = solved.solved_log
     weights = solved.corrected.fix_weights
-    offset = solved.estimated.get("time_offset")
-    shift = whole_samples(offset.value, log.dt) if offset is not None and offset.detected else 0.0
+    offsets = time_offsets(solved.estimated, log.runs)
+    value = np.array([0.0 if e is None else e.value for e in offsets])
+    shift = np.array(
+        [whole_samples(o, log.dt) for o in detected_offsets(solved.estimated, log.runs)]
+    )
     shifted = shift_wheel_rotations(log, shift)
     full = dataclasses.replace(
         settings,
-        time_offset_mean=(offset.value - shift) if offset is not None else 0.0,
+        time_offset_means=tuple(value - shift),
         time_offset_sigma=prepared.settings.joint.time_offset_sigma,
     )
     fold = folds(len(segments))

@@ -40,7 +40,8 @@ class SensorEstimate:
     """A sensor quantity estimated with theta (SI).
 
     Attributes:
-        name: ``"time_offset"`` [s] (positive: wheels late against the pose),
+        name: ``"time_offset"`` [s] (positive: wheels late against the pose; one per run,
+            ``"time_offset:0"``, ``"time_offset:1"``, …, in a log of several runs),
             ``"lever_arm_longitudinal"`` or ``"lever_arm_lateral"`` [m] (ahead, left).
         value, sigma: the estimate and its standard deviation.
         prior_sigma: the sigma of its zero-mean prior.
@@ -77,6 +78,32 @@ class SensorEstimate:
         }
 
 
+def component_names(variable: str, size: int) -> tuple[str, ...]:
+    """The names of a nuisance variable's ``size`` components: the time offset of a log of
+    several runs has one per run (``"time_offset:0"``, ``"time_offset:1"``, …)."""
+    if variable == "time_offset" and size > 1:
+        return tuple(f"time_offset:{run}" for run in range(size))
+    return COMPONENTS[variable]
+
+
+def run_of(name: str) -> tuple[str, int | None]:
+    """``"time_offset:2"`` → ``("time_offset", 2)``; a name without a run → ``(name, None)``."""
+    base, _, run = name.partition(":")
+    return base, (int(run) if run else None)
+
+
+def time_offsets(estimates: dict[str, SensorEstimate], runs: int) -> list[SensorEstimate | None]:
+    """The wheel time offset of each of ``runs`` runs (``None`` where not estimated)."""
+    return [estimates.get(name) for name in component_names("time_offset", runs)]
+
+
+def detected_offsets(estimates: dict[str, SensorEstimate], runs: int) -> np.ndarray:
+    """``(runs,)`` each run's detected time offset [s] (0 where none was detected)."""
+    return np.array(
+        [e.value if e is not None and e.detected else 0.0 for e in time_offsets(estimates, runs)]
+    )
+
+
 def sensor_estimates(
     nuisance: dict[str, NuisanceEstimate], max_sigma_ratio: float
 ) -> dict[str, SensorEstimate]:
@@ -84,7 +111,7 @@ def sensor_estimates(
     found = {}
     for variable, estimate in nuisance.items():
         observable = estimate.observable(max_sigma_ratio)
-        for i, name in enumerate(COMPONENTS[variable]):
+        for i, name in enumerate(component_names(variable, len(estimate.value))):
             found[name] = SensorEstimate(
                 name,
                 float(estimate.value[i]),
@@ -121,9 +148,9 @@ def correct_log(
         e = estimates.get(name)
         return e.value if e is not None and e.detected else 0.0
 
-    offset = value("time_offset")
+    offset = detected_offsets(estimates, log.runs)
     if in_whole_samples:
-        offset = whole_samples(offset, log.dt)
+        offset = np.array([whole_samples(o, log.dt) for o in offset])
     log = shift_wheel_rotations(log, offset)
     if not move_antenna:
         return log

@@ -30,6 +30,7 @@ from graphcal.data.segments import SegmentData, Segments, gather_segments
 from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.factors import pose_sigmas
 from graphcal.graph.observability import condition_on_prior, with_prior_sigmas
+from graphcal.graph.plausibility import ImplausibleTheta
 from graphcal.model import PARAMETER_NAMES, step_increments, wheel_lateral_acceleration
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.prepare import PreparedLog
@@ -37,9 +38,12 @@ from graphcal.pipeline.residual_noise import honest_sigma
 from graphcal.pipeline.sensor_estimates import (
     DownWeightedFixes,
     SensorEstimate,
+    component_names,
     correct_log,
+    detected_offsets,
     log_weights,
     not_estimated,
+    run_of,
     sensor_estimates,
 )
 from graphcal.pipeline.settings import Settings
@@ -47,6 +51,9 @@ from graphcal.progress import Progress
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
+#: A time offset's rest beyond the wheels' shift is shifted again only beyond this many
+#: sample intervals (else the graph's first-order shift covers it).
+SHIFT_HYSTERESIS = 0.6
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this
 #: share (a variance component; one more solve).
 POSITION_NOISE_TOLERANCE = 0.25
@@ -100,9 +107,15 @@ def solve_whole_log(
     """
     log, settings = prepared.log, prepared.settings
     gathered, validation = prepared.data, prepared.validation
-    whole, values, data, offset = solve_with_time_offset(
-        log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
-    )
+    try:
+        whole, values, data, offset = solve_with_time_offset(
+            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
+        )
+    except ImplausibleTheta as runaway:
+        settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
+        whole, values, data, offset = _holding_a_runaway(
+            prepared, settings.joint, runaway, say, workers
+        )
     joint = _with_noise_levels(whole, settings.joint, gathered.has_heading(), say)
     if log.ay_from_wheels:
         whole = _d_on_a_straight_drive(whole, data, say)
@@ -145,6 +158,41 @@ def solve_whole_log(
     return WholeLog(whole, estimated, down_weighted, log, corrected), values
 
 
+def _holding_a_runaway(
+    prepared: PreparedLog,
+    settings: JointSettings,
+    runaway: ImplausibleTheta,
+    say: Progress,
+    workers: int,
+) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
+    """The whole-log solve under ``settings``, which hold the parameters that ran out of
+    their plausible range in the first solve (``runaway``) at their prior; ``runaway``
+    raised again when the data determine one of them (then the data put it there: wrong
+    units, not a weak direction).
+
+    A direction the data barely determine drifts where the model's misfit pulls it, a long
+    way under a weak prior: a 2 km straight road from 10 Hz fixes without heading drove t_r
+    to 0.49 m (its prior 1.5 ± 0.2 m) in 50 iterations, and "check the units" ended a valid
+    recording. Whether a direction is determined is read from the held solve's covariance
+    with the weak prior put back (:func:`~graphcal.graph.observability.with_prior_sigmas`)."""
+    them = "it" if len(runaway.names) == 1 else "them"
+    say(
+        f"{', '.join(runaway.names)} left the plausible range in the first solve: solved again "
+        f"held at the prior, to see whether the data determine {them}"
+    )
+    whole, values, data, offset = solve_with_time_offset(
+        prepared.log, prepared.data, prepared.selected, prepared.fix_weights, settings, say, workers
+    )
+    weak = dataclasses.replace(settings, held_at_prior=())
+    covariance = with_prior_sigmas(
+        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
+    )
+    determined = weak.observability(covariance).calibrated
+    if any(determined[PARAMETER_NAMES.index(name)] for name in runaway.names):
+        raise runaway
+    return whole, values, data, offset
+
+
 def solve_with_time_offset(
     log: DriveLog,
     data: SegmentData,
@@ -153,10 +201,11 @@ def solve_with_time_offset(
     settings: JointSettings,
     say: Progress,
     workers: int = 1,
-) -> tuple[JointCalibration, gtsam.Values, SegmentData, float]:
+) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
     the offset found so far, rounded to whole samples, and the solve repeated, so that the
-    graph's first-order shift only covers the rest (at most about half a sample).
+    graph's first-order shift only covers the rest (at most about half a sample). A log of
+    several runs has an offset per run, each run shifted by its own.
 
     Whole samples because a shift is exact only for them: between samples it averages
     neighbouring rotations, which smooths their noise (tick quantization above all) away
@@ -164,21 +213,28 @@ def solve_with_time_offset(
     and 62.5 ms latency, fractional shifting moved t_r by 4.3σ (``docs/defects.md``).
 
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
-    the last solve, its values, the segments it solved and the shift [s] of their wheels."""
+    the last solve, its values, the segments it solved and the shift [s] of each run's
+    wheels."""
     whole, values = _whole_log_solve(data, settings, say, workers)
-    shift = 0.0
+    shift = np.zeros(log.runs)
     for _ in range(OFFSET_ROUNDS - 1):
-        found = sensor_estimates(whole.nuisance, settings.max_sigma_ratio).get("time_offset")
-        if found is None or not found.detected:
-            break
-        rounded = whole_samples(shift + found.value, log.dt)
-        if rounded == shift:
+        found = detected_offsets(
+            sensor_estimates(whole.nuisance, settings.max_sigma_ratio), log.runs
+        )
+        rounded = np.array([whole_samples(s, log.dt) for s in shift + found])
+        if not found.any() or np.array_equal(rounded, shift):
             break  # what is left is less than a sample: the graph's first order covers it
         shift = rounded
-        say(f"wheels shifted by {shift * 1e3:+.1f} ms; solved again from the shifted log")
+        shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
+        say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
         whole, values = _whole_log_solve(data, settings, say, workers)
     return whole, values, data, shift
+
+
+def _per_run(runs: int) -> str:
+    """`` (runs 0, 1, …)`` after a list of one value per run; empty for one run."""
+    return "" if runs == 1 else f" (runs 0–{runs - 1})"
 
 
 def _whole_log_solve(
@@ -324,15 +380,17 @@ def _d_on_a_straight_drive(
 
 
 def _with_total_offset(
-    estimates: dict[str, SensorEstimate], offset: float
+    estimates: dict[str, SensorEstimate], offset: np.ndarray
 ) -> dict[str, SensorEstimate]:
-    """``estimates`` with the time offset's value the total: ``offset`` the log was shifted
-    by, plus what the last solve found."""
-    found = estimates.get("time_offset")
-    if found is None or offset == 0.0:
-        return estimates
-    total = dataclasses.replace(found, value=found.value + offset)
-    return {**estimates, "time_offset": total}
+    """``estimates`` with each run's time offset the total: the ``offset`` [s] its wheels
+    were shifted by, plus what the last solve found."""
+    out = dict(estimates)
+    names = component_names("time_offset", len(offset))
+    for name, shift in zip(names, offset, strict=True):
+        found = out.get(name)
+        if found is not None and shift != 0.0:
+            out[name] = dataclasses.replace(found, value=found.value + float(shift))
+    return out
 
 
 def _corrected(
@@ -400,7 +458,10 @@ def _estimate_lines(estimated: dict[str, SensorEstimate]) -> list[str]:
     """One progress line per sensor estimate."""
     lines = []
     for name, e in estimated.items():
-        label, unit, scale, digits = _ESTIMATE_FORMAT[name]
+        base, run = run_of(name)
+        label, unit, scale, digits = _ESTIMATE_FORMAT[base]
+        if run is not None:
+            label = f"{label} (run {run})"
         if e.observable:
             lines.append(
                 f"{label}: {e.value * scale:+.{digits}f} ± {e.sigma * scale:.{digits}f} {unit}; "

@@ -182,10 +182,13 @@ def estimates_table(estimated: dict) -> str:
     with 1σ and the verdict (detected ones are corrected in the log)."""
     rows = [["sensors, estimated with θ", "value", "1σ", "verdict"]]
     for name, e in estimated.items():
-        label, unit, scale, digits = _ESTIMATES.get(name, (name, "SI", 1.0, 4))
+        base, _, run = name.partition(":")
+        label, unit, scale, digits = _ESTIMATES.get(base, (base, "SI", 1.0, 4))
+        if run:
+            label = f"{label}, run {run}"
         value, sigma = f"{e.value * scale:+.{digits}f}", f"{e.sigma * scale:.{digits}f}"
-        if not e.observable:
-            value = ""
+        if not e.observable:  # its prior's sigma is no estimate's
+            value, sigma = "-", "-"
         rows.append([f"{label} [{unit}]", value, sigma, e.verdict])
     return _render(rows)
 
