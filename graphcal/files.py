@@ -47,3 +47,12 @@ def atomic_write_csv(frame: Any, path: str | os.PathLike[str]) -> Path:
 def atomic_save_figure(figure: Any, path: str | os.PathLike[str], dpi: int = 120) -> Path:
     """Save a matplotlib figure as PNG atomically."""
     return _atomic(path, lambda handle: figure.savefig(handle, format="png", dpi=dpi), "wb")
+
+
+def staging_directory(beside: Path) -> Path:
+    """A new empty directory beside ``beside`` (named after it, hidden) with the mode a
+    ``mkdir`` under the user's umask gives: what a result set is written into before it is
+    renamed into place (``mkdtemp`` makes 0700 whatever the umask)."""
+    staging = Path(tempfile.mkdtemp(prefix=f".{beside.name}.new-", dir=beside.parent))
+    os.chmod(staging, 0o777 & ~_UMASK)
+    return staging

@@ -8,18 +8,25 @@ several commands share are in :mod:`graphcal.cli.options`. Bad input prints one 
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import sys
 from collections.abc import Sequence
+from types import ModuleType
 
 from graphcal import GraphcalError, __version__, first_line
-from graphcal.cli import bench, calibrate, check, fleet, import_, simulate
 
 EXIT_BAD_INPUT = 2
 #: Exit status after Ctrl-C.
 EXIT_INTERRUPTED = 130
-#: The commands, in the order ``graphcal --help`` lists them.
-COMMANDS = (simulate, bench, import_, check, calibrate, fleet)
+#: The commands' modules (in :mod:`graphcal.cli`), in the order ``graphcal --help`` lists them.
+COMMANDS = ("simulate", "bench", "import_", "check", "calibrate", "fleet")
+
+
+def _command_modules() -> list[ModuleType]:
+    """The commands' modules, imported when the parser is built: inside :func:`main`, so that
+    a Ctrl-C while GTSAM loads is an interrupt like any other."""
+    return [importlib.import_module(f"graphcal.cli.{name}") for name in COMMANDS]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"graphcal {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for command in COMMANDS:
+    for command in _command_modules():
         p = sub.add_parser(
             command.NAME,
             help=command.HELP,
@@ -43,9 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``graphcal`` console script; returns the exit status."""
-    parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = build_parser().parse_args(argv)
         return args.func(args)
     except GraphcalError as exc:
         print(f"graphcal: error: {exc}", file=sys.stderr)
@@ -53,6 +59,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt as exc:  # a note, if any, says what was kept and how to go on
         note = first_line(str(exc))
         print(f"graphcal: interrupted{f'; {note}' if note else ''}", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except ImportError as exc:  # an extension module's import interrupted
+        if not isinstance(exc.__cause__, KeyboardInterrupt):
+            raise
+        print("graphcal: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:  # e.g. `graphcal check LOG | head`: the reader left, not an error
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -61,6 +61,21 @@ def check_import_output(source: str | os.PathLike[str], out: str | os.PathLike[s
             raise StreamError(
                 f"--out {out}: would overwrite {path}, a file of the recording; choose another path"
             )
+    if (out.exists() or sidecar_of(out).exists()) and not _written_by_graphcal(out):
+        raise StreamError(
+            f"--out {out}: would overwrite a file graphcal did not write (a drive log graphcal "
+            f"wrote has its {sidecar_of(out).name} beside it); choose another path or remove it"
+        )
+
+
+def _written_by_graphcal(csv_path: Path) -> bool:
+    """Whether ``csv_path`` and its sidecar are a drive log graphcal wrote (an import or a
+    simulated drive): its sidecar is JSON naming graphcal as its generator."""
+    try:
+        meta = json.loads(sidecar_of(csv_path).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(meta, dict) and str(meta.get("generator", "")).startswith("graphcal ")
 
 
 def write_import(imported: ImportedLog, csv_path: str | os.PathLike[str]) -> list[Path]:

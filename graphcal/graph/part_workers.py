@@ -12,6 +12,7 @@ from __future__ import annotations
 import itertools
 import multiprocessing
 import multiprocessing.context
+import signal
 from dataclasses import dataclass
 from typing import Any
 
@@ -120,7 +121,9 @@ class _RemoteGroup:
 
 
 def _serve(connection, group: PartGroup) -> None:
-    """A worker's loop: answer requests until :class:`Stop`."""
+    """A worker's loop: answer requests until :class:`Stop`. Ctrl-C ends the worker without
+    a word (:func:`~graphcal.pipeline.parallel.quiet_on_interrupt`'s reason)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
     while True:
         request = connection.recv()
         if isinstance(request, Stop):

@@ -7,6 +7,7 @@ function of its arguments, so the output of a run does not depend on ``workers``
 from __future__ import annotations
 
 import os
+import signal
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -54,11 +55,19 @@ def map_tasks(
             report(len(results))
         return results
     chunk = max(1, total // (workers * 8))
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    with ProcessPoolExecutor(max_workers=workers, initializer=quiet_on_interrupt) as pool:
         for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
             results.append(result)
             report(len(results))
     return results
+
+
+def quiet_on_interrupt() -> None:
+    """A worker process's Ctrl-C ends it without a word: the terminal sends SIGINT to every
+    process of the command, and the parent alone says ``graphcal: interrupted`` (workers
+    that raised KeyboardInterrupt printed ~140 lines of tracebacks, and the parent saw a
+    broken pipe, not the interrupt: exit 1)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def _with(function: Callable[..., R], tasks: Iterable[tuple[Any, ...]]):

@@ -25,6 +25,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from graphcal.errors import GraphcalError
+from graphcal.files import staging_directory
 
 #: Every file name a result set can hold.
 RESULT_FILES = frozenset(
@@ -116,7 +117,7 @@ def replace_result_set(
     """
     out = check_output_directory(path)
     out.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.new-", dir=out.parent))
+    staging = staging_directory(out)
     # The earlier set is renamed beside itself (same parent: no write access to the set
     # itself needed) and removed only once the new set is in place.
     retired = out.parent / f"{staging.name.replace('.new-', '.old-', 1)}"

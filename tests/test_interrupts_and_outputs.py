@@ -1,0 +1,95 @@
+"""What a new user hits around a run (issue 35): Ctrl-C, an output path onto a file graphcal
+did not write, the modes of what it writes."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from graphcal.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "data" / "sample_drive.csv"
+CAN_MANIFEST = ROOT / "data" / "real" / "comma2k19" / "can.toml"
+
+
+def test_import_refuses_to_overwrite_a_file_it_did_not_write(tmp_path, capsys):
+    mine = tmp_path / "afile.txt"
+    mine.write_text("my notes\n")
+    assert main(["import", str(CAN_MANIFEST), "--out", str(mine)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "would overwrite a file graphcal did not write" in err, err
+    assert mine.read_text() == "my notes\n"
+
+
+def test_import_replaces_its_own_earlier_output(tmp_path, capsys):
+    out = tmp_path / "drive.csv"
+    assert main(["import", str(CAN_MANIFEST), "--out", str(out)]) == 0
+    first = out.read_bytes()
+    assert main(["import", str(CAN_MANIFEST), "--out", str(out)]) == 0
+    assert out.read_bytes() == first
+
+
+def test_a_result_directory_has_the_mode_of_the_users_umask(tmp_path):
+    """As ``mkdir`` would make it (``mkdtemp``'s 0700 locked a shared results folder)."""
+    out = tmp_path / "results"
+    script = (
+        "import os; os.umask(0o022)\n"
+        "from graphcal.files import atomic_write_text\n"
+        "from graphcal.report.result_set import replace_result_set\n"
+        f"replace_result_set({str(out)!r}, lambda d: [atomic_write_text(d / 'a.json', '{{}}')])"
+    )
+    subprocess.run([sys.executable, "-c", script], check=True, capture_output=True)
+    assert out.stat().st_mode & 0o777 == 0o755
+    assert (out / "a.json").stat().st_mode & 0o777 == 0o644
+
+
+def _interrupted(arguments: list[str], after: float, cwd: Path) -> subprocess.CompletedProcess:
+    """``graphcal ARGUMENTS`` run with its output in files, sent Ctrl-C (SIGINT to its process
+    group, as a terminal does) ``after`` seconds in."""
+    out, err = cwd / "stdout.txt", cwd / "stderr.txt"
+    with out.open("w") as stdout, err.open("w") as stderr:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "graphcal.cli", *arguments],
+            stdout=stdout,
+            stderr=stderr,
+            cwd=cwd,
+            start_new_session=True,
+        )
+        time.sleep(after)
+        os.killpg(process.pid, signal.SIGINT)
+        code = process.wait(timeout=120)
+    return subprocess.CompletedProcess(arguments, code, out.read_text(), err.read_text())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("after", [0.3, 1.6, 5.0])
+def test_ctrl_c_during_calibrate_says_one_line_exits_130_and_writes_nothing(tmp_path, after):
+    run = _interrupted(
+        ["calibrate", str(SAMPLE), "--workers", "2", "--out", "results"], after, tmp_path
+    )
+    if run.returncode == 0:  # finished before the interrupt: nothing to judge
+        pytest.skip(f"the run ended within {after} s")
+    assert run.returncode == 130, run.stderr
+    assert run.stderr.strip().splitlines()[-1].startswith("graphcal: interrupted"), run.stderr
+    assert "Traceback" not in run.stderr, run.stderr
+    if after >= 5.0:  # what it said before is kept
+        assert "loaded" in run.stderr, run.stderr
+    assert not (tmp_path / "results").exists()
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.slow
+def test_ctrl_c_during_import_says_one_line_and_writes_nothing(tmp_path):
+    run = _interrupted(["import", str(CAN_MANIFEST), "--out", "drive.csv"], 1.0, tmp_path)
+    if run.returncode == 0:
+        pytest.skip("the import ended within 1 s")
+    assert run.returncode == 130, run.stderr
+    assert "Traceback" not in run.stderr, run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["stderr.txt", "stdout.txt"]
