@@ -287,6 +287,8 @@ def simulate_drive(
     if route == "straight":
         rng = np.random.default_rng([seed, 20251, 1])
         kappa, target = make_highway_route(length, rng, max_curvature)
+        n = round(length / DS) + 1  # the highway's pieces are long: cut it at ``length``
+        kappa, target = kappa[:n], target[:n]
         v = speed_profile(kappa, target, HIGHWAY_SPEED, HIGHWAY_ACCEL, v_start=None)
     else:
         rng = np.random.default_rng([seed, 20251])
