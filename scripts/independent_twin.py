@@ -981,7 +981,7 @@ def _route_cases(args, route: str, base: Path) -> list[Case]:
                 label += "" if model == "yes" else ", --no-defect-model"
                 cases.append(
                     Case(
-                        seed, directory, f"skid-steer {robot.length:.0f} m{label}",
+                        seed, directory, f"skid-steer {args.robot_length_m:g} m{label}",
                         source="../manifest.toml", extra=extra,
                         theta_true=ROBOT_THETA_TRUE.copy(),
                         expect={"c_e": "calibrated", "t_r": "calibrated"},
