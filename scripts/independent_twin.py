@@ -4,6 +4,12 @@
 
 (every case of the default grid; restrict an axis with ``--rates 10``, ``--heading yes``,
 ``--imu no``, ``--wheels ticks``; ``--keep DIR`` keeps the recordings and results).
+Other shapes (``--route``, several in one run; described below, after the town car):
+
+    python scripts/independent_twin.py --route straight --lengths 1 2 6 24 --jobs 1
+    python scripts/independent_twin.py --route skid-steer --jobs 1
+    python scripts/independent_twin.py --route ticks-csv --jobs 1
+    python scripts/independent_twin.py --route straight skid-steer ticks-csv --jobs 1
 
 Why: graphcal's own simulator (``graphcal.simulate``) generates its data with the very model
 graphcal calibrates (the paper's eqs. 1–3: rear-wheel rotations -> distance and yaw of the
@@ -80,12 +86,54 @@ wheel speeds); mean (error/σ)² 1.04 (c_e), 0.40 (c_d), 0.49 (t_r), 0.46 (d). T
 came out 0.81–0.98 m ahead (true 1.0: the slip absorbed) and 0.28–0.31 m left. With
 ``--slip-k 0`` (10 Hz, heading, IMU; 10 runs) it is 1.00 m ahead and all within 3σ.
 
-Per case the table gives the exit status of ``graphcal calibrate`` (0, or 3 when a trust
-check fails), whether the run is trusted, and error/σ per parameter against the TRUE theta
-(or the parameter's status when it was not calibrated), with the lever arm graphcal
-estimated. The summary: runs with every calibrated parameter within 3σ, mean (error/σ)² per
-parameter (1 when the σ are right), and per recording shape over the seeds the worst
-|error/σ|.
+Other shapes (``--route``)
+--------------------------
+``--route straight`` — a highway. The same car and sensors on a road of straights and very
+wide bends (|curvature| <= 8e-5 1/m, ``--highway-curvature``; 0 is dead straight), 20-30
+m/s per 300-1500 m piece with +0.3/-0.4 m/s² between them, recorded from mid-drive and cut
+at the length (``--lengths``, default 1 2 6 24 km). Recorded by default as GNSS at 10 Hz
+(σ 0.15 m, no heading), CAN wheel speeds, no IMU (``--rates``, ``--heading``, ``--imu``,
+``--wheels`` override it). Expected: exit 0, c_e and c_d (relative to t_r) calibrated within
+3σ, t_r and d "not observable".
+
+``--route skid-steer`` — a small skid-steer robot outdoors, ``--robot-length-m`` (360) of
+straights and arcs at 0.5-1.5 m/s, tight turns (radius 0.3-1 m), turns on the spot and
+stops, in random order, the commands smoothed over 0.8 s. Its centre moves along its heading
+at v = (v_l + v_r)/2 and turns at (v_r - v_l)/t_eff with the EFFECTIVE track t_eff = 1.08 m,
+about twice the physical 0.55 m (the tracks slide sideways in turns); each side's speed is
+its sprocket's rotation times the effective circumference c_e ± c_d/2 (true theta
+[0.785 m, 0.6 mm, 1.08 m, 0]). Sensors: a consumer GPS at 2.5 Hz, σ 1 m per axis, white
+(``--robot-gnss-tau S`` makes it a Gauss-Markov error with that correlation time), no
+heading, its antenna 0.15 m behind the centre; an IMU at the centre at 100 Hz (lateral
+acceleration σ 0.1 m/s², yaw rate σ 0.2°/s); each sprocket's angular speed [rad/s] at 50 Hz
+(σ 0.05 rad/s). Calibrated with ``--vehicle data/vehicles/skid_steer_robot.toml`` (nominal:
+the physical 0.55 m track, 0.80 m circumference, track prior σ 0.5 m), with and without
+``--no-defect-model`` (``--defect-model yes no``). Expected: exit 0, c_e and t_r (the
+effective track) calibrated within 3σ.
+
+``--route ticks-csv`` — a 24 km town drive (the town car above) written as graphcal's
+drive-log CSV at 40 Hz (t, px, py, psi, n_rl, n_rr, beta, ay) as a logger would: the antenna's
+position (lever arm 1.0 m ahead, 0.3 m left) with 0.2 m white noise, a fused heading with
+0.3° noise, each interval's wheel rotation the difference of two 96-tick counter readings
+taken 15 ms before the row's time (wheels late), except the first row's (the rotation since
+an instant between two counts: off the tick grid), beta 0 and the IMU's lateral acceleration
+(σ 0.05 m/s²). Calibrated with defaults and with ``ticks_per_revolution = 96`` in a
+``--config`` file's ``[vehicle]`` (``--tick-config no yes``). Expected: "wheel rotations are
+counts of 96 ticks per revolution (found in the rotations)" and every parameter within 3σ.
+
+The table
+---------
+Per run: the exit status of ``graphcal calibrate`` (0; 2 refused or failed; 3 when a trust
+check fails), whether the run is trusted, error/σ per parameter against the case's TRUE
+theta with graphcal's verdict where it is not plain "calibrated" (``given d``: calibrated
+given d = prior; ``n/o``: not observable; ``fixed``: held by the vehicle profile), and how
+the run departs from what its case expects. The summary: runs with every parameter that has
+a σ within 3σ, mean (error/σ)² per parameter (1 when the σ are right); per case over its
+seeds the worst |error/σ| and the mean (error/σ)²; then graphcal's own lines on the time
+offset, the lever arm, the model check and the tick count, and its warnings and errors.
+(``calibration.json`` holds the lever arm only when the model check keeps the defect model,
+so the lines are read from graphcal's progress output, kept as ``calibrate.log`` beside each
+result with the exact command in ``command.txt``.)
 """
 
 from __future__ import annotations
