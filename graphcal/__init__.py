@@ -87,6 +87,12 @@ _PUBLIC = {
     "JointSettings": "graphcal.pipeline.joint",
     "assess_observability": "graphcal.graph.observability",
     "Observability": "graphcal.graph.observability",
+    # Validation on data the calibration did not see: another log, or held-apart windows.
+    "validation_errors": "graphcal.pipeline.held_apart",
+    "HeldApartErrors": "graphcal.pipeline.held_apart",
+    "time_windows": "graphcal.pipeline.held_apart",
+    "holding_apart": "graphcal.pipeline.held_apart",
+    "time_window": "graphcal.pipeline.held_apart",
     # Fleets: many vehicles' daily logs on Dask (the ``fleet`` extra).
     "run_fleet": "graphcal.fleet.run",
     "FleetRun": "graphcal.fleet.run",

@@ -10,6 +10,7 @@ runs. docs/real.md has the figures these tests guard.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -19,7 +20,7 @@ import pytest
 from graphcal import open_log
 from graphcal.cli import main
 from graphcal.pipeline.configure import configure_settings
-from graphcal.pipeline.held_apart import holding_apart, time_windows, validation_errors, window
+from graphcal.pipeline.held_apart import holding_apart, time_window, time_windows, validation_errors
 from graphcal.pipeline.run import run_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -52,7 +53,7 @@ def _held_apart(source: Path, defect_model: bool = True) -> tuple[float, float]:
     nominal, calibrated = [], []
     for start, end in time_windows(log, 3):
         run = run_calibration(holding_apart(log, np.array([[start, end]])), settings, "whole")
-        errors = validation_errors(window(log, start, end), run.theta, settings)
+        errors = validation_errors(time_window(log, start, end), run.theta, settings)
         nominal.append(np.mean(errors.nominal))
         calibrated.append(np.mean(errors.calibrated))
     return float(np.mean(nominal)), float(np.mean(calibrated))
@@ -96,3 +97,22 @@ def test_the_real_robot_calibrates_from_its_free_runs_and_predicts_its_other_run
     errors = validation_errors(other, theta, settings)
     assert len(errors.segments) == 12  # each circular and square run a segment of its own
     assert errors.improvement >= 0.45, errors.improvement
+
+
+@pytest.mark.parametrize(
+    "source", [ROOT / "data" / "sample_drive.csv", CAR / "drive.csv", CAR / "gnss.toml"]
+)
+def test_no_verdict_hinges_on_how_wide_the_prior_was_set(source):
+    # Verdicts judge the data's information against fixed reference sigmas, with what the
+    # data do not determine held at the prior: twice or half the prior's width changes none
+    # (twice the width turned d "calibrated" on this highway minute, which has no bends).
+    base = configure_settings()
+    log, _ = open_log(source, base.vehicle, min_distance=base.segments.length)
+    verdicts = []
+    for scale in (1.0, 2.0, 0.5):
+        joint = dataclasses.replace(
+            base.joint, theta_prior_sigmas=base.joint.theta_prior_sigmas * scale
+        )
+        run = run_calibration(log, dataclasses.replace(base, joint=joint), "whole")
+        verdicts.append(run.verdicts())
+    assert verdicts[1] == verdicts[0] == verdicts[2], verdicts

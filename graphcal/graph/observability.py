@@ -232,7 +232,7 @@ def assess_observability(
     reference = prior_sigmas if reference_sigmas is None else np.asarray(reference_sigmas, float)
     reference = np.where(held, prior_sigmas, reference)  # a held one stays held
     if not np.array_equal(reference, prior_sigmas):
-        covariance = _with_prior(covariance, prior_sigmas, reference)
+        covariance = with_prior_sigmas(covariance, prior_sigmas, reference)
     sigma = np.sqrt(np.diag(covariance))
     ratio = sigma / reference
     correlation = covariance / np.outer(sigma, sigma)
@@ -253,7 +253,7 @@ def assess_observability(
     )
 
 
-def _with_prior(covariance: np.ndarray, prior: np.ndarray, other: np.ndarray) -> np.ndarray:
+def with_prior_sigmas(covariance: np.ndarray, prior: np.ndarray, other: np.ndarray) -> np.ndarray:
     """``covariance`` of a solve under a zero-correlation prior of sigmas ``prior`` turned
     into the one under a prior of sigmas ``other``: the prior's information taken out, the
     other's put in (in prior-sigma units, where the prior's information is the identity;

@@ -5,7 +5,7 @@ A calibration's own validation (eq. 16 on the log it calibrated from) shows how 
 fits that log; a user judges a calibration by how well it predicts driving it never saw.
 :func:`validation_errors` dead-reckons the validation segments of any log with a theta (the
 same segments and errors as a run's validation, :mod:`graphcal.pipeline.validation`).
-:func:`time_windows`, :func:`holding_apart` and :func:`window` cut one log into a part to
+:func:`time_windows`, :func:`holding_apart` and :func:`time_window` cut one log into a part to
 calibrate from (the windows masked: no segment spans them, so none of their measurements is
 used) and the windows to validate on.
 """
@@ -95,7 +95,7 @@ def holding_apart(log: DriveLog, windows: np.ndarray) -> DriveLog:
     return dataclasses.replace(log, masked=masked, mask_notes=notes)
 
 
-def window(log: DriveLog, start: float, end: float) -> DriveLog:
+def time_window(log: DriveLog, start: float, end: float) -> DriveLog:
     """The samples of ``log`` in ``[start, end)`` [s], as a log of their own."""
     rows = np.flatnonzero((log.t >= start) & (log.t < end))
     if len(rows) < 2:

@@ -29,35 +29,28 @@ import numpy as np
 from graphcal.data.segments import SegmentData
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
-from graphcal.graph.estimates import SolvedGraph, ThetaEstimate
+from graphcal.graph.estimates import ThetaEstimate
 from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.graph.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
-from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
+from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
+from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.robust import solve_segment_graph_robust
 from graphcal.pipeline.slip_screen import with_slip_if_shown
 from graphcal.pipeline.warm_start import warm_start
 from graphcal.progress import Progress
+from graphcal.vehicle import HELD_SIGMA_SCALE
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
 #: order, which holds for tens of milliseconds, not for seconds.
 MAX_TIME_OFFSET_MEAN = 1.0
-#: Fixes a position-noise estimate needs at least.
-MIN_NOISE_FIXES = 100
 #: ``JointSettings.slip``: model slow wheel slip when the log shows it, always, or never.
 SLIP_MODES = ("auto", "on", "off")
 #: Relative error tolerance of the joint solves.
 TOLERANCE = 1e-7
-#: The fixes count as correlated (weighted by :attr:`JointCalibration.effective_position_noise`)
-#: when their residuals' variance of a mean exceeds white noise's by this factor (white
-#: simulated fixes: 1.00–1.02; a real u-blox receiver at 10 Hz: 3.0; a fused pose at 20 Hz:
-#: 45, its errors alike for seconds).
-CORRELATED_ERRORS = 1.5
-#: Largest lag [fixes] :func:`error_correlation` sums over.
-MAX_CORRELATION_LAG = 400
 
 
 @dataclass(frozen=True)
@@ -106,6 +99,9 @@ class JointSettings:
         model_check: when the defect model finds a time offset, a lever arm or slip, check
             it against theta alone on held-apart segments and calibrate with the one that
             predicts them better (:mod:`graphcal.pipeline.model_check`).
+        held_at_prior: parameters the data did not determine, which a run holds at
+            ``theta_initial`` by a tight prior (:meth:`holding`, :meth:`solve_prior_sigmas`);
+            each is judged on the data's information all the same. Not a setting.
     """
 
     theta_initial: np.ndarray = field(default_factory=lambda: THETA_NOMINAL.copy())
@@ -131,10 +127,27 @@ class JointSettings:
     heading_noise_from_log: bool = True
     fix_d: bool = False
     model_check: bool = True
+    held_at_prior: tuple[str, ...] = field(default=(), metadata={"run_state": True})
 
     def held(self) -> np.ndarray:
         """``(4,)`` the parameters a tight prior holds at ``theta_initial`` (``fix_d``)."""
         return np.array([False, False, False, self.fix_d])
+
+    def holding(self, names: list[str] | tuple[str, ...]) -> JointSettings:
+        """These settings with the parameters ``names`` held at ``theta_initial`` too
+        (:meth:`solve_prior_sigmas`): what the data do not determine stays where the prior
+        has it, whatever the prior's width."""
+        added = tuple(n for n in names if n not in self.held_at_prior)
+        return dataclasses.replace(self, held_at_prior=(*self.held_at_prior, *added))
+
+    def solve_prior_sigmas(self) -> np.ndarray:
+        """``(4,)`` the theta prior's sigmas a solve uses: ``theta_prior_sigmas``, those of
+        the parameters ``held_at_prior`` :data:`~graphcal.vehicle.HELD_SIGMA_SCALE` times as
+        large. A held parameter's uncertainty is still its ``theta_prior_sigmas``'."""
+        sigmas = np.array(self.theta_prior_sigmas, dtype=float)
+        for name in self.held_at_prior:
+            sigmas[PARAMETER_NAMES.index(name)] *= HELD_SIGMA_SCALE
+        return sigmas
 
     def observability(self, covariance: np.ndarray) -> Observability:
         """What a solve's theta ``covariance`` (under this prior) says the data determined,
@@ -142,7 +155,7 @@ class JointSettings:
         (:func:`graphcal.graph.observability.assess_observability`), not the prior's."""
         return assess_observability(
             covariance,
-            self.theta_prior_sigmas,
+            self.solve_prior_sigmas(),
             self.max_sigma_ratio,
             self.held(),
             reference_sigmas=reference_sigmas(self.theta_initial),
@@ -196,7 +209,7 @@ class JointSettings:
         return SegmentGraphSpec(
             theta=np.asarray(self.theta_initial, float),
             tracking_sigmas=sigmas,
-            theta_prior_sigmas=np.asarray(self.theta_prior_sigmas, float) if theta_prior else None,
+            theta_prior_sigmas=self.solve_prior_sigmas() if theta_prior else None,
             start_prior_sigmas=sigmas,
             chunk_steps=self.chunk_steps,
             continuity_sigmas=np.asarray(self.continuity_sigmas, float),
@@ -262,16 +275,6 @@ class JointCalibration(ThetaEstimate):
     def position_noise(self) -> float | None:
         """The RMS per axis [m] of the fixes' position residuals (:attr:`noise`)."""
         return self.noise.position
-
-
-def honest_sigma(rms: float | None, correlation: float | None) -> float | None:
-    """The sigma that weighs measurements honestly from their residuals' ``rms``: times
-    ``√correlation`` when their errors are correlated (:data:`CORRELATED_ERRORS`), since n
-    of them then carry the information of n / that factor independent ones."""
-    if rms is None:
-        return None
-    factor = correlation or 1.0
-    return rms * (float(np.sqrt(factor)) if factor >= CORRELATED_ERRORS else 1.0)
 
 
 def calibrate_joint(
@@ -355,79 +358,3 @@ def solve_joint(
         nuisance=solved.nuisance,
     )
     return calibration, solved.result
-
-
-@dataclass(frozen=True)
-class ResidualNoise:
-    """The noise the residuals of a solve show, per kind of measurement (SI).
-
-    Attributes:
-        position: RMS per axis [m] of the position residuals of the fixes that kept full
-            weight, and ``position_correlation`` their :func:`error_correlation`.
-        heading: RMS [rad] of the heading residuals, and ``heading_correlation`` theirs.
-        wheel_chi2: χ² per row of the wheel-rotation corrections' priors (about 1 or less
-            when the wheels are as noisy as assumed: the data determine the corrections only
-            in part; well above 1, the wheels are noisier).
-        Each is ``None`` for fewer than :data:`MIN_NOISE_FIXES` measurements of its kind.
-    """
-
-    position: float | None = None
-    position_correlation: float | None = None
-    heading: float | None = None
-    heading_correlation: float | None = None
-    wheel_chi2: float | None = None
-
-
-def residual_noise(
-    solved: SolvedGraph, data: SegmentData, weights: np.ndarray | None
-) -> ResidualNoise:
-    """:class:`ResidualNoise` of ``solved`` over ``data`` with the fix ``weights`` (the
-    robust ones, or ``None``)."""
-    residuals = solved.built.pose_residuals(solved.result, solved.partitioned)
-    used = data.position_fixes()
-    if weights is not None:
-        used &= weights >= 1.0
-    headings = data.valid.copy()
-    if data.measured is not None:
-        headings &= data.measured[..., 1]
-    out = {}
-    for name, rows, columns in (
-        ("position", used, slice(0, 2)),
-        ("heading", headings, slice(2, 3)),
-    ):
-        if rows.sum() >= MIN_NOISE_FIXES:
-            part = residuals[..., columns]
-            out[name] = float(np.sqrt(np.mean(part[rows] ** 2)))
-            out[f"{name}_correlation"] = error_correlation(part, rows)
-    chi2, rows = solved.built.correction_chi2(solved.result, solved.partitioned)
-    if rows >= MIN_NOISE_FIXES:
-        out["wheel_chi2"] = chi2 / rows
-    return ResidualNoise(**out)
-
-
-def error_correlation(residuals: np.ndarray, used: np.ndarray) -> float:
-    """``1 + 2 Σ_k ρ_k``: the autocorrelation ρ_k of the residuals ``(S, K+1, C)`` of the
-    ``used`` ``(S, K+1)`` measurements, from one to the next within each segment (all C
-    components, pooled over the segments), summed over lags k ≥ 1 as Geyer's initial
-    positive sequence (pairs of lags while their sum stays positive; at most
-    :data:`MAX_CORRELATION_LAG`). The variance
-    of a mean of n consecutive errors is that factor times a white error's over n; at least
-    1."""
-    counts = used.sum(axis=1)
-    longest = int(counts.max())
-    if longest < 3:
-        return 1.0
-    sequences = np.zeros((len(used), longest, residuals.shape[-1]))
-    rows, cols = np.nonzero(used)
-    order = np.cumsum(used, axis=1)[rows, cols] - 1  # each fix's place in its segment
-    sequences[rows, order] = residuals[rows, cols]
-    size = 1 << int(np.ceil(np.log2(2 * longest)))
-    spectrum = np.fft.rfft(sequences, n=size, axis=1)
-    covariance = np.fft.irfft(np.abs(spectrum) ** 2, n=size, axis=1)[:, :longest].sum(axis=(0, 2))
-    if covariance[0] <= 0:
-        return 1.0
-    rho = covariance[: min(longest, MAX_CORRELATION_LAG + 1)] / covariance[0]
-    pairs = rho[: len(rho) // 2 * 2].reshape(-1, 2).sum(axis=1)  # (ρ0 + ρ1), (ρ2 + ρ3), ...
-    positive = np.flatnonzero(pairs <= 0)
-    kept = pairs[: positive[0]] if len(positive) else pairs
-    return float(max(1.0, 2.0 * kept.sum() - 1.0))

@@ -302,9 +302,15 @@ class Settings:
 def settings_to_dict(settings: Any) -> dict[str, Any]:
     """Plain data of a settings dataclass: sub-tables for dataclasses, lists for vectors.
 
-    An unset optional value stays ``None`` (JSON ``null``); a TOML writer leaves it out.
+    An unset optional value stays ``None`` (JSON ``null``); a TOML writer leaves it out. A
+    field a run sets for itself (metadata ``run_state``) is not a setting and is left out.
     """
-    return {f.name: _plain(getattr(settings, f.name)) for f in dataclasses.fields(settings)}
+    return {f.name: _plain(getattr(settings, f.name)) for f in setting_fields(settings)}
+
+
+def setting_fields(settings: Any) -> list[dataclasses.Field]:
+    """The fields of a settings dataclass a user sets (not the ``run_state`` ones)."""
+    return [f for f in dataclasses.fields(settings) if not f.metadata.get("run_state")]
 
 
 def _plain(value: Any) -> Any:

@@ -15,7 +15,7 @@ from typing import Any, Literal
 import numpy as np
 
 from graphcal.errors import GraphcalError, is_number
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.settings import Settings, setting_fields
 from graphcal.pipeline.vehicle_settings import DERIVED_SECTIONS, follow_vehicle
 from graphcal.vehicle import VehicleProfile
 
@@ -121,7 +121,7 @@ def _load(default: Any, data: Any, section: str, source: str) -> Any:
     where = f"[{section}]" if section else "the file"
     if not isinstance(data, dict):
         raise GraphcalError(f"{source}: {where} must be a table, got {data!r}")
-    names = [f.name for f in dataclasses.fields(default)]
+    names = [f.name for f in setting_fields(default)]
     unknown = [key for key in data if key not in names]
     for key in unknown:
         moved = _MOVED.get(f"{section}.{key}" if section else key)

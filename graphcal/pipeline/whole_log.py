@@ -29,9 +29,11 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData, Segments, gather_segments
 from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.factors import pose_sigmas
-from graphcal.model import step_increments, wheel_lateral_acceleration
-from graphcal.pipeline.joint import JointCalibration, JointSettings, honest_sigma, solve_joint
+from graphcal.graph.observability import condition_on_prior, with_prior_sigmas
+from graphcal.model import PARAMETER_NAMES, step_increments, wheel_lateral_acceleration
+from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.prepare import PreparedLog
+from graphcal.pipeline.residual_noise import honest_sigma
 from graphcal.pipeline.sensor_estimates import (
     DownWeightedFixes,
     SensorEstimate,
@@ -102,9 +104,20 @@ def solve_whole_log(
         log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
     )
     joint = _with_noise_levels(whole, settings.joint, gathered.has_heading(), say)
+    if log.ay_from_wheels:
+        whole = _d_on_a_straight_drive(whole, data, say)
+    first = whole
+    joint = _holding_what_is_not_observable(whole, joint, say)
     if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
+        theta, _ = condition_on_prior(
+            whole.theta,
+            whole.covariance,
+            first.observability.calibrated | first.observability.held,
+            joint.theta_initial,
+            joint.theta_prior_sigmas,
+        )
         log = dataclasses.replace(
-            log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, whole.theta, log.dt)
+            log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, theta, log.dt)
         )
         gathered = gather_segments(log, prepared.selected, prepared.fix_weights)
         validation = gather_segments(log, prepared.validation_segments)
@@ -114,10 +127,11 @@ def solve_whole_log(
         whole, values, data, offset = solve_with_time_offset(
             log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
         )
-    if not keep_values:
-        values = None
     if log.ay_from_wheels:
         whole = _d_on_a_straight_drive(whole, data, say)
+    whole = _still_not_calibrated(whole, first, settings.joint)
+    if not keep_values:
+        values = None
     estimated = _with_total_offset(
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
     )
@@ -184,10 +198,10 @@ def _with_noise_levels(
     whole: JointCalibration, settings: JointSettings, has_heading: bool, say: Progress
 ) -> JointSettings:
     """``settings`` with the noise the whole-log solve's residuals show
-    (:class:`~graphcal.pipeline.joint.ResidualNoise`), else ``settings`` itself:
+    (:class:`~graphcal.pipeline.residual_noise.ResidualNoise`), else ``settings`` itself:
 
     * the fixes' position sigma (their RMS, inflated when their errors are correlated:
-      :func:`~graphcal.pipeline.joint.honest_sigma`) when it differs from the settings' by
+      :func:`~graphcal.pipeline.residual_noise.honest_sigma`) when it differs from the settings' by
       more than :data:`POSITION_NOISE_TOLERANCE`;
     * the heading's sigma (the RMS of its residuals, not inflated for their correlation: a
       heading that drifts from the model's over seconds is a defect, the heading biases'
@@ -237,6 +251,54 @@ def _with_noise_levels(
         position_sigma=position * np.sqrt(x),
         pose_weights=(x, y, weight),
         wheel_noise=wheel,
+    )
+
+
+def _holding_what_is_not_observable(
+    whole: JointCalibration, settings: JointSettings, say: Progress
+) -> JointSettings:
+    """``settings`` holding the parameters ``whole`` left not observable at their prior
+    (:meth:`JointSettings.holding`; else ``settings`` itself): a direction the data do not
+    determine goes where a weak prior lets it (t_r 1.04–1.54 m on the real highway minute
+    for its prior sigma ×4 to ×½, a_y derived from the wheels with it), and the calibrated
+    parameters, linearized there, followed it, their verdicts with them. Slow slip stays as
+    ``whole`` decided: a held parameter off its truth leaves a misfit that slip scales would
+    take (and c_d with it) on a 4 km day where the free solve showed none."""
+    names = whole.observability.not_calibrated
+    if not names:
+        return settings
+    say(
+        f"{', '.join(names)} not observable: solved again with "
+        f"{'it' if len(names) == 1 else 'them'} held at the prior"
+    )
+    if settings.slip == "auto":
+        settings = dataclasses.replace(settings, slip="on" if whole.slip_modelled else "off")
+    return settings.holding(names)
+
+
+def _still_not_calibrated(
+    whole: JointCalibration, first: JointCalibration, settings: JointSettings
+) -> JointCalibration:
+    """``whole`` (solved under ``settings``, with the parameters the ``first`` solve left not
+    observable held at their prior) with those parameters not calibrated, for ``first``'s
+    reasons where it gave one, ``first``'s slip statistic where ``whole`` had slip decided
+    for it, and its covariance under the weak prior (the tight one taken out): what the
+    parameters' uncertainty is, and what a fleet's day-to-day comparison combines."""
+    if not settings.held_at_prior:
+        return whole
+    observability = whole.observability
+    for name in first.observability.not_calibrated:
+        reason = first.observability.reasons.get(name)
+        if reason is not None or observability.calibrated[PARAMETER_NAMES.index(name)]:
+            observability = observability.without(name, reason or "the data did not determine it")
+    statistic = whole.slip_statistic
+    if statistic is None:
+        statistic = first.slip_statistic
+    covariance = with_prior_sigmas(
+        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
+    )
+    return dataclasses.replace(
+        whole, covariance=covariance, observability=observability, slip_statistic=statistic
     )
 
 

@@ -88,7 +88,8 @@ def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None)
             )
             entry["sigma"] = None
             entry["prior_sigma"] = float(run.settings.joint.theta_prior_sigmas[i])
-        entry["sigma_over_prior_sigma"] = float(run.observability.sigma_ratio[i])
+        # the σ the data give it over the reference sigma its verdict is judged against
+        entry["sigma_over_reference_sigma"] = float(run.observability.sigma_ratio[i])
         crb = None if evaluation is None else evaluation.crb
         if crb is not None and run.observability.calibrated[i]:
             entry["cramer_rao_sigma"] = float(np.sqrt(crb[i, i]))

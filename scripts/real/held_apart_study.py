@@ -34,7 +34,7 @@ import numpy as np
 from graphcal import open_log
 from graphcal.errors import GraphcalError
 from graphcal.pipeline.configure import configure_settings
-from graphcal.pipeline.held_apart import holding_apart, time_windows, validation_errors, window
+from graphcal.pipeline.held_apart import holding_apart, time_window, time_windows, validation_errors
 from graphcal.pipeline.run import run_calibration
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -104,7 +104,7 @@ def car(label: str, path: Path, defect_model: bool) -> Result:
         fold = {"window_s": [float(start - log.t[0]), float(end - log.t[0])]}
         try:
             run, _ = calibrate(holding_apart(log, np.array([[start, end]])), settings)
-            errors = validation_errors(window(log, start, end), run.theta, settings)
+            errors = validation_errors(time_window(log, start, end), run.theta, settings)
             fold.update(
                 theta=[float(x) for x in run.theta],
                 nominal=float(np.mean(errors.nominal)),
