@@ -4,6 +4,12 @@
 
 (every case of the default grid; restrict an axis with ``--rates 10``, ``--heading yes``,
 ``--imu no``, ``--wheels ticks``; ``--keep DIR`` keeps the recordings and results).
+Other shapes (``--route``, several in one run; described below, after the town car):
+
+    python scripts/independent_twin.py --route straight --lengths 1 2 6 24 --jobs 1
+    python scripts/independent_twin.py --route skid-steer --jobs 1
+    python scripts/independent_twin.py --route ticks-csv --jobs 1
+    python scripts/independent_twin.py --route straight skid-steer ticks-csv --jobs 1
 
 Why: graphcal's own simulator (``graphcal.simulate``) generates its data with the very model
 graphcal calibrates (the paper's eqs. 1–3: rear-wheel rotations -> distance and yaw of the
@@ -80,12 +86,54 @@ wheel speeds); mean (error/σ)² 1.04 (c_e), 0.40 (c_d), 0.49 (t_r), 0.46 (d). T
 came out 0.81–0.98 m ahead (true 1.0: the slip absorbed) and 0.28–0.31 m left. With
 ``--slip-k 0`` (10 Hz, heading, IMU; 10 runs) it is 1.00 m ahead and all within 3σ.
 
-Per case the table gives the exit status of ``graphcal calibrate`` (0, or 3 when a trust
-check fails), whether the run is trusted, and error/σ per parameter against the TRUE theta
-(or the parameter's status when it was not calibrated), with the lever arm graphcal
-estimated. The summary: runs with every calibrated parameter within 3σ, mean (error/σ)² per
-parameter (1 when the σ are right), and per recording shape over the seeds the worst
-|error/σ|.
+Other shapes (``--route``)
+--------------------------
+``--route straight`` — a highway. The same car and sensors on a road of straights and very
+wide bends (|curvature| <= 8e-5 1/m, ``--highway-curvature``; 0 is dead straight), 20-30
+m/s per 300-1500 m piece with +0.3/-0.4 m/s² between them, recorded from mid-drive and cut
+at the length (``--lengths``, default 1 2 6 24 km). Recorded by default as GNSS at 10 Hz
+(σ 0.15 m, no heading), CAN wheel speeds, no IMU (``--rates``, ``--heading``, ``--imu``,
+``--wheels`` override it). Expected: exit 0, c_e and c_d (relative to t_r) calibrated within
+3σ, t_r and d "not observable".
+
+``--route skid-steer`` — a small skid-steer robot outdoors, ``--robot-length-m`` (360) of
+straights and arcs at 0.5-1.5 m/s, tight turns (radius 0.3-1 m), turns on the spot and
+stops, in random order, the commands smoothed over 0.8 s. Its centre moves along its heading
+at v = (v_l + v_r)/2 and turns at (v_r - v_l)/t_eff with the EFFECTIVE track t_eff = 1.08 m,
+about twice the physical 0.55 m (the tracks slide sideways in turns); each side's speed is
+its sprocket's rotation times the effective circumference c_e ± c_d/2 (true theta
+[0.785 m, 0.6 mm, 1.08 m, 0]). Sensors: a consumer GPS at 2.5 Hz, σ 1 m per axis, white
+(``--robot-gnss-tau S`` makes it a Gauss-Markov error with that correlation time), no
+heading, its antenna 0.15 m behind the centre; an IMU at the centre at 100 Hz (lateral
+acceleration σ 0.1 m/s², yaw rate σ 0.2°/s); each sprocket's angular speed [rad/s] at 50 Hz
+(σ 0.05 rad/s). Calibrated with ``--vehicle data/vehicles/skid_steer_robot.toml`` (nominal:
+the physical 0.55 m track, 0.80 m circumference, track prior σ 0.5 m), with and without
+``--no-defect-model`` (``--defect-model yes no``). Expected: exit 0, c_e and t_r (the
+effective track) calibrated within 3σ.
+
+``--route ticks-csv`` — a 24 km town drive (the town car above) written as graphcal's
+drive-log CSV at 40 Hz (t, px, py, psi, n_rl, n_rr, beta, ay) as a logger would: the antenna's
+position (lever arm 1.0 m ahead, 0.3 m left) with 0.2 m white noise, a fused heading with
+0.3° noise, each interval's wheel rotation the difference of two 96-tick counter readings
+taken 15 ms before the row's time (wheels late), except the first row's (the rotation since
+an instant between two counts: off the tick grid), beta 0 and the IMU's lateral acceleration
+(σ 0.05 m/s²). Calibrated with defaults and with ``ticks_per_revolution = 96`` in a
+``--config`` file's ``[vehicle]`` (``--tick-config no yes``). Expected: "wheel rotations are
+counts of 96 ticks per revolution (found in the rotations)" and every parameter within 3σ.
+
+The table
+---------
+Per run: the exit status of ``graphcal calibrate`` (0; 2 refused or failed; 3 when a trust
+check fails), whether the run is trusted, error/σ per parameter against the case's TRUE
+theta with graphcal's verdict where it is not plain "calibrated" (``given d``: calibrated
+given d = prior; ``n/o``: not observable; ``fixed``: held by the vehicle profile), and how
+the run departs from what its case expects. The summary: runs with every parameter that has
+a σ within 3σ, mean (error/σ)² per parameter (1 when the σ are right); per case over its
+seeds the worst |error/σ| and the mean (error/σ)²; then graphcal's own lines on the time
+offset, the lever arm, the model check and the tick count, and its warnings and errors.
+(``calibration.json`` holds the lever arm only when the model check keeps the defect model,
+so the lines are read from graphcal's progress output, kept as ``calibrate.log`` beside each
+result with the exact command in ``command.txt``.)
 """
 
 from __future__ import annotations
@@ -99,7 +147,7 @@ import sys
 import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -120,6 +168,11 @@ A_LAT_MAX = 2.7  # m/s², the driver's limit in bends (actual |a_y| stays <= 3)
 A_ACCEL, A_BRAKE = 1.5, 2.5  # m/s²
 V_MIN, V_MAX = 3.0, 15.0
 DEG = math.pi / 180.0
+#: The highway (``--route straight``): target speeds, acceleration and braking, and the
+#: largest |curvature| of its wide bends [1/m] (``--highway-curvature``).
+HIGHWAY_SPEED = (20.0, 30.0)
+HIGHWAY_ACCEL = (0.3, 0.4)
+HIGHWAY_CURVATURE = 8e-5
 
 
 # ------------------------------------------------------------------------------------------
@@ -200,20 +253,46 @@ def make_route(length: float, rng: np.random.Generator) -> tuple[np.ndarray, np.
     return route.arrays()
 
 
-def speed_profile(kappa: np.ndarray, target: np.ndarray) -> np.ndarray:
+def speed_profile(
+    kappa: np.ndarray,
+    target: np.ndarray,
+    v_range: tuple[float, float] = (V_MIN, V_MAX),
+    accel: tuple[float, float] = (A_ACCEL, A_BRAKE),
+    v_start: float | None = 5.0,
+) -> np.ndarray:
     """Speed [m/s] on the grid: the target, the bends' lateral-acceleration limit, and
-    bounded acceleration and braking (a forward and a backward pass)."""
+    bounded acceleration and braking (a forward and a backward pass). ``v_start`` caps the
+    first sample's speed (``None``: the recording starts at the target, mid-drive)."""
     limit = np.minimum(target, np.sqrt(A_LAT_MAX / np.maximum(np.abs(kappa), 1e-9)))
-    limit = np.clip(limit, V_MIN, V_MAX)
+    limit = np.clip(limit, *v_range)
     v2 = limit**2
     out = v2.copy()
-    out[0] = min(out[0], 5.0**2)
-    up, down = 2.0 * A_ACCEL * DS, 2.0 * A_BRAKE * DS
+    if v_start is not None:
+        out[0] = min(out[0], v_start**2)
+    up, down = 2.0 * accel[0] * DS, 2.0 * accel[1] * DS
     for i in range(1, len(out)):  # forward: acceleration
         out[i] = min(out[i], out[i - 1] + up)
     for i in range(len(out) - 2, -1, -1):  # backward: braking
         out[i] = min(out[i], out[i + 1] + down)
     return np.sqrt(out)
+
+
+def make_highway_route(
+    length: float, rng: np.random.Generator, max_curvature: float = HIGHWAY_CURVATURE
+) -> tuple[np.ndarray, np.ndarray]:
+    """A highway's yaw curvature [1/m] and target speed [m/s], >= ``length`` m: straights
+    and very wide bends (radius >= 1 / ``max_curvature``, 0: dead straight), either side,
+    each piece 300-1500 m at a target of 20-30 m/s."""
+    route = _Route()
+    while route.length < length:
+        target = rng.uniform(*HIGHWAY_SPEED)
+        piece = rng.uniform(300.0, 1500.0)
+        if max_curvature > 0 and rng.uniform() < 0.5:
+            radius = 1.0 / rng.uniform(0.25 * max_curvature, max_curvature)
+            route.turn(radius, rng.choice([-1.0, 1.0]) * piece / radius, 200.0, target)
+        else:
+            route.straight(piece, target)
+    return route.arrays()
 
 
 def _cumtrapz(y: np.ndarray, dx: float | np.ndarray) -> np.ndarray:
@@ -243,11 +322,26 @@ class Drive:
         return float(len(self.t) - 1) * DS
 
 
-def simulate_drive(length: float, seed: int, slip_k: float) -> Drive:
-    """A drive of >= ``length`` m with the TRUE theta."""
-    rng = np.random.default_rng([seed, 20251])
-    kappa, target = make_route(length, rng)
-    v = speed_profile(kappa, target)
+def simulate_drive(
+    length: float,
+    seed: int,
+    slip_k: float,
+    route: str = "town",
+    max_curvature: float = 0.0,
+) -> Drive:
+    """A drive of >= ``length`` m with the TRUE theta: a town route (``route="town"``) or a
+    highway (``"straight"``: curvature below ``max_curvature``, 20-30 m/s, accelerating at
+    most 0.3 m/s² and braking 0.4 m/s², recorded from the middle of a drive)."""
+    if route == "straight":
+        rng = np.random.default_rng([seed, 20251, 1])
+        kappa, target = make_highway_route(length, rng, max_curvature)
+        n = round(length / DS) + 1  # the highway's pieces are long: cut it at ``length``
+        kappa, target = kappa[:n], target[:n]
+        v = speed_profile(kappa, target, HIGHWAY_SPEED, HIGHWAY_ACCEL, v_start=None)
+    else:
+        rng = np.random.default_rng([seed, 20251])
+        kappa, target = make_route(length, rng)
+        v = speed_profile(kappa, target)
     s = np.arange(len(kappa)) * DS
     t = np.concatenate([[0.0], np.cumsum(2.0 * DS / (v[1:] + v[:-1]))])
     yaw = rng.uniform(-np.pi, np.pi) + _cumtrapz(kappa, DS)
@@ -404,24 +498,298 @@ def manifest_text(wheel_kind: str, heading: bool, imu: bool, prefix: str = "../"
 
 
 # ------------------------------------------------------------------------------------------
+# A skid-steer robot (--route skid-steer)
+# ------------------------------------------------------------------------------------------
+
+#: The robot's TRUE theta: effective sprocket circumference 0.785 m (datasheet 0.80 m: the
+#: tracks slip), left/right difference 0.6 mm, EFFECTIVE track 1.08 m (the physical one is
+#: 0.55 m: a skid-steer vehicle turns as if its tracks were about twice as far apart), d 0.
+ROBOT_THETA_TRUE = np.array([0.785, 0.0006, 1.08, 0.0])
+ROBOT_PROFILE = Path(__file__).resolve().parents[1] / "data" / "vehicles" / "skid_steer_robot.toml"
+ROBOT_ANTENNA = (-0.15, 0.0)  # m ahead of, left of the robot's centre (a mast at the back)
+ROBOT_DT = 0.002  # s, the fine time grid of the robot's motion
+ROBOT_GNSS_RATE, ROBOT_GNSS_SIGMA = 2.5, 1.0  # Hz, m per axis (a consumer receiver)
+ROBOT_WHEEL_RATE, ROBOT_WHEEL_NOISE = 50.0, 0.05  # Hz, rad/s of a sprocket's angular speed
+ROBOT_IMU_RATE = 100.0  # Hz
+ROBOT_IMU_NOISE = (0.1, 0.2 * DEG)  # m/s² lateral acceleration (track vibration), rad/s yaw
+ROBOT_YAW_RATE_MAX = 1.2  # rad/s while driving
+
+
+@dataclass
+class RobotDrive:
+    """The robot's centre on the fine time grid, and its sprockets' angular speeds."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    yaw: np.ndarray
+    v: np.ndarray  # m/s forward
+    yaw_rate: np.ndarray  # rad/s
+    ay: np.ndarray  # m/s², lateral, left +
+    omega_l: np.ndarray  # rad/s of the left sprocket
+    omega_r: np.ndarray
+    kinds: dict  # manoeuvre kind -> count
+
+    @property
+    def length(self) -> float:
+        return float(np.sum(np.abs(self.v[1:]) * np.diff(self.t)))
+
+
+def _moving_average(x: np.ndarray, width: int) -> np.ndarray:
+    kernel = np.ones(width) / width
+    padded = np.concatenate([np.full(width, x[0]), x, np.full(width, x[-1])])
+    return np.convolve(padded, kernel, mode="same")[width:-width]
+
+
+def simulate_robot(length: float, seed: int, theta: np.ndarray = ROBOT_THETA_TRUE) -> RobotDrive:
+    """A skid-steer robot driving >= ``length`` m outdoors: straights and arcs at 0.5-1.5
+    m/s, tight turns (radius 0.3-1.0 m, yaw rate <= 1.2 rad/s), turns on the spot (60-270°)
+    and stops, in random order. The commanded (v, yaw rate) are piecewise constant, then
+    smoothed twice over 0.8 s (ramps of about 2 m/s² and 1.5 rad/s²). Skid steering: the
+    centre moves along its heading at v = (v_l + v_r)/2 and turns at (v_r - v_l)/t_eff, the
+    EFFECTIVE track; each side's speed is its sprocket's rotation rate times its effective
+    circumference c_e ± c_d/2 (d = 0: no load transfer modelled)."""
+    rng = np.random.default_rng([seed, 20252])
+    v_cmd: list[np.ndarray] = []
+    w_cmd: list[np.ndarray] = []
+    kinds: dict[str, int] = {}
+
+    def hold(v: float, w: float, seconds: float, kind: str) -> None:
+        n = max(round(seconds / ROBOT_DT), 1)
+        v_cmd.append(np.full(n, v))
+        w_cmd.append(np.full(n, w))
+        kinds[str(kind)] = kinds.get(str(kind), 0) + 1
+
+    hold(0.0, 0.0, 3.0, "stop")
+    planned = 0.0
+    while planned < length:
+        kind = rng.choice(
+            ["straight", "arc", "tight", "spin", "stop"], p=[0.35, 0.28, 0.15, 0.15, 0.07]
+        )
+        side = rng.choice([-1.0, 1.0])
+        if kind == "straight":
+            v, dist = rng.uniform(0.5, 1.5), rng.uniform(5.0, 25.0)
+            hold(v, rng.uniform(-0.03, 0.03), dist / v, kind)
+            planned += dist
+        elif kind == "arc":
+            v, radius = rng.uniform(0.5, 1.5), rng.uniform(2.0, 10.0)
+            angle = rng.uniform(30.0, 180.0) * DEG
+            hold(v, side * v / radius, angle * radius / v, kind)
+            planned += angle * radius
+        elif kind == "tight":
+            radius = rng.uniform(0.3, 1.0)
+            v = min(rng.uniform(0.5, 0.7), ROBOT_YAW_RATE_MAX * radius)
+            angle = rng.uniform(60.0, 180.0) * DEG
+            hold(v, side * v / radius, angle * radius / v, kind)
+            planned += angle * radius
+        elif kind == "spin":
+            rate, angle = rng.uniform(0.5, 1.0), rng.uniform(60.0, 270.0) * DEG
+            hold(0.0, side * rate, angle / rate, kind)
+        else:
+            hold(0.0, 0.0, rng.uniform(0.5, 2.0), kind)
+    hold(0.0, 0.0, 3.0, "stop")
+    width = round(0.8 / ROBOT_DT)
+    v = _moving_average(_moving_average(np.concatenate(v_cmd), width), width)
+    w = _moving_average(_moving_average(np.concatenate(w_cmd), width), width)
+    t = np.arange(len(v)) * ROBOT_DT
+    yaw = rng.uniform(-np.pi, np.pi) + _cumtrapz(w, ROBOT_DT)
+    x = _cumtrapz(v * np.cos(yaw), ROBOT_DT)
+    y = _cumtrapz(v * np.sin(yaw), ROBOT_DT)
+    c_e, c_d, t_r, _ = theta
+    v_l, v_r = v - 0.5 * t_r * w, v + 0.5 * t_r * w
+    omega_l = 2.0 * np.pi * v_l / (c_e + 0.5 * c_d)
+    omega_r = 2.0 * np.pi * v_r / (c_e - 0.5 * c_d)
+    ay = v * w  # at the centre, moving along its heading
+    return RobotDrive(t, x, y, yaw, v, w, ay, omega_l, omega_r, kinds)
+
+
+def gnss_noise(n: int, sigma: float, tau: float, rng: np.random.Generator) -> np.ndarray:
+    """``n`` fixes' errors [m] of standard deviation ``sigma``: white (``tau`` 0) or a
+    first-order Gauss-Markov process with a correlation time of ``tau`` fixes (a consumer
+    receiver's error wanders: multipath, atmosphere)."""
+    if tau <= 0:
+        return sigma * rng.standard_normal(n)
+    a = math.exp(-1.0 / tau)
+    w = sigma * math.sqrt(1.0 - a * a) * rng.standard_normal(n)
+    w[0] = sigma * rng.standard_normal()
+    out = np.empty(n)
+    out[0] = w[0]
+    for k in range(1, n):
+        out[k] = a * out[k - 1] + w[k]
+    return out
+
+
+def write_robot_streams(
+    robot: RobotDrive, directory: Path, seed: int, gnss_tau: float = 0.0
+) -> None:
+    """gnss.csv (lat/lon at 2.5 Hz, 1 m noise per axis, white or with a correlation time of
+    ``gnss_tau`` s, no heading), wheels.csv (each
+    sprocket's angular speed [rad/s] at 50 Hz), imu.csv (lateral acceleration and yaw rate
+    in the vehicle frame at 100 Hz) and manifest.toml of one recording of ``robot``."""
+    rng = np.random.default_rng([seed, 20253])
+    directory.mkdir(parents=True, exist_ok=True)
+    t_end = robot.t[-1]
+    epoch = 1.77e9 + 86400.0 * seed + rng.uniform(0.0, 3600.0)
+
+    def at(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return np.interp(t, robot.t, values)
+
+    tg = _clock(rng.uniform(0.0, 0.4), t_end - rng.uniform(0.0, 0.4), ROBOT_GNSS_RATE, rng)
+    yaw = at(tg, robot.yaw)
+    ahead, left = ROBOT_ANTENNA
+    east = at(tg, robot.x) + ahead * np.cos(yaw) - left * np.sin(yaw)
+    north = at(tg, robot.y) + ahead * np.sin(yaw) + left * np.cos(yaw)
+    east = east + gnss_noise(len(tg), ROBOT_GNSS_SIGMA, gnss_tau * ROBOT_GNSS_RATE, rng)
+    north = north + gnss_noise(len(tg), ROBOT_GNSS_SIGMA, gnss_tau * ROBOT_GNSS_RATE, rng)
+    lat, lon = enu_to_geodetic(east, north)
+    stamp = tg + rng.uniform(-0.005, 0.005, len(tg))
+    gnss = pd.DataFrame({"t": epoch + stamp, "lat": lat, "lon": lon})
+    gnss.to_csv(directory / "gnss.csv", index=False, float_format="%.10f")
+
+    tw = _clock(rng.uniform(0.0, 0.2), t_end - rng.uniform(0.0, 0.2), ROBOT_WHEEL_RATE, rng)
+    tw = tw + rng.uniform(-0.0005, 0.0005, len(tw))
+    wheels = pd.DataFrame({"t": epoch + tw})
+    for col, omega in (("wl", robot.omega_l), ("wr", robot.omega_r)):
+        wheels[col] = at(tw, omega) + ROBOT_WHEEL_NOISE * rng.standard_normal(len(tw))
+    wheels.to_csv(directory / "wheels.csv", index=False, float_format="%.6f")
+
+    ti = _clock(rng.uniform(0.0, 0.2), t_end - rng.uniform(0.0, 0.2), ROBOT_IMU_RATE, rng)
+    sigma_a, sigma_w = ROBOT_IMU_NOISE
+    imu = pd.DataFrame(
+        {
+            "t": epoch + ti,
+            "ay": at(ti, robot.ay) + sigma_a * rng.standard_normal(len(ti)),
+            "wz": at(ti, robot.yaw_rate) + sigma_w * rng.standard_normal(len(ti)),
+        }
+    )
+    imu.to_csv(directory / "imu.csv", index=False, float_format="%.6f")
+    manifest = [
+        "# Written by scripts/independent_twin.py (an independent simulator): a skid-steer robot.",
+        "rate = 40.0",
+        "",
+        "[gnss]",
+        'file = "gnss.csv"',
+        'time = "t"',
+        'latitude = "lat"',
+        'longitude = "lon"',
+        "",
+        "[wheels]",
+        'file = "wheels.csv"',
+        'time = "t"',
+        'rear_left = "wl"',
+        'rear_right = "wr"',
+        'kind = "angular_speed"',
+        "",
+        "[imu]",
+        'file = "imu.csv"',
+        'time = "t"',
+        'lateral_acceleration = "ay"',
+        'yaw_rate = "wz"',
+        'yaw_rate_unit = "rad/s"',
+    ]
+    (directory / "manifest.toml").write_text("\n".join(manifest) + "\n")
+
+
+# ------------------------------------------------------------------------------------------
+# A drive-log CSV of 96-tick counters (--route ticks-csv)
+# ------------------------------------------------------------------------------------------
+
+CSV_RATE = 40.0  # Hz
+CSV_POSITION_SIGMA = 0.2  # m per axis
+CSV_HEADING_SIGMA = 0.3 * DEG  # rad, a fused heading
+CSV_AY_SIGMA = 0.05  # m/s²
+CSV_LATENCY = 0.015  # s: the wheel counts are stamped this late (a CAN delay)
+
+
+def write_tick_log(drive: Drive, path: Path, seed: int) -> None:
+    """graphcal's drive-log CSV of ``drive`` at 40 Hz as a logger writes it: the position of
+    the GNSS antenna (:data:`ANTENNA`, a lever arm) with 0.2 m white noise, a fused heading
+    of the body with 0.3° noise (wrapped to ±180°), each interval's wheel rotation the
+    difference of two 96-tick counter readings (whole ticks) taken :data:`CSV_LATENCY` s
+    before the row's time (wheels late against the pose) — except the first row's, the
+    rotation since an instant between two counts (a log started mid-count: off the tick
+    grid) —, no sideslip (0) and the rear axle's lateral acceleration with 0.05 m/s²."""
+    rng = np.random.default_rng([seed, 20254])
+    t = np.arange(1.0, drive.t[-1] - 1.0, 1.0 / CSV_RATE)
+
+    def at(times: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return np.interp(times, drive.t, values)
+
+    yaw = at(t, drive.yaw)
+    ahead, left = ANTENNA
+    px = at(t, drive.x) + ahead * np.cos(yaw) - left * np.sin(yaw)
+    py = at(t, drive.y) + ahead * np.sin(yaw) + left * np.cos(yaw)
+    px = px + CSV_POSITION_SIGMA * rng.standard_normal(len(t))
+    py = py + CSV_POSITION_SIGMA * rng.standard_normal(len(t))
+    psi = np.angle(np.exp(1j * (yaw + CSV_HEADING_SIGMA * rng.standard_normal(len(t)))))
+    edges = np.append(t, t[-1] + 1.0 / CSV_RATE) - CSV_LATENCY  # counter readings
+    rotations = {}
+    for side, rev in (("n_rl", drive.rev_l), ("n_rr", drive.rev_r)):
+        cumulative = at(edges, rev)
+        counts = np.floor(cumulative * TICKS_PER_REV + rng.uniform(0.0, 1.0))
+        n = np.diff(counts) / TICKS_PER_REV
+        n[0] = cumulative[1] - cumulative[0]  # the first reading: mid-count, off the grid
+        rotations[side] = n
+    ay = at(t, drive.ay) + CSV_AY_SIGMA * rng.standard_normal(len(t))
+    log = pd.DataFrame(
+        {"t": t - t[0], "px": px, "py": py, "psi": psi, **rotations, "beta": 0.0, "ay": ay}
+    )
+    path.parent.mkdir(parents=True, exist_ok=True)
+    log.to_csv(path, index=False, float_format="%.9g")
+
+
+# ------------------------------------------------------------------------------------------
 # Calibration and the table
 # ------------------------------------------------------------------------------------------
 
 
 @dataclass
 class Case:
-    seed: int
-    rate: float
-    heading: bool
-    imu: bool
-    wheels: str
-    directory: Path
+    """One recording to calibrate: ``source`` (relative to ``directory``) with ``extra``
+    options of ``graphcal calibrate``, judged against ``theta_true``. ``expect`` maps a
+    parameter to the verdict it should get (its start: "calibrated", "not observable",
+    "fixed"); ``expect_line`` is text graphcal's progress should print."""
 
-    @property
-    def shape(self) -> str:
-        h = "heading" if self.heading else "no heading"
-        i = "IMU" if self.imu else "no IMU"
-        return f"{self.rate:g} Hz, {h}, {i}, {self.wheels}"
+    seed: int
+    directory: Path
+    shape: str
+    source: str = "manifest.toml"
+    extra: tuple[str, ...] = ()
+    theta_true: np.ndarray = field(default_factory=lambda: THETA_TRUE.copy())
+    expect: dict = field(default_factory=dict)
+    expect_line: str | None = None
+
+    def command(self, graphcal: str, method: str) -> list[str]:
+        command = [graphcal, "calibrate", str(self.directory / self.source), "--method", method]
+        return command + ["--out", str(self.directory / "result"), "--workers", "1", *self.extra]
+
+
+def town_case(seed: int, rate: float, heading: bool, imu: bool, wheels: str, directory: Path,
+              length_km: float, route: str = "town") -> Case:  # fmt: skip
+    h = "heading" if heading else "no heading"
+    i = "IMU" if imu else "no IMU"
+    where = f"{route} {length_km:g} km"
+    case = Case(seed, directory, f"{where}, {rate:g} Hz, {h}, {i}, {wheels}")
+    if route == "straight":  # a highway shows c_e and c_d only
+        case.expect = {
+            "c_e": "calibrated", "c_d": "calibrated", "t_r": "not observable",
+            "d": "not observable",
+        }  # fmt: skip
+    return case
+
+
+#: Progress lines of ``graphcal calibrate`` worth reporting: the text before the first ':'
+#: (or the line's start) picks the line; the last one of each kind is kept.
+FINDINGS = (
+    "time offset",
+    "GNSS antenna ahead",
+    "GNSS antenna left",
+    "GNSS antenna's lever arm not estimated",
+    "model check: ",
+    "wheel rotations are counts",
+    "no slow wheel slip",
+    "slow wheel slip",
+)
 
 
 @dataclass
@@ -429,27 +797,32 @@ class Outcome:
     case: Case
     exit_code: int
     trusted: bool | None = None
-    ratio: dict | None = None  # name -> error/σ, or the status text
-    error: dict | None = None  # name -> error (SI) of calibrated parameters
-    lever: tuple | None = None
+    ratio: dict | None = None  # name -> error/σ of parameters with a σ
+    error: dict | None = None  # name -> error (SI) of parameters with a σ
+    verdict: dict | None = None  # name -> graphcal's status
+    findings: dict = field(default_factory=dict)  # FINDINGS kind -> its last line
     doubts: list | None = None
     message: str = ""
     seconds: float = 0.0
 
 
-def calibrate(case: Case, graphcal: str) -> Outcome:
-    manifest = case.directory / "manifest.toml"
-    result = case.directory / "result"
-    command = [graphcal, "calibrate", str(manifest), "--method", "whole"]
-    command += ["--out", str(result), "--workers", "1"]
+def calibrate(case: Case, graphcal: str, method: str = "whole") -> Outcome:
+    command = case.command(graphcal, method)
     start = time.perf_counter()
     proc = subprocess.run(command, capture_output=True, text=True)
     seconds = time.perf_counter() - start
+    (case.directory / "command.txt").write_text(" ".join(command) + "\n")
     (case.directory / "calibrate.log").write_text(proc.stderr)
     out = Outcome(case, proc.returncode, seconds=seconds)
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     notable = [ln for ln in lines if "warning" in ln or "error" in ln or "not trusted" in ln]
-    out.message = " | ".join(notable)[:300] or (lines[-1][:200] if proc.returncode else "")
+    out.message = " | ".join(notable)[:1500] or (lines[-1][:500] if proc.returncode else "")
+    for line in lines:
+        text = line.split("]", 1)[-1].strip() if line.startswith("[") else line.strip()
+        for kind in FINDINGS:
+            if text.startswith(kind):
+                out.findings[kind] = text
+                break
     return read_result(out)
 
 
@@ -462,105 +835,312 @@ def read_result(out: Outcome) -> Outcome:
     out.trusted = bool((doc.get("trust") or {}).get("trusted"))
     out.doubts = (doc.get("trust") or {}).get("doubts")
     not_calibrated = set(doc.get("not_calibrated") or [])
-    out.ratio, out.error = {}, {}
+    out.ratio, out.error, out.verdict = {}, {}, {}
     for i, name in enumerate(NAMES):
         entry = doc["parameters"][name]
         sigma = entry.get("sigma")
+        out.verdict[name] = str(entry.get("status", "?"))
         if name in not_calibrated or sigma is None or not sigma > 0:
-            out.ratio[name] = entry.get("status", "not calibrated").split(":")[0]
             continue
-        err = float(doc["theta"][name]) - THETA_TRUE[i]
+        err = float(doc["theta"][name]) - out.case.theta_true[i]
         out.error[name] = err
         out.ratio[name] = err / float(sigma)
-    est = doc.get("estimated") or {}
-    if "lever_arm_longitudinal" in est:
-        out.lever = (
-            est["lever_arm_longitudinal"]["estimate"],
-            est.get("lever_arm_lateral", {}).get("estimate", float("nan")),
-        )
     return out
 
 
-def _cell(value) -> str:
-    return f"{value:+.2f}" if isinstance(value, float) else str(value)
+def _verdict_short(verdict: str) -> str:
+    """graphcal's status of a parameter, short: "" (calibrated), "given t_r" (calibrated
+    given t_r = prior), "n/o" (not observable), "fixed", "not trusted", else its text."""
+    if verdict.startswith("calibrated given"):
+        return "given " + verdict.split("given", 1)[1].split("=")[0].strip()
+    if verdict.startswith("calibrated"):
+        return ""
+    if "not observable" in verdict:
+        return "n/o"
+    if verdict.startswith("fixed"):
+        return "fixed"
+    return verdict.split(":")[0]
+
+
+def _verdict_kind(verdict: str) -> str:
+    """The verdict as an expectation names it: "calibrated" (also given a prior), "not
+    observable", "fixed", "not trusted", ..."""
+    short = _verdict_short(verdict)
+    return {"": "calibrated", "n/o": "not observable"}.get(
+        short, "calibrated" if short.startswith("given") else short
+    )
+
+
+def _cell(out: Outcome, name: str) -> str:
+    if out.verdict is None:
+        return "—"
+    short = _verdict_short(out.verdict[name])
+    if name in (out.ratio or {}):
+        value = f"{out.ratio[name]:+.2f}"
+        return f"{value} ({short})" if short else value
+    return short or out.verdict[name]
 
 
 def within(out: Outcome, limit: float = 3.0) -> bool:
     """Every calibrated parameter within ``limit`` σ (a run without results is not)."""
     if out.ratio is None:
         return False
-    return all(abs(r) <= limit for r in out.ratio.values() if isinstance(r, float))
+    return all(abs(r) <= limit for r in out.ratio.values())
+
+
+def deviations(out: Outcome) -> list[str]:
+    """How ``out`` departs from what its case expects (empty: as expected)."""
+    found = []
+    if out.exit_code != 0:
+        found.append(f"exit {out.exit_code}")
+    if out.trusted is False:
+        found.append("not trusted")
+    for name, ratio in (out.ratio or {}).items():
+        if abs(ratio) > 3.0:
+            found.append(f"{name} {ratio:+.1f}σ")
+    for name, want in out.case.expect.items():
+        if out.verdict is not None and _verdict_kind(out.verdict[name]) != want:
+            found.append(f"{name} {_verdict_kind(out.verdict[name])} (expected {want})")
+    if out.case.expect_line is not None:
+        line = out.findings.get("wheel rotations are counts", "")
+        if out.case.expect_line not in line:
+            found.append(f"no '{out.case.expect_line}' ({line or 'no tick count found'})")
+    return found
+
+
+def _findings_text(out: Outcome) -> str:
+    """The time offset, lever arm and model-check lines, shortened."""
+    parts = []
+    for kind, line in out.findings.items():
+        if kind == "wheel rotations are counts":
+            continue
+        text = line.replace("GNSS antenna ", "").replace(" of the centre of gravity", "")
+        text = text.replace("wheels late against the pose: ", "")
+        if kind == "model check: ":
+            text = "model check: " + text.rsplit(";", 1)[-1].strip().split(" (")[0]
+        parts.append(text)
+    return "; ".join(parts)
+
+
+def _stats(values: list[float]) -> str:
+    if not values:
+        return "—"
+    r = np.asarray(values)
+    return f"{np.max(np.abs(r)):.2f} / {np.mean(r**2):.2f}"
 
 
 def report(outcomes: list[Outcome]) -> str:
     rows = [
         "| case | seed | exit | trusted | " + " | ".join(f"{n} err/σ" for n in NAMES)
-        + " | lever arm [m] | s |",
+        + " | as expected | s |",
         "|---|---|---|---|" + "---|" * len(NAMES) + "---|---|",
     ]  # fmt: skip
     for out in outcomes:
-        ratio = out.ratio or {}
-        cells = [_cell(ratio.get(n, "—")) for n in NAMES]
-        lever = "—" if out.lever is None else f"{out.lever[0]:+.2f}, {out.lever[1]:+.2f}"
+        cells = [_cell(out, n) for n in NAMES]
         trusted = "—" if out.trusted is None else ("yes" if out.trusted else "NO")
+        found = deviations(out)
         rows.append(
             f"| {out.case.shape} | {out.case.seed} | {out.exit_code} | {trusted} | "
-            + " | ".join(cells) + f" | {lever} | {out.seconds:.0f} |"
+            + " | ".join(cells) + f" | {'yes' if not found else 'NO: ' + ', '.join(found)} | "
+            f"{out.seconds:.0f} |"
         )  # fmt: skip
     n = len(outcomes)
     ok = sum(within(o) for o in outcomes)
     trusted = sum(bool(o.trusted) for o in outcomes)
+    expected = sum(not deviations(o) for o in outcomes)
     lines = [*rows, ""]
-    summary = [f"runs within 3σ: {ok}/{n}; trusted (exit 0): {trusted}/{n}"]
+    summary = [f"runs within 3σ: {ok}/{n}; trusted: {trusted}/{n}; as expected: {expected}/{n}"]
     for name in NAMES:
-        r = [o.ratio[name] for o in outcomes if o.ratio and isinstance(o.ratio.get(name), float)]
+        r = [o.ratio[name] for o in outcomes if o.ratio and name in o.ratio]
         e = [o.error[name] for o in outcomes if o.error and name in o.error]
         if r:
             summary.append(
                 f"{name}: mean (err/σ)² {np.mean(np.square(r)):.2f}, worst |err/σ| "
                 f"{np.max(np.abs(r)):.2f}, mean error {np.mean(e) * DISPLAY[name]:+.3f} "
-                f"(mm{'·s²/m' if name == 'd' else ''}), calibrated in {len(r)}/{n}"
+                f"(mm{'·s²/m' if name == 'd' else ''}), with a σ in {len(r)}/{n}"
             )
         else:
             summary.append(f"{name}: calibrated in no run")
     lines += ["**Summary.** " + "; ".join(summary[:1]), ""]
     lines += [f"- {s}" for s in summary[1:]]
     # per recording shape, over the seeds
-    lines += ["", "| shape | within 3σ | " + " | ".join(f"max abs {n}" for n in NAMES) + " |"]
-    lines += ["|---|---|" + "---|" * len(NAMES)]
+    lines += [
+        "",
+        "Per case over its seeds: worst |err/σ| / mean (err/σ)² of the parameters with a σ.",
+        "",
+        "| case | runs | exit 0 | trusted | within 3σ | as expected | "
+        + " | ".join(NAMES) + " |",
+        "|---|---|---|---|---|---|" + "---|" * len(NAMES),
+    ]  # fmt: skip
     shapes: dict[str, list[Outcome]] = {}
     for out in outcomes:
         shapes.setdefault(out.case.shape, []).append(out)
     for shape, group in shapes.items():
-        cells = []
-        for name in NAMES:
-            r = [o.ratio[name] for o in group if o.ratio and isinstance(o.ratio.get(name), float)]
-            cells.append(f"{max(abs(x) for x in r):.2f}" if r else "—")
+        cells = [
+            _stats([o.ratio[name] for o in group if o.ratio and name in o.ratio]) for name in NAMES
+        ]
         lines.append(
-            f"| {shape} | {sum(within(o) for o in group)}/{len(group)} | "
-            + " | ".join(cells)
-            + " |"
+            f"| {shape} | {len(group)} | {sum(o.exit_code == 0 for o in group)} | "
+            f"{sum(bool(o.trusted) for o in group)} | {sum(within(o) for o in group)} | "
+            f"{sum(not deviations(o) for o in group)} | " + " | ".join(cells) + " |"
         )
+    found = [o for o in outcomes if o.findings]
+    if found:
+        lines += ["", "Time offset, lever arm, model check, tick count (graphcal's lines):", ""]
+        for o in found:
+            ticks = o.findings.get("wheel rotations are counts")
+            extra = f"; {ticks}" if ticks else ""
+            lines.append(f"- {o.case.shape}, seed {o.case.seed}: {_findings_text(o)}{extra}")
     notes = [o for o in outcomes if o.message or o.doubts]
     if notes:
-        lines += ["", "Messages:"]
+        lines += ["", "Messages:", ""]
         for o in notes:
             doubts = f" doubts: {o.doubts}" if o.doubts else ""
             lines.append(f"- {o.case.shape}, seed {o.case.seed}: {o.message}{doubts}")
     return "\n".join(lines)
 
 
+ROUTES = ("town", "straight", "skid-steer", "ticks-csv")
+
+
+def _route_cases(args, route: str, base: Path) -> list[Case]:
+    """Simulate and write every recording of ``route``; its cases."""
+    cases: list[Case] = []
+    if route == "skid-steer":
+        models = args.defect_model or ["yes", "no"]
+        for seed in args.seeds:
+            robot = simulate_robot(args.robot_length_m, seed)
+            print(
+                f"skid-steer seed {seed}: {robot.length:.0f} m in {robot.t[-1]:.0f} s, "
+                f"|v| <= {np.abs(robot.v).max():.2f} m/s, |yaw rate| <= "
+                f"{np.abs(robot.yaw_rate).max():.2f} rad/s, {robot.kinds}",
+                file=sys.stderr,
+            )
+            tau = args.robot_gnss_tau
+            where = f"skid-steer-{args.robot_length_m:g}m" + (f"-tau{tau:g}s" if tau else "")
+            streams = base / where / f"seed{seed}"
+            write_robot_streams(robot, streams, seed, tau)
+            for model in models:
+                directory = streams / f"defect-model-{model}"
+                directory.mkdir(parents=True, exist_ok=True)
+                extra = ("--vehicle", str(args.robot_profile))
+                extra += () if model == "yes" else ("--no-defect-model",)
+                label = f", GNSS noise correlated over {tau:g} s" if tau else ""
+                label += "" if model == "yes" else ", --no-defect-model"
+                cases.append(
+                    Case(
+                        seed, directory, f"skid-steer {args.robot_length_m:g} m{label}",
+                        source="../manifest.toml", extra=extra,
+                        theta_true=ROBOT_THETA_TRUE.copy(),
+                        expect={"c_e": "calibrated", "t_r": "calibrated"},
+                    )
+                )  # fmt: skip
+        return cases
+    lengths = args.lengths or [{"town": 12.0, "straight": None, "ticks-csv": 24.0}[route]]
+    if route == "straight" and lengths == [None]:
+        lengths = [1.0, 2.0, 6.0, 24.0]
+    for length_km in lengths:
+        for seed in args.seeds:
+            drive = simulate_drive(
+                length_km * 1e3, seed, args.slip_k, route="town" if route == "ticks-csv" else route,
+                max_curvature=args.highway_curvature,
+            )  # fmt: skip
+            print(
+                f"{route} {length_km:g} km seed {seed}: {drive.length / 1e3:.1f} km in "
+                f"{drive.t[-1]:.0f} s, |a_y| <= {np.abs(drive.ay).max():.2f} m/s², |slip| <= "
+                f"{np.degrees(np.abs(drive.slip).max()):.2f}°",
+                file=sys.stderr,
+            )
+            where = base / f"{route}-{length_km:g}km" / f"seed{seed}"
+            if route == "ticks-csv":
+                write_tick_log(drive, where / "drive.csv", seed)
+                for config in args.tick_config or ["no", "yes"]:
+                    directory = where / f"config-{config}"
+                    directory.mkdir(parents=True, exist_ok=True)
+                    extra: tuple[str, ...] = ()
+                    label = f"ticks-csv {length_km:g} km"
+                    expect_line = "96 ticks per revolution (found in the rotations)"
+                    if config == "yes":
+                        (directory / "config.toml").write_text(
+                            f"[vehicle]\nticks_per_revolution = {TICKS_PER_REV}\n"
+                        )
+                        extra = ("--config", str(directory / "config.toml"))
+                        label += ", --config ticks_per_revolution = 96"
+                        expect_line = None
+                    cases.append(
+                        Case(seed, directory, label, source="../drive.csv", extra=extra,
+                             expect_line=expect_line)
+                    )  # fmt: skip
+                continue
+            rates = args.rates or ([10.0] if route == "straight" else [1.0, 5.0, 10.0])
+            wheel_kinds = args.wheels or (["speeds"] if route == "straight" else WHEEL_KINDS)
+            headings = args.heading or (["no"] if route == "straight" else ["yes", "no"])
+            imus = args.imu or (["no"] if route == "straight" else ["yes", "no"])
+            for rate in rates:
+                for wheels in wheel_kinds:
+                    streams = where / f"{rate:g}hz_{wheels}"
+                    write_streams(drive, streams, rate, wheels, seed, args.geodesy == "flat")
+                    for heading in headings:
+                        for imu in imus:
+                            directory = streams / f"heading-{heading}_imu-{imu}"
+                            directory.mkdir(parents=True, exist_ok=True)
+                            (directory / "manifest.toml").write_text(
+                                manifest_text(wheels, heading == "yes", imu == "yes")
+                            )
+                            cases.append(
+                                town_case(seed, rate, heading == "yes", imu == "yes", wheels,
+                                          directory, length_km, route)
+                            )  # fmt: skip
+    return cases
+
+
+WHEEL_KINDS = ["speeds", "ticks"]
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--rates", type=float, nargs="+", default=[1.0, 5.0, 10.0])
-    parser.add_argument("--heading", nargs="+", choices=["yes", "no"], default=["yes", "no"])
-    parser.add_argument("--imu", nargs="+", choices=["yes", "no"], default=["yes", "no"])
-    wheel_kinds = ["speeds", "ticks"]
-    parser.add_argument("--wheels", nargs="+", choices=wheel_kinds, default=wheel_kinds)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--route", nargs="+", choices=ROUTES, default=["town"],
+        help="what to simulate (several in one run): town (random town routes, the default), "
+        "straight (a highway: 10 Hz GNSS without heading, CAN wheel speeds, no IMU, 1, 2, 6 "
+        "and 24 km), skid-steer (a skid-steer robot, ~360 m, with --vehicle "
+        "data/vehicles/skid_steer_robot.toml, with and without --no-defect-model), ticks-csv "
+        "(a 24 km town drive as a drive-log CSV of 96-tick counter differences, with and "
+        "without ticks_per_revolution in --config)",
+    )  # fmt: skip
+    parser.add_argument("--rates", type=float, nargs="+", help="GNSS Hz (town: 1 5 10)")
+    parser.add_argument("--heading", nargs="+", choices=["yes", "no"], help="(town: yes no)")
+    parser.add_argument("--imu", nargs="+", choices=["yes", "no"], help="(town: yes no)")
+    parser.add_argument("--wheels", nargs="+", choices=WHEEL_KINDS, help="(town: both)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
-    parser.add_argument("--length-km", type=float, default=12.0)
+    parser.add_argument(
+        "--lengths", "--length-km", type=float, nargs="+", dest="lengths",
+        help="drive lengths [km], each a case (town 12, straight 1 2 6 24, ticks-csv 24)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--highway-curvature", type=float, default=HIGHWAY_CURVATURE,
+        help=f"straight: largest |curvature| of the wide bends [1/m] ({HIGHWAY_CURVATURE:g}; "
+        "0: dead straight)",
+    )  # fmt: skip
+    parser.add_argument("--robot-length-m", type=float, default=360.0, help="skid-steer (360)")
+    parser.add_argument("--robot-profile", type=Path, default=ROBOT_PROFILE)
+    parser.add_argument(
+        "--robot-gnss-tau", type=float, default=0.0,
+        help="skid-steer: correlation time [s] of the GNSS error (0: white, the default)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--defect-model", nargs="+", choices=["yes", "no"],
+        help="skid-steer: with the defect model, without (--no-defect-model); default both",
+    )  # fmt: skip
+    parser.add_argument(
+        "--tick-config", nargs="+", choices=["no", "yes"],
+        help="ticks-csv: defaults (no), ticks_per_revolution = 96 in --config (yes); both",
+    )  # fmt: skip
     parser.add_argument("--slip-k", type=float, default=0.004, help="tyre slip [s²/m] (0.004)")
     parser.add_argument("--geodesy", choices=["wgs84", "flat"], default="wgs84")
+    parser.add_argument("--method", choices=["whole", "joint"], default="whole")
     parser.add_argument("--jobs", type=int, default=2, help="calibrations at once (2)")
     parser.add_argument("--keep", type=Path, help="write the recordings here and keep them")
     parser.add_argument("--graphcal", default=shutil.which("graphcal") or "graphcal")
@@ -569,30 +1149,11 @@ def main(argv: list[str] | None = None) -> int:
     base = args.keep or Path(tempfile.mkdtemp(prefix="independent_twin_"))
     cases: list[Case] = []
     started = time.perf_counter()
-    for seed in args.seeds:
-        drive = simulate_drive(args.length_km * 1e3, seed, args.slip_k)
-        print(
-            f"seed {seed}: {drive.length / 1e3:.1f} km in {drive.t[-1]:.0f} s, "
-            f"|a_y| <= {np.abs(drive.ay).max():.2f} m/s², |slip| <= "
-            f"{np.degrees(np.abs(drive.slip).max()):.2f}°",
-            file=sys.stderr,
-        )
-        for rate in args.rates:
-            for wheels in args.wheels:
-                streams = base / f"seed{seed}" / f"{rate:g}hz_{wheels}"
-                write_streams(drive, streams, rate, wheels, seed, args.geodesy == "flat")
-                for heading in args.heading:
-                    for imu in args.imu:
-                        case_dir = streams / f"heading-{heading}_imu-{imu}"
-                        case_dir.mkdir(parents=True, exist_ok=True)
-                        (case_dir / "manifest.toml").write_text(
-                            manifest_text(wheels, heading == "yes", imu == "yes")
-                        )
-                        case = Case(seed, rate, heading == "yes", imu == "yes", wheels, case_dir)
-                        cases.append(case)
+    for route in dict.fromkeys(args.route):
+        cases += _route_cases(args, route, base)
 
     def run(case: Case) -> Outcome:
-        out = calibrate(case, args.graphcal)
+        out = calibrate(case, args.graphcal, args.method)
         print(
             f"[{time.perf_counter() - started:6.0f} s] {case.shape}, seed {case.seed}: exit "
             f"{out.exit_code} ({out.seconds:.0f} s)",
@@ -607,7 +1168,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.keep is None:
             shutil.rmtree(base, ignore_errors=True)
     command = " ".join(["python scripts/independent_twin.py", *(argv or sys.argv[1:])])
-    print(f"`{command}` (slip k = {args.slip_k} s²/m, geodesy {args.geodesy})\n")
+    print(f"`{command}` (slip k = {args.slip_k} s²/m, geodesy {args.geodesy}, "
+          f"--method {args.method})\n")  # fmt: skip
     print(report(outcomes))
     return 0
 
