@@ -304,12 +304,17 @@ def _lateral_acceleration(
     return speed * yaw_rate
 
 
+#: A wheel stream that stops for this long [s] or more starts a new run when it starts again.
+RUN_GAP = 5.0
+
+
 def _runs(grid: _Grid, notes: list[str]) -> np.ndarray | None:
-    """The run of each grid row when the wheels' stream stops and starts again (a recording
-    of several runs, each with its clocks set apart: its own wheel time offset), with a
-    note; ``None`` for one run."""
+    """The run of each grid row when the wheels' stream stops for :data:`RUN_GAP` or more
+    and starts again (a recording of several runs, each with its clocks set apart: its own
+    wheel time offset), with a note; ``None`` for one run. A shorter gap (a CAN dropout) is
+    masked, within its run."""
     wheels = next(s for s in grid.summaries if s.role == "wheels")
-    ends = [b for a, b in wheels.gaps if grid.start < b and a < grid.end]
+    ends = [b for a, b in wheels.gaps if grid.start < b and a < grid.end and b - a >= RUN_GAP]
     if not ends:
         return None
     notes.append(
