@@ -118,7 +118,7 @@ def _linearized(
     built = build_segment_graph(data, spec)
     values = built.values if start is None else _completed(start, built.values)
     if spec.time_offset_sigma is not None:  # the batches' frame: their prior's mean
-        values.update(keys.TIME_OFFSET, np.array([spec.time_offset_mean]))
+        values.update(keys.TIME_OFFSET, spec.for_runs(data.runs).time_offset_means())
     segmented = PartitionedGraph(built.graph, values, shared_keys(spec))
     say(f"joint batches: {len(data)} segments linearized at the whole-log solution")
     try:

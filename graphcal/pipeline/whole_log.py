@@ -29,9 +29,14 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.data.segments import SegmentData, Segments, gather_segments
 from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.factors import pose_sigmas
-from graphcal.graph.observability import condition_on_prior, with_prior_sigmas
+from graphcal.graph.observability import condition_on_prior
 from graphcal.graph.plausibility import ImplausibleTheta
-from graphcal.model import PARAMETER_NAMES, step_increments, wheel_lateral_acceleration
+from graphcal.model import step_increments, wheel_lateral_acceleration
+from graphcal.pipeline.held_at_prior import (
+    data_determine,
+    holding_what_is_not_observable,
+    still_not_calibrated,
+)
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.residual_noise import honest_sigma
@@ -120,7 +125,7 @@ def solve_whole_log(
     if log.ay_from_wheels:
         whole = _d_on_a_straight_drive(whole, data, say)
     first = whole
-    joint = _holding_what_is_not_observable(whole, joint, say)
+    joint = holding_what_is_not_observable(whole, joint, say)
     if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
         theta, _ = condition_on_prior(
             whole.theta,
@@ -142,7 +147,7 @@ def solve_whole_log(
         )
     if log.ay_from_wheels:
         whole = _d_on_a_straight_drive(whole, data, say)
-    whole = _still_not_calibrated(whole, first, settings.joint)
+    whole = still_not_calibrated(whole, first, settings.joint)
     if not keep_values:
         values = None
     estimated = _with_total_offset(
@@ -183,12 +188,7 @@ def _holding_a_runaway(
     whole, values, data, offset = solve_with_time_offset(
         prepared.log, prepared.data, prepared.selected, prepared.fix_weights, settings, say, workers
     )
-    weak = dataclasses.replace(settings, held_at_prior=())
-    covariance = with_prior_sigmas(
-        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
-    )
-    determined = weak.observability(covariance).calibrated
-    if any(determined[PARAMETER_NAMES.index(name)] for name in runaway.names):
+    if any(data_determine(whole, settings, runaway.names)):
         raise runaway
     return whole, values, data, offset
 
@@ -307,54 +307,6 @@ def _with_noise_levels(
         position_sigma=position * np.sqrt(x),
         pose_weights=(x, y, weight),
         wheel_noise=wheel,
-    )
-
-
-def _holding_what_is_not_observable(
-    whole: JointCalibration, settings: JointSettings, say: Progress
-) -> JointSettings:
-    """``settings`` holding the parameters ``whole`` left not observable at their prior
-    (:meth:`JointSettings.holding`; else ``settings`` itself): a direction the data do not
-    determine goes where a weak prior lets it (t_r 1.04–1.54 m on the real highway minute
-    for its prior sigma ×4 to ×½, a_y derived from the wheels with it), and the calibrated
-    parameters, linearized there, followed it, their verdicts with them. Slow slip stays as
-    ``whole`` decided: a held parameter off its truth leaves a misfit that slip scales would
-    take (and c_d with it) on a 4 km day where the free solve showed none."""
-    names = whole.observability.not_calibrated
-    if not names:
-        return settings
-    say(
-        f"{', '.join(names)} not observable: solved again with "
-        f"{'it' if len(names) == 1 else 'them'} held at the prior"
-    )
-    if settings.slip == "auto":
-        settings = dataclasses.replace(settings, slip="on" if whole.slip_modelled else "off")
-    return settings.holding(names)
-
-
-def _still_not_calibrated(
-    whole: JointCalibration, first: JointCalibration, settings: JointSettings
-) -> JointCalibration:
-    """``whole`` (solved under ``settings``, with the parameters the ``first`` solve left not
-    observable held at their prior) with those parameters not calibrated, for ``first``'s
-    reasons where it gave one, ``first``'s slip statistic where ``whole`` had slip decided
-    for it, and its covariance under the weak prior (the tight one taken out): what the
-    parameters' uncertainty is, and what a fleet's day-to-day comparison combines."""
-    if not settings.held_at_prior:
-        return whole
-    observability = whole.observability
-    for name in first.observability.not_calibrated:
-        reason = first.observability.reasons.get(name)
-        if reason is not None or observability.calibrated[PARAMETER_NAMES.index(name)]:
-            observability = observability.without(name, reason or "the data did not determine it")
-    statistic = whole.slip_statistic
-    if statistic is None:
-        statistic = first.slip_statistic
-    covariance = with_prior_sigmas(
-        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
-    )
-    return dataclasses.replace(
-        whole, covariance=covariance, observability=observability, slip_statistic=statistic
     )
 
 

@@ -1,0 +1,75 @@
+"""What the data do not determine, held at its prior: a direction a weak prior lets drift
+is solved again held at ``theta_initial`` by a tight prior (:meth:`JointSettings.holding`),
+and judged all the same on the data's information under the weak prior."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from graphcal.graph.observability import with_prior_sigmas
+from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.joint import JointCalibration, JointSettings
+from graphcal.progress import Progress
+
+
+def data_determine(
+    whole: JointCalibration, settings: JointSettings, names: tuple[str, ...]
+) -> list[bool]:
+    """Whether the data of ``whole`` (solved under ``settings``, which may hold parameters
+    at their prior) determine each parameter of ``names``: its verdict under the weak prior,
+    the tight one's information taken out of the covariance
+    (:func:`~graphcal.graph.observability.with_prior_sigmas`)."""
+    covariance = with_prior_sigmas(
+        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
+    )
+    weak = dataclasses.replace(settings, held_at_prior=())
+    calibrated = weak.observability(covariance).calibrated
+    return [bool(calibrated[PARAMETER_NAMES.index(name)]) for name in names]
+
+
+def holding_what_is_not_observable(
+    whole: JointCalibration, settings: JointSettings, say: Progress
+) -> JointSettings:
+    """``settings`` holding the parameters ``whole`` left not observable at their prior
+    (:meth:`JointSettings.holding`; else ``settings`` itself): a direction the data do not
+    determine goes where a weak prior lets it (t_r 1.04–1.54 m on the real highway minute
+    for its prior sigma ×4 to ×½, a_y derived from the wheels with it), and the calibrated
+    parameters, linearized there, followed it, their verdicts with them. Slow slip stays as
+    ``whole`` decided: a held parameter off its truth leaves a misfit that slip scales would
+    take (and c_d with it) on a 4 km day where the free solve showed none."""
+    names = whole.observability.not_calibrated
+    if not names:
+        return settings
+    say(
+        f"{', '.join(names)} not observable: solved again with "
+        f"{'it' if len(names) == 1 else 'them'} held at the prior"
+    )
+    if settings.slip == "auto":
+        settings = dataclasses.replace(settings, slip="on" if whole.slip_modelled else "off")
+    return settings.holding(names)
+
+
+def still_not_calibrated(
+    whole: JointCalibration, first: JointCalibration, settings: JointSettings
+) -> JointCalibration:
+    """``whole`` (solved under ``settings``, with the parameters the ``first`` solve left not
+    observable held at their prior) with those parameters not calibrated, for ``first``'s
+    reasons where it gave one, ``first``'s slip statistic where ``whole`` had slip decided
+    for it, and its covariance under the weak prior (the tight one taken out): what the
+    parameters' uncertainty is, and what a fleet's day-to-day comparison combines."""
+    if not settings.held_at_prior:
+        return whole
+    observability = whole.observability
+    for name in first.observability.not_calibrated:
+        reason = first.observability.reasons.get(name)
+        if reason is not None or observability.calibrated[PARAMETER_NAMES.index(name)]:
+            observability = observability.without(name, reason or "the data did not determine it")
+    statistic = whole.slip_statistic
+    if statistic is None:
+        statistic = first.slip_statistic
+    covariance = with_prior_sigmas(
+        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
+    )
+    return dataclasses.replace(
+        whole, covariance=covariance, observability=observability, slip_statistic=statistic
+    )
