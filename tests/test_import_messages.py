@@ -132,6 +132,38 @@ def test_a_lateral_acceleration_in_g_is_refused_with_the_column(recording, tmp_p
     assert "apparently in g: multiply the column by 9.81" in err, err
 
 
+# --- issue 35: times in another unit than declared, named before any other check -------
+
+
+@pytest.mark.parametrize(
+    ("declared", "read_as"),
+    [('time_unit = "us"', "read as 100 us"), (None, "read as 100 s")],
+)
+def test_times_in_ms_declared_otherwise_name_the_unit_to_set(
+    recording, tmp_path, capsys, declared, read_as
+):
+    """Every stream's times in ms, declared us or left at the default s: the first stream read
+    (the GNSS, at 10 Hz) names its file, the unit its interval fits and the key to set, not
+    an implausible acceleration or a wheel circumference."""
+    for name in ("gnss.csv", "wheels.csv", "imu.csv"):
+        _change(recording / name, "t", lambda t: 1000.0 * t)
+    if declared is not None:
+        _edit(recording / "manifest.toml", 'time = "t"\n', f'time = "t"\n{declared}\n')
+    err = _refused(recording, tmp_path, capsys)
+    assert f"the times of {recording / 'gnss.csv'} look like ms (median interval 100 ms " in err
+    assert read_as in err and 'set time_unit = "ms" in [gnss]' in err, err
+    assert "lateral acceleration" not in err and "circumference" not in err, err
+
+
+def test_times_in_ms_of_one_stream_name_that_stream(recording, tmp_path, capsys):
+    """Only the wheels' times in ms (at 100 Hz: 10 ms read as 10 s): their file and section."""
+    _change(recording / "wheels.csv", "t", lambda t: 1000.0 * t)
+    err = _refused(recording, tmp_path, capsys)
+    assert f"the times of {recording / 'wheels.csv'} look like ms" in err, err
+    assert "(median interval 10 ms read as 10 s, " in err, err
+    assert 'set time_unit = "ms" in [wheels]' in err, err
+
+
 # --- row F: the drive log's own checks, traced back to the streams ------------------------
 
 
