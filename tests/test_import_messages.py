@@ -209,6 +209,17 @@ def test_a_wheel_speed_spike_names_the_wheel_line(recording, tmp_path, capsys):
     _no_drive_log_terms(err)
 
 
+def test_one_wheel_line_at_999_km_h_names_the_line_in_the_streams_time(recording, tmp_path, capsys):
+    """Issue 35: one line at 999 km/h (277.5 m/s) is diluted below 100 m/s on the drive log's
+    grid; checked at the stream, it is named by its file line and the stream's time."""
+    _change(recording / "wheels.csv", "rl", lambda v: np.where(np.arange(len(v)) == 3000, 277.5, v))
+    t = pd.read_csv(recording / "wheels.csv")["t"].to_numpy()[3000]
+    err = _refused(recording, tmp_path, capsys)
+    assert f"{recording / 'wheels.csv'}: column 'rl' ([wheels] rear_left" in err, err
+    assert f"line 3002: implausible rear-left wheel speed at t = {t:.3f} s: 277.5 m/s" in err
+    assert "heading" not in err, err
+
+
 # --- row G: a time written twice ----------------------------------------------------------
 
 
