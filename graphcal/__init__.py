@@ -48,6 +48,8 @@ _PUBLIC = {
     "ImportedLog": "graphcal.data.importer",
     "BagOptions": "graphcal.data.importer",
     "read_recording": "graphcal.data.importer",
+    "is_recording": "graphcal.data.importer",  # a manifest or a bag, not a drive-log CSV
+    "MANIFEST_SUFFIXES": "graphcal.data.importer",
     "write_import": "graphcal.data.import_output",
     "check_import_output": "graphcal.data.import_output",  # before an import, not after
     "manifest_help": "graphcal.data.manifest_help",  # every manifest key with its default

@@ -445,3 +445,25 @@ def test_the_imu_on_the_wheels_log_shares_its_clock_offset_and_bus(copy):
     assert np.array_equal(base.wheels.t, pd.read_csv(copy / "wheels_log.csv")["t"] + 0.25)
     _edit(manifest, "message = 0x130", "message = 0x130\ntime_offset = -1.0")
     assert np.array_equal(read_manifest(manifest).imu.t, reference - 1.0)
+
+
+def test_one_wheel_frame_at_an_implausible_speed_names_the_candump_line(copy, capsys):
+    """Issue 35: one WHEEL_SPEEDS frame with the rear-left wheel at 259 km/h (the DBC's
+    range ends at 260) amid ~40 km/h: refused at the stream, naming the candump log's line
+    and the signal, in the log's time, not as a heading jump in drive-log time."""
+    database = cantools.database.load_string(CAR_DBC, "dbc")
+    message = database.get_message_by_name("WHEEL_SPEEDS")
+    log = copy / "drive.log"
+    lines = log.read_text().splitlines(keepends=True)
+    wheel_lines = [i for i, line in enumerate(lines) if f" {WHEEL_ID:03X}#" in line]
+    i = wheel_lines[5000]
+    stamp, channel, frame, *rest = lines[i].split()  # rest: python-can's R(eceived) flag
+    signals = message.decode(bytes.fromhex(frame.split("#")[1]), decode_choices=False)
+    signals["WHEEL_SPEED_RL"] = 259.0
+    data = message.encode(signals).hex().upper()
+    lines[i] = " ".join([stamp, channel, f"{frame.split('#')[0]}#{data}", *rest]) + "\n"
+    log.write_text("".join(lines))
+    err = _one_line_exit_2(["check", str(copy / "can_log.toml")], capsys)
+    assert f"{log}: signal 'WHEEL_SPEEDS.WHEEL_SPEED_RL'" in err, err
+    assert f"line {i + 1}: implausible rear-left wheel speed at t = {stamp[1:-1][:-3]}" in err, err
+    assert "remove that line" in err and "heading" not in err, err

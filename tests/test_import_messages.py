@@ -132,6 +132,38 @@ def test_a_lateral_acceleration_in_g_is_refused_with_the_column(recording, tmp_p
     assert "apparently in g: multiply the column by 9.81" in err, err
 
 
+# --- issue 35: times in another unit than declared, named before any other check -------
+
+
+@pytest.mark.parametrize(
+    ("declared", "read_as"),
+    [('time_unit = "us"', "read as 100 us"), (None, "read as 100 s")],
+)
+def test_times_in_ms_declared_otherwise_name_the_unit_to_set(
+    recording, tmp_path, capsys, declared, read_as
+):
+    """Every stream's times in ms, declared us or left at the default s: the first stream read
+    (the GNSS, at 10 Hz) names its file, the unit its interval fits and the key to set, not
+    an implausible acceleration or a wheel circumference."""
+    for name in ("gnss.csv", "wheels.csv", "imu.csv"):
+        _change(recording / name, "t", lambda t: 1000.0 * t)
+    if declared is not None:
+        _edit(recording / "manifest.toml", 'time = "t"\n', f'time = "t"\n{declared}\n')
+    err = _refused(recording, tmp_path, capsys)
+    assert f"the times of {recording / 'gnss.csv'} look like ms (median interval 100 ms " in err
+    assert read_as in err and 'set time_unit = "ms" in [gnss]' in err, err
+    assert "lateral acceleration" not in err and "circumference" not in err, err
+
+
+def test_times_in_ms_of_one_stream_name_that_stream(recording, tmp_path, capsys):
+    """Only the wheels' times in ms (at 100 Hz: 10 ms read as 10 s): their file and section."""
+    _change(recording / "wheels.csv", "t", lambda t: 1000.0 * t)
+    err = _refused(recording, tmp_path, capsys)
+    assert f"the times of {recording / 'wheels.csv'} look like ms" in err, err
+    assert "(median interval 10 ms read as 10 s, " in err, err
+    assert 'set time_unit = "ms" in [wheels]' in err, err
+
+
 # --- row F: the drive log's own checks, traced back to the streams ------------------------
 
 
@@ -175,6 +207,17 @@ def test_a_wheel_speed_spike_names_the_wheel_line(recording, tmp_path, capsys):
     assert f"{recording / 'wheels.csv'}: column 'rl' ([wheels] rear_left" in err, err
     assert "line 5002: implausible rear-left wheel speed" in err, err
     _no_drive_log_terms(err)
+
+
+def test_one_wheel_line_at_999_km_h_names_the_line_in_the_streams_time(recording, tmp_path, capsys):
+    """Issue 35: one line at 999 km/h (277.5 m/s) is diluted below 100 m/s on the drive log's
+    grid; checked at the stream, it is named by its file line and the stream's time."""
+    _change(recording / "wheels.csv", "rl", lambda v: np.where(np.arange(len(v)) == 3000, 277.5, v))
+    t = pd.read_csv(recording / "wheels.csv")["t"].to_numpy()[3000]
+    err = _refused(recording, tmp_path, capsys)
+    assert f"{recording / 'wheels.csv'}: column 'rl' ([wheels] rear_left" in err, err
+    assert f"line 3002: implausible rear-left wheel speed at t = {t:.3f} s: 277.5 m/s" in err
+    assert "heading" not in err, err
 
 
 # --- row G: a time written twice ----------------------------------------------------------

@@ -29,9 +29,35 @@ def _command_modules() -> list[ModuleType]:
     return [importlib.import_module(f"graphcal.cli.{name}") for name in COMMANDS]
 
 
+class CommandParser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, ``graphcal: error: …``, with a
+    hint at the command's ``--help`` (not the usage of every option), exit status 2; the
+    commands' sub-parsers are of this class too."""
+
+    def parse_args(self, args=None, namespace=None):
+        """argparse's, with arguments no command takes named with the command's hint."""
+        parsed, unknown = self.parse_known_args(args, namespace)
+        if unknown:  # named by the command they were given to, not by ``graphcal``
+            command = getattr(parsed, "command", None)
+            self.fail(
+                f"unrecognized arguments: {' '.join(unknown)}",
+                f"{self.prog} {command}" if command else self.prog,
+            )
+        return parsed
+
+    def error(self, message: str):
+        """argparse's usage error, as one line."""
+        self.fail(message, self.prog)
+
+    def fail(self, message: str, prog: str):
+        """Exit with status 2 after one line: ``message`` and where the options are."""
+        what = "commands" if prog == "graphcal" else "options"
+        self.exit(EXIT_BAD_INPUT, f"graphcal: error: {message} ({prog} --help for the {what})\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``graphcal`` command."""
-    parser = argparse.ArgumentParser(
+    parser = CommandParser(
         prog="graphcal",
         description="Wheel-odometry calibration with noise compensation, as GTSAM factor graphs.",
     )

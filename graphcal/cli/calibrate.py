@@ -20,6 +20,7 @@ from graphcal.cli.options import (
     add_recording_options,
     add_segment_options,
     add_vehicle_option,
+    check_recording_options,
     recording_keywords,
     settings_from_args,
     timed_progress,
@@ -121,6 +122,7 @@ def run(args: argparse.Namespace) -> int:
     """Calibrate theta from a drive log and write results, figures and a summary."""
     from graphcal import evaluate, summary_text, synthetic_truth, write_results
 
+    check_recording_options(args, args.log)
     method = _method(args)
     settings = settings_from_args(args)
     check_output_directory(args.out)  # before minutes of computation, not after

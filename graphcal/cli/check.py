@@ -16,6 +16,7 @@ from graphcal.cli.options import (
     add_recording_options,
     add_segment_options,
     add_vehicle_option,
+    check_recording_options,
     recording_keywords,
     settings_from_args,
 )
@@ -34,6 +35,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Validate a drive log (or a manifest or bag, imported in memory) and summarize it."""
+    check_recording_options(args, args.log)
     settings = settings_from_args(args)
     log, imported = open_log(args.log, settings.vehicle, **recording_keywords(args))
     summary = log_check_lines(log, settings)

@@ -19,6 +19,7 @@ from graphcal.cli.options import (
     add_segment_options,
     add_vehicle_option,
     bag_options,
+    check_recording_options,
     settings_from_args,
     timed_progress,
 )
@@ -62,8 +63,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Import a streams manifest (TOML) or a ROS 1/2 bag or MCAP file into a drive-log CSV."""
-    from graphcal import check_import_output, import_recording, write_import
+    from graphcal import check_import_output, import_recording, is_recording, write_import
 
+    if is_recording(args.source):  # else import_recording says what it is not
+        check_recording_options(args, args.source)
     settings = settings_from_args(args)
     check_import_output(args.source, args.out)
     out = Path(args.out)

@@ -9,7 +9,15 @@ import sys
 import time
 from pathlib import Path
 
-from graphcal import BagOptions, Progress, Settings, configure_settings
+from graphcal import (
+    MANIFEST_SUFFIXES,
+    BagOptions,
+    GraphcalError,
+    Progress,
+    Settings,
+    configure_settings,
+    is_recording,
+)
 from graphcal.cli.arguments import at_least, in_range, non_negative, value_option
 
 #: The bag flags' help: a field of a topic, dotted into nested fields and indices.
@@ -183,6 +191,36 @@ def _add_motion_field_options(g: argparse._ArgumentGroup) -> None:
 def bag_options(args: argparse.Namespace) -> BagOptions:
     """The bag flags (``--pose-topic`` ...) as :class:`graphcal.BagOptions`."""
     return BagOptions(**{f.name: getattr(args, f.name) for f in dataclasses.fields(BagOptions)})
+
+
+def _given(args: argparse.Namespace, names) -> list[str]:
+    """The flags (``--pose-topic``) of the options ``names`` given on the command line (an
+    option left out is ``None``)."""
+    return [f"--{name.replace('_', '-')}" for name in names if getattr(args, name) is not None]
+
+
+def check_recording_options(args: argparse.Namespace, path: Path) -> None:
+    """Refuse, in one line, a recording option that does not apply to ``path``: any of them
+    with a drive-log CSV (its rate and rows are its own), a bag's topic and field flags with a
+    streams manifest (its sections name the columns); before any work is done."""
+    bag_flags = [f.name for f in dataclasses.fields(BagOptions)]
+    if not is_recording(path):
+        given = _given(args, ["rate", "max_gap", *bag_flags])
+        if given:
+            raise GraphcalError(
+                f"{' '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a streams "
+                f"manifest or a ROS bag, not to the drive-log CSV {path} (its rows are "
+                f"already on one time grid, its columns named); remove "
+                f"{'them' if len(given) > 1 else 'it'}"
+            )
+    elif path.suffix.lower() in MANIFEST_SUFFIXES:
+        given = _given(args, bag_flags)
+        if given:
+            raise GraphcalError(
+                f"{', '.join(given)} {'apply' if len(given) > 1 else 'applies'} to a ROS bag, "
+                f"not to the streams manifest {path}: its sections name the files and columns "
+                f"(graphcal import --help-manifest); remove {'them' if len(given) > 1 else 'it'}"
+            )
 
 
 def recording_keywords(args: argparse.Namespace) -> dict[str, object]:

@@ -97,7 +97,7 @@ def _add_stream_options(p: argparse.ArgumentParser) -> None:
         "--wheel-kind",
         dest="wheel_kind_sim",
         choices=["speed", "ticks"],
-        default="speed",
+        default=None,
         help="with --streams: wheel speeds in m/s (the ECU's circumference 2.0 m; default) or "
         "cumulative ticks (96 per revolution)",
     )
@@ -152,6 +152,7 @@ def run(args: argparse.Namespace) -> int:
     """Write a synthetic drive, its noise-free truth and a JSON sidecar."""
     from graphcal import THETA_TRUE_DEFAULT, NoiseLevels
 
+    _check_outputs(args)
     theta_true = _theta_true(args)
     if args.vehicle is not None:
         return simulate_robot_command(args, theta_true)
@@ -180,6 +181,24 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         raise GraphcalError("simulate needs --out FILE.csv (or --streams DIR)")
     return _simulate_car(args, length_km, theta_true, noise, defects, say)
+
+
+def _check_outputs(args: argparse.Namespace) -> None:
+    """Refuse, in one line, both outputs at once and the options of the streams output
+    (``--bag``, ``--wheel-kind``) without ``--streams DIR``: before anything is written."""
+    if args.streams is not None and args.out is not None:
+        raise GraphcalError(
+            f"--out {args.out} and --streams {args.streams}: simulate writes one output, a "
+            "drive-log CSV (--out) or raw streams with a manifest (--streams), not both; "
+            "remove one"
+        )
+    if args.streams is None:
+        for flag, value in (("--bag", args.bag), ("--wheel-kind", args.wheel_kind_sim)):
+            if value is not None:
+                raise GraphcalError(
+                    f"{flag} {value} applies to --streams DIR (the raw streams and their "
+                    f"manifest), not to a drive-log CSV; add --streams DIR or remove {flag}"
+                )
 
 
 def _theta_true(args: argparse.Namespace) -> np.ndarray | None:

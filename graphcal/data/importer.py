@@ -30,6 +30,7 @@ from graphcal.data.import_checks import check_recording
 from graphcal.data.resampling import Resampled, resample
 from graphcal.data.stream_grid import DEFAULT_RATE, MAX_GAP_S, grid_rate
 from graphcal.data.streams import Recording, StreamError
+from graphcal.data.wheel_speeds import check_wheel_speeds
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 
 #: Suffixes of a streams manifest.
@@ -183,6 +184,7 @@ def import_recording(
         truth = _read_truth(manifest)
     else:
         recording = read_recording(path, bag)
+    check_wheel_speeds(recording.wheels, float(nominal[0]))  # before a sample is averaged
     resampled = _resampled(recording, rate, max_gap, nominal, reverses)
     warnings = check_recording(resampled, recording, nominal)
     log = validate_frame(

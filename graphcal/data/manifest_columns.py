@@ -18,6 +18,49 @@ def declaration(table: dict, key: str, default: str | None = None) -> str:
     return text if key in table else f"{text} by default"
 
 
+#: The sample rates [Hz] of a plausible sensor stream (a 1 Hz GNSS to a 2 kHz IMU): a median
+#: sample interval that is not in the time unit declared but is in another is that unit's.
+PLAUSIBLE_STREAM_RATE_HZ = (1.0, 2000.0)
+
+
+def _interval_text(seconds: float) -> str:
+    """A sample interval [s] in the unit that reads best: ``10 ms``, ``2.5 s``, ``10 us``."""
+    for name in ("s", "ms", "us", "ns"):
+        value = seconds / TIME_UNITS[name]
+        if abs(value) >= 1 or name == "ns":
+            return f"{value:.3g} {name}"
+    raise AssertionError("unreachable")
+
+
+def check_time_unit(raw: np.ndarray, unit: str, source: str, section: str, declared: str) -> None:
+    """Refuse, in one line, a stream whose times read in ``unit`` (as ``declared``, the key as
+    the manifest has it) give a median sample interval no sensor has (outside
+    :data:`PLAUSIBLE_STREAM_RATE_HZ`) when another time unit gives a plausible one: the
+    ``time_unit`` to set, before any check that would blame the speeds or the positions."""
+    if len(raw) < 2:
+        return
+    interval = float(np.median(np.diff(raw)))  # [unit]
+    slowest, fastest = (1.0 / rate for rate in PLAUSIBLE_STREAM_RATE_HZ)
+
+    def plausible(name: str) -> bool:
+        return fastest <= interval * TIME_UNITS[name] <= slowest
+
+    if plausible(unit):
+        return
+    fits = [name for name in TIME_UNITS if plausible(name)]
+    if not fits:
+        return  # no unit explains it: left to the checks of the rate and gaps
+    # of two units that fit, the one nearest a 20 ms interval (50 Hz, the typical car's)
+    likely = min(fits, key=lambda name: abs(np.log(interval * TIME_UNITS[name] / 0.02)))
+    read_as = interval * TIME_UNITS[unit]
+    raise StreamError(
+        f"the times of {source} look like {likely} (median interval "
+        f"{_interval_text(interval * TIME_UNITS[likely])} read as {_interval_text(read_as)}, "
+        f'{declared}: a {1 / read_as:.3g} Hz sensor): set time_unit = "{likely}" in '
+        f"[{section}]"
+    )
+
+
 def read_columns(
     manifest: Manifest,
     section: str,
@@ -88,5 +131,6 @@ def read_columns(
         raw, provenance = raw[keep], provenance.take(keep)
         values = {role: column[keep] for role, column in values.items()}
     check_time(raw, source, provenance, unit)
+    check_time_unit(raw, unit, source, section, declaration(table, "time_unit", "s"))
     t = raw * TIME_UNITS[unit] + offset
     return source, t, values, provenance
