@@ -26,6 +26,10 @@ from graphcal.data.drive_log_checks import (
     sampling_interval,
 )
 from graphcal.data.drive_log_flags import marked_samples, measured_components, run_column
+from graphcal.data.drive_log_turns import (
+    check_lateral_acceleration_units,
+    check_turn_directions,
+)
 from graphcal.data.track import fill_track
 from graphcal.model import THETA_NOMINAL
 
@@ -45,8 +49,11 @@ def validate_frame(
 
     Checks, in order: repeated or missing columns, non-numeric values, NaN/inf, time
     non-increasing, not in seconds or non-uniform, heading apparently in degrees, implausible
-    sideslip or lateral acceleration, negative or implausible wheel rotations and, when
-    ``min_distance`` [m] is given, a log too short for one segment.
+    sideslip or lateral acceleration, negative or implausible wheel rotations, positions
+    against the wheels, (a CSV's: an import checks its streams) wheels, track and heading
+    turning different ways or a lateral acceleration in g
+    (:mod:`graphcal.data.drive_log_turns`) and, when ``min_distance`` [m] is given, a log
+    too short for one segment.
 
     ``reverses`` (``VehicleProfile.reverses``): wheels turning backwards are motion (a robot
     spinning on the spot or reversing), accepted like forward rotations; else (a car) a
@@ -91,6 +98,9 @@ def validate_frame(
     )
     check_heading_units(log, nominal=nominal, origins=origins)
     log = _screened(log, source, nominal, origins)
+    if origins is None:  # an import checked its streams against each other, in their terms
+        check_turn_directions(log, nominal)
+        check_lateral_acceleration_units(log, nominal)
     if min_distance > 0:
         distance = log.travelled_distance(nominal[0])[-1]
         if distance < min_distance:

@@ -1,8 +1,12 @@
 """Turns of the import's grid in windows of :data:`TURN_WINDOW_S`: the direction of travel,
 the signed turn of a signal per window, and whether two signals turn the same way; and
-:func:`check_turning`, which finds mirrored tracks, headings and wheels by them."""
+:func:`turning`, which finds the one of the wheels, the track and the heading that turns
+against the other two (mirrored tracks, headings and wheels), and :func:`check_turning`,
+which says so in a recording's terms."""
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -42,50 +46,83 @@ def turn_agreement(a: np.ndarray, b: np.ndarray) -> float | None:
     return float((np.sign(a[both]) == np.sign(b[both])).mean())
 
 
-def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarray) -> None:
-    """One line if the GNSS track, the heading and the wheels do not turn the same way.
+@dataclass(frozen=True)
+class Turning:
+    """How the wheels, the track (the positions' direction of travel) and the heading turn
+    against each other: the share of the clear turns in which each pair turns the same way
+    (:func:`turn_agreement`; ``None``: too few turns, or no heading logged)."""
 
-    A mirrored track (latitude/longitude or x/y swapped), a heading in the other convention
-    (compass declared ENU) or swapped wheels (rear_left/rear_right) all show as turns in
-    opposite directions.
-    """
-    c = resampled.columns
+    wheels_track: float | None
+    heading_track: float | None
+    wheels_heading: float | None
+
+    def opposite(self) -> tuple[str, float] | None:
+        """The signal that turns against the other two and in what share of the turns:
+        ``("wheels", s)`` (the wheels swapped), ``("heading", s)`` (the heading's sign or
+        convention) or ``("track", s)`` (a mirrored track: x/y or latitude/longitude
+        swapped; without a heading, or the wheels swapped); ``None`` if nothing does."""
+        if _opposite(self.wheels_track) and _agree(self.heading_track):
+            return "wheels", 1 - self.wheels_track
+        if _opposite(self.heading_track) and _agree(self.wheels_track):
+            return "heading", 1 - self.heading_track
+        if _opposite(self.wheels_track) and (
+            self.heading_track is None or _agree(self.wheels_heading)
+        ):
+            return "track", 1 - self.wheels_track
+        return None
+
+
+def _opposite(value: float | None) -> bool:
+    return value is not None and value < TURN_MIN_AGREEMENT
+
+
+def _agree(value: float | None) -> bool:
+    return value is not None and value >= 1 - TURN_MIN_AGREEMENT
+
+
+def turning(columns: dict[str, np.ndarray], usable: np.ndarray, nominal, heading: bool) -> Turning:
+    """The :class:`Turning` of the grid's drive-log ``columns`` (``t``, ``px``, ``py``,
+    ``psi`` [rad], ``n_rl``, ``n_rr`` [rev]) over the ``usable`` samples, in windows of
+    :data:`TURN_WINDOW_S`: the wheels' yaw with the nominal theta ``nominal``, the track's
+    course and, if a ``heading`` was logged, ``psi``."""
+    c = columns
     dt = float(c["t"][1] - c["t"][0])
     window = max(1, round(TURN_WINDOW_S / dt))
-    usable = ~resampled.masked
     wheel_yaw = np.concatenate(
         [[0.0], np.cumsum((c["n_rr"][:-1] - c["n_rl"][:-1]) * nominal[0] / nominal[2])]
     )
     wheels = turn_directions(wheel_yaw, usable, window)
     track = turn_directions(grid_course(c, dt, nominal), usable, window)
-    wheels_track = turn_agreement(wheels, track)
-    pose = recording.pose
-    heading = None
-    if pose.heading is not None:
-        heading = turn_agreement(turn_directions(c["psi"], usable, window), track)
-    wheels_heading = (
-        turn_agreement(wheels, turn_directions(c["psi"], usable, window))
-        if pose.heading is not None
-        else None
+    if not heading:
+        return Turning(turn_agreement(wheels, track), None, None)
+    psi = turn_directions(c["psi"], usable, window)
+    return Turning(
+        turn_agreement(wheels, track), turn_agreement(psi, track), turn_agreement(wheels, psi)
     )
 
-    def opposite(value: float | None) -> bool:
-        return value is not None and value < TURN_MIN_AGREEMENT
 
-    def agree(value: float | None) -> bool:
-        return value is not None and value >= 1 - TURN_MIN_AGREEMENT
+def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarray) -> None:
+    """One line if the GNSS track, the heading and the wheels do not turn the same way.
 
-    names = pose_names(pose.origin is not None)
-    if opposite(wheels_track) and agree(heading):
+    A mirrored track (latitude/longitude or x/y swapped), a heading in the other convention
+    (compass declared ENU) or swapped wheels (rear_left/rear_right) all show as turns in
+    opposite directions (:meth:`Turning.opposite`).
+    """
+    pose = recording.pose
+    turns = turning(resampled.columns, ~resampled.masked, nominal, pose.heading is not None)
+    found = turns.opposite()
+    if found is None:
+        return
+    signal, share = found
+    if signal == "wheels":
         raise StreamError(
             f"{recording.wheels.source}: the wheels turn opposite to the GNSS track and the "
-            f"heading in {1 - wheels_track:.0%} of the turns; rear_left and rear_right are "
-            "swapped"
+            f"heading in {share:.0%} of the turns; rear_left and rear_right are swapped"
         )
-    if opposite(heading) and agree(wheels_track):
+    if signal == "heading":
         raise StreamError(
             f"{pose.source}: the heading turns opposite to the GNSS track and the wheels in "
-            f"{1 - heading:.0%} of the turns; "
+            f"{share:.0%} of the turns; "
             + stream_advice(
                 provenance_of(pose),
                 "heading",
@@ -93,10 +130,12 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
                 "counter-clockwise)",
             )
         )
-    if opposite(wheels_track) and (heading is None or agree(wheels_heading)):
-        cause = f"{names} swapped" + ("" if heading is not None else " or the wheels swapped")
-        cause = stream_advice(provenance_of(pose), "mirrored", cause)
-        raise StreamError(
-            f"{pose.source}: the GNSS track turns opposite to the wheels in "
-            f"{1 - wheels_track:.0%} of the turns, a mirrored track: {cause}; exchange them"
-        )
+    names = pose_names(pose.origin is not None)
+    cause = f"{names} swapped" + (
+        "" if turns.heading_track is not None else " or the wheels swapped"
+    )
+    cause = stream_advice(provenance_of(pose), "mirrored", cause)
+    raise StreamError(
+        f"{pose.source}: the GNSS track turns opposite to the wheels in "
+        f"{share:.0%} of the turns, a mirrored track: {cause}; exchange them"
+    )

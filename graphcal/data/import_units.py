@@ -28,13 +28,17 @@ ANGLE_SCALE_LIMIT = 8.0
 #: The same for the IMU's lateral acceleration against speed × the track's yaw rate (an
 #: acceleration in g is 1/9.81 of it).
 ACCELERATION_SCALE_LIMIT = 3.0
+#: Standard gravity [m/s²], and how far (relative) the ratio × it may be from 1 for an
+#: acceleration to be in g.
+STANDARD_GRAVITY = 9.80665
+G_RATIO_TOLERANCE = 0.3
 #: Shortest chord of a window whose turn counts (the course of a slower one is noise), in
 #: wheel revolutions (nominal c_e: 10 m for the paper's car).
 TURN_MIN_CHORD_REVS = 5.0
 
 
 @dataclass(frozen=True)
-class _Turns:
+class TrackTurns:
     """The GNSS track's clear turns in consecutive windows of the grid."""
 
     window: int
@@ -53,19 +57,26 @@ class _Turns:
         return float(np.median(ratio)), sharpest
 
 
-def _turns(resampled: Resampled, nominal=THETA_NOMINAL) -> _Turns:
-    c = resampled.columns
+def track_turns(
+    columns: dict[str, np.ndarray], masked: np.ndarray, nominal=THETA_NOMINAL
+) -> TrackTurns:
+    """The clear turns of the track of the grid's drive-log ``columns`` (``t`` [s], ``px``,
+    ``py`` [m]) in windows of :data:`TURN_WINDOW_S`, leaving out windows with ``masked``
+    samples; a chord must span :data:`TURN_MIN_CHORD_REVS` of the nominal c_e."""
+    c = columns
     dt = float(c["t"][1] - c["t"][0])
     window = max(1, round(TURN_WINDOW_S / dt))
     ends = np.arange(0, len(c["t"]), window)
-    track = turn_directions(grid_course(c, dt, nominal), ~resampled.masked, window)
+    track = turn_directions(grid_course(c, dt, nominal), ~masked, window)
     chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
     least = TURN_MIN_CHORD_REVS * nominal[0]
     turning = np.isfinite(track) & (np.abs(track) > TURN_MIN_YAW) & (chords > least)
-    return _Turns(window, ends, track, chords, turning)
+    return TrackTurns(window, ends, track, chords, turning)
 
 
-def _span(provenance: Provenance, t: np.ndarray, grid: np.ndarray, turns: _Turns, k: int) -> str:
+def _span(
+    provenance: Provenance, t: np.ndarray, grid: np.ndarray, turns: TrackTurns, k: int
+) -> str:
     """``from line 2301 to line 2381``: the stream's samples at window ``k``'s ends."""
     a, b = turns.ends[k], turns.ends[k + 1]
     first, last = sample_before(t, grid[a]), sample_before(t, grid[b])
@@ -127,7 +138,7 @@ def check_units(
     track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
     speed × the track's yaw rate (an acceleration in g is 1/9.81 of it).
     """
-    turns = _turns(resampled, nominal)
+    turns = track_turns(resampled.columns, resampled.masked, nominal)
     if turns.turning.sum() < TURN_MIN_COUNT:
         return
     c = resampled.columns
@@ -146,28 +157,46 @@ def check_units(
         _check_angle_scale(yaw, "yaw_rate", imu, imu.t, turns, usable, grid)
     if imu.lateral_acceleration is not None:
         mean = interval_means(imu.t, imu.lateral_acceleration, grid)
-        sums = np.add.reduceat(mean, turns.ends)[: len(turns.track)]
-        counts = np.diff(np.append(turns.ends, len(mean)))[: len(turns.track)]
-        seconds = turns.window * dt
-        expected = turns.chords / seconds * np.nan_to_num(turns.track) / seconds
-        found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
+        found = lateral_acceleration_scale(mean, turns, dt)
         if found is not None and not (
             1 / ACCELERATION_SCALE_LIMIT <= found[0] <= ACCELERATION_SCALE_LIMIT
         ):
-            ratio, k = found
-            in_g = abs(ratio * 9.80665 - 1.0) < 0.3
+            ratio, k, logged, expected = found
             advice = (
                 "it is apparently in g: multiply the column by 9.81"
-                if in_g
+                if looks_like_g(ratio)
                 else "give it in m/s², positive to the left"
             )
             raise StreamError(
                 f"{where.at(('lateral_acceleration',))}: the lateral acceleration is "
                 f"{ratio:.3g}x the speed × yaw rate of the GNSS track in its turns (e.g. "
-                f"{_span(where, imu.t, grid, turns, k)}: {sums[k] / counts[k]:.3g} m/s² where "
-                f"the track's is {expected[k]:.3g} m/s²); {advice}"
+                f"{_span(where, imu.t, grid, turns, k)}: {logged:.3g} m/s² where "
+                f"the track's is {expected:.3g} m/s²); {advice}"
             )
 
 
-def _turn_of(yaw: np.ndarray, turns: _Turns, k: int) -> float:
+def lateral_acceleration_scale(
+    ay: np.ndarray, turns: TrackTurns, dt: float
+) -> tuple[float, int, float, float] | None:
+    """How many times speed × yaw rate of the track a lateral acceleration ``ay`` [m/s² as
+    logged, one per grid sample of ``dt`` s] is in the track's clear ``turns``: the median
+    ratio of their magnitudes, the window of the sharpest turn and, there, the mean ``ay``
+    and the track's speed × yaw rate [m/s²]; ``None`` if there are too few turns."""
+    sums = np.add.reduceat(ay, turns.ends)[: len(turns.track)]
+    counts = np.diff(np.append(turns.ends, len(ay)))[: len(turns.track)]
+    seconds = turns.window * dt
+    expected = turns.chords / seconds * np.nan_to_num(turns.track) / seconds
+    found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
+    if found is None:
+        return None
+    ratio, k = found
+    return ratio, k, float(sums[k] / counts[k]), float(expected[k])
+
+
+def looks_like_g(ratio: float) -> bool:
+    """A lateral acceleration ``ratio`` times speed × yaw rate is apparently in g (1/9.81)."""
+    return abs(ratio * STANDARD_GRAVITY - 1.0) < G_RATIO_TOLERANCE
+
+
+def _turn_of(yaw: np.ndarray, turns: TrackTurns, k: int) -> float:
     return float(yaw[turns.ends[k + 1]] - yaw[turns.ends[k]])
