@@ -95,13 +95,27 @@ def test_failed_batch_solves_are_reported_and_left_out(drive, monkeypatch):
 
 def test_bad_settings_file_exits_2(drive_csv, tmp_path, capsys):
     bad = tmp_path / "bad.toml"
-    bad.write_text("[batches]\ncount = 0\n")
+    bad.write_text("[batches]\ncount = -1\n")
     assert (
         main(["calibrate", str(drive_csv), "--out", str(tmp_path / "o"), "--config", str(bad)]) == 2
     )
     err = capsys.readouterr().err
-    assert "batches.size and batches.count must be at least 1" in err
+    assert "batches.count at least 0 (0: no batch study" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_no_batches_in_a_settings_file_is_the_whole_log_solve_as_the_flag_is(
+    drive_csv, tmp_path, capsys
+):
+    """``[batches] count = 0`` is ``--batches 0`` (it was refused); with the staged method,
+    which works on batches, it is one line."""
+    config = tmp_path / "none.toml"
+    config.write_text("[batches]\ncount = 0\n")
+    out = tmp_path / "o"
+    staged = ["calibrate", str(drive_csv), "--method", "staged", "--config", str(config)]
+    assert main([*staged, "--out", str(out)]) == 2
+    assert "needs the joint or whole method" in capsys.readouterr().err
+    assert not out.exists()
 
 
 @pytest.mark.slow
@@ -211,3 +225,18 @@ def test_bench_rejects_meaningless_sizes(capsys):
         main(["bench", "--naive-iterations", "0"])
     assert info.value.code == 2
     assert "must be at least 1" in capsys.readouterr().err
+
+
+def test_exactly_as_many_segments_as_a_batch_is_warned_of():
+    """9 selected segments and batches of 9: every batch is the same one, its spread 0 (the
+    report said "1 batch of 9" with IQR 0.000 and no warning)."""
+    from types import SimpleNamespace
+
+    from graphcal.pipeline.run import _few_segments_warning
+
+    prepared = SimpleNamespace(selected=list(range(9)), settings=Settings())
+    (warning,) = _few_segments_warning(make_batches(9, 9, 100, 0), prepared)
+    assert warning.startswith("only 9 selected segments: 1 batch of 9;"), warning
+    assert "no spread" in warning
+    more = SimpleNamespace(selected=list(range(10)), settings=Settings())
+    assert _few_segments_warning(make_batches(10, 9, 100, 0), more) == []

@@ -74,7 +74,8 @@ def run_calibration(
             (apply a vehicle with :func:`graphcal.pipeline.vehicle_settings.apply_vehicle`).
         method: ``"staged"`` (the paper's five steps over batches), ``"joint"`` (one joint
             graph per batch, then one over all selected segments) or ``"whole"`` (only the
-            joint solve over all selected segments).
+            joint solve over all selected segments; also what ``"joint"`` does with
+            ``settings.batches.count`` 0).
         progress: called with one line per stage.
         workers: worker processes for batches and segments (results do not depend on it).
 
@@ -86,6 +87,13 @@ def run_calibration(
     say = progress or (lambda _line: None)
     if method not in METHODS:
         raise GraphcalError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
+    if settings.batches.count == 0:  # no batch study: the whole-log solve alone
+        if method == "staged":
+            raise GraphcalError(
+                "[batches] count = 0 (one solve over the whole log) needs the joint or whole "
+                "method; the staged method works on batches"
+            )
+        method = "whole"
     return _RUNS[method](log, settings, workers, say)
 
 
@@ -224,14 +232,16 @@ def _batches(prepared: PreparedLog, method: Method, workers: int, say: Progress)
 
 
 def _few_segments_warning(batches: np.ndarray, prepared: PreparedLog) -> list[str]:
-    """The warning that ``batches`` hold fewer than the set number of segments."""
+    """The warning that ``batches`` hold no more than the set number of segments (exactly
+    that many: every batch is the same one, and its spread is 0)."""
     selected, wanted = len(prepared.selected), prepared.settings.batches.size
-    if selected >= wanted:
+    if selected > wanted:
         return []
     count, size = batches.shape
     return [
         f"only {selected} selected segments: {_plural(count, 'batch', 'batches')} of "
-        f"{size} instead of {wanted}"
+        f"{size}"
+        + (f" instead of {wanted}" if size < wanted else "")
         + (
             "; every batch shares most segments, so spreads understate the uncertainty"
             if count > 1

@@ -185,8 +185,11 @@ class BatchingSettings:
     joint_solve: str = "linearized"
 
     def __post_init__(self) -> None:
-        if self.size < 1 or self.count < 1:
-            raise ValueError("batches.size and batches.count must be at least 1")
+        if self.size < 1 or self.count < 0:
+            raise ValueError(
+                "batches.size must be at least 1 and batches.count at least 0 (0: no batch "
+                "study, one solve over the whole log, as --batches 0)"
+            )
         if self.seed < 0:
             raise ValueError("batches.seed must be >= 0")
         if self.joint_solve not in ("linearized", "exact"):
