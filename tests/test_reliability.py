@@ -85,7 +85,7 @@ def test_an_absurd_yaw_rate_threshold_is_refused_at_once(drive_csv, tmp_path, ca
     err = _one_line_exit_2(
         ["calibrate", str(drive_csv), "--min-yaw-rate", "10", "--out", str(out)], capsys
     )
-    assert "min_yaw_rate" in err and not out.exists()
+    assert "--min-yaw-rate 10" in err and not out.exists()  # what the user typed
 
 
 def _hold_fixes(log: DriveLog, starts_s: list[float], seconds: float) -> DriveLog:

@@ -228,8 +228,36 @@ def recording_keywords(args: argparse.Namespace) -> dict[str, object]:
     return {"rate": args.rate, "max_gap": args.max_gap, "bag": bag_options(args)}
 
 
+#: The settings' keys the options set, by option: an error names what the user typed.
+_OPTION_KEYS = {
+    "segment_length": ("--segment-length", "segments.length"),
+    "segment_stride": ("--segment-stride", "segments.stride"),
+    "min_yaw_rate": ("--min-yaw-rate", "segments.min_yaw_rate"),
+    "yaw_statistic": ("--yaw-statistic", "segments.yaw_statistic"),
+    "validation_length": ("--validation-length", "segments.validation_length"),
+    "batches": ("--batches", "batches.count"),
+    "seed": ("--seed", "batches.seed"),
+    "batch_solve": ("--batch-solve", "batches.joint_solve"),
+}
+
+
 def settings_from_args(args: argparse.Namespace) -> Settings:
-    """Settings: the paper's defaults, then ``--config FILE``, then explicit options."""
+    """Settings: the paper's defaults, then ``--config FILE``, then explicit options. A value
+    out of range is named by the option that set it (``--min-yaw-rate``, not
+    ``segments.min_yaw_rate``)."""
+    try:
+        return _settings_from_args(args)
+    except GraphcalError as exc:
+        message = str(exc)
+        for name, (option, key) in _OPTION_KEYS.items():
+            if getattr(args, name, None) is not None and message.startswith(key):
+                raise GraphcalError(
+                    f"{option} {getattr(args, name)}:{message[len(key) :]}"
+                ) from exc
+        raise
+
+
+def _settings_from_args(args: argparse.Namespace) -> Settings:
     return configure_settings(
         getattr(args, "config", None),
         getattr(args, "vehicle", None),
