@@ -112,7 +112,7 @@ def test_hdt_gives_the_true_heading_and_time_offset_shifts_the_fixes(recording, 
     expected = np.radians(90.0 - fixes["heading"].to_numpy())
     assert np.abs(np.angle(np.exp(1j * (pose.heading - expected)))).max() < np.radians(0.006)
     np.testing.assert_allclose(pose.t, fixes["t"].to_numpy() + 0.25, rtol=0, atol=1e-6)
-    # heading = false: the GNSS course instead
+    # heading = false: positions only
     manifest.write_text(manifest.read_text().replace("[gnss]\n", "[gnss]\nheading = false\n"))
     ignored = read_manifest(manifest)
     assert ignored.pose.heading is None

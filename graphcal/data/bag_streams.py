@@ -115,7 +115,7 @@ def pose_stream(source: str, msgtype: str, rows: TopicRows, notes: list[str]) ->
         return PoseStream(t, x, y, None, None, source, origin, provenance)
     quaternion = values[:, 2:6]
     if not np.linalg.norm(quaternion, axis=1).any():
-        notes.append(f"{source}: orientation all zero (not logged); the course is used")
+        notes.append(f"{source}: orientation all zero (not logged); positions only are measured")
         heading = None
     else:
         heading = quaternion_yaw(quaternion)

@@ -52,7 +52,7 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
                     provenance_of(recording.pose),
                     "heading",
                     f"check {convention_key(recording.pose)} and the heading's zero (an IMU's "
-                    "yaw has an arbitrary one), or leave the heading out to use the GNSS course",
+                    "yaw has an arbitrary one), or leave the heading out (then positions only)",
                 )
             )
         if abs(offset) > HEADING_OFFSET_WARNING:

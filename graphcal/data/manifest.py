@@ -15,7 +15,7 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
     latitude = "lat"                 # degrees WGS-84 ...
     longitude = "lon"
     # x = "x", y = "y"               # ... or a local metric frame [m] (east, north)
-    heading = "heading"              # optional; without it the GNSS course is used
+    heading = "heading"              # optional; without it positions only are measured
     heading_unit = "deg"             # deg | rad (required with heading)
     heading_convention = "enu"       # enu: 0 = east, counter-clockwise
                                      # compass: 0 = north, clockwise
@@ -26,7 +26,7 @@ Every key, with its default (``graphcal import --help-manifest`` prints this)::
                                      # course); keys: nmea, date, heading, time_offset
     # date = "2025-11-23"            # with nmea: UTC date of the first fix, for a log
                                      # without RMC (RMC's dates are used where logged)
-    # heading = false                # with nmea: ignore HDT/THS, use the GNSS course
+    # heading = false                # with nmea: ignore HDT/THS (positions only)
     [wheels]
     file = "wheels.csv"
     time = "t"

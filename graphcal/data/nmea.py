@@ -242,7 +242,7 @@ def _provenance(log: NmeaLog, usable: np.ndarray, source: str, section: str) -> 
     heading_advice = (
         "the heading is the receiver's true heading (HDT/THS, the direction of its antennas' "
         "baseline): check that the baseline points along the car (the receiver's heading "
-        f"offset), or set [{section}] heading = false to use the GNSS course"
+        f"offset), or set [{section}] heading = false to measure positions only"
     )
     return SentenceProvenance(
         file=source,

@@ -139,7 +139,7 @@ class PoseStream:
         t: time [s], strictly increasing, ``(M,)``.
         x, y: position [m], east and north of ``origin`` (or any local metric frame).
         heading: heading [rad], ENU convention (0 = east, counter-clockwise), or ``None``
-            when not logged (then the course is used).
+            when not logged (then positions only are measured).
         sideslip: sideslip angle [rad], or ``None`` (then 0).
         source: where the stream came from, for messages (``"gnss.csv"``, ``"bag:/fix"``).
         origin: ``(latitude, longitude)`` [deg] of the local frame's origin when the fixes
