@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import IO, Any
 
@@ -35,6 +35,17 @@ def _atomic(path: str | os.PathLike[str], write: Callable[[IO[Any]], None], mode
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     """Write ``text`` to ``path`` atomically."""
     return _atomic(path, lambda handle: handle.write(text), "w")
+
+
+def atomic_write_chunks(path: str | os.PathLike[str], chunks: Iterable[bytes]) -> Path:
+    """Write the byte strings ``chunks`` one after another to ``path`` atomically (a large
+    file made a part at a time, never whole in memory)."""
+
+    def write(handle: IO[Any]) -> None:
+        for chunk in chunks:
+            handle.write(chunk)
+
+    return _atomic(path, write, "wb")
 
 
 def atomic_write_csv(frame: Any, path: str | os.PathLike[str]) -> Path:

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.files import atomic_write_csv, atomic_write_text
+from graphcal.files import atomic_write_chunks, atomic_write_csv, atomic_write_text
 from graphcal.simulate.can_bus import (
     EXTENDED_FLAG,
     IMU_ID,
@@ -215,24 +215,24 @@ def write_candump(
     frames: CanFrames, path: str | os.PathLike[str], channel: str = "can0", chunk: int = 500_000
 ) -> Path:
     """Write a candump ``-L`` log with numpy (:func:`candump_text`), ``chunk`` frames at a
-    time: a 3-hour log of a car's bus in seconds."""
-    path = Path(path)
-    with open(path, "wb") as handle:
-        for start in range(0, len(frames), chunk):
-            part = slice(start, start + chunk)
-            handle.write(
-                candump_text(
-                    CanFrames(
-                        frames.micros[part],
-                        frames.key[part],
-                        frames.data[part],
-                        frames.length[part],
-                        frames.corrupt[part],
-                    ),
-                    channel,
-                )
+    time, atomically: a 3-hour log of a car's bus in seconds."""
+    parts = (slice(start, start + chunk) for start in range(0, len(frames), chunk))
+    return atomic_write_chunks(
+        path,
+        (
+            candump_text(
+                CanFrames(
+                    frames.micros[part],
+                    frames.key[part],
+                    frames.data[part],
+                    frames.length[part],
+                    frames.corrupt[part],
+                ),
+                channel,
             )
-    return path
+            for part in parts
+        ),
+    )
 
 
 def read_back_times(path: str | os.PathLike[str], frames: CanFrames, key: int) -> np.ndarray:
@@ -273,15 +273,7 @@ def manifest_text(
         'sideslip = "beta"\nsideslip_unit = "rad"\n'
     )
     if log is not None:
-        wheels = (
-            f'[wheels]\ncan = "{log}"\ndbc = "{dbc}"\nmessage = "{WHEEL_MESSAGE}"\n'
-            'rear_left = "WHEEL_SPEED_RL"\nrear_right = "WHEEL_SPEED_RR"\nkind = "speed"\n'
-            f"circumference = {circumference!r}  # m, the ECU's; speed_unit: the DBC's km/h\n"
-        )
-        imu = (
-            f"[imu]  # the same log and DBC as [wheels]\nmessage = 0x{IMU_ID:X}\n"
-            'lateral_acceleration = "ACCEL_Y"\nyaw_rate = "YAW_RATE"\n'
-        )
+        wheels, imu = can_sections(log, dbc or "", circumference)
     else:
         wheels = (
             f'[wheels]\nfile = "{wheels_csv}"\ntime = "t"\nrear_left = "rl"\n'
@@ -296,6 +288,23 @@ def manifest_text(
         "# A synthetic car's CAN log (graphcal.simulate.can_log).\n"
         'rate = 40.0\ntruth = "truth.json"\n\n' + pose + "\n" + wheels + "\n" + imu
     )
+
+
+def can_sections(log: str, dbc: str, circumference: float) -> tuple[str, str]:
+    """The ``[wheels]`` and ``[imu]`` sections of a manifest reading the rear wheel speeds
+    (km/h, the DBC's unit; ``circumference`` [m] the ECU's) and the IMU's lateral
+    acceleration and yaw rate from the CAN log ``log`` with the DBC ``dbc`` (paths relative to
+    the manifest), each ending in a newline."""
+    wheels = (
+        f'[wheels]\ncan = "{log}"\ndbc = "{dbc}"\nmessage = "{WHEEL_MESSAGE}"\n'
+        'rear_left = "WHEEL_SPEED_RL"\nrear_right = "WHEEL_SPEED_RR"\nkind = "speed"\n'
+        f"circumference = {circumference!r}  # m, the ECU's; speed_unit: the DBC's km/h\n"
+    )
+    imu = (
+        f"[imu]  # the same log and DBC as [wheels]\nmessage = 0x{IMU_ID:X}\n"
+        'lateral_acceleration = "ACCEL_Y"\nyaw_rate = "YAW_RATE"\n'
+    )
+    return wheels, imu
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import datetime
 import os
-import re
 from functools import reduce
 from operator import xor
 from pathlib import Path
@@ -24,7 +23,7 @@ import pandas as pd
 
 from graphcal.data.geodesy import geodetic_to_local, local_to_geodetic
 from graphcal.files import atomic_write_text
-from graphcal.simulate.streams import EPOCH, SyntheticRecording
+from graphcal.simulate.streams import EPOCH, SyntheticRecording, replace_section
 
 #: Knots in m/s.
 KNOT = 1852.0 / 3600.0
@@ -166,9 +165,11 @@ def write_nmea(
 def nmea_manifest(sim: SyntheticRecording, nmea: str = "receiver.nmea", **keys: str) -> str:
     """The recording's manifest (:meth:`SyntheticRecording.manifest`) with a ``[gnss]`` that
     reads the NMEA log ``nmea``, plus ``keys`` (``date="2025-11-23"``)."""
+    return replace_section(sim.manifest(), "gnss", nmea_section(nmea, **keys))
+
+
+def nmea_section(nmea: str = "receiver.nmea", **keys: str) -> str:
+    """A manifest's ``[gnss]`` section reading the NMEA log ``nmea`` (relative to the
+    manifest), plus ``keys`` (``date="2025-11-23"``): positions only unless it has HDT."""
     extra = "".join(f'{key} = "{value}"\n' for key, value in keys.items())
-    section = f'[gnss]\nnmea = "{nmea}"\n{extra}'
-    text, count = re.subn(r"\[gnss\]\n.*?(?=\n\[)", lambda _m: section, sim.manifest(), flags=re.S)
-    if count != 1:
-        raise ValueError("the recording's manifest has no [gnss] section to replace")
-    return text
+    return f'[gnss]\nnmea = "{nmea}"\n{extra}'

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -295,12 +296,21 @@ def manifest_text(
     )
 
 
+def replace_section(manifest: str, name: str, section: str) -> str:
+    """The manifest text with its ``[name]`` section (from its header to the blank line before
+    the next section, or to the end) replaced by ``section``: its header and lines, each
+    ending in a newline."""
+    pattern = rf"^\[{name}\][^\n]*\n.*?(?=\n\[|\Z)"
+    text, count = re.subn(pattern, lambda _m: section, manifest, count=1, flags=re.S | re.M)
+    if count != 1:
+        raise ValueError(f"the manifest has no [{name}] section to replace")
+    return text
+
+
 def write_streams(sim: SyntheticRecording, directory: str | os.PathLike[str]) -> list[Path]:
     """Write ``gnss.csv``, ``wheels.csv``, ``imu.csv``, ``manifest.toml`` and ``truth.json``
     (``pose.csv`` instead of ``gnss.csv`` for a local x/y pose, no ``imu.csv`` without an IMU:
     :meth:`SyntheticRecording.manifest`)."""
-    from graphcal import __version__
-
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     pose_file = "pose.csv" if "x" in sim.gnss.columns else "gnss.csv"
@@ -310,6 +320,16 @@ def write_streams(sim: SyntheticRecording, directory: str | os.PathLike[str]) ->
     ]
     if sim.imu is not None:
         written.append(atomic_write_csv(sim.imu, directory / "imu.csv"))
+    written.append(write_truth(sim, directory))
+    written.append(atomic_write_text(directory / "manifest.toml", sim.manifest()))
+    return written
+
+
+def write_truth(sim: SyntheticRecording, directory: str | os.PathLike[str]) -> Path:
+    """Write ``truth.json``: the drive's seed, length and route, ``theta_true`` and the
+    stream settings, for ``calibrate`` to compare with."""
+    from graphcal import __version__
+
     truth = {
         "generator": f"graphcal {__version__} simulate --streams",
         "seed": sim.drive.seed,
@@ -324,6 +344,4 @@ def write_streams(sim: SyntheticRecording, directory: str | os.PathLike[str]) ->
         "epoch_s": EPOCH,
         **sim.metadata(),
     }
-    written.append(atomic_write_text(directory / "truth.json", json.dumps(truth, indent=2) + "\n"))
-    written.append(atomic_write_text(directory / "manifest.toml", sim.manifest()))
-    return written
+    return atomic_write_text(Path(directory) / "truth.json", json.dumps(truth, indent=2) + "\n")
