@@ -14,7 +14,7 @@ from graphcal.cli.arguments import at_least, non_negative, value_option, whole
 from graphcal.cli.options import timed_progress
 from graphcal.cli.simulate_fleet import add_fleet_options, simulate_fleet_command
 from graphcal.cli.simulate_robot import simulate_robot_command
-from graphcal.cli.simulate_streams import simulate_streams_command
+from graphcal.cli.simulate_streams import check_raw_log_options, simulate_streams_command
 
 if TYPE_CHECKING:
     from graphcal import NoiseLevels
@@ -83,7 +83,8 @@ def _add_robot_options(p: argparse.ArgumentParser) -> None:
 
 
 def _add_stream_options(p: argparse.ArgumentParser) -> None:
-    """``--streams DIR`` instead of a CSV, with its ``--wheel-kind`` and ``--bag``."""
+    """``--streams DIR`` instead of a CSV, with its ``--wheel-kind``, ``--bag``, ``--can`` and
+    ``--nmea``."""
     value_option(
         p,
         "--streams",
@@ -106,6 +107,19 @@ def _add_stream_options(p: argparse.ArgumentParser) -> None:
         choices=["ros1", "ros2", "mcap"],
         default=None,
         help="with --streams: also write the streams as a ROS 1 bag, a ROS 2 bag or an MCAP file",
+    )
+    p.add_argument(
+        "--can",
+        action="store_true",
+        help="with --streams: the wheels (km/h) and the IMU as a car's CAN bus, a raw candump "
+        "log (drive.log) with its DBC (car.dbc), instead of wheels.csv and imu.csv; "
+        'needs pip install -e ".[can]"',
+    )
+    p.add_argument(
+        "--nmea",
+        action="store_true",
+        help="with --streams: the GNSS as a receiver's NMEA 0183 log (receiver.nmea: GGA + RMC "
+        'at 10 Hz, positions only) instead of gnss.csv; needs pip install -e ".[nmea]"',
     )
 
 
@@ -185,7 +199,8 @@ def run(args: argparse.Namespace) -> int:
 
 def _check_outputs(args: argparse.Namespace) -> None:
     """Refuse, in one line, both outputs at once and the options of the streams output
-    (``--bag``, ``--wheel-kind``) without ``--streams DIR``: before anything is written."""
+    (``--bag``, ``--wheel-kind``, ``--can``, ``--nmea``) without ``--streams DIR`` or with
+    what they cannot go with: before anything is written."""
     if args.streams is not None and args.out is not None:
         raise GraphcalError(
             f"--out {args.out} and --streams {args.streams}: simulate writes one output, a "
@@ -193,12 +208,18 @@ def _check_outputs(args: argparse.Namespace) -> None:
             "remove one"
         )
     if args.streams is None:
-        for flag, value in (("--bag", args.bag), ("--wheel-kind", args.wheel_kind_sim)):
-            if value is not None:
+        for given in (
+            f"--bag {args.bag}" if args.bag is not None else None,
+            f"--wheel-kind {args.wheel_kind_sim}" if args.wheel_kind_sim is not None else None,
+            "--can" if args.can else None,
+            "--nmea" if args.nmea else None,
+        ):
+            if given is not None:
                 raise GraphcalError(
-                    f"{flag} {value} applies to --streams DIR (the raw streams and their "
-                    f"manifest), not to a drive-log CSV; add --streams DIR or remove {flag}"
+                    f"{given} applies to --streams DIR (the raw streams and their manifest), "
+                    f"not to a drive-log CSV; add --streams DIR or remove {given.split()[0]}"
                 )
+    check_raw_log_options(args)
 
 
 def _theta_true(args: argparse.Namespace) -> np.ndarray | None:

@@ -79,8 +79,8 @@ BO_ 2564485392 DIAGNOSTIC: 8 XXX
  SG_ DIAG_DATA : 0|32@1+ (1,0) [0|4294967295] "" XXX
 
 
-CM_ SG_ 170 WHEEL_SPEED_RL "Rear-left wheel speed from the ABS, 50 Hz";
-CM_ SG_ 170 WHEEL_SPEED_RR "Rear-right wheel speed from the ABS, 50 Hz";
+CM_ SG_ 170 WHEEL_SPEED_RL "Rear-left wheel speed from the ABS";
+CM_ SG_ 170 WHEEL_SPEED_RR "Rear-right wheel speed from the ABS";
 VAL_ 956 GEAR 0 "P" 1 "R" 2 "N" 3 "D" ;
 """
 

@@ -1,6 +1,7 @@
 """A synthetic recording with its sensors' raw logs instead of CSVs: what ``graphcal simulate
 --streams DIR --can --nmea`` writes (issue 35).
 
+The samples are the recording's, at its rates; only their encoding differs from the CSVs.
 With ``can``, the wheels and the IMU are a car's CAN bus as a candump ``-L`` log
 (:data:`CAN_LOG_NAME`) with its DBC (:data:`DBC_NAME`, :data:`graphcal.simulate.can_log.CAR_DBC`):
 the rear wheel speeds in km/h, the yaw rate and lateral acceleration in a multiplexed message,
@@ -23,8 +24,6 @@ from graphcal.simulate.streams import SyntheticRecording, replace_section, write
 CAN_LOG_NAME, DBC_NAME = "drive.log", "car.dbc"
 #: The receiver's NMEA 0183 log, in the recording's directory.
 NMEA_NAME = "receiver.nmea"
-#: Wheel-speed rate [Hz] of the CAN bus (the ABS's, as the DBC's comments say).
-CAN_WHEEL_RATE = 50.0
 
 
 def write_raw_logs(
