@@ -67,6 +67,22 @@ def test_can_and_nmea_write_the_logs_their_manifest_reads_and_check_passes(
         assert "pose   " + str(directory / "receiver.nmea") + ": " in out, out
 
 
+def test_the_can_sample_is_the_csv_sample_in_the_dbcs_encoding(tmp_path):
+    """The same seed with and without --can: the same drive log but for the DBC's steps
+    (wheel speeds 0.01 km/h, lateral acceleration 0.002 m/s²)."""
+    from graphcal.data.importer import import_recording
+
+    _simulate(tmp_path / "csv", "--seed", "1")
+    _simulate(tmp_path / "can", "--seed", "1", "--can")
+    csv = import_recording(tmp_path / "csv" / "manifest.toml").log.to_dataframe()
+    can = import_recording(tmp_path / "can" / "manifest.toml").log.to_dataframe()
+    assert list(csv.columns) == list(can.columns) and len(csv) == len(can) > 5000
+    for column, tolerance in (("px", 0), ("py", 0), ("psi", 0), ("n_rl", 3e-5), ("ay", 0.0011)):
+        x, y = csv[column].to_numpy(), can[column].to_numpy()
+        assert np.array_equal(np.isnan(x), np.isnan(y)), column  # the rows without a fix
+        assert np.nanmax(np.abs(x - y)) <= tolerance, (column, np.nanmax(np.abs(x - y)))
+
+
 @pytest.mark.parametrize("flag", ["--can", "--nmea"])
 def test_can_and_nmea_without_streams_are_refused(tmp_path, capsys, flag):
     out = tmp_path / "q.csv"
