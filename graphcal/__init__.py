@@ -59,6 +59,7 @@ _PUBLIC = {
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",
     "write_streams": "graphcal.simulate.streams",
+    "write_raw_logs": "graphcal.simulate.raw_logs",  # a recording as candump + DBC, NMEA
     "write_bag": "graphcal.simulate.bags",  # a recording as a ROS 1/2 bag or MCAP file
     # The odometry model (eqs. 1-3).
     "THETA_NOMINAL": "graphcal.model",

@@ -82,6 +82,7 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> dict:
 
 
 @pytest.mark.parametrize("storage", list(STORAGES))
+@pytest.mark.slow
 def test_navsatfix_recording_round_trips(bags, storage):
     path = bags[storage]
     assert is_bag(path)
@@ -97,6 +98,7 @@ def test_navsatfix_recording_round_trips(bags, storage):
 
 
 @pytest.mark.parametrize("storage", list(STORAGES))
+@pytest.mark.slow
 def test_odometry_with_heading_round_trips(tmp_path, storage):
     recording = _recording(geodetic=False)
     path = write_bag(recording, tmp_path / STORAGES[storage], storage, pose_topic="/odom")
@@ -104,6 +106,7 @@ def test_odometry_with_heading_round_trips(tmp_path, storage):
     _assert_same(read_bag(path, pose_topic="/odom"), recording)
 
 
+@pytest.mark.slow
 def test_bare_mcap_file_reads_by_its_own_path(bags, tmp_path):
     directory = bags["mcap"]
     mcap = directory / f"{directory.name}.mcap"
@@ -350,6 +353,7 @@ def test_pick_joints():
 
 
 @pytest.mark.parametrize("storage", list(STORAGES))
+@pytest.mark.slow
 def test_vectorized_decoding_equals_rosbags_message_by_message(bags, storage, monkeypatch):
     import graphcal.data.bag_reader as reader
 

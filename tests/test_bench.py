@@ -42,6 +42,7 @@ def test_quick_preset_and_explicit_sizes():
     assert mixed == {**QUICK, "repeats": 2}  # what is given wins over the preset
 
 
+@pytest.mark.slow
 def test_segmented_bench_item_agrees_with_the_single_graph():
     from graphcal.bench.whole_log_items import segmented_items
 
@@ -55,6 +56,7 @@ def test_segmented_bench_item_agrees_with_the_single_graph():
         assert report[f"covariance_rel_difference_{workers}"] < 1e-4
 
 
+@pytest.mark.slow
 def test_scaling_item_fits_the_growth_exponent():
     from graphcal.bench.scaling import growth_exponent, scaling_item
 

@@ -32,6 +32,7 @@ def test_noise_free_drive_gives_the_true_theta(clean_drive):
         assert np.all(error < [1e-6, 1e-7, 2e-5, 1e-6]), error
 
 
+@pytest.mark.slow
 def test_noisy_drive_calibrates_close_to_truth(drive):
     run = run_calibration(
         drive.measured, Settings(segments=SegmentSettings(stride=50.0)), method="whole"
@@ -99,6 +100,7 @@ def test_cli_calibrate_writes_complete_deterministic_results(drive, tmp_path, ca
     assert doc["validation_error_m"]["calibrated"] < doc["validation_error_m"]["nominal"]
 
 
+@pytest.mark.slow
 def test_joint_solve_recovers_theta_on_noise_free_data(clean_drive):
     from graphcal.pipeline.joint import calibrate_joint
 
@@ -152,6 +154,7 @@ def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
     assert "joint_sigma_t_r" in header
 
 
+@pytest.mark.slow
 def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
     """Marginal covariance of theta vs the inverse of JᵀJ built from numerical derivatives."""
     import gtsam
@@ -193,6 +196,7 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
     np.testing.assert_allclose(marginal, covariance, rtol=1e-3, atol=1e-14)
 
 
+@pytest.mark.slow
 def test_whole_log_request_with_the_staged_method_is_a_one_line_error(drive_csv, tmp_path, capsys):
     out = tmp_path / "out"
     args = ["calibrate", str(drive_csv), "--out", str(out), "--batches", "0", "--method", "staged"]

@@ -33,6 +33,10 @@ from graphcal.simulate.can_log import (  # noqa: E402
 )
 from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams  # noqa: E402
 
+#: Every test here reads what a calibration or a simulated recording made, at module scope
+#: (the fixtures take most of a minute).
+pytestmark = pytest.mark.slow
+
 FORMATS = ("log", "asc", "blf")
 
 
@@ -141,6 +145,7 @@ def test_multiplexed_signals_are_present_where_their_page_is_and_bad_pages_fail(
     assert decoded.failed.sum() == ((data[:, 0] & 3) >= 2).sum() > 0
 
 
+@pytest.mark.slow
 def test_the_synthetic_frames_decode_with_cantools_to_the_decoded_csv(recording):
     """The writer's quantization is the DBC's: cantools decodes the written payloads to the
     reference CSV's values (so the reference does not share the reader's bit arithmetic)."""
@@ -235,6 +240,7 @@ def _calibrated(log):
 
 
 @pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.slow
 def test_a_can_log_imports_as_its_decoded_csv_and_calibrates_identically(recording, fmt):
     """candump, ASC and BLF with the DBC: the drive log equals the one of the decoded CSVs
     (the same times, the DBC's values) to 1e-9, the corrupt frames are counted in notes, and
@@ -378,6 +384,7 @@ def test_a_dbc_that_does_not_parse_gives_cantools_reason(copy, capsys):
     assert "[wheels] dbc" in err
 
 
+@pytest.mark.slow
 def test_a_bus_without_the_message_names_the_buses_it_is_on(copy, capsys):
     manifest = _edit(copy / "can_asc.toml", 'kind = "speed"', 'kind = "speed"\nbus = 2')
     err = _one_line_exit_2(["check", str(manifest)], capsys)

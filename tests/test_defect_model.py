@@ -33,6 +33,7 @@ def _errors_in_sigma(run, drive):
     return (run.theta - drive.theta_true) / np.sqrt(np.diag(run.covariance))
 
 
+@pytest.mark.slow
 def test_absent_defects_are_estimated_as_zero(clean):
     run = _whole(clean)
     for name in ("time_offset", "lever_arm_longitudinal", "lever_arm_lateral"):
@@ -43,6 +44,7 @@ def test_absent_defects_are_estimated_as_zero(clean):
     assert np.all(np.abs(_errors_in_sigma(run, clean)) < 3)
 
 
+@pytest.mark.slow
 def test_the_time_offset_is_recovered_and_theta_stays_unbiased(clean):
     late = degrade(clean, parse_defects("latency=0.08"), 1)
     run = _whole(late)
@@ -58,6 +60,7 @@ def test_the_time_offset_is_recovered_and_theta_stays_unbiased(clean):
     assert np.max(np.abs(_errors_in_sigma(plain, late))) > 5  # what the model prevents
 
 
+@pytest.mark.slow
 def test_the_lever_arm_is_recovered(clean):
     moved = degrade(clean, parse_defects("lever_arm=1.2:0.5"), 1)
     run = _whole(moved)
@@ -68,6 +71,7 @@ def test_the_lever_arm_is_recovered(clean):
     assert np.all(np.abs(_errors_in_sigma(run, moved)) < 3)
 
 
+@pytest.mark.slow
 def test_a_straight_drive_cannot_show_the_lever_arm():
     drive = degrade(simulate_drive(4.0, 1, route="straight"), parse_defects("lever_arm"), 1)
     run = _whole(drive)
@@ -76,6 +80,7 @@ def test_a_straight_drive_cannot_show_the_lever_arm():
     assert found.to_dict()["observable"] is False and found.to_dict()["value"] == 0.0
 
 
+@pytest.mark.slow
 def test_outlying_fixes_are_down_weighted_and_reported_with_their_times(clean):
     spiked = degrade(clean, parse_defects("outliers=0.002"), 1)
     truth = np.flatnonzero(
@@ -92,6 +97,7 @@ def test_outlying_fixes_are_down_weighted_and_reported_with_their_times(clean):
     assert np.all(np.abs(_errors_in_sigma(run, spiked)) < 3)
 
 
+@pytest.mark.slow
 def test_a_fused_heading_bias_is_absorbed_per_segment(clean):
     biased = degrade(clean, parse_defects("heading_bias=0.0005"), 1)  # rad/s random walk
     modelled = _whole(biased)
@@ -108,6 +114,7 @@ def test_a_fused_heading_bias_is_absorbed_per_segment(clean):
     assert np.all(np.abs(_errors_in_sigma(plain, biased)) < 3)
 
 
+@pytest.mark.slow
 def test_calibrate_reports_the_sensor_estimates(clean, tmp_path, capsys):
     drive = degrade(clean, parse_defects("latency,lever_arm"), 1)
     path = tmp_path / "drive.csv"
@@ -123,6 +130,7 @@ def test_calibrate_reports_the_sensor_estimates(clean, tmp_path, capsys):
     assert result["down_weighted_fixes"]["count"] == 0
 
 
+@pytest.mark.slow
 def test_tick_counts_are_found_in_the_log_and_their_rounding_modelled(clean):
     from graphcal.data.quantization import ticks_per_revolution
 
@@ -135,6 +143,7 @@ def test_tick_counts_are_found_in_the_log_and_their_rounding_modelled(clean):
     assert np.all(np.abs(_errors_in_sigma(run, counted)) < 3)
 
 
+@pytest.mark.slow
 def test_a_time_offset_between_samples_leaves_the_wheel_counts_whole(clean):
     """62.5 ms is 2.5 samples: the solved wheels move by whole samples, so they stay tick
     counts whose rounding the prior models; the graph's first order covers the rest."""

@@ -123,6 +123,7 @@ def test_negative_wheel_rotation(frame, tmp_path, capsys):
     expect_error(frame, tmp_path, capsys, "column 'n_rl'", "line 902", "negative wheel rotation")
 
 
+@pytest.mark.slow
 def test_cumulative_wheel_rotation_is_implausible(frame, tmp_path, capsys):
     frame["n_rr"] = frame["n_rr"].cumsum()
     message = expect_error(frame, tmp_path, capsys, "column 'n_rr'", "implausible wheel rotation")

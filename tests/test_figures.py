@@ -26,6 +26,10 @@ from graphcal.report.figures import (
 from graphcal.report.theta_figures import batch_intervals_figure, parameters_figure
 from graphcal.simulate.drive import SyntheticDrive, simulate_drive
 
+#: Every test here reads what a calibration or a simulated recording made, at module scope
+#: (the fixtures take most of a minute).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def small_drive() -> SyntheticDrive:
@@ -136,6 +140,7 @@ def test_batch_intervals_ticks_are_whole_batch_numbers(joint):
     assert "1 batches" not in fig.get_suptitle()
 
 
+@pytest.mark.slow
 def test_no_legend_covers_an_axes(joint, staged):
     run, evaluation = joint
     every = {**figures(run, evaluation), **figures(staged)}
@@ -236,6 +241,7 @@ def _caption(fig: Figure) -> str:
     return "\n".join(legend.get_title().get_text() for legend in _legends(fig))
 
 
+@pytest.mark.slow
 def test_every_text_lies_inside_its_figure(straight, joint, staged):
     """Issue 26: on a straight route "d [mm·s²/m]: not observable" ran off the right edge."""
     run, evaluation = straight

@@ -77,6 +77,7 @@ def test_a_step_in_c_e_is_found_on_its_day_and_named():
     assert steady.changes == []
 
 
+@pytest.mark.slow
 def test_tree_discovery_skips_truth_files_and_orders_days(fleet_dir):
     logs = discover_fleet(fleet_dir)
     assert len(logs) == VEHICLES * DAYS
@@ -300,6 +301,7 @@ def _interrupt_after_first_log(command: list[str]) -> tuple[int, list[str]]:
     return process.returncode, lines
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_a_fleet_run_gives_one_line_and_the_rerun_resumes(small_fleet, tmp_path):
     """Ctrl-C reaches graphcal and the local cluster's workers alike (one process group):
     the user reads one line, the run exits with 130, leaves no half-written result, and
@@ -333,6 +335,7 @@ def test_ctrl_c_during_a_fleet_run_gives_one_line_and_the_rerun_resumes(small_fl
     assert all(path.read_bytes() == text for path, text in finished.items())
 
 
+@pytest.mark.slow
 def test_an_interrupted_run_says_how_to_resume(small_fleet, tmp_path):
     """What ``graphcal: interrupted`` can name: how many results are kept, and that the
     same command continues."""
@@ -349,6 +352,7 @@ def test_an_interrupted_run_says_how_to_resume(small_fleet, tmp_path):
     assert "run the same command again" in str(raised.value)
 
 
+@pytest.mark.slow
 def test_fleet_csv_marks_a_value_that_holds_only_given_another_at_its_prior(tmp_path):
     """Issue 26's 4 km day: t_r not observable, d held at t_r's prior and 9 of its σ from
     its truth. fleet.csv says, in d's own column, that d's value and σ hold only given

@@ -105,6 +105,7 @@ def test_imu_signals_are_averaged_over_each_interval():
     np.testing.assert_allclose(means, [1.5, 2.5, 2.5])
 
 
+@pytest.mark.slow
 def test_streams_round_trip_within_3_sigma_and_as_tight_as_the_40hz_csv(streams_dir, csv_sigma):
     imported = import_recording(streams_dir / "manifest.toml")
     log = imported.log
@@ -116,6 +117,7 @@ def test_streams_round_trip_within_3_sigma_and_as_tight_as_the_40hz_csv(streams_
 @pytest.mark.parametrize(
     ("storage", "name"), [("ros2", "bag_ros2"), ("ros1", "drive.bag"), ("mcap", "bag_mcap")]
 )
+@pytest.mark.slow
 def test_bags_round_trip_within_3_sigma(synthetic, csv_sigma, tmp_path, storage, name):
     # nav_msgs/Odometry carries the heading and, in its body-frame twist, the sideslip.
     pytest.importorskip("rosbags")
@@ -129,6 +131,7 @@ def test_bags_round_trip_within_3_sigma(synthetic, csv_sigma, tmp_path, storage,
     _within_3_sigma_and_as_tight_as_csv(imported.log, synthetic.drive.theta_true, csv_sigma)
 
 
+@pytest.mark.slow
 def test_a_navsatfix_bag_takes_the_heading_from_the_ins_orientation(tmp_path, csv_sigma):
     # A NavSatFix has neither heading nor sideslip: the heading comes from the Imu orientation
     # (an INS); the sideslip is 0, exact for a pose reference at the rear axle (no sideslip).
@@ -145,6 +148,7 @@ def test_a_navsatfix_bag_takes_the_heading_from_the_ins_orientation(tmp_path, cs
     _within_3_sigma_and_as_tight_as_csv(imported.log, sim.drive.theta_true, csv_sigma)
 
 
+@pytest.mark.slow
 def test_the_ecu_circumference_is_undone_so_c_e_is_the_true_circumference(tmp_path):
     # The ECU turns rotations into speed with 2.2 m; the manifest says so; c_e stays the truth.
     sim = simulate_streams(4.0, 1, settings=StreamSettings(circumference=2.2))
@@ -203,6 +207,7 @@ def test_import_command_writes_the_log_and_a_sidecar(streams_dir, tmp_path, caps
     assert main(["check", str(out)]) == 0
 
 
+@pytest.mark.slow
 def test_calibrate_takes_a_manifest_and_compares_with_its_truth(streams_dir, tmp_path, capsys):
     out = tmp_path / "results"
     args = ["calibrate", str(streams_dir / "manifest.toml"), "--method", "whole"]
@@ -211,6 +216,7 @@ def test_calibrate_takes_a_manifest_and_compares_with_its_truth(streams_dir, tmp
     assert "true" in printed and (out / "calibration.json").exists()
 
 
+@pytest.mark.slow
 def test_without_a_logged_heading_only_positions_are_measured(recording, tmp_path, capsys):
     """No heading is derived as a measurement: the CSV leaves psi empty, each fix is in the
     log once at its own time, and the calibration is within 3σ with unchanged weights."""
@@ -317,6 +323,7 @@ def small_bag(tmp_path_factory):
         (["--rear-left", "front_left_wheel", "--rear-right", "x"], "front_left_wheel"),
     ],
 )
+@pytest.mark.slow
 def test_a_bag_without_the_named_topic_or_joint_gets_one_line(
     small_bag, tmp_path, capsys, flags, expected
 ):
@@ -326,6 +333,7 @@ def test_a_bag_without_the_named_topic_or_joint_gets_one_line(
     assert not out.exists() and not (tmp_path / "drive.json").exists()
 
 
+@pytest.mark.slow
 def test_check_and_calibrate_take_a_bag(small_bag, tmp_path, capsys):
     assert main(["check", str(small_bag)]) == 0
     assert "valid recording" in capsys.readouterr().out
@@ -408,6 +416,7 @@ def test_a_manifest_naming_a_bag_applies_time_offsets_and_refuses_column_keys(sm
         read_manifest(manifest)
 
 
+@pytest.mark.slow
 def test_the_straight_road_twin_calibrates_what_it_determines(tmp_path, capsys):
     """Issue 25's straight twin: 1 km straight, 10 Hz fixes in lat/lon, CAN wheel speeds, no
     heading, sideslip or IMU. It exited 2 ("implausible theta (t_r = 0.18); check the
@@ -436,6 +445,7 @@ def test_the_straight_road_twin_calibrates_what_it_determines(tmp_path, capsys):
         assert abs(result["theta_error"][name]) < 3 * result["parameters"][name]["sigma"]
 
 
+@pytest.mark.slow
 def test_lateral_acceleration_from_the_wheels_is_derived_again_with_the_solved_theta(tmp_path):
     """No IMU and no heading: a_y is speed × the wheels' yaw rate, at first with the nominal
     theta (c_d = d = 0). Derived again with the solved theta (c_d, t_r, the load transfer d),
@@ -461,6 +471,7 @@ def test_lateral_acceleration_from_the_wheels_is_derived_again_with_the_solved_t
     assert abs(d_error(dataclasses.replace(log, ay_from_wheels=False))) > 3.0  # not again
 
 
+@pytest.mark.slow
 def test_a_csv_written_by_import_keeps_what_its_rows_cannot_say(recording, tmp_path):
     """Counts interpolated onto the grid are no longer whole, and a_y from the wheels looks
     like any a_y: the import's sidecar keeps the tick resolution and where a_y came from,

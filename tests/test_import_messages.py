@@ -69,6 +69,7 @@ def _no_drive_log_terms(err: str, *own: str) -> None:
 # --- row F: units, in the stream's own terms --------------------------------------------------
 
 
+@pytest.mark.slow
 def test_a_yaw_rate_in_deg_s_declared_rad_s_names_the_column_and_the_key(
     recording, tmp_path, capsys
 ):
@@ -139,6 +140,7 @@ def test_a_lateral_acceleration_in_g_is_refused_with_the_column(recording, tmp_p
     ("declared", "read_as"),
     [('time_unit = "us"', "read as 100 us"), (None, "read as 100 s")],
 )
+@pytest.mark.slow
 def test_times_in_ms_declared_otherwise_name_the_unit_to_set(
     recording, tmp_path, capsys, declared, read_as
 ):

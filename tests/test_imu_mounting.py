@@ -102,6 +102,7 @@ def test_the_rotation_is_z_y_x_intrinsic_and_its_angles_round_trip():
     assert parse_mounting("estimate", "m") == "estimate"
 
 
+@pytest.mark.slow
 def test_a_given_mounting_gives_the_vehicle_frame_signals_to_noise_level(
     synthetic, mounted_dir, plain_dir
 ):
@@ -122,6 +123,7 @@ def test_a_given_mounting_gives_the_vehicle_frame_signals_to_noise_level(
     np.testing.assert_array_equal(mounted.n_rl, plain.n_rl)
 
 
+@pytest.mark.slow
 def test_the_estimated_mounting_is_within_1_degree_and_calibrates_within_3_sigma(
     synthetic, estimate_dir, capsys
 ):
@@ -209,6 +211,7 @@ def _estimate_manifest(directory) -> None:
         ),
     ],
 )
+@pytest.mark.slow
 def test_a_bad_imu_section_is_one_line(recording, capsys, old, new, expected):
     _edit(recording / "manifest.toml", old, new)
     err = _one_line_exit_2(recording / "manifest.toml", capsys)
@@ -223,6 +226,7 @@ def test_the_wrong_mounting_names_the_mounting_key(recording, capsys):
     assert "check [imu] acceleration_unit" in err and "mounting (now [5, 0, -90]" in err, err
 
 
+@pytest.mark.slow
 def test_units_name_the_3_axis_keys(recording, capsys):
     # an accelerometer in g
     frame = pd.read_csv(recording / "imu.csv")
@@ -243,6 +247,7 @@ def test_units_name_the_3_axis_keys(recording, capsys):
     assert 'set [imu] angular_velocity_unit = "deg/s"' in err, err
 
 
+@pytest.mark.slow
 def test_an_estimate_the_data_cannot_give_is_refused(tmp_path, capsys):
     sim = mount_imu(simulate_streams(3.0, 2, route="straight"), *MOUNTING, estimate=True)
     write_streams(sim, tmp_path)

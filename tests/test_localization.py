@@ -77,6 +77,7 @@ def short_drive():
     return simulate_drive(length_km=1.5, seed=7)
 
 
+@pytest.mark.slow
 def test_smoothing_with_5hz_gnss_recovers_theta_and_the_trajectory(short_drive):
     result = smooth_drive(short_drive.measured, SmoothingSettings(gnss_rate_hz=5.0))
     truth = short_drive.theta_true
@@ -102,6 +103,7 @@ def slipping_counted_log():
     return drive, validate_frame(drive.measured.to_dataframe(), "slip", 150.0)
 
 
+@pytest.mark.slow
 def test_smoothing_models_tick_rounding_and_slow_slip(slipping_counted_log):
     from graphcal.data.quantization import quantization_sigma
 
@@ -134,6 +136,7 @@ def test_online_covers_tick_rounding_and_slow_slip(slipping_counted_log):
     assert within_3_sigma(OnlineSettings()).min() < 0.8  # white wheel noise only
 
 
+@pytest.mark.slow
 def test_prepare_localization_hands_over_the_calibrations_findings():
     from dataclasses import fields
 
@@ -153,6 +156,7 @@ def test_prepare_localization_hands_over_the_calibrations_findings():
     assert after < 0.5 * before
 
 
+@pytest.mark.slow
 def test_python_driven_lm_matches_gtsams_optimizer(short_drive):
     from graphcal.graph.keys import THETA
     from graphcal.graph.solve import solve_lm
@@ -215,6 +219,7 @@ def test_tum_round_trip(tmp_path):
     assert not (tmp_path / "bad.tum").exists()
 
 
+@pytest.mark.slow
 def test_smoothing_estimates_the_lever_arm_and_ignores_flagged_spikes():
     from graphcal.data.drive_log_validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
@@ -232,6 +237,7 @@ def test_smoothing_estimates_the_lever_arm_and_ignores_flagged_spikes():
     assert np.all(error[calibrated] < 3 * sigma[calibrated])
 
 
+@pytest.mark.slow
 def test_smoothing_a_log_with_sparse_fixes_uses_each_fix_at_its_own_time(short_drive):
     """10 Hz fixes 5–20 ms before their rows, no heading: keyframes at the fixes' rows, a GNSS
     factor per fix at its own time (the distance driven since, behind the pose), no heading

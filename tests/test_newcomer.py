@@ -39,6 +39,7 @@ def test_import_help_manifest_prints_every_key(capsys):
         assert key in printed
 
 
+@pytest.mark.slow
 def test_a_wrong_ecu_circumference_is_named(streams_dir, tmp_path, capsys):
     """Speeds the ECU computed with 2.0 m, declared as 2.2 m: c_e comes out 10 % high, and the
     result says so and names the key."""
@@ -57,6 +58,7 @@ def test_a_wrong_ecu_circumference_is_named(streams_dir, tmp_path, capsys):
     assert "circumference" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_an_imported_synthetic_log_names_no_file_the_user_never_gave(streams_dir, tmp_path, capsys):
     csv = tmp_path / "drive.csv"
     assert main(["import", str(streams_dir), "--out", str(csv)]) == 0
@@ -115,6 +117,7 @@ def test_a_heading_in_rad_declared_deg_is_named_not_the_wheels_units(streams_dir
     assert "wheel rotations" not in err and not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_late_wheels_at_one_hertz_are_found_not_blamed_on_units(streams_dir, tmp_path, capsys):
     recording = _one_hertz_with_late_wheels(streams_dir, tmp_path / "rec", heading_in_rad=False)
     out = tmp_path / "out"

@@ -71,6 +71,7 @@ def _write(path, lines: list[str]) -> None:
     path.write_text("\r\n".join(lines) + "\r\n")
 
 
+@pytest.mark.slow
 def test_every_fix_is_the_csvs_within_a_millimetre_at_its_centisecond(drive):
     directory, _, fixes = drive
     text = _lines(directory / "receiver.nmea")
@@ -90,6 +91,7 @@ def test_every_fix_is_the_csvs_within_a_millimetre_at_its_centisecond(drive):
     assert "RTK float (5) 100%" in summary and "HDOP median" in summary
 
 
+@pytest.mark.slow
 def test_an_nmea_log_calibrates_as_the_csv_of_its_fixes_within_3_sigma(drive):
     directory, sim, _ = drive
     runs = {}
@@ -103,6 +105,7 @@ def test_an_nmea_log_calibrates_as_the_csv_of_its_fixes_within_3_sigma(drive):
     assert np.all(np.abs(difference) < 0.01 * sigma), difference / sigma
 
 
+@pytest.mark.slow
 def test_hdt_gives_the_true_heading_and_time_offset_shifts_the_fixes(recording, drive):
     fixes = drive[2]
     write_nmea(fixes, recording / "receiver.nmea", hdt=True)

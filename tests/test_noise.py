@@ -64,6 +64,7 @@ def test_headings_at_1_hz_discount_the_wheels_tick_rounding():
     assert 0.95 * WHITE < discounted < heading_noise(log, THETA_NOMINAL)
 
 
+@pytest.mark.slow
 def test_position_noise_is_read_from_the_solve_and_used():
     """Fixes noisier than the settings assume (0.6 m against 0.2 m): the whole-log solve's
     residuals give the fixes' own noise, the log is solved again with it, and the σ is

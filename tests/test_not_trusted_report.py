@@ -46,6 +46,7 @@ def _interval_rows(text: str) -> dict[str, str]:
     return rows
 
 
+@pytest.mark.slow
 def test_the_table_does_not_call_an_untrusted_estimate_the_prior(untrusted):
     run, evaluation = untrusted
     text = summary_text(run, evaluation)

@@ -83,6 +83,7 @@ def test_two_unobservable_parameters_are_both_named():
     assert verdict.verdicts()["c_d"] == "calibrated given t_r, d = prior (σ conditional)"
 
 
+@pytest.mark.slow
 def test_a_4_km_day_names_what_c_d_holds_only_given():
     """A 4 km city day where neither t_r nor d is observable: c_d, conditioned on them at
     their prior, is nearly 6 of its σ from its truth. Its verdict says that its value and σ
@@ -105,6 +106,7 @@ def test_a_city_batch_determines_every_parameter(drive):
     assert np.all(result.observability.sigma_ratio < 0.1)
 
 
+@pytest.mark.slow
 def test_cramer_rao_bound_matches_the_reported_covariance(drive):
     """At the paper's noise the problem is nearly linear: the covariance at the estimate is the
     bound at the truth to a few per cent, and both are far below the prior."""

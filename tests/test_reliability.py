@@ -47,6 +47,7 @@ def test_an_absurd_position_is_refused_by_check_and_calibrate(table, tmp_path, c
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_positions_in_kilometres_are_a_unit_mistake(table, tmp_path, capsys):
     table[["px", "py"]] /= 1000.0
     err = _one_line_exit_2(["check", str(_write(table, tmp_path / "log.csv"))], capsys)
@@ -73,6 +74,7 @@ def test_a_semicolon_separated_file_gets_a_hint(table, tmp_path, capsys):
     assert "separated by semicolons" in err
 
 
+@pytest.mark.slow
 def test_gzip_data_under_a_csv_name_is_read(table, tmp_path, drive):
     path = tmp_path / "log.csv"
     path.write_bytes(gzip.compress(table.to_csv(index=False, float_format="%.17g").encode()))
@@ -100,6 +102,7 @@ def _hold_fixes(log: DriveLog, starts_s: list[float], seconds: float) -> DriveLo
     return DriveLog.from_arrays(**{c: frame[c].to_numpy() for c in frame.columns})
 
 
+@pytest.mark.slow
 def test_frozen_fixes_are_masked_reported_and_do_not_bias_theta(drive, tmp_path):
     held = _hold_fixes(drive.measured, [60.0, 160.0, 260.0], 20.0)
     path = _write(held.to_dataframe(), tmp_path / "held.csv")
@@ -144,6 +147,7 @@ def test_clean_drives_are_not_masked():
         assert validate_frame(log.to_dataframe(), "clean").masked is None
 
 
+@pytest.mark.slow
 def test_a_short_drive_says_what_batches_it_used(tmp_path):
     log = simulate_drive(length_km=2.0, seed=3).measured
     run = run_calibration(log)
@@ -152,6 +156,7 @@ def test_a_short_drive_says_what_batches_it_used(tmp_path):
     assert any(f"1 batch of {size} instead of 9" in w for w in run.warnings), run.warnings
 
 
+@pytest.mark.slow
 def test_failed_step1_baseline_solves_of_the_joint_method_are_reported(drive, monkeypatch):
     import graphcal.pipeline.staged as staged_module
     from graphcal.errors import CalibrationFailed
@@ -165,6 +170,7 @@ def test_failed_step1_baseline_solves_of_the_joint_method_are_reported(drive, mo
     assert any("step1: 3 of 3 batch solves" in w for w in run.warnings), run.warnings
 
 
+@pytest.mark.slow
 def test_calibration_json_names_the_gtsam_version(drive_csv, tmp_path):
     out = tmp_path / "out"
     assert main(["calibrate", str(drive_csv), "--out", str(out), "--batches", "0"]) == 0

@@ -56,6 +56,7 @@ def test_a_directory_with_other_files_is_refused_and_left_alone(
     assert [p.name for p in out.iterdir()] == ["thesis.tex"]
 
 
+@pytest.mark.slow
 def test_an_earlier_result_set_is_replaced_whole(drive_csv, tmp_path, capsys):
     out = tmp_path / "results"
     out.mkdir()
@@ -69,6 +70,7 @@ def test_an_earlier_result_set_is_replaced_whole(drive_csv, tmp_path, capsys):
     assert [p.name for p in tmp_path.iterdir()] == ["results"]  # no staging left behind
 
 
+@pytest.mark.slow
 def test_an_interrupted_write_leaves_the_earlier_set(drive, tmp_path, monkeypatch):
     out = tmp_path / "results"
     whole = run_calibration(drive.measured, method="whole")

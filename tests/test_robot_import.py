@@ -60,6 +60,7 @@ def _pose_samples_on_grid(imported) -> int:
 
 
 @pytest.mark.parametrize("kind", ["csv", "bag"])
+@pytest.mark.slow
 def test_the_robot_profile_keeps_spins_and_every_mocap_pose(written, kind):
     sim, sources = written
     if kind not in sources:
@@ -85,6 +86,7 @@ def test_the_robot_profile_keeps_spins_and_every_mocap_pose(written, kind):
     assert path[-1] == pytest.approx(sim.total_distance, rel=0.01)
 
 
+@pytest.mark.slow
 def test_a_bag_without_a_rate_follows_the_50_hz_mocap(written):
     _, sources = written
     if "bag" not in sources:
@@ -94,6 +96,7 @@ def test_a_bag_without_a_rate_follows_the_50_hz_mocap(written):
     assert any("just faster than the pose stream" in n for n in imported.resampled.notes)
 
 
+@pytest.mark.slow
 def test_a_manifest_without_a_rate_follows_the_mocap_too(written, tmp_path):
     _, sources = written
     folder = sources["csv"].parent
@@ -237,6 +240,7 @@ def test_a_mocap_body_frame_turned_90_degrees_is_refused(written, tmp_path):
 
 
 @pytest.mark.parametrize("pose_rate", [20.0, 100.0])
+@pytest.mark.slow
 def test_mocap_at_20_and_100_hz_passes_with_every_pose(pose_rate, tmp_path):
     sim = simulate_robot(2, runs=4, settings=RobotSettings.from_vehicle(ROBOT, pose_rate=pose_rate))
     write_streams(sim, tmp_path / "streams")
@@ -255,6 +259,7 @@ def test_mocap_at_20_and_100_hz_passes_with_every_pose(pose_rate, tmp_path):
         assert int(log.position_measured.sum()) == _pose_samples_on_grid(imported)
 
 
+@pytest.mark.slow
 def test_a_backwards_rotation_beyond_any_speed_is_still_refused(written, tmp_path):
     _, sources = written
     imported = _import(sources["csv"], reverses=True)

@@ -55,6 +55,7 @@ def test_batch_bound_from_segment_systems_is_the_batch_graphs_own(drive, segment
         np.testing.assert_allclose(bound, own, rtol=1e-6, atol=1e-6 * np.abs(own).max())
 
 
+@pytest.mark.slow
 def test_all_segments_at_the_solution_give_the_whole_logs_covariance(segments):
     """At the whole-log solution the sum over every segment is the whole log's system: no
     step, and the covariance the solve reported (which the solve took from its last
@@ -74,6 +75,7 @@ def test_all_segments_at_the_solution_give_the_whole_logs_covariance(segments):
     assert np.all(np.abs(step) < 1e-3)
 
 
+@pytest.mark.slow
 def test_linearized_batches_are_the_exact_solves(segments):
     """Linearized at the whole-log solution, each batch's theta is its own Levenberg–Marquardt
     solve's to a small fraction of its σ, with the same σ; linearized at the builder's

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import gtsam
 import numpy as np
+import pytest
 
 from graphcal.data.drive_log import load_drive_log
 from graphcal.data.segments import gather_segments, select_segments, split_segments
@@ -28,6 +29,7 @@ def _sample_segments():
     return gather_segments(log, select_segments(log, split_segments(log, 150.0)))
 
 
+@pytest.mark.slow
 def test_segmented_solve_matches_the_single_graph_on_the_sample_drive():
     data = _sample_segments()
     spec = JointSettings(slip="on").graph_spec()  # theta, time offset, lever arm and slip
@@ -81,6 +83,7 @@ def test_segmented_graph_splits_at_the_shared_keys_only():
     assert iterations <= 3
 
 
+@pytest.mark.slow
 def test_segments_shared_out_among_workers_give_the_same_result():
     data = _sample_segments()
     spec = JointSettings().graph_spec()
@@ -119,6 +122,7 @@ def test_a_pose_sent_to_another_process_comes_back_to_the_bit():
         )
 
 
+@pytest.mark.slow
 def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
     # An elimination that fails in this process (as an indeterminate system does, which the
     # optimizer answers with more damping) must still read the workers' answers to the same

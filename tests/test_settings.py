@@ -219,6 +219,7 @@ def test_missing_and_invalid_files(tmp_path):
         load_settings(bad)
 
 
+@pytest.mark.slow
 def test_solver_modules_do_not_import_the_settings():
     code = (
         "import sys, graphcal.pipeline.batch_calibration, graphcal.pipeline.input_estimation, "

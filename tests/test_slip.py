@@ -30,6 +30,7 @@ def slipping():
     return degrade(simulate_drive(4.0, 1), parse_defects("slip=0.003"), 1)
 
 
+@pytest.mark.slow
 def test_slip_is_detected_and_modelled(slipping):
     run = _run(slipping, "auto")
     assert run.whole.slip_modelled and run.whole.slip_statistic > 1.3
@@ -38,6 +39,7 @@ def test_slip_is_detected_and_modelled(slipping):
     assert _z(_run(slipping, "off"), slipping).max() > 4  # white wheel noise only: wrong
 
 
+@pytest.mark.slow
 def test_a_drive_without_slip_is_solved_without_slip_scales():
     clean = simulate_drive(4.0, 1)
     run = _run(clean, "auto")
@@ -48,6 +50,7 @@ def test_a_drive_without_slip_is_solved_without_slip_scales():
     np.testing.assert_allclose(run.covariance, off.covariance, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_slip_screened_on_a_spread_sample_decides_as_the_whole_log(slipping, monkeypatch):
     """A long log screens slip on segments spread over it; the sample's statistic is the
     whole log's to within its sampling noise, and the solve with slip that follows covers

@@ -207,6 +207,7 @@ def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monk
     assert all(np.isfinite(list(doc["theta"].values())))
 
 
+@pytest.mark.slow
 def test_too_little_data_is_flagged(drive):
     from graphcal.pipeline.run import run_calibration
     from graphcal.pipeline.settings import BatchingSettings, SegmentSettings

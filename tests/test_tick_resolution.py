@@ -52,6 +52,7 @@ def test_a_clean_count_log_gives_its_resolution(rate):
 
 
 @pytest.mark.parametrize("rate", RATES)
+@pytest.mark.slow
 def test_a_first_sample_off_the_tick_grid_does_not_change_it(rate):
     """The counter's first reading from another epoch: the first interval is no whole count
     (the case that gave 1056 = 11 × 96)."""
@@ -72,6 +73,7 @@ def test_a_tenth_of_a_percent_of_glitched_samples_does_not_change_it(rate, seed)
 
 
 @pytest.mark.parametrize("rate", RATES)
+@pytest.mark.slow
 def test_a_counter_reset_or_wrap_does_not_change_it(rate):
     reset = _car(rate)
     reset[len(reset) // 3, 0] -= 51234.0 / 96  # the counter restarted at 0: hugely negative
@@ -85,6 +87,7 @@ def test_a_counter_reset_or_wrap_does_not_change_it(rate):
 
 
 @pytest.mark.parametrize("rate", RATES)
+@pytest.mark.slow
 def test_a_continuous_signal_has_no_resolution(rate):
     angles = _angles(2000.0, rate, 0.0, 20.0, 2.0)
     smooth = np.diff(angles, axis=0)
@@ -105,6 +108,7 @@ def test_a_robot_with_a_fine_encoder_gives_its_resolution():
 
 
 @pytest.mark.parametrize("ticks", [64, 192, 500, 1024])
+@pytest.mark.slow
 def test_a_resolution_is_not_mistaken_for_a_divisor_or_a_multiple(ticks):
     rotations = _car(100.0, 600.0, ticks)
     assert ticks_per_revolution(rotations) == ticks

@@ -73,6 +73,7 @@ def test_batches_that_spread_beyond_their_sigma_distrust_only_those_parameters(r
     assert kept.trusted
 
 
+@pytest.mark.slow
 def test_an_unmodelled_lever_arm_is_never_confidently_wrong(drive, tmp_path, capsys):
     # The GNSS antenna 1.2 m ahead of the centre of gravity, the defect model switched off:
     # the fixes' residuals follow the bends (correlated, 34× a white error's variance of a

@@ -212,6 +212,7 @@ def test_a_robot_log_needs_the_robots_nominal_theta(robot, robot_frame, tmp_path
     assert len(load_drive_log(path, min_distance=1000.0, nominal=robot.theta_nominal)) == len(log)
 
 
+@pytest.mark.slow
 def test_a_robot_drive_calibrates_with_its_profile(robot, robot_frame):
     log = validate_frame(robot_frame, "robot.csv", nominal=robot.theta_nominal)
     settings = dataclasses.replace(

@@ -26,6 +26,9 @@ from graphcal.simulate.streams import simulate_streams
 
 pytest.importorskip("rosbags")
 
+#: Every test here writes and reads vendor bags (most of a minute in all).
+pytestmark = pytest.mark.slow
+
 DATASPEED = "dbw_mkz_msgs/msg/WheelSpeedReport"
 PACMOD = "pacmod3_msgs/msg/WheelSpeedRpt"
 # As dataspeedinc/dbw_mkz_ros and astuff/pacmod3_msgs define them (wheel speeds in rad/s).

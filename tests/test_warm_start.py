@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 import graphcal.pipeline.warm_start as warm
 from graphcal.data.drive_log import load_drive_log
@@ -33,6 +34,7 @@ def test_a_short_log_starts_from_the_nominal_theta():
     assert warm.warm_start(data, spec, 50, 1e-7) is None
 
 
+@pytest.mark.slow
 def test_the_warm_started_solve_reaches_the_same_optimum(monkeypatch):
     data = _segments()
     settings = JointSettings(slip="off")

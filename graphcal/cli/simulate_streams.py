@@ -86,7 +86,7 @@ def simulate_streams_command(
 def write_raw_logs_into(sim, directory: Path, *, can: bool, nmea: bool) -> list:
     """Write ``sim`` into ``directory`` with the wheels and IMU as a CAN log (``can``) and the
     GNSS as an NMEA log (``nmea``): :func:`graphcal.simulate.raw_logs.write_raw_logs`."""
-    from graphcal.simulate.raw_logs import write_raw_logs
+    from graphcal import write_raw_logs
 
     refuse_a_file(directory)
     return write_raw_logs(sim, directory, can=can, nmea=nmea)
