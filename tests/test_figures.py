@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure, SubFigure
 from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
@@ -116,7 +117,22 @@ def test_batch_intervals_show_every_batch_of_a_long_run(joint):
     title = fig.get_suptitle()
     assert "999 of 1000 batches" in title
     assert "1 failed" in title
-    assert "excluded batch" in _legend_texts(fig)
+    assert "excluded batch ±2σ" in _legend_texts(fig)
+
+
+@pytest.mark.parametrize("count", [100, 1000])
+def test_batch_intervals_draw_every_batch_s_2_sigma_bar_at_any_count(joint, count):
+    """Issue 35: at the default 100 batches no ±2σ bar was drawn (only up to 60), though
+    docs/results.md describes them."""
+    run, evaluation = joint
+    fig = batch_intervals_figure(_many_batches(run, count), evaluation)
+    for ax in fig.axes:
+        bars = [c for c in ax.collections if isinstance(c, LineCollection)]
+        segments = [s for c in bars for s in c.get_segments()]
+        assert len(segments) == count - 1, ax.get_title()  # batch 5 failed: no estimate
+        assert all(np.ptp(np.asarray(s)[:, 1]) > 0 for s in segments)
+    assert "±2σ (95 %) bars" in fig.get_suptitle()
+    assert "thin lines" in fig.get_suptitle()
 
 
 def test_batch_intervals_ticks_are_whole_batch_numbers(joint):
