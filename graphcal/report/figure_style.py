@@ -49,6 +49,9 @@ TRUE_LINE = {"color": COLOURS["true"], "lw": 5.0, "alpha": 0.35, "zorder": 1}
 #: which the layout does not foresee when the aspect widens the limits.
 EDGE_PAD = 0.25
 RECOMMENDED_LINE = {"color": COLOURS["calibrated"], "lw": 1.2, "zorder": 3}
+#: A parameter the data did not determine: the prior (nominal) value the run keeps.
+PRIOR_LINE = {"color": COLOURS["nominal"], "ls": ":", "lw": 1.5, "zorder": 2}
+PRIOR_KEPT = "prior value kept (not observable)"
 #: The run's theta when it is not trusted: dashed, so it is not taken for a recommendation.
 _NOT_TRUSTED_LINE = {**RECOMMENDED_LINE, "ls": "--"}
 #: Characters per inch of figure width of a caption line in the "small" font.

@@ -16,6 +16,8 @@ from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.report.figure_style import (
     NOT_TRUSTED_THETA,
+    PRIOR_KEPT,
+    PRIOR_LINE,
     RECOMMENDED_LINE,
     STEP_LABELS,
     THETA_NAMES,
@@ -63,8 +65,9 @@ def box_plots(
             ``(B, 4)`` in SI; NaN rows are left out (a tick label says how many are left).
         title: figure title.
         theta_true, recommended: drawn as horizontal lines when given.
-        not_observable: parameters the data did not determine: no recommended line, and the
-            panel says so.
+        not_observable: parameters the data did not determine: ``recommended``'s value is
+            drawn as the prior value kept (:data:`PRIOR_KEPT`), not as an estimate, and the
+            panel's title says so.
         held: parameters the vehicle profile holds at their nominal (``fix_d``): the panel
             says so.
         recommended_label, recommended_style: legend entry and line style of
@@ -85,18 +88,24 @@ def box_plots(
             data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
             labels.append(_shown(STEP_LABELS.get(step, step), len(data[-1]), len(t)))
         draw_boxes(ax, data, labels, vertical=True, label="one batch's estimate")
-        if not any(len(d) for d in data):
-            # low in the panel: the lines of theta run through its middle
-            ax.text(0.5, 0.12, "no batch estimate\nto show (see below)", transform=ax.transAxes,
-                    ha="center", va="center", color="0.4")  # fmt: skip
         if theta_true is not None:
             ax.axhline(theta_true[i] * DISPLAY_SCALE[i], **TRUE_LINE, label="true θ")
         hidden = name in not_observable
-        if recommended is not None and not hidden:
+        if recommended is not None and hidden:  # the prior value the run keeps, not an estimate
+            ax.axhline(recommended[i] * DISPLAY_SCALE[i], **PRIOR_LINE, label=PRIOR_KEPT)
+        elif recommended is not None:
             style = recommended_style or RECOMMENDED_LINE
             ax.axhline(recommended[i] * DISPLAY_SCALE[i], **style, label=recommended_label)
-        # "not observable" on a line of its own: beside the name it overflows the panel
-        status = "\nnot observable" if hidden else "\nheld at nominal" if name in held else ""
+        # What the panel lacks, in its title (over no line or box): beside the name it
+        # overflows the panel
+        if hidden:
+            status = "\nnot observable"
+        elif name in held:
+            status = "\nheld at nominal"
+        elif not any(len(d) for d in data):
+            status = "\nno batch estimate (see below)"
+        else:
+            status = ""
         ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + status)
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(axis="y", alpha=0.3)
@@ -106,10 +115,18 @@ def box_plots(
 
 
 def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
-    """Box plots of each parameter over the batches of a run (paper Fig. 5)."""
+    """Box plots of each parameter over the batches of a run (paper Fig. 5).
+
+    Where the run held parameters it found not observable at their prior, its joint batches
+    (solved holding them too) show their estimates of the calibrated ones, though they are
+    left out of the batch statistics; the caption says so."""
     assert run.batches is not None
-    estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
     hidden = tuple(run.observability.not_calibrated) if run.observability is not None else ()
+    estimates, notes = {}, []
+    for name in run.batch_theta:
+        estimates[name], note = _shown_estimates(run, name, hidden)
+        if note:
+            notes.append(note)
     title = (
         f"Estimates of θ over {number_of(len(run.batches), 'batch', 'batches')}, by step "
         "(box: quartiles, whiskers: data within 1.5 IQR)"
@@ -122,7 +139,7 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         hidden,
         recommended_label=calibrated_name(run),
         recommended_style=calibrated_line(run),
-        notes=[line for step in estimates if (line := left_out(run, step))],
+        notes=notes,
         held=tuple(
             name
             for name, fixed in zip(PARAMETER_NAMES, run.observability.held, strict=True)
@@ -136,6 +153,49 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
 #: Up to this many batches the ±2σ bars are drawn at full width; beyond, thinner and paler
 #: in proportion, so that 100 or 1000 of them still show each batch's interval.
 FULL_BARS = 60
+
+
+def _shown_estimates(
+    run: CalibrationRun, step: str, hidden: tuple[str, ...]
+) -> tuple[np.ndarray, str]:
+    """The thetas ``(B, 4)`` of ``step`` that :func:`parameters_figure` shows (NaN: not
+    shown) and the caption line saying what is not shown and why.
+
+    A batch left out only because the parameters ``hidden`` (the run's not observable ones)
+    were not observable keeps its estimates of the others, when its solve held ``hidden`` at
+    the prior as the run's did (a step with covariances: the joint batches); every other
+    batch left out or failed is not shown (:func:`left_out`)."""
+    thetas = run.batch_estimates(step)
+    reasons = run.batch_excluded.get(step)
+    if not hidden or reasons is None or step not in run.batch_covariance:
+        return thetas, left_out(run, step)
+    partial = np.array(
+        [_only_not_observable(str(r), hidden) for r in reasons], dtype=bool
+    ) & np.all(np.isfinite(run.batch_theta[step]), axis=1)
+    if not partial.any():
+        return thetas, left_out(run, step)
+    shown = np.array(thetas)
+    kept = [i for i, p in enumerate(PARAMETER_NAMES) if p not in hidden]
+    shown[np.ix_(partial, kept)] = run.batch_theta[step][np.ix_(partial, kept)]
+    label = STEP_LABELS.get(step, step)
+    names = ", ".join(PARAMETER_NAMES[i] for i in kept)
+    line = (
+        f"{label}: {names} of {number_of(int(partial.sum()), 'batch', 'batches')} solved with "
+        f"{', '.join(hidden)} held at the prior (not observable), shown though left out of the "
+        "batch statistics"
+    )
+    rest = len(partial) - int(partial.sum())
+    if rest:
+        line += f"; {rest} other {'batch' if rest == 1 else 'batches'} failed or left out"
+    return shown, line
+
+
+def _only_not_observable(reason: str, hidden: tuple[str, ...]) -> bool:
+    """A batch's exclusion ``reason`` names only parameters in ``hidden`` as not observable."""
+    prefix = "not observable: "
+    if not reason.startswith(prefix):
+        return False
+    return set(reason[len(prefix) :].split(", ")) <= set(hidden)
 
 
 def batch_intervals_figure(
