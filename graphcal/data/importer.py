@@ -208,6 +208,8 @@ def import_recording(
         log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
     if resampled.ay_from_wheels:
         log = dataclasses.replace(log, ay_from_wheels=True)
+    if recording.pose.origin is not None:  # geodetic fixes: a GNSS receiver's
+        log = dataclasses.replace(log, pose_source="GNSS")
     return ImportedLog(
         log=log,
         resampled=resampled,
