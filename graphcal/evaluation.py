@@ -15,7 +15,8 @@
 
 :func:`synthetic_truth` finds the truth of a synthetic log as ``graphcal calibrate`` does:
 ``theta_true`` in a synthetic drive's JSON sidecar (with its noise-free drive, for the
-Cramér–Rao bound) or in an imported synthetic recording's manifest; a real log has none.
+Cramér–Rao bound) or in an imported synthetic recording's manifest (or the ``truth.json``
+beside a simulated bag); a real log has none.
 """
 
 from __future__ import annotations
@@ -237,7 +238,8 @@ def synthetic_truth(
     if imported is not None:
         if imported.truth is None:
             return None
-        progress("synthetic recording: comparing with theta_true from its manifest")
+        where = "its manifest" if imported.truth_file is None else imported.truth_file
+        progress(f"synthetic recording: comparing with theta_true from {where}")
         return Truth(imported.truth)
     return _sidecar_truth(run, Path(log_path), progress)
 

@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure, SubFigure
 from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
@@ -120,7 +121,22 @@ def test_batch_intervals_show_every_batch_of_a_long_run(joint):
     title = fig.get_suptitle()
     assert "999 of 1000 batches" in title
     assert "1 failed" in title
-    assert "excluded batch" in _legend_texts(fig)
+    assert "excluded batch ±2σ" in _legend_texts(fig)
+
+
+@pytest.mark.parametrize("count", [100, 1000])
+def test_batch_intervals_draw_every_batch_s_2_sigma_bar_at_any_count(joint, count):
+    """Issue 35: at the default 100 batches no ±2σ bar was drawn (only up to 60), though
+    docs/results.md describes them."""
+    run, evaluation = joint
+    fig = batch_intervals_figure(_many_batches(run, count), evaluation)
+    for ax in fig.axes:
+        bars = [c for c in ax.collections if isinstance(c, LineCollection)]
+        segments = [s for c in bars for s in c.get_segments()]
+        assert len(segments) == count - 1, ax.get_title()  # batch 5 failed: no estimate
+        assert all(np.ptp(np.asarray(s)[:, 1]) > 0 for s in segments)
+    assert "±2σ (95 %) bars" in fig.get_suptitle()
+    assert "thin lines" in fig.get_suptitle()
 
 
 def test_batch_intervals_ticks_are_whole_batch_numbers(joint):
@@ -262,9 +278,37 @@ def test_a_step_without_batches_says_why_instead_of_counting_zero(straight):
     fig = parameters_figure(run, evaluation)
     ticks = [t.get_text() for ax in fig.axes for t in ax.get_xticklabels()]
     assert ticks and not [t for t in ticks if "(0 of" in t], ticks
-    caption = _caption(fig).replace("\n", " ")
-    assert "joint: none of 2 batches shown (2 left out, not observable: t_r, d)" in caption
+    caption = " ".join(_caption(fig).split())
+    assert (
+        "joint: c_e, c_d of 2 batches solved with t_r, d held at the prior (not observable), "
+        "shown though left out of the batch statistics" in caption
+    )
     assert "Step 1: none of 2 batches shown (1 solve failed; 1 left out" in caption
+
+
+def test_a_straight_road_s_parameters_show_what_was_calibrated_and_overlap_nothing(straight):
+    """Issue 35: on a straight road parameters.png was empty (every batch left out, t_r and
+    d not observable), with "no batch estimate to show" written over the recommended line.
+    The joint batches' c_e and c_d (solved with t_r, d held, as the run's) are drawn, the
+    not observable panels show the prior value kept, and no text lies in a plot."""
+    run, evaluation = straight
+    fig = _drawn(parameters_figure(run, evaluation))
+    renderer = fig.canvas.get_renderer()
+    for ax, name in zip(fig.axes, ("c_e", "c_d", "t_r", "d"), strict=True):
+        assert not ax.texts, (name, [t.get_text() for t in ax.texts])  # nothing over the plot
+        title = ax.get_title()
+        points = [ln for ln in ax.lines if ln.get_label() == "one batch's estimate"]
+        if name in ("c_e", "c_d"):
+            assert points and len(points[0].get_ydata()) == 2, name  # both joint batches
+            assert "not observable" not in title
+        else:
+            assert not points and "not observable" in title
+            kept = [ln for ln in ax.lines if ln.get_label() == "prior value kept (not observable)"]
+            assert kept and kept[0].get_ydata()[0] == pytest.approx(
+                run.theta[["c_e", "c_d", "t_r", "d"].index(name)] * (1e3 if name == "d" else 1)
+            )
+        title_box = ax.title.get_window_extent(renderer)
+        assert not title_box.overlaps(ax.get_window_extent(renderer)), name
 
 
 def test_figures_say_what_step_1_is(joint, staged):

@@ -77,3 +77,15 @@ def _labels(fig: Figure) -> list[str]:
     for ax in fig.axes:
         texts += [str(artist.get_label()) for artist in [*ax.lines, *ax.patches]]
     return texts
+
+
+def test_batch_intervals_draw_no_band_for_an_untrusted_theta(untrusted):
+    """Issue 35: the figure drew an "estimated θ (not trusted) ±2σ" band the summary's table
+    refuses to give; it says instead that the estimate is not trusted."""
+    run, evaluation = untrusted
+    fig = figures(run, evaluation)["batch_intervals.png"]
+    bands = [p.get_label() for ax in fig.axes for p in ax.patches if "±2σ" in p.get_label()]
+    assert not bands, bands
+    assert all("not trusted" in ax.get_title() for ax in fig.axes)
+    caption = " ".join(legend.get_title().get_text() for legend in fig.legends)
+    assert "no ±2σ band" in " ".join(caption.split())

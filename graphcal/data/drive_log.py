@@ -74,7 +74,10 @@ class DriveLog:
     they are counts, :mod:`graphcal.data.quantization`). ``ay_from_wheels``: ``ay`` was
     derived from the wheels with the nominal theta (no IMU, no heading:
     :func:`graphcal.model.wheel_lateral_acceleration`), to be derived again with a solved
-    one.
+    one. ``pose_source`` is what measured the pose when the recording says so: ``"GNSS"``
+    for geodetic fixes (a manifest's latitude and longitude, a bag's NavSatFix); ``None``
+    when not known (a drive-log CSV, a local x/y pose: motion capture, a fused pose),
+    which reports call the "position source" (:meth:`position_sensor`).
     """
 
     t: np.ndarray
@@ -94,6 +97,7 @@ class DriveLog:
     tick_resolution: float | None = field(default=None, compare=False)
     ay_from_wheels: bool = field(default=False, compare=False)
     run: np.ndarray | None = field(default=None, compare=False)
+    pose_source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}
@@ -110,6 +114,11 @@ class DriveLog:
     def runs(self) -> int:
         """How many runs the log holds (1 without a ``run`` column)."""
         return 1 if self.run is None else int(self.run[-1]) + 1
+
+    def position_sensor(self) -> str:
+        """What reports call the point whose position the log measures: "GNSS antenna" for
+        GNSS fixes, else "position source" (motion capture, a fused pose, not known)."""
+        return "GNSS antenna" if self.pose_source == "GNSS" else "position source"
 
     def run_of(self, rows: np.ndarray) -> np.ndarray:
         """The run of each of ``rows`` (all 0 for a log of one run)."""

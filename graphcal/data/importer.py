@@ -50,10 +50,12 @@ class ImportedLog:
         log: the drive log on the uniform grid (gaps masked).
         resampled: stream summaries, overlap and notes of the resampling.
         origin: ``(latitude, longitude)`` [deg] of the local frame, or ``None``.
-        truth: ``theta_true`` [SI] of a synthetic recording (the manifest's ``truth``), or
-            ``None``.
+        truth: ``theta_true`` [SI] of a synthetic recording (the manifest's ``truth``, or the
+            ``truth.json`` that ``graphcal simulate --streams DIR --bag`` writes beside a
+            bag), or ``None``.
         source: the manifest or bag.
         warnings: what a user must know before trusting a calibration from this log.
+        truth_file: the file ``truth`` was read from, or ``None``.
     """
 
     log: DriveLog
@@ -62,6 +64,7 @@ class ImportedLog:
     truth: np.ndarray | None
     source: str
     warnings: tuple[str, ...] = ()
+    truth_file: str | None = None
 
     def sidecar(self) -> dict:
         """The JSON sidecar's content: where the log came from and what was done."""
@@ -172,7 +175,7 @@ def import_recording(
         GraphcalError: one line naming the file, stream or column and how to fix it.
     """
     path = Path(source)
-    truth = None
+    truth, truth_file = None, None
     if path.suffix.lower() in MANIFEST_SUFFIXES:
         from graphcal.data.manifest import load_manifest, read_manifest
 
@@ -182,8 +185,12 @@ def import_recording(
             rate = manifest.rate
         max_gap = max_gap if max_gap is not None else manifest.max_gap
         truth = _read_truth(manifest)
+        if truth is not None:
+            truth_file = str(manifest.resolve(str(manifest.data["truth"])))
     else:
         recording = read_recording(path, bag)
+        truth_file = _truth_beside_bag(path)
+        truth = None if truth_file is None else _truth_of_bag(Path(truth_file))
     check_wheel_speeds(recording.wheels, float(nominal[0]))  # before a sample is averaged
     resampled = _resampled(recording, rate, max_gap, nominal, reverses)
     warnings = check_recording(resampled, recording, nominal)
@@ -201,6 +208,8 @@ def import_recording(
         log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
     if resampled.ay_from_wheels:
         log = dataclasses.replace(log, ay_from_wheels=True)
+    if recording.pose.origin is not None:  # geodetic fixes: a GNSS receiver's
+        log = dataclasses.replace(log, pose_source="GNSS")
     return ImportedLog(
         log=log,
         resampled=resampled,
@@ -208,6 +217,7 @@ def import_recording(
         truth=truth,
         source=str(source),
         warnings=tuple(warnings),
+        truth_file=truth_file,
     )
 
 
@@ -245,6 +255,43 @@ def _resampled(
     if followed is not None:
         resampled = dataclasses.replace(resampled, notes=(*resampled.notes, followed))
     return resampled
+
+
+#: The truth file ``graphcal simulate --streams DIR`` writes in DIR, beside its bag.
+SIMULATED_TRUTH = "truth.json"
+
+
+def _truth_beside_bag(path: Path) -> str | None:
+    """The ``truth.json`` of ``graphcal simulate --streams DIR --bag`` beside the bag at
+    ``path`` (DIR/drive.bag, DIR/drive_ros2, DIR/drive_mcap, or a file inside the last two),
+    if ``graphcal simulate`` wrote it; else ``None`` (a real bag)."""
+    from graphcal.data.bag_reader import is_bag
+
+    folders = [path.resolve().parent]
+    if path.is_file() and is_bag(path.resolve().parent):  # a file of a bag directory
+        folders.append(path.resolve().parent.parent)
+    for folder in folders:
+        candidate = folder / SIMULATED_TRUTH
+        try:
+            meta = json.loads(candidate.read_text())
+        except (OSError, ValueError):
+            continue
+        generator = str(meta.get("generator", "")) if isinstance(meta, dict) else ""
+        if generator.startswith("graphcal") and "simulate" in generator:
+            return str(candidate)
+    return None
+
+
+def _truth_of_bag(path: Path) -> np.ndarray:
+    """``theta_true`` of a simulated bag's ``truth.json``."""
+    try:
+        meta = json.loads(path.read_text())
+        return np.array([float(meta["theta_true"][p]) for p in PARAMETER_NAMES])
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise StreamError(
+            f"{path}: not a JSON file with theta_true ({type(exc).__name__}); remove or "
+            "rename it for a real recording"
+        ) from None
 
 
 def _read_truth(manifest) -> np.ndarray | None:

@@ -19,6 +19,7 @@ from graphcal.factors import pose_sigmas
 from graphcal.pipeline.selection import select
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import Progress
+from graphcal.units import length_unit
 
 #: Weight of a fix the loader flagged as an isolated spike (its sigma ×100).
 FLAGGED_WEIGHT = 1e-4
@@ -72,7 +73,7 @@ def prepare_log(
     if log.outlying is not None:
         flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
     data = gather_segments(log, selected, flagged)
-    settings, left_out = _with_observable_lever_arm(data, settings, say)
+    settings, left_out = _with_observable_lever_arm(data, settings, say, log.position_sensor())
     return PreparedLog(
         log=log,
         settings=settings,
@@ -89,7 +90,7 @@ def prepare_log(
 
 
 def _with_observable_lever_arm(
-    data: SegmentData, settings: Settings, say: Progress
+    data: SegmentData, settings: Settings, say: Progress, sensor: str = "position source"
 ) -> tuple[Settings, dict[str, float]]:
     """``settings`` without the lever arm as a variable when the selected segments cannot
     show it even at best (:func:`~graphcal.data.excitation.lever_arm_sigma` above the
@@ -102,9 +103,10 @@ def _with_observable_lever_arm(
     best = lever_arm_sigma(data, sigmas[0], sigmas[2], joint.lever_arm_sigma)
     if best.min() <= joint.max_sigma_ratio * joint.lever_arm_sigma:
         return settings, {}
+    unit = length_unit(settings.vehicle.theta_nominal[2])
     say(
-        f"GNSS antenna's lever arm not estimated: this drive turns too little to show it "
-        f"(at best ±{best.max():.2f} m from these segments)"
+        f"lever arm of the {sensor} not estimated: this drive turns too little to show it "
+        f"(at best ±{unit.format(best.max(), figure=True)} {unit.name} from these segments)"
     )
     joint = dataclasses.replace(joint, lever_arm_sigma=0.0)
     return dataclasses.replace(settings, joint=joint), {"lever_arm": settings.joint.lever_arm_sigma}

@@ -53,6 +53,7 @@ from graphcal.pipeline.sensor_estimates import (
 )
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import Progress
+from graphcal.units import LengthUnit, length_unit
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
@@ -155,7 +156,8 @@ def solve_whole_log(
     )
     estimated.update(not_estimated(prepared.left_out))
     down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
-    _report(whole, estimated, down_weighted, settings.joint, say)
+    lines = estimate_lines(estimated, log, length_unit(settings.vehicle.theta_nominal[2]))
+    _report(whole, lines, down_weighted, settings.joint, say)
     weights = prepared.fix_weights
     if whole.fix_weights is not None:
         weights = log_weights(data, whole.fix_weights, len(log.t))
@@ -372,14 +374,14 @@ def _corrected(
 
 def _report(
     whole: JointCalibration,
-    estimated: dict[str, SensorEstimate],
+    estimate_lines: list[str],
     down_weighted: DownWeightedFixes,
     settings: JointSettings,
     say: Progress,
 ) -> None:
-    """The progress lines of what the whole-log solve found: the sensor estimates, the fixes
-    it down-weighted and slow wheel slip."""
-    for line in _estimate_lines(estimated):
+    """The progress lines of what the whole-log solve found: the sensor estimates (their
+    lines: :func:`estimate_lines`), the fixes it down-weighted and slow wheel slip."""
+    for line in estimate_lines:
         say(line)
     if whole.fix_weights is not None:
         say(down_weighted.summary())
@@ -398,29 +400,33 @@ def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
     return f"no slow wheel slip ({statistic} ≤ {settings.slip_detection:g})"
 
 
-#: How each sensor estimate is shown: label, unit, scale from SI, digits.
-_ESTIMATE_FORMAT = {
-    "time_offset": ("time offset: wheels late against the pose", "ms", 1e3, 1),
-    "lever_arm_longitudinal": ("GNSS antenna ahead of the centre of gravity", "m", 1.0, 3),
-    "lever_arm_lateral": ("GNSS antenna left of the centre of gravity", "m", 1.0, 3),
-}
-
-
-def _estimate_lines(estimated: dict[str, SensorEstimate]) -> list[str]:
-    """One progress line per sensor estimate."""
+def estimate_lines(
+    estimated: dict[str, SensorEstimate], log: DriveLog, unit: LengthUnit
+) -> list[str]:
+    """One progress line per sensor estimate: the time offset in ms, the lever arm of the
+    log's position sensor (:meth:`~graphcal.data.drive_log.DriveLog.position_sensor`) in the
+    vehicle's length ``unit``."""
+    sensor = log.position_sensor()
+    labels = {
+        "time_offset": "time offset: wheels late against the pose",
+        "lever_arm_longitudinal": f"{sensor} ahead of the centre of gravity",
+        "lever_arm_lateral": f"{sensor} left of the centre of gravity",
+    }
     lines = []
     for name, e in estimated.items():
         base, run = run_of(name)
-        label, unit, scale, digits = _ESTIMATE_FORMAT[base]
+        label = labels[base]
         if run is not None:
             label = f"{label} (run {run})"
-        if e.observable:
-            lines.append(
-                f"{label}: {e.value * scale:+.{digits}f} ± {e.sigma * scale:.{digits}f} {unit}; "
-                f"{e.verdict}"
-            )
-        else:
+        if not e.observable:
             lines.append(f"{label}: not observable from this drive")
+        elif base == "time_offset":
+            lines.append(f"{label}: {e.value * 1e3:+.1f} ± {e.sigma * 1e3:.1f} ms; {e.verdict}")
+        else:
+            lines.append(
+                f"{label}: {unit.format(e.value, sign=True)} ± {unit.spread(e.sigma)} "
+                f"{unit.name}; {e.verdict}"
+            )
     return lines
 
 

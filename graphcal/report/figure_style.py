@@ -14,6 +14,7 @@ from matplotlib.figure import Figure, SubFigure
 
 from graphcal.evaluation import Evaluation
 from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.units import LengthUnit, length_unit
 
 COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}
 STEP_LABELS = {
@@ -49,10 +50,19 @@ TRUE_LINE = {"color": COLOURS["true"], "lw": 5.0, "alpha": 0.35, "zorder": 1}
 #: which the layout does not foresee when the aspect widens the limits.
 EDGE_PAD = 0.25
 RECOMMENDED_LINE = {"color": COLOURS["calibrated"], "lw": 1.2, "zorder": 3}
+#: A parameter the data did not determine: the prior (nominal) value the run keeps.
+PRIOR_LINE = {"color": COLOURS["nominal"], "ls": ":", "lw": 1.5, "zorder": 2}
+PRIOR_KEPT = "prior value kept (not observable)"
 #: The run's theta when it is not trusted: dashed, so it is not taken for a recommendation.
 _NOT_TRUSTED_LINE = {**RECOMMENDED_LINE, "ls": "--"}
 #: Characters per inch of figure width of a caption line in the "small" font.
 _CAPTION_CHARS_PER_INCH = 13
+
+
+def vehicle_length_unit(run: CalibrationRun) -> LengthUnit:
+    """The unit of the run's position errors and lever arm: mm for a small robot, m for a
+    car (:func:`~graphcal.units.length_unit` of the vehicle's nominal track)."""
+    return length_unit(float(run.settings.vehicle.theta_nominal[2]))
 
 
 def trusted(run: CalibrationRun) -> bool:

@@ -24,6 +24,7 @@ from graphcal.report.figure_style import (
     number_of,
     step_captions,
     theta_names,
+    vehicle_length_unit,
 )
 from graphcal.report.theta_figures import batch_intervals_figure, parameters_figure
 
@@ -67,7 +68,8 @@ def route_figure(run: CalibrationRun) -> Figure:
 
 def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
     """Validation errors E_p of the batches' theta per step (paper Fig. 6)."""
-    segment_errors = errors_by_theta(run, evaluation)
+    unit = vehicle_length_unit(run)
+    segment_errors = {k: e * unit.scale for k, e in errors_by_theta(run, evaluation).items()}
     mean_error = {name: float(np.mean(e)) for name, e in segment_errors.items()}
     fig = Figure(figsize=(7.5, 4.6), layout="constrained")
     ax = fig.add_subplot()
@@ -76,7 +78,7 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     if any(np.isfinite(e).any() for e in run.batch_errors.values()):  # E_p per batch, step
         data, labels = [], []
         for name, e in run.batch_errors.items():
-            data.append(e[np.isfinite(e)])
+            data.append(e[np.isfinite(e)] * unit.scale)
             if len(data[-1]) == len(e):
                 counted = number_of(len(e), "batch", "batches")
             elif len(data[-1]):
@@ -86,13 +88,15 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
             labels.append(f"{STEP_LABELS.get(name, name)}\n({counted})")
         caption = step_captions(run, run.batch_errors)
         ax.set_ylabel("θ of each batch, by step")
-        ax.set_xlabel("validation error E_p [m] (mean position error, eq. 16 / K)")
+        ax.set_xlabel(f"validation error E_p [{unit.name}] (mean position error, eq. 16 / K)")
         points = "E_p of a batch's θ"
     else:  # no batches: the spread over the validation segments of each theta
         labels = [called[n] for n in segment_errors]
         data = list(segment_errors.values())
         ax.set_ylabel("θ of the odometry")
-        ax.set_xlabel("mean position error of a validation segment [m] (lines: E_p, their mean)")
+        ax.set_xlabel(
+            f"mean position error of a validation segment [{unit.name}] (lines: E_p, their mean)"
+        )
         points = "a segment's error"
     draw_boxes(ax, data, labels, vertical=False, label=points)
     values = np.concatenate([np.ravel(d) for d in data])
@@ -100,8 +104,8 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     top = max(shown, default=np.nan)
     names = {**called, "true": "reachable (true θ)"}
     # enough digits to tell the recommended from the reachable error apart
-    close = abs(mean_error["calibrated"] - mean_error.get("true", np.inf)) < 0.01
-    digits = 3 if close else 2
+    close = abs(mean_error["calibrated"] - mean_error.get("true", np.inf)) < 0.01 * unit.scale
+    digits = unit.figure_digits + (1 if close else 0)
     for name, style in (
         ("nominal", {"color": COLOURS["nominal"], "ls": ":", "lw": 1.5, "zorder": 2}),
         ("true", TRUE_LINE),
@@ -109,7 +113,7 @@ def validation_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     ):
         if name not in mean_error:
             continue
-        label = f"{names[name]}: E_p {mean_error[name]:.{digits}f} m"
+        label = f"{names[name]}: E_p {mean_error[name]:.{digits}f} {unit.name}"
         if name == "nominal" and mean_error[name] > 1.5 * top:
             ax.plot([], [], **style, label=label + " (off scale)")
             continue
@@ -183,6 +187,7 @@ def wheel_rotations_figure(run: CalibrationRun) -> Figure:
 def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
     """The validation segment with the median nominal error: measured vs odometry paths."""
     segment_errors = errors_by_theta(run, evaluation)
+    unit = vehicle_length_unit(run)
     errors = segment_errors["nominal"]
     i = int(np.argsort(errors)[len(errors) // 2])
     poses, _ = run.validation.segment(i)
@@ -203,7 +208,8 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
             path[:, 1],
             color=COLOURS[name],
             ls="--" if name == "true" else "-",
-            label=f"odometry, {theta_names(run)[name]}: mean position error {error:.2f} m",
+            label=f"odometry, {theta_names(run)[name]}: mean position error "
+            f"{unit.format(error, figure=True)} {unit.name}",
         )
     start = odometry_paths(one, run.theta)[0, 0]
     ax.plot(start[0], start[1], "o", color="k", ms=5, label="start", zorder=4)

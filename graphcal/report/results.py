@@ -25,7 +25,7 @@ from graphcal.report.document import (
     uncertainty_summary,
     validation_summary,
 )
-from graphcal.report.figure_style import trusted
+from graphcal.report.figure_style import trusted, vehicle_length_unit
 from graphcal.report.figures import figures
 from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
@@ -87,7 +87,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
             "(calibration.json keeps the nominal value and says so)"
         )
     if run.estimated:
-        parts.append(estimates_table(run.estimated))
+        parts.append(estimates_table(run.estimated, vehicle_length_unit(run)))
     if run.down_weighted is not None:
         parts.append(run.down_weighted.summary())
     if run.whole is not None and run.whole.slip_statistic is not None:
@@ -124,7 +124,12 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
     for name, entry in uncertainty_summary(run, evaluation).items():
         parts.append(_uncertainty_line(name, entry))
     errors = validation_summary(run, evaluation)
-    parts.append(validation_table({ours if k == "calibrated" else k: v for k, v in errors.items()}))
+    parts.append(
+        validation_table(
+            {ours if k == "calibrated" else k: v for k, v in errors.items()},
+            vehicle_length_unit(run),
+        )
+    )
     if run.warnings:
         parts.append("\n".join(f"warning: {w}" for w in run.warnings))
     return "\n\n".join(parts)

@@ -6,7 +6,14 @@ import numpy as np
 
 from graphcal.graph.observability import HELD_VERDICT
 from graphcal.model import PARAMETER_NAMES
-from graphcal.units import DEVIATION_SCALE, DISPLAY_SCALE, DISPLAY_UNITS, to_display
+from graphcal.units import (
+    DEVIATION_SCALE,
+    DISPLAY_SCALE,
+    DISPLAY_UNITS,
+    METRES,
+    LengthUnit,
+    to_display,
+)
 
 _FORMATS = ("{:.4f}", "{:.3f}", "{:.4f}", "{:.3f}")
 
@@ -169,36 +176,40 @@ def interval_table(
     return _render([header, *body])
 
 
-#: Display of the quantities estimated from χ² profiles: label, unit, scale from SI.
-_ESTIMATES = {
-    "time_offset": ("time offset (wheels late)", "ms", 1e3, 1),
-    "lever_arm_longitudinal": ("lever arm, ahead", "m", 1.0, 3),
-    "lever_arm_lateral": ("lever arm, left", "m", 1.0, 3),
-}
-
-
-def estimates_table(estimated: dict) -> str:
+def estimates_table(estimated: dict, unit: LengthUnit = METRES) -> str:
     """The sensor quantities estimated with theta (:mod:`graphcal.pipeline.sensor_estimates`)
-    with 1σ and the verdict (detected ones are corrected in the log)."""
+    with 1σ and the verdict (detected ones are corrected in the log): the time offset in ms,
+    the lever arm in the vehicle's length ``unit``; ``-`` for one not estimated (not
+    observable, or left out of the graph), never a prior's 0 ± its σ."""
+    labels = {
+        "time_offset": "time offset (wheels late)",
+        "lever_arm_longitudinal": "lever arm, ahead",
+        "lever_arm_lateral": "lever arm, left",
+    }
     rows = [["sensors, estimated with θ", "value", "1σ", "verdict"]]
     for name, e in estimated.items():
         base, _, run = name.partition(":")
-        label, unit, scale, digits = _ESTIMATES.get(base, (base, "SI", 1.0, 4))
+        label = labels.get(base, base)
         if run:
             label = f"{label}, run {run}"
-        value, sigma = f"{e.value * scale:+.{digits}f}", f"{e.sigma * scale:.{digits}f}"
+        if base == "time_offset":
+            symbol, value, sigma = "ms", f"{e.value * 1e3:+.1f}", f"{e.sigma * 1e3:.1f}"
+        elif base in labels:
+            symbol, value, sigma = unit.name, unit.format(e.value, sign=True), unit.spread(e.sigma)
+        else:
+            symbol, value, sigma = "SI", f"{e.value:+.4f}", f"{e.sigma:.4f}"
         if not e.observable:  # its prior's sigma is no estimate's
             value, sigma = "-", "-"
-        rows.append([f"{label} [{unit}]", value, sigma, e.verdict])
+        rows.append([f"{label} [{symbol}]", value, sigma, e.verdict])
     return _render(rows)
 
 
-def validation_table(errors: dict[str, float]) -> str:
-    """E_p [m] per named theta."""
+def validation_table(errors: dict[str, float], unit: LengthUnit = METRES) -> str:
+    """E_p per named theta, in the vehicle's length ``unit``."""
     return _render(
         [
-            ["validation error E_p [m]", "mean"],
-            *([name, f"{value:.3f}"] for name, value in errors.items()),
+            [f"validation error E_p [{unit.name}]", "mean"],
+            *([name, unit.format(value)] for name, value in errors.items()),
         ]
     )
 

@@ -15,6 +15,9 @@ from graphcal.evaluation import Evaluation
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.report.figure_style import (
+    NOT_TRUSTED_THETA,
+    PRIOR_KEPT,
+    PRIOR_LINE,
     RECOMMENDED_LINE,
     STEP_LABELS,
     THETA_NAMES,
@@ -26,6 +29,7 @@ from graphcal.report.figure_style import (
     legend_below,
     number_of,
     step_captions,
+    trusted,
 )
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
@@ -61,8 +65,9 @@ def box_plots(
             ``(B, 4)`` in SI; NaN rows are left out (a tick label says how many are left).
         title: figure title.
         theta_true, recommended: drawn as horizontal lines when given.
-        not_observable: parameters the data did not determine: no recommended line, and the
-            panel says so.
+        not_observable: parameters the data did not determine: ``recommended``'s value is
+            drawn as the prior value kept (:data:`PRIOR_KEPT`), not as an estimate, and the
+            panel's title says so.
         held: parameters the vehicle profile holds at their nominal (``fix_d``): the panel
             says so.
         recommended_label, recommended_style: legend entry and line style of
@@ -83,18 +88,24 @@ def box_plots(
             data.append(t[np.isfinite(t)] * DISPLAY_SCALE[i])
             labels.append(_shown(STEP_LABELS.get(step, step), len(data[-1]), len(t)))
         draw_boxes(ax, data, labels, vertical=True, label="one batch's estimate")
-        if not any(len(d) for d in data):
-            # low in the panel: the lines of theta run through its middle
-            ax.text(0.5, 0.12, "no batch estimate\nto show (see below)", transform=ax.transAxes,
-                    ha="center", va="center", color="0.4")  # fmt: skip
         if theta_true is not None:
             ax.axhline(theta_true[i] * DISPLAY_SCALE[i], **TRUE_LINE, label="true θ")
         hidden = name in not_observable
-        if recommended is not None and not hidden:
+        if recommended is not None and hidden:  # the prior value the run keeps, not an estimate
+            ax.axhline(recommended[i] * DISPLAY_SCALE[i], **PRIOR_LINE, label=PRIOR_KEPT)
+        elif recommended is not None:
             style = recommended_style or RECOMMENDED_LINE
             ax.axhline(recommended[i] * DISPLAY_SCALE[i], **style, label=recommended_label)
-        # "not observable" on a line of its own: beside the name it overflows the panel
-        status = "\nnot observable" if hidden else "\nheld at nominal" if name in held else ""
+        # What the panel lacks, in its title (over no line or box): beside the name it
+        # overflows the panel
+        if hidden:
+            status = "\nnot observable"
+        elif name in held:
+            status = "\nheld at nominal"
+        elif not any(len(d) for d in data):
+            status = "\nno batch estimate (see below)"
+        else:
+            status = ""
         ax.set_title(f"{name} [{DISPLAY_UNITS[i]}]" + status)
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.grid(axis="y", alpha=0.3)
@@ -104,10 +115,18 @@ def box_plots(
 
 
 def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None) -> Figure:
-    """Box plots of each parameter over the batches of a run (paper Fig. 5)."""
+    """Box plots of each parameter over the batches of a run (paper Fig. 5).
+
+    Where the run held parameters it found not observable at their prior, its joint batches
+    (solved holding them too) show their estimates of the calibrated ones, though they are
+    left out of the batch statistics; the caption says so."""
     assert run.batches is not None
-    estimates = {name: run.batch_estimates(name) for name in run.batch_theta}
     hidden = tuple(run.observability.not_calibrated) if run.observability is not None else ()
+    estimates, notes = {}, []
+    for name in run.batch_theta:
+        estimates[name], note = _shown_estimates(run, name, hidden)
+        if note:
+            notes.append(note)
     title = (
         f"Estimates of θ over {number_of(len(run.batches), 'batch', 'batches')}, by step "
         "(box: quartiles, whiskers: data within 1.5 IQR)"
@@ -120,7 +139,7 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         hidden,
         recommended_label=calibrated_name(run),
         recommended_style=calibrated_line(run),
-        notes=[line for step in estimates if (line := left_out(run, step))],
+        notes=notes,
         held=tuple(
             name
             for name, fixed in zip(PARAMETER_NAMES, run.observability.held, strict=True)
@@ -131,45 +150,103 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
     )
 
 
+#: Up to this many batches the ±2σ bars are drawn at full width; beyond, thinner and paler
+#: in proportion, so that 100 or 1000 of them still show each batch's interval.
+FULL_BARS = 60
+
+
+def _shown_estimates(
+    run: CalibrationRun, step: str, hidden: tuple[str, ...]
+) -> tuple[np.ndarray, str]:
+    """The thetas ``(B, 4)`` of ``step`` that :func:`parameters_figure` shows (NaN: not
+    shown) and the caption line saying what is not shown and why.
+
+    A batch left out only because the parameters ``hidden`` (the run's not observable ones)
+    were not observable keeps its estimates of the others, when its solve held ``hidden`` at
+    the prior as the run's did (a step with covariances: the joint batches); every other
+    batch left out or failed is not shown (:func:`left_out`)."""
+    thetas = run.batch_estimates(step)
+    reasons = run.batch_excluded.get(step)
+    if not hidden or reasons is None or step not in run.batch_covariance:
+        return thetas, left_out(run, step)
+    partial = np.array(
+        [_only_not_observable(str(r), hidden) for r in reasons], dtype=bool
+    ) & np.all(np.isfinite(run.batch_theta[step]), axis=1)
+    if not partial.any():
+        return thetas, left_out(run, step)
+    shown = np.array(thetas)
+    kept = [i for i, p in enumerate(PARAMETER_NAMES) if p not in hidden]
+    shown[np.ix_(partial, kept)] = run.batch_theta[step][np.ix_(partial, kept)]
+    label = STEP_LABELS.get(step, step)
+    names = ", ".join(PARAMETER_NAMES[i] for i in kept)
+    line = (
+        f"{label}: {names} of {number_of(int(partial.sum()), 'batch', 'batches')} solved with "
+        f"{', '.join(hidden)} held at the prior (not observable), shown though left out of the "
+        "batch statistics"
+    )
+    rest = len(partial) - int(partial.sum())
+    if rest:
+        line += f"; {rest} other {'batch' if rest == 1 else 'batches'} failed or left out"
+    return shown, line
+
+
+def _only_not_observable(reason: str, hidden: tuple[str, ...]) -> bool:
+    """A batch's exclusion ``reason`` names only parameters in ``hidden`` as not observable."""
+    prefix = "not observable: "
+    if not reason.startswith(prefix):
+        return False
+    return set(reason[len(prefix) :].split(", ")) <= set(hidden)
+
+
 def batch_intervals_figure(
     run: CalibrationRun,
     evaluation: Evaluation | None = None,
     *,
     name: str = "joint",
-    limit: int = 60,
 ) -> Figure:
-    """Every batch's estimate of ``name`` next to the run's theta and its ±2σ band (labelled
-    not trusted when a trust check failed).
+    """Every batch's estimate of ``name`` with its ±2σ bar, next to the run's theta and its
+    ±2σ band (no band for a theta that is not trusted: the report gives it no interval).
 
-    Up to ``limit`` batches get ±2σ bars; more are drawn as points, and the title says so.
-    Excluded batches are grey crosses; failed solves (no estimate) are counted in the title.
+    Beyond :data:`FULL_BARS` batches the bars are thinner, and the title says so. Excluded
+    batches are grey crosses; failed solves (no estimate) are counted in the title.
     """
     thetas, covariances = run.batch_theta[name], run.batch_covariance[name]
     count = len(thetas)
     excluded = run.batch_excluded.get(name, np.full(count, "", dtype=object))
     finite = np.all(np.isfinite(thetas), axis=1)
-    bars = count <= limit
     kinds = (
-        (finite & (excluded == ""), "o", "tab:blue", "batch ±2σ" if bars else "batch estimate"),
-        (finite & (excluded != ""), "x", "0.55", "excluded batch"),
+        (finite & (excluded == ""), "o", "tab:blue", "batch estimate ±2σ"),
+        (finite & (excluded != ""), "x", "0.55", "excluded batch ±2σ"),
     )
     fig = Figure(figsize=(11, 6.6), layout="constrained")
     axes = []
     for i in range(len(PARAMETER_NAMES)):
         ax = fig.add_subplot(2, 2, i + 1)
         axes.append(ax)
-        _batch_estimates(ax, thetas[:, i], covariances[:, i, i], i, kinds, bars)
+        _batch_estimates(ax, thetas[:, i], covariances[:, i, i], i, kinds)
         title = f"{PARAMETER_NAMES[i]} [{DISPLAY_UNITS[i]}]" + _run_interval(ax, run, i)
-        sigmas = np.sqrt(covariances[kinds[0][0], i, i]) * DISPLAY_SCALE[i]
-        if not bars and np.isfinite(sigmas).any():  # the bars' size, in words
-            title += f"; median batch 2σ: ±{2.0 * np.nanmedian(sigmas):#.2g}"
         if evaluation is not None:
             ax.axhline(evaluation.theta_true[i] * DISPLAY_SCALE[i], **TRUE_LINE, label="true θ")
         ax.set_title(title)
         _batch_axis(ax, count)
-    fig.suptitle(_batch_intervals_title(name, count, int(np.sum(~finite)), bars, limit))
-    legend_below(fig, axes, ncols=5)
+    fig.suptitle(_batch_intervals_title(name, count, int(np.sum(~finite))))
+    caption = []
+    if not trusted(run) and run.covariance is not None:
+        caption.append(
+            f"{NOT_TRUSTED_THETA}: a trust check failed, so it has no ±2σ band (the summary "
+            "gives it no interval either)"
+        )
+    legend_below(fig, axes, ncols=5, caption=caption)
     return fig
+
+
+def _bar_style(count: int) -> dict:
+    """Width and size of ``count`` batches' markers and ±2σ bars: full up to
+    :data:`FULL_BARS`, thinner and paler beyond (each bar still drawn)."""
+    if count <= FULL_BARS:
+        return {"ms": 3.0, "lw": 0.8, "alpha": 1.0}
+    share = float(np.sqrt(FULL_BARS / count))
+    return {"ms": max(1.2, 3.0 * share), "lw": max(0.2, 0.8 * share), "alpha": 0.6}
 
 
 def _batch_estimates(
@@ -178,31 +255,26 @@ def _batch_estimates(
     variance: np.ndarray,
     i: int,
     kinds: tuple[tuple[np.ndarray, str, str, str], ...],
-    bars: bool,
 ) -> None:
     """Parameter ``i`` of each batch ``(B,)`` (SI; its variances ``(B,)``) in display
-    units, per kind (mask, marker, colour, label): with ±2σ bars, or points without."""
+    units with its ±2σ bar, per kind (mask, marker, colour, label)."""
     scale = DISPLAY_SCALE[i]
     batch = np.arange(len(theta))
     value = theta * scale
+    style = _bar_style(len(theta))
     for mask, marker, colour, label in kinds:
         if not mask.any():
             continue
-        if bars:
-            bar = 2.0 * np.sqrt(variance[mask]) * scale
-            ax.errorbar(
-                batch[mask],
-                value[mask],
-                yerr=bar,
-                fmt=marker,
-                ms=3,
-                lw=0.8,
-                color=colour,
-                label=label,
-            )
-        else:
-            size = 2.0 if marker == "o" else 4.0
-            ax.plot(batch[mask], value[mask], marker, ms=size, alpha=0.7, color=colour, label=label)
+        bar = 2.0 * np.sqrt(np.maximum(variance[mask], 0.0)) * scale
+        ax.errorbar(
+            batch[mask],
+            value[mask],
+            yerr=np.where(np.isfinite(bar), bar, 0.0),
+            fmt=marker,
+            color=colour,
+            label=label,
+            **style,
+        )
 
 
 def _run_interval(ax: Axes, run: CalibrationRun, i: int) -> str:
@@ -216,6 +288,9 @@ def _run_interval(ax: Axes, run: CalibrationRun, i: int) -> str:
     theta_name = calibrated_name(run)
     scale = DISPLAY_SCALE[i]
     centre = run.theta[i] * scale
+    ax.axhline(centre, **calibrated_line(run), label=theta_name)
+    if not trusted(run):  # the summary gives it no interval: neither does the figure
+        return ": not trusted"
     half = 2.0 * np.sqrt(run.covariance[i, i]) * scale
     ax.axhspan(
         centre - half,
@@ -225,7 +300,6 @@ def _run_interval(ax: Axes, run: CalibrationRun, i: int) -> str:
         lw=0,
         label=f"{theta_name} ±2σ",
     )
-    ax.axhline(centre, **calibrated_line(run), label=theta_name)
     return ""
 
 
@@ -238,12 +312,13 @@ def _batch_axis(ax: Axes, count: int) -> None:
     ax.grid(alpha=0.3)
 
 
-def _batch_intervals_title(name: str, count: int, failed: int, bars: bool, limit: int) -> str:
-    """The figure's title: which step, how many batches shown (failed ones counted), and
-    whether they have ±2σ bars."""
+def _batch_intervals_title(name: str, count: int, failed: int) -> str:
+    """The figure's title: which step, how many batches shown (failed ones counted), their
+    ±2σ bars (thinner beyond :data:`FULL_BARS` batches)."""
     if failed:
         shown = f"{count - failed} of {count} batches ({failed} failed, no estimate)"
     else:
         shown = f"all {count} batches" if count > 1 else "the only batch"
-    detail = " with ±2σ (95 %) bars" if bars else f"; ±2σ bars drawn only up to {limit} batches"
-    return f"{STEP_LABELS.get(name, name).capitalize()} estimates of {shown}{detail}"
+    thin = " (thin lines: many batches)" if count > FULL_BARS else ""
+    step = STEP_LABELS.get(name, name).capitalize()
+    return f"{step} estimates of {shown} with ±2σ (95 %) bars{thin}"
