@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import signal
 import sys
 from collections.abc import Sequence
 from types import ModuleType
@@ -72,6 +73,15 @@ def build_parser() -> argparse.ArgumentParser:
         command.add_arguments(p)
         p.set_defaults(func=command.run)
     return parser
+
+
+def entry() -> int:
+    """The ``graphcal`` console script: :func:`main`, then Ctrl-C ignored while the
+    interpreter exits (the run is over and its results written; an interrupt there ended
+    the process by the signal, exit -2, with a traceback from an exit handler)."""
+    status = main()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return status
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -2,6 +2,6 @@
 
 import sys
 
-from graphcal.cli import main
+from graphcal.cli import entry
 
-sys.exit(main())
+sys.exit(entry())

@@ -111,6 +111,12 @@ class _RemoteGroup:
             raise RuntimeError(value)
         return value
 
+    def end(self) -> None:
+        """End the process without a word from it (an interrupted run: it may be gone)."""
+        self.process.kill()
+        self.process.join()
+        self.connection.close()
+
     def stop(self) -> list[dict[int, Portable]]:
         """End the process; returns its parts' local values."""
         self.send(Stop())
@@ -189,6 +195,15 @@ class PartWorkers:
                 for key in self.everything.shared:  # this copy still has the old ones
                     copy_value(part.values, shared_values, key)
             at += worker.size
+
+    def abandon(self) -> None:
+        """End the workers at once, their parts' values lost (an interrupted run: Ctrl-C
+        has ended them already, and asking for their values would fail on a closed pipe)."""
+        self._pending = 0
+        remote, self._remote = self._remote, []
+        self.local = self.everything
+        for worker in remote:
+            worker.end()
 
     def _ask(self, request: Request) -> list:
         """``request`` of every group (the workers' at once), per-part answers in part order."""

@@ -93,8 +93,13 @@ class PartitionedGraph:
         self.workers.share_out(workers)
         try:
             yield
-        finally:
+        except Exception:
             self.workers.stop(self.shared_values)
+            raise
+        except BaseException:  # Ctrl-C: the workers are gone or going; the run ends
+            self.workers.abandon()
+            raise
+        self.workers.stop(self.shared_values)
 
     def values_by_key(self) -> dict[int, gtsam.Values]:
         """For every local key, the ``Values`` of its part."""
