@@ -406,6 +406,17 @@ def enu_to_geodetic(east: np.ndarray, north: np.ndarray, flat: bool = False):
 # ------------------------------------------------------------------------------------------
 
 
+def _antenna(
+    x: np.ndarray, y: np.ndarray, yaw: np.ndarray, antenna: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """East and north [m] of an antenna ``antenna`` = (ahead, left) [m] of the point at
+    ``x``, ``y`` [m] on a body of heading ``yaw`` [rad]."""
+    ahead, left = antenna
+    east = x + ahead * np.cos(yaw) - left * np.sin(yaw)
+    north = y + ahead * np.sin(yaw) + left * np.cos(yaw)
+    return east, north
+
+
 def _clock(start: float, end: float, rate: float, rng: np.random.Generator) -> np.ndarray:
     """Sample instants at ``rate`` with a random phase, from ``start`` to ``end``."""
     phase = rng.uniform(0.0, 1.0 / rate)
@@ -433,9 +444,7 @@ def write_streams(
     # GNSS: true epochs, stamped with jitter
     tg = _clock(rng.uniform(0.0, 1.0), t_end - rng.uniform(0.0, 1.0), gnss_rate, rng)
     yaw = at(tg, drive.yaw)
-    ahead, left = ANTENNA
-    east = at(tg, drive.x) + ahead * np.cos(yaw) - left * np.sin(yaw)
-    north = at(tg, drive.y) + ahead * np.sin(yaw) + left * np.cos(yaw)
+    east, north = _antenna(at(tg, drive.x), at(tg, drive.y), yaw, ANTENNA)
     east = east + 0.15 * rng.standard_normal(len(tg))
     north = north + 0.15 * rng.standard_normal(len(tg))
     lat, lon = enu_to_geodetic(east, north, flat)
@@ -636,9 +645,7 @@ def write_robot_streams(
 
     tg = _clock(rng.uniform(0.0, 0.4), t_end - rng.uniform(0.0, 0.4), ROBOT_GNSS_RATE, rng)
     yaw = at(tg, robot.yaw)
-    ahead, left = ROBOT_ANTENNA
-    east = at(tg, robot.x) + ahead * np.cos(yaw) - left * np.sin(yaw)
-    north = at(tg, robot.y) + ahead * np.sin(yaw) + left * np.cos(yaw)
+    east, north = _antenna(at(tg, robot.x), at(tg, robot.y), yaw, ROBOT_ANTENNA)
     east = east + gnss_noise(len(tg), ROBOT_GNSS_SIGMA, gnss_tau * ROBOT_GNSS_RATE, rng)
     north = north + gnss_noise(len(tg), ROBOT_GNSS_SIGMA, gnss_tau * ROBOT_GNSS_RATE, rng)
     lat, lon = enu_to_geodetic(east, north)
