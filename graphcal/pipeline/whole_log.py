@@ -36,6 +36,7 @@ from graphcal.pipeline.held_at_prior import (
     data_determine,
     holding_what_is_not_observable,
     still_not_calibrated,
+    without_an_unseen_lever_arm,
 )
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.prepare import PreparedLog
@@ -127,6 +128,7 @@ def solve_whole_log(
         whole = _d_on_a_straight_drive(whole, data, say)
     first = whole
     joint = holding_what_is_not_observable(whole, joint, say)
+    joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared, say)
     if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
         theta, _ = condition_on_prior(
             whole.theta,
@@ -154,7 +156,7 @@ def solve_whole_log(
     estimated = _with_total_offset(
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
     )
-    estimated.update(not_estimated(prepared.left_out))
+    estimated.update(not_estimated(left_out))
     down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
     lines = estimate_lines(estimated, log, length_unit(settings.vehicle.theta_nominal[2]))
     _report(whole, lines, down_weighted, settings.joint, say)
