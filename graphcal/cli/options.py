@@ -228,16 +228,16 @@ def recording_keywords(args: argparse.Namespace) -> dict[str, object]:
     return {"rate": args.rate, "max_gap": args.max_gap, "bag": bag_options(args)}
 
 
-#: The settings' keys the options set, by option: an error names what the user typed.
+#: The settings' keys the options set (``--min-yaw-rate`` sets ``segments.min_yaw_rate``).
 _OPTION_KEYS = {
-    "segment_length": ("--segment-length", "segments.length"),
-    "segment_stride": ("--segment-stride", "segments.stride"),
-    "min_yaw_rate": ("--min-yaw-rate", "segments.min_yaw_rate"),
-    "yaw_statistic": ("--yaw-statistic", "segments.yaw_statistic"),
-    "validation_length": ("--validation-length", "segments.validation_length"),
-    "batches": ("--batches", "batches.count"),
-    "seed": ("--seed", "batches.seed"),
-    "batch_solve": ("--batch-solve", "batches.joint_solve"),
+    "segment_length": "segments.length",
+    "segment_stride": "segments.stride",
+    "min_yaw_rate": "segments.min_yaw_rate",
+    "yaw_statistic": "segments.yaw_statistic",
+    "validation_length": "segments.validation_length",
+    "batches": "batches.count",
+    "seed": "batches.seed",
+    "batch_solve": "batches.joint_solve",
 }
 
 
@@ -245,34 +245,24 @@ def settings_from_args(args: argparse.Namespace) -> Settings:
     """Settings: the paper's defaults, then ``--config FILE``, then explicit options. A value
     out of range is named by the option that set it (``--min-yaw-rate``, not
     ``segments.min_yaw_rate``)."""
+    given = {name: getattr(args, name, None) for name in _OPTION_KEYS}
+    given["batches"] = given["batches"] or None  # --batches 0 is the whole method's
+    sections: dict[str, dict] = {"segments": {}, "batches": {}}
+    for name, key in _OPTION_KEYS.items():
+        section, field = key.split(".")
+        sections[section][field] = given[name]
     try:
-        return _settings_from_args(args)
+        return configure_settings(
+            getattr(args, "config", None),
+            getattr(args, "vehicle", None),
+            **sections,
+            defect_model=not getattr(args, "no_defect_model", False),
+            paper_exact=getattr(args, "paper_exact", False),
+        )
     except GraphcalError as exc:
         message = str(exc)
-        for name, (option, key) in _OPTION_KEYS.items():
-            if getattr(args, name, None) is not None and message.startswith(key):
-                raise GraphcalError(
-                    f"{option} {getattr(args, name)}:{message[len(key) :]}"
-                ) from exc
+        for name, key in _OPTION_KEYS.items():
+            if given[name] is not None and message.startswith(key):
+                flag = _given(args, [name])[0]
+                raise GraphcalError(f"{flag} {given[name]}:{message[len(key) :]}") from exc
         raise
-
-
-def _settings_from_args(args: argparse.Namespace) -> Settings:
-    return configure_settings(
-        getattr(args, "config", None),
-        getattr(args, "vehicle", None),
-        segments={
-            "length": args.segment_length,
-            "stride": args.segment_stride,
-            "min_yaw_rate": args.min_yaw_rate,
-            "yaw_statistic": args.yaw_statistic,
-            "validation_length": getattr(args, "validation_length", None),
-        },
-        batches={
-            "count": getattr(args, "batches", None) or None,
-            "seed": getattr(args, "seed", None),
-            "joint_solve": getattr(args, "batch_solve", None),
-        },
-        defect_model=not getattr(args, "no_defect_model", False),
-        paper_exact=getattr(args, "paper_exact", False),
-    )

@@ -7,11 +7,23 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
+
 from graphcal.graph.observability import with_prior_sigmas
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration, JointSettings
 from graphcal.pipeline.prepare import PreparedLog
 from graphcal.progress import Progress
+
+
+def weak_prior_covariance(whole: JointCalibration, settings: JointSettings) -> np.ndarray:
+    """``(4, 4)`` theta's covariance of ``whole`` (solved under ``settings``, which may hold
+    parameters at their prior by a tight one) under the weak prior ``theta_prior_sigmas``:
+    the tight prior's information taken out
+    (:func:`~graphcal.graph.observability.with_prior_sigmas`)."""
+    return with_prior_sigmas(
+        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
+    )
 
 
 def data_determine(
@@ -20,12 +32,9 @@ def data_determine(
     """Whether the data of ``whole`` (solved under ``settings``, which may hold parameters
     at their prior) determine each parameter of ``names``: its verdict under the weak prior,
     the tight one's information taken out of the covariance
-    (:func:`~graphcal.graph.observability.with_prior_sigmas`)."""
-    covariance = with_prior_sigmas(
-        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
-    )
+    (:func:`weak_prior_covariance`)."""
     weak = dataclasses.replace(settings, held_at_prior=())
-    calibrated = weak.observability(covariance).calibrated
+    calibrated = weak.observability(weak_prior_covariance(whole, settings)).calibrated
     return [bool(calibrated[PARAMETER_NAMES.index(name)]) for name in names]
 
 
@@ -69,11 +78,11 @@ def still_not_calibrated(
     statistic = whole.slip_statistic
     if statistic is None:
         statistic = first.slip_statistic
-    covariance = with_prior_sigmas(
-        whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
-    )
     return dataclasses.replace(
-        whole, covariance=covariance, observability=observability, slip_statistic=statistic
+        whole,
+        covariance=weak_prior_covariance(whole, settings),
+        observability=observability,
+        slip_statistic=statistic,
     )
 
 

@@ -58,9 +58,6 @@ from graphcal.units import LengthUnit, length_unit
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
-#: A time offset's rest beyond the wheels' shift is shifted again only beyond this many
-#: sample intervals (else the graph's first-order shift covers it).
-SHIFT_HYSTERESIS = 0.6
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this
 #: share (a variance component; one more solve).
 POSITION_NOISE_TOLERANCE = 0.25
@@ -237,7 +234,7 @@ def solve_with_time_offset(
 
 
 def _per_run(runs: int) -> str:
-    """`` (runs 0, 1, …)`` after a list of one value per run; empty for one run."""
+    """`` (runs 0–3)`` after a list of one value per run; empty for one run."""
     return "" if runs == 1 else f" (runs 0–{runs - 1})"
 
 
