@@ -7,6 +7,7 @@ file behind.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from collections.abc import Callable, Iterable
@@ -67,3 +68,18 @@ def staging_directory(beside: Path) -> Path:
     staging = Path(tempfile.mkdtemp(prefix=f".{beside.name}.new-", dir=beside.parent))
     os.chmod(staging, 0o777 & ~_UMASK)
     return staging
+
+
+def graphcal_json(path: str | os.PathLike[str], made_by: str = "") -> dict | None:
+    """The JSON object at ``path`` if graphcal wrote it (its ``generator`` is ``graphcal
+    VERSION COMMAND``, with ``made_by`` in the command where given: ``"import"``,
+    ``"simulate"``); else ``None``: no such file, not JSON, or another program's."""
+    try:
+        meta = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(meta, dict):
+        return None
+    name, _, rest = str(meta.get("generator", "")).partition(" ")
+    command = rest.partition(" ")[2]  # after the version
+    return meta if name == "graphcal" and made_by in command else None

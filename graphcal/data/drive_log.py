@@ -22,7 +22,6 @@ the other rows is a track for cutting and initial values, never a measurement
 from __future__ import annotations
 
 import dataclasses
-import json
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -33,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from graphcal.errors import GraphcalError, exception_reason
-from graphcal.files import atomic_write_csv
+from graphcal.files import atomic_write_csv, graphcal_json
 from graphcal.model import THETA_NOMINAL
 
 COLUMNS = ("t", "px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
@@ -367,11 +366,8 @@ def _from_import_sidecar(path: Path) -> dict:
     that the CSV cannot: the wheels' tick resolution (``ticks_per_revolution``; counts
     interpolated onto the grid are no longer whole and cannot be found again) and whether
     ``ay`` came from the wheels (``ay_from_wheels``). Empty without such a sidecar."""
-    try:
-        meta = json.loads(path.with_name(f"{path.stem}.json").read_text())
-    except (OSError, ValueError):
-        return {}
-    if not isinstance(meta, dict) or not str(meta.get("generator", "")).endswith(" import"):
+    meta = graphcal_json(path.with_name(f"{path.stem}.json"), made_by="import")
+    if meta is None:
         return {}
     found: dict = {}
     ticks = meta.get("ticks_per_revolution")

@@ -10,7 +10,7 @@ from pathlib import Path
 from graphcal.data.drive_log import write_drive_log
 from graphcal.data.importer import MANIFEST_SUFFIXES, ImportedLog
 from graphcal.data.streams import StreamError
-from graphcal.files import atomic_write_text
+from graphcal.files import atomic_write_text, graphcal_json
 
 
 def sidecar_of(csv_path: str | os.PathLike[str]) -> Path:
@@ -70,12 +70,8 @@ def check_import_output(source: str | os.PathLike[str], out: str | os.PathLike[s
 
 def _written_by_graphcal(csv_path: Path) -> bool:
     """Whether ``csv_path`` and its sidecar are a drive log graphcal wrote (an import or a
-    simulated drive): its sidecar is JSON naming graphcal as its generator."""
-    try:
-        meta = json.loads(sidecar_of(csv_path).read_text())
-    except (OSError, ValueError):
-        return False
-    return isinstance(meta, dict) and str(meta.get("generator", "")).startswith("graphcal ")
+    simulated drive): its sidecar names graphcal as its generator."""
+    return graphcal_json(sidecar_of(csv_path)) is not None
 
 
 def write_import(imported: ImportedLog, csv_path: str | os.PathLike[str]) -> list[Path]:

@@ -31,6 +31,7 @@ from graphcal.data.resampling import Resampled, resample
 from graphcal.data.stream_grid import DEFAULT_RATE, MAX_GAP_S, grid_rate
 from graphcal.data.streams import Recording, StreamError
 from graphcal.data.wheel_speeds import check_wheel_speeds
+from graphcal.files import graphcal_json
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 
 #: Suffixes of a streams manifest.
@@ -272,12 +273,7 @@ def _truth_beside_bag(path: Path) -> str | None:
         folders.append(path.resolve().parent.parent)
     for folder in folders:
         candidate = folder / SIMULATED_TRUTH
-        try:
-            meta = json.loads(candidate.read_text())
-        except (OSError, ValueError):
-            continue
-        generator = str(meta.get("generator", "")) if isinstance(meta, dict) else ""
-        if generator.startswith("graphcal") and "simulate" in generator:
+        if graphcal_json(candidate, made_by="simulate") is not None:
             return str(candidate)
     return None
 
