@@ -6,6 +6,11 @@ Conventions (SI throughout):
   frame and heading [rad], unwrapped;
 * inputs ``u = [n_rl, n_rr, beta, ay]``: rear-left / rear-right wheel rotation during the
   sample interval [rev], sideslip angle [rad], lateral acceleration [m/s²];
+
+Eq. (1) is taken for a rigid body: ``v`` of eq. (2) is the wheels' travel along the
+heading, and the centre of gravity, moving at the sideslip ``beta`` to it, travels
+``v / cos(beta)`` (:func:`_sideslip_stretch`; the paper's eq. 1 is its small-angle form,
+0.06 % shorter over a city drive, where ``beta = atan(l_r / R)`` reaches 0.19 rad);
 * parameters ``theta = [c_e, c_d, t_r, d]``: effective wheel circumference [m],
   left/right circumference difference [m], rear track [m], dynamic wheel term
   [m per m/s², i.e. s²].
@@ -124,6 +129,13 @@ def _increment_jacobians(
     return v, omega, dv_dn, domega_dn, dv_dtheta, domega_dtheta
 
 
+def _sideslip_stretch(inputs: np.ndarray) -> np.ndarray:
+    """``1 / cos(beta)`` per step ``(..., K)``: the centre of gravity's travel per metre of the
+    wheels' longitudinal travel ``v`` when it moves at the sideslip ``beta`` to the heading
+    (a rigid body's points share the longitudinal velocity). 1 without a sideslip."""
+    return 1.0 / np.cos(inputs[..., BETA])
+
+
 def _prefix_sum(x: np.ndarray, axis: int) -> np.ndarray:
     """Cumulative sum with a leading zero along ``axis`` (length grows by one)."""
     x = np.moveaxis(x, axis, -1)
@@ -158,10 +170,12 @@ def integrate_with_jacobians(
         v, omega, _, _, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
     else:
         v, omega = step_increments(inputs, theta, True)
+    stretch = _sideslip_stretch(inputs)
+    travel = v * stretch  # the centre of gravity's, along the course
     psi = start[..., 2:3] + _prefix_sum(omega, -1)  # (..., K+1)
     course = psi[..., :-1] + 0.5 * omega + inputs[..., BETA]
     cos_c, sin_c = np.cos(course), np.sin(course)
-    dx, dy = v * cos_c, v * sin_c
+    dx, dy = travel * cos_c, travel * sin_c
     px = start[..., 0:1] + _prefix_sum(dx, -1)
     py = start[..., 1:2] + _prefix_sum(dy, -1)
     states = np.stack(np.broadcast_arrays(px, py, psi), axis=-1)
@@ -179,9 +193,10 @@ def integrate_with_jacobians(
     # d / d theta: psi_k = psi_0 + sum omega_j, p_k = p_0 + sum v_j [cos, sin](course_j).
     dpsi = _prefix_sum(domega_dth, -2)  # (..., K+1, 4)
     dcourse = dpsi[..., :-1, :] + 0.5 * domega_dth
-    c, s, vv = cos_c[..., None], sin_c[..., None], v[..., None]
-    dpx = _prefix_sum(dv_dth * c - vv * s * dcourse, -2)
-    dpy = _prefix_sum(dv_dth * s + vv * c * dcourse, -2)
+    c, s, vv = cos_c[..., None], sin_c[..., None], travel[..., None]
+    dtravel = dv_dth * stretch[..., None]
+    dpx = _prefix_sum(dtravel * c - vv * s * dcourse, -2)
+    dpy = _prefix_sum(dtravel * s + vv * c * dcourse, -2)
     d_theta = np.stack(np.broadcast_arrays(dpx, dpy, dpsi), axis=-2)
     return states, d_start, d_theta
 
@@ -239,9 +254,11 @@ def _direct_rotation_effects(
     ``(..., K, 2)``) and d omega ``(..., K, 2)`` per [n_rl, n_rr]_j."""
     inputs = np.asarray(inputs, dtype=float)
     v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
+    stretch = _sideslip_stretch(inputs)[..., None]
     course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
     c, s = np.cos(course)[..., None], np.sin(course)[..., None]
-    vv = v[..., None]
+    vv = v[..., None] * stretch
+    dv_dn = dv_dn * stretch
     direct_x = dv_dn * c - vv * s * 0.5 * domega_dn
     direct_y = dv_dn * s + vv * c * 0.5 * domega_dn
     return direct_x, direct_y, domega_dn
@@ -366,6 +383,8 @@ def partial_steps(
         v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
     else:  # validation over a whole log: no Jacobian arrays of (..., K, 4) each
         v, omega = step_increments(inputs, theta, True)
+    stretch = _sideslip_stretch(inputs)
+    v = v * stretch  # the centre of gravity's travel
     start = states[..., :-1, :]
     course = start[..., 2] + 0.5 * f * omega + inputs[..., BETA]
     cos_c, sin_c = np.cos(course), np.sin(course)
@@ -395,6 +414,7 @@ def partial_steps(
             axis=-2,
         )
 
+    dv_dth, dv_dn = dv_dth * stretch[..., None], dv_dn * stretch[..., None]
     return out, d_state, direct(dv_dth, domega_dth), direct(dv_dn, domega_dn)
 
 

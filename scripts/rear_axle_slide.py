@@ -1,18 +1,18 @@
-"""How far graphcal's own simulator is from a rigid car: the rear axle's sideways velocity.
+"""How rigid graphcal's simulated car is: the rear axle's sideways velocity.
 
-    python scripts/rear_axle_slide.py [--length-km 12] [--seeds 0 1 2] [--gains 0.0075 0]
+    python scripts/rear_axle_slide.py [--length-km 12] [--seeds 0 1 2] [--stiffness 160000 inf]
 
-``graphcal.simulate.drive`` moves the centre of gravity with eq. (1) of the paper, with the
-sideslip beta = kappa (l_r - k v^2) taken from the *path's* curvature kappa. A rigid car's
-rear axle then moves along the heading (a kinematic car: no sideways velocity) or slips by
-its tyre slip angle, proportional to the lateral acceleration (the term in k). This script
-measures, on the noise-free truth, the rear axle's velocity across the heading (rear axle
-l_r = 1.35 m behind the centre of gravity) and its angle to the heading: its RMS and
-maximum, and its correlation with the lateral acceleration (a tyre slip) and with the rate
-of change of the curvature (a geometric artefact). With k = 0 a rigid kinematic car has
-none. Why it matters: without a logged heading or sideslip, graphcal models the pose as a
-rigid body (a lever arm ahead of a reference that moves along the heading,
-``docs/recordings.md``), which cannot follow a sliding rear axle.
+A rigid car's rear axle moves along the heading (a kinematic car: no sideways velocity) or
+slips by its tyres' slip angle, proportional to the lateral acceleration (the lateral force
+over the rear cornering stiffness). This script measures, on the noise-free truth of
+``graphcal.simulate.drive``, the rear axle's velocity across the heading (l_r = 1.35 m
+behind the centre of gravity) and its angle to the heading: its RMS and maximum, and its
+correlation with the lateral acceleration (a tyre slip) and with the rate of change of the
+curvature (a geometric artefact, what the simulator before issue 36 had: 0.061-0.063 m/s
+RMS at k = 0). With an infinite stiffness (``inf``) a rigid kinematic car has none. Why it
+matters: without a logged heading or sideslip, graphcal models the pose as a rigid body (a
+lever arm ahead of a reference that moves along the heading, ``docs/recordings.md``), which
+cannot follow a sliding rear axle.
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ import numpy as np
 from graphcal.simulate.drive import VehicleMotion, simulate_drive
 
 
-def rear_axle_slide(length_km: float, seed: int, gain: float) -> dict[str, float]:
+def rear_axle_slide(length_km: float, seed: int, stiffness: float) -> dict[str, float]:
     """Statistics of the rear axle's sideways motion in the noise-free simulated drive."""
-    motion = VehicleMotion(sideslip_speed_gain=gain)
+    motion = VehicleMotion(rear_cornering_stiffness=stiffness)
     truth = simulate_drive(length_km, seed, motion=motion).truth
     l_r = motion.rear_axle_to_cg
     rear = np.column_stack([truth.px - l_r * np.cos(truth.psi), truth.py - l_r * np.sin(truth.psi)])
@@ -50,19 +50,24 @@ def main() -> None:
     parser.add_argument("--length-km", type=float, default=12.0, help="route length [km]")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="drive seeds")
     parser.add_argument(
-        "--gains", type=float, nargs="+", default=[0.0075, 0.0], help="sideslip speed gains k"
+        "--stiffness",
+        type=float,
+        nargs="+",
+        default=[VehicleMotion().rear_cornering_stiffness, float("inf")],
+        help="rear cornering stiffnesses [N/rad] (inf: kinematic)",
     )
     args = parser.parse_args()
     print(
-        "| k [s²/m] | seed | sideways velocity RMS / max [m/s] | slip angle RMS [°] "
-        "| corr. with a_y | corr. with dκ/dt |"
+        "| rear stiffness [kN/rad] | seed | sideways velocity RMS / max [mm/s] "
+        "| slip angle RMS [°] | corr. with a_y | corr. with dκ/dt |"
     )
     print("|---|---|---|---|---|---|")
-    for gain in args.gains:
+    for stiffness in args.stiffness:
         for seed in args.seeds:
-            s = rear_axle_slide(args.length_km, seed, gain)
+            s = rear_axle_slide(args.length_km, seed, stiffness)
             print(
-                f"| {gain:g} | {seed} | {s['rms_m_s']:.3f} / {s['max_m_s']:.2f} "
+                f"| {stiffness / 1e3:g} | {seed} "
+                f"| {1e3 * s['rms_m_s']:.2f} / {1e3 * s['max_m_s']:.1f} "
                 f"| {s['angle_rms_deg']:.2f} | {s['corr_lateral_acceleration']:+.2f} "
                 f"| {s['corr_curvature_rate']:+.2f} |"
             )

@@ -560,7 +560,7 @@ def run_car(
     drive: Drive, seed: int, directory: Path, args: argparse.Namespace, cases: list[Case]
 ) -> tuple[dict, list[dict]]:
     """The car's reference CSV and streams recordings of one seed: ``(reference, runs)``."""
-    motion = VehicleMotion(sideslip_speed_gain=args.sideslip_gain)
+    motion = VehicleMotion(rear_cornering_stiffness=args.rear_cornering_stiffness)
     reference = Case(drive, None)
     theta_true = None
     try:
@@ -1082,11 +1082,12 @@ def build_arguments() -> argparse.ArgumentParser:
         "instead of a temporary one",
     )
     parser.add_argument(
-        "--sideslip-gain",
+        "--rear-cornering-stiffness",
         type=float,
-        default=VehicleMotion().sideslip_speed_gain,
-        help="the simulated car's sideslip speed gain k [s²/m] (beta = kappa (l_r - k v²); "
-        "scripts/rear_axle_slide.py shows what it does to the rear axle)",
+        default=VehicleMotion().rear_cornering_stiffness,
+        help="the simulated car's rear-axle cornering stiffness [N/rad] (its tyres' slip angle "
+        "is the lateral force over it; inf: a kinematic car whose rear axle never slides; "
+        "scripts/rear_axle_slide.py measures the rear axle's sideways motion)",
     )
     parser.add_argument(
         "--verbose", action="store_true", help="print the library's progress lines to stderr"

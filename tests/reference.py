@@ -8,13 +8,16 @@ from graphcal.model import BETA, step_increments
 
 
 def step(state: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.ndarray:
-    """One step of eq. (1): the state after applying ``inputs`` to ``state``.
+    """One step of eq. (1) for a rigid body: the state after applying ``inputs`` to
+    ``state``; the centre of gravity travels ``v / cos(beta)`` along the course.
 
     ``state`` is ``(..., 3)``, ``inputs`` ``(..., 4)``, ``theta`` ``(4,)`` or ``(..., 4)``.
     """
     state = np.asarray(state, dtype=float)
     v, omega = step_increments(inputs, theta)
-    course = state[..., 2] + 0.5 * omega + np.asarray(inputs)[..., BETA]
+    beta = np.asarray(inputs)[..., BETA]
+    course = state[..., 2] + 0.5 * omega + beta
+    v = v / np.cos(beta)
     return np.stack(
         [
             state[..., 0] + v * np.cos(course),

@@ -290,6 +290,7 @@ def test_one_step_between_poses_is_eq_1_as_pose2_composition(rng):
 
     v, omega = step_increments(inputs, THETA)
     angle = 0.5 * omega + inputs[2]
+    v = v / np.cos(inputs[2])  # the centre of gravity's travel at the sideslip
     composed = pose2_from_state(x0).compose(
         gtsam.Pose2(v * np.cos(angle), v * np.sin(angle), omega)
     )

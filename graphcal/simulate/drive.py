@@ -1,10 +1,16 @@
-"""Model-consistent synthetic drives with the paper's measurement noise.
+"""Synthetic drives of a rigid car with the paper's measurement noise.
 
 A random route (:mod:`graphcal.simulate.route`) is driven with a speed profile limited by
-lateral and longitudinal acceleration, sampled at 40 Hz. Sideslip and lateral acceleration
-follow from the motion; the wheel rotations are eqs. (2)–(3) inverted with ``theta_true``; the
-true poses are eq. (1) integrated from those rotations, so the noise-free log satisfies the
-model exactly. Gaussian noise at the paper's levels (§3.3) is then added.
+lateral and longitudinal acceleration, sampled at 40 Hz. The car is one rigid body on a
+single-track model: the route is its heading's curvature along the rear axle's path, the
+rear axle moves along the heading turned by the rear tyres' slip angle (the lateral force
+over the rear cornering stiffness, so it grows with the lateral acceleration; none for a
+kinematic car), and the centre of gravity is ``l_r`` ahead of the rear axle on the body's
+axis. The sideslip ``beta`` is the centre of gravity's, the lateral acceleration the body's
+at the centre of gravity; the wheel rotations are eqs. (2)–(3) inverted with
+``theta_true`` for each step's longitudinal travel and yaw, so the noise-free log satisfies
+eq. (1) (:mod:`graphcal.model`) exactly. Gaussian noise at the paper's levels (§3.3) is
+then added.
 """
 
 from __future__ import annotations
@@ -19,7 +25,7 @@ import numpy as np
 
 from graphcal.data.drive_log import DriveLog, write_drive_log
 from graphcal.files import atomic_write_text
-from graphcal.model import PARAMETER_NAMES, integrate, wheel_rotations_for_motion
+from graphcal.model import PARAMETER_NAMES, wheel_rotations_for_motion, wrap_angle
 from graphcal.simulate.route import ROUTES, Route
 
 if TYPE_CHECKING:
@@ -50,14 +56,44 @@ class NoiseLevels:
 
 @dataclass(frozen=True)
 class VehicleMotion:
-    """Driving-style and vehicle constants of the simulation (SI)."""
+    """Driving-style and vehicle constants of the simulation (SI).
+
+    Attributes:
+        lateral_acceleration_limit, acceleration_limit, deceleration_limit: [m/s²] of the
+            speed profile.
+        start_speed: [m/s] at the route's ends.
+        rear_axle_to_cg: ``l_r`` [m], the centre of gravity ahead of the rear axle.
+        wheelbase: ``L`` [m].
+        mass: [kg].
+        rear_cornering_stiffness: [N/rad] of the rear axle (both tyres): its slip angle is
+            the lateral force it carries, ``mass · a_y · (L - l_r) / L``, over this.
+            ``math.inf``: a kinematic car, whose rear axle never moves sideways.
+    """
 
     lateral_acceleration_limit: float = 2.5
     acceleration_limit: float = 1.5
     deceleration_limit: float = 2.0
     start_speed: float = 3.0
     rear_axle_to_cg: float = 1.35
-    sideslip_speed_gain: float = 0.0075  # s²/m: beta = curvature * (l_r - gain * v²)
+    wheelbase: float = 2.7
+    mass: float = 1500.0
+    rear_cornering_stiffness: float = 160_000.0
+
+    def __post_init__(self) -> None:
+        if not (0.0 <= self.rear_axle_to_cg <= self.wheelbase and self.wheelbase > 0):
+            raise ValueError(
+                f"need 0 <= rear_axle_to_cg <= wheelbase, got {self.rear_axle_to_cg} m and "
+                f"{self.wheelbase} m"
+            )
+        if not (self.mass > 0 and self.rear_cornering_stiffness > 0):
+            raise ValueError("mass and rear_cornering_stiffness must be positive")
+
+    @property
+    def rear_slip_gain(self) -> float:
+        """The rear tyres' slip angle per lateral acceleration [rad per m/s²], steady state
+        (0.0075 by default: 0.43° per m/s²)."""
+        rear_share = (self.wheelbase - self.rear_axle_to_cg) / self.wheelbase
+        return self.mass * rear_share / self.rear_cornering_stiffness
 
 
 @dataclass(frozen=True)
@@ -151,7 +187,7 @@ def simulate_drive(
     path = ROUTES[route](1000.0 * length_km, np.random.default_rng(route_seed))
     heading0 = np.random.default_rng(heading_seed).uniform(-np.pi, np.pi)
     sampled = _sampled_motion(path, motion, dt, heading0)
-    truth = _true_log(sampled, heading0, theta_true, motion, theta_change)
+    truth = _true_log(sampled, theta_true, motion, theta_change)
     measured = _measured_log(truth, noise, np.random.default_rng(noise_seed))
     return SyntheticDrive(
         measured, truth, theta_true, noise, int(seed), float(length_km), motion, route, theta_change
@@ -187,46 +223,75 @@ def _sampled_motion(
     return _SampledMotion(t, s_t, v_t, kappa_t, course_t)
 
 
+def _rigid_body_path(
+    sampled: _SampledMotion, motion: VehicleMotion
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The body's motion at the sampling times: the centre of gravity's positions ``(N, 2)``
+    [m], the heading ``(N,)`` [rad] and the rear tyres' slip angle ``(N,)`` [rad].
+
+    The heading is the route's course (its curvature integrated along the rear axle's path);
+    the rear axle moves at ``speed`` along the heading plus the slip angle, each step an arc
+    between the samples (exact for a course changing linearly over the step); the centre of
+    gravity is ``l_r`` ahead of it on the body's axis."""
+    heading, speed = sampled.course, sampled.speed
+    slip = -motion.rear_slip_gain * speed**2 * sampled.curvature  # steady-state a_y
+    direction = heading + slip
+    travel = np.diff(sampled.distance)
+    turn = np.diff(direction)
+    middle = direction[:-1] + 0.5 * turn
+    chord = travel * np.sinc(turn / (2.0 * np.pi))  # np.sinc(x) = sin(pi x) / (pi x)
+    rear = np.zeros((len(heading), 2))
+    np.cumsum(chord * np.cos(middle), out=rear[1:, 0])
+    np.cumsum(chord * np.sin(middle), out=rear[1:, 1])
+    cg = rear + motion.rear_axle_to_cg * np.column_stack([np.cos(heading), np.sin(heading)])
+    return cg, heading, slip
+
+
+def _body_lateral_acceleration(t: np.ndarray, position: np.ndarray, heading: np.ndarray):
+    """The acceleration [m/s²] of the point at ``position (N, 2)`` across the heading (left
+    positive), by second differences over the samples (the ends repeat their neighbours)."""
+    acceleration = np.gradient(np.gradient(position, t, axis=0), t, axis=0)
+    lateral = -acceleration[:, 0] * np.sin(heading) + acceleration[:, 1] * np.cos(heading)
+    lateral[0], lateral[-1] = lateral[1], lateral[-2]
+    return lateral
+
+
 def _true_log(
     sampled: _SampledMotion,
-    heading0: float,
     theta_true: np.ndarray,
     motion: VehicleMotion,
     theta_change: ThetaStep | None,
 ) -> DriveLog:
-    """The noise-free log: sideslip and lateral acceleration from the motion, the wheel
-    rotations eqs. (2)–(3) inverted, the poses eq. (1) integrated from them."""
-    v_t, kappa_t = sampled.speed, sampled.curvature
-    lateral_acceleration = v_t**2 * kappa_t
-    sideslip = kappa_t * (motion.rear_axle_to_cg - motion.sideslip_speed_gain * v_t**2)
-    heading = sampled.course - sideslip
-    distance = np.diff(sampled.distance)
+    """The noise-free log of the rigid car (:func:`_rigid_body_path`): per step the yaw
+    increment, the centre of gravity's chord, its sideslip to the step's mean heading and the
+    longitudinal travel (the chord along that heading); the wheel rotations eqs. (2)–(3)
+    inverted for them. Eq. (1) with that sideslip reproduces the positions to rounding."""
+    cg, heading, _ = _rigid_body_path(sampled, motion)
+    lateral_acceleration = _body_lateral_acceleration(sampled.t, cg, heading)
     yaw_increment = np.diff(heading)
+    chord = np.diff(cg, axis=0)
+    chord_course = np.arctan2(chord[:, 1], chord[:, 0])
+    sideslip = wrap_angle(chord_course - heading[:-1] - 0.5 * yaw_increment)
+    sideslip = np.where(np.hypot(chord[:, 0], chord[:, 1]) > 0, sideslip, 0.0)
+    distance = np.hypot(chord[:, 0], chord[:, 1]) * np.cos(sideslip)
     n_rl, n_rr = wheel_rotations_for_motion(
         distance, yaw_increment, lateral_acceleration[:-1], theta_true
     )
-    change = len(distance)  # first step driven with theta_change.theta_after
-    if theta_change is not None:
+    if theta_change is not None:  # the same motion, rolled by the other wheels from then on
         change = int(np.searchsorted(sampled.distance[:-1], 1000.0 * theta_change.at_km))
         after_rl, after_rr = wheel_rotations_for_motion(
             distance, yaw_increment, lateral_acceleration[:-1], theta_change.theta_after
         )
         n_rl[change:], n_rr[change:] = after_rl[change:], after_rr[change:]
     # The last sample's inputs drive no step; repeat the previous ones.
-    n_rl, n_rr = np.append(n_rl, n_rl[-1]), np.append(n_rr, n_rr[-1])
-    inputs = np.column_stack([n_rl, n_rr, sideslip, lateral_acceleration])
-    poses = integrate(np.array([0.0, 0.0, heading0]), inputs[:change], theta_true)
-    if theta_change is not None:  # both thetas reproduce the same motion; continue with the new
-        rest = integrate(poses[-1], inputs[change:-1], theta_change.theta_after)
-        poses = np.concatenate([poses, rest[1:]])
     return DriveLog(
         t=sampled.t,
-        px=poses[:, 0],
-        py=poses[:, 1],
-        psi=poses[:, 2],
-        n_rl=n_rl,
-        n_rr=n_rr,
-        beta=sideslip,
+        px=cg[:, 0],
+        py=cg[:, 1],
+        psi=heading,
+        n_rl=np.append(n_rl, n_rl[-1]),
+        n_rr=np.append(n_rr, n_rr[-1]),
+        beta=np.append(sideslip, sideslip[-1]),
         ay=lateral_acceleration,
         source="<synthetic truth>",
     )

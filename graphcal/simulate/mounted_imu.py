@@ -61,18 +61,19 @@ class MountedImuRecording(SyntheticRecording):
 
 def vehicle_frame_imu(sim: SyntheticRecording, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The noise-free specific force [m/s²] and angular velocity [rad/s] ``(N, 3)`` in the
-    vehicle frame at the times ``t`` [s, the streams' time base]: ``(dv/dt, a_y, g)`` and
+    vehicle frame at the times ``t`` [s, the streams' time base], of an IMU at the centre of
+    gravity of the rigid car: its acceleration along and across the heading and ``g``, and
     ``(0, 0, ω_z)``."""
     truth = sim.drive.truth
     t_fine = EPOCH + truth.t
     middle = 0.5 * (t_fine[1:] + t_fine[:-1])  # rates hold between fine samples
-    step = np.diff(truth.t)
-    speed = np.hypot(np.diff(truth.px), np.diff(truth.py)) / step
-    longitudinal = np.gradient(speed, middle)
-    yaw_rate = np.diff(truth.psi) / step
+    velocity = np.gradient(np.column_stack([truth.px, truth.py]), truth.t, axis=0)
+    acceleration = np.gradient(velocity, truth.t, axis=0)
+    longitudinal = acceleration[:, 0] * np.cos(truth.psi) + acceleration[:, 1] * np.sin(truth.psi)
+    yaw_rate = np.diff(truth.psi) / np.diff(truth.t)
     force = np.column_stack(
         [
-            np.interp(t, middle, longitudinal),
+            np.interp(t, t_fine, longitudinal),
             np.interp(t, t_fine, truth.ay),
             np.full(len(t), GRAVITY),
         ]

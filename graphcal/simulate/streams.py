@@ -25,7 +25,7 @@ from graphcal.data.drive_log import DriveLog
 from graphcal.data.geodesy import local_to_geodetic
 from graphcal.data.streams import ImuStream, PoseStream, Recording, WheelStream
 from graphcal.files import atomic_write_csv, atomic_write_text
-from graphcal.model import PARAMETER_NAMES
+from graphcal.model import PARAMETER_NAMES, lever_offset
 from graphcal.simulate.drive import (
     THETA_TRUE_DEFAULT,
     NoiseLevels,
@@ -54,6 +54,8 @@ class StreamSettings:
         circumference: [m] the ECU used to turn rotations into speed.
         ticks_per_revolution: resolution of the tick counters.
         clock_jitter: [s] uniform ± jitter of the wheel and IMU timestamps.
+        antenna_arm: ``(ahead, left)`` [m] of the GNSS antenna from the centre of gravity, a
+            point of the rigid body (its fixes are ``p + R(psi) · arm``).
         origin: ``(latitude, longitude)`` [deg] of the drive's start.
     """
 
@@ -70,6 +72,7 @@ class StreamSettings:
     circumference: float = 2.0
     ticks_per_revolution: int = 96
     clock_jitter: float = 0.0005
+    antenna_arm: tuple[float, float] = (0.0, 0.0)
     origin: tuple[float, float] = (47.4979, 19.0402)
 
     def __post_init__(self) -> None:
@@ -145,19 +148,18 @@ def simulate_streams(
 def _gnss_frame(
     truth: DriveLog, settings: StreamSettings, rng: np.random.Generator
 ) -> pd.DataFrame:
-    """GNSS/INS fixes ``t, lat, lon, heading, beta``: position, compass heading [deg],
-    sideslip [rad]; they start 0.5 s late."""
+    """GNSS/INS fixes ``t, lat, lon, heading, beta``: the antenna's position, compass
+    heading [deg], sideslip [rad]; they start 0.5 s late."""
     t_fine = EPOCH + truth.t
     start, end = float(t_fine[0]), float(t_fine[-1])
     t_gnss = _times(start + 0.5, end - 0.3, settings.gnss_rate, 0.037, 0.0, rng)
-    east = np.interp(t_gnss, t_fine, truth.px) + settings.position_noise * rng.standard_normal(
-        len(t_gnss)
-    )
-    north = np.interp(t_gnss, t_fine, truth.py) + settings.position_noise * rng.standard_normal(
-        len(t_gnss)
-    )
-    heading = np.interp(t_gnss, t_fine, truth.psi)
-    heading = heading + settings.heading_noise * rng.standard_normal(len(t_gnss))
+    true_heading = np.interp(t_gnss, t_fine, truth.psi)
+    antenna = lever_offset(true_heading, np.asarray(settings.antenna_arm, float))
+    east = np.interp(t_gnss, t_fine, truth.px) + antenna[:, 0]
+    east = east + settings.position_noise * rng.standard_normal(len(t_gnss))
+    north = np.interp(t_gnss, t_fine, truth.py) + antenna[:, 1]
+    north = north + settings.position_noise * rng.standard_normal(len(t_gnss))
+    heading = true_heading + settings.heading_noise * rng.standard_normal(len(t_gnss))
     sideslip = np.interp(t_gnss, t_fine, truth.beta)
     sideslip = sideslip + settings.sideslip_noise * rng.standard_normal(len(t_gnss))
     latitude, longitude = local_to_geodetic(east, north, settings.origin)
