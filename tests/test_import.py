@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import shutil
 
 import numpy as np
@@ -139,7 +140,7 @@ def test_a_navsatfix_bag_takes_the_heading_from_the_ins_orientation(tmp_path, cs
     from graphcal.simulate.bags import write_bag
     from graphcal.simulate.drive import VehicleMotion
 
-    motion = VehicleMotion(rear_axle_to_cg=0.0, sideslip_speed_gain=0.0)
+    motion = VehicleMotion(rear_axle_to_cg=0.0, rear_cornering_stiffness=math.inf)
     sim = simulate_streams(4.0, 1, motion=motion)
     imported = import_recording(write_bag(sim.recording, tmp_path / "fix", "ros2"))
     notes = imported.resampled.notes

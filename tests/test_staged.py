@@ -213,7 +213,7 @@ def test_too_little_data_is_flagged(drive):
     from graphcal.pipeline.settings import BatchingSettings, SegmentSettings
 
     settings = Settings(
-        segments=SegmentSettings(min_yaw_rate=0.25), batches=BatchingSettings(count=5)
+        segments=SegmentSettings(min_yaw_rate=0.15), batches=BatchingSettings(count=5)
     )
     run = run_calibration(drive.measured, settings, "staged")
     assert len(run.selected) < 9

@@ -550,7 +550,7 @@ def test_bad_field_paths_get_one_line_naming_what_exists(custom, tmp_path, capsy
         ),
         (
             [*FIELDS, *SPEED[:4], "--circumference", "4"],
-            ["check --circumference (2.025 m would match", "--wheel-kind, --speed-unit"],
+            ["check --circumference (2.02", "--wheel-kind, --speed-unit"],
         ),
         (
             [*FIELDS, *SPEED, "--yaw-rate", "/car/dynamics:yaw_rate_dps"],
