@@ -103,6 +103,15 @@ def _add_stream_options(p: argparse.ArgumentParser) -> None:
         "cumulative ticks (96 per revolution)",
     )
     p.add_argument(
+        "--antenna-arm",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("AHEAD", "LEFT"),
+        help="with --streams: the car's GNSS antenna, a point of its body, this far ahead of "
+        "and left of the centre of gravity [m] (0 0)",
+    )
+    p.add_argument(
         "--bag",
         choices=["ros1", "ros2", "mcap"],
         default=None,
@@ -213,12 +222,20 @@ def _check_outputs(args: argparse.Namespace) -> None:
             f"--wheel-kind {args.wheel_kind_sim}" if args.wheel_kind_sim is not None else None,
             "--can" if args.can else None,
             "--nmea" if args.nmea else None,
+            "--antenna-arm" if args.antenna_arm is not None else None,
         ):
             if given is not None:
                 raise GraphcalError(
                     f"{given} applies to --streams DIR (the raw streams and their manifest), "
                     f"not to a drive-log CSV; add --streams DIR or remove {given.split()[0]}"
                 )
+    if args.antenna_arm is not None and (
+        args.vehicle is not None or not np.all(np.isfinite(args.antenna_arm))
+    ):
+        raise GraphcalError(
+            "--antenna-arm places a car's GNSS antenna (finite metres ahead and left of its "
+            "centre of gravity); a robot (--vehicle) logs the motion-capture pose of its axle"
+        )
     check_raw_log_options(args)
 
 

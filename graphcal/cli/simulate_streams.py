@@ -62,6 +62,7 @@ def simulate_streams_command(
         lateral_acceleration_noise=args.ay_noise,
         sideslip_noise=float(np.deg2rad(args.sideslip_noise_deg)),
         wheel_kind=args.wheel_kind_sim or "speed",
+        antenna_arm=tuple(args.antenna_arm) if args.antenna_arm is not None else (0.0, 0.0),
     )
     length_km = 24.0 if args.length_km is None else args.length_km
     sim = simulate_streams(length_km, args.seed, theta_true, stream_settings, route=args.route)

@@ -13,8 +13,11 @@ cut into :data:`GROUPS` groups, alternately in two folds; each model calibrates 
 fold and dead-reckons the other's segments (eq. 16 / K), each path fitted to its fixes
 rigidly (:func:`~graphcal.pipeline.validation.position_errors` with ``aligned``: the shape
 of the path is judged, not a start heading whose noise alone is metres over a segment), with
-theta only (a sensor term is the recording's, not the odometry's: both thetas are judged on
-the same uncorrected segments). When theta alone predicts them better (by more than
+theta and the lever arm the fold found (the antenna is a point of the car wherever it
+drives: a real 1.2 m arm left out of the prediction favoured the theta that had absorbed
+it, c_e 3.8σ off on a 3 km drive); the other sensor terms are the segments' own (heading
+biases, slip) or shift its wheels (a time offset), and both thetas are judged on the same
+uncorrected segments. When theta alone predicts them better (by more than
 :data:`MARGIN`), the simpler model is the right one for this recording and the run
 calibrates with it (:class:`ModelCheck`). A longer log is checked on :data:`CHECK_SEGMENTS`
 segments spread over it: a model's fit does not need every segment.
@@ -30,8 +33,9 @@ import numpy as np
 from graphcal.data.segments import SegmentData, gather_segments, spread
 from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import CalibrationFailed
+from graphcal.graph.keys import LEVER_ARM
 from graphcal.graph.observability import condition_on_prior
-from graphcal.pipeline.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.joint import JointSettings, solve_joint
 from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.sensor_estimates import detected_offsets, time_offsets
 from graphcal.pipeline.validation import position_errors
@@ -46,7 +50,7 @@ CHECK_SEGMENTS = 64
 MIN_SEGMENTS = 2
 #: Theta alone is chosen when it predicts the held-apart segments better than the defect
 #: model by more than this share: less is within what two folds of a short log can tell
-#: apart (a real 1.2 m lever arm on a simulated 3 km drive: 0.1 % either way).
+#: apart.
 MARGIN = 0.05
 
 
@@ -182,12 +186,14 @@ def _held_apart_error(
     train: SegmentData, held: SegmentData, settings: JointSettings, workers: int
 ) -> float:
     """Mean position error [m] of ``held`` dead-reckoned with theta calibrated from
-    ``train`` under ``settings`` (unobservable parameters at their prior); ``inf`` if that
+    ``train`` under ``settings`` (unobservable parameters at their prior), the fixes taken as
+    the antenna's on the lever arm that solve found (none without one); ``inf`` if that
     calibration fails."""
     try:
-        solve = calibrate_joint(train, settings, workers)
+        solve, values = solve_joint(train, settings, workers)
     except CalibrationFailed:
         return float("inf")
+    arm = np.asarray(values.atVector(LEVER_ARM)) if values.exists(LEVER_ARM) else None
     theta, _ = condition_on_prior(
         solve.theta,
         solve.covariance,
@@ -195,4 +201,4 @@ def _held_apart_error(
         settings.theta_initial,
         settings.theta_prior_sigmas,
     )
-    return float(np.mean(position_errors(held, theta, aligned=True)))
+    return float(np.mean(position_errors(held, theta, aligned=True, arm=arm)))

@@ -21,20 +21,26 @@ from __future__ import annotations
 import numpy as np
 
 from graphcal.data.segments import SegmentData
-from graphcal.model import aligned_trajectory, integrate, partial_steps
+from graphcal.model import aligned_trajectory, integrate, lever_offset, partial_steps
 
 #: A segment starts at the track's pose [s] when a position fix and a heading were measured
 #: this close after its first sample (else it is fitted to its fixes rigidly).
 TRACK_START_S = 0.1
 
 
-def odometry_paths(data: SegmentData, theta: np.ndarray, aligned: bool = False) -> np.ndarray:
+def odometry_paths(
+    data: SegmentData, theta: np.ndarray, aligned: bool = False, arm: np.ndarray | None = None
+) -> np.ndarray:
     """The dead-reckoned states ``(S, K+1, 3)`` the validation compares: from each
     segment's measured start pose, or the track's where a position and a heading were
     measured just after its first sample, else moved rigidly to fit its fixes; with
     ``aligned``, every segment moved rigidly to fit its fixes (the shape of its path is
-    judged, not its start: a single heading's noise of 1.5° is 2 m over 150 m)."""
+    judged, not its start: a single heading's noise of 1.5° is 2 m over 150 m). With
+    ``arm`` ``[ahead, left]`` [m] the positions are those of the GNSS antenna on that lever
+    arm from the centre of gravity (the path is fitted as the antenna's)."""
     states = integrate(data.poses[:, 0], data.inputs, theta)
+    if arm is not None:
+        states[..., :2] += lever_offset(states[..., 2], arm)
     if not aligned and data.measured is None and data.fix_fraction is None:
         return states
     fixes = data.position_fixes()
@@ -57,26 +63,38 @@ def _measured_near_start(data: SegmentData) -> np.ndarray:
     return head.any(axis=1).all(axis=1)
 
 
-def position_errors(data: SegmentData, theta: np.ndarray, aligned: bool = False) -> np.ndarray:
+def position_errors(
+    data: SegmentData, theta: np.ndarray, aligned: bool = False, arm: np.ndarray | None = None
+) -> np.ndarray:
     """Mean position error [m] per segment of odometry with ``theta`` (eq. 16 / K), ``(S,)``;
-    ``aligned``: every path fitted to its fixes rigidly (:func:`odometry_paths`)."""
-    states = odometry_paths(data, theta, aligned)
+    ``aligned``: every path fitted to its fixes rigidly; ``arm``: the fixes are an antenna's
+    on that lever arm (:func:`odometry_paths`)."""
+    states = odometry_paths(data, theta, aligned, arm)
     if data.measured is None and data.fix_fraction is None:
         distance = np.hypot(*(states[..., :2] - data.poses[..., :2]).transpose(2, 0, 1))
         valid = data.valid.copy()
         valid[:, 0] = False  # the start is the measured pose itself
         return (distance * valid).sum(axis=1) / data.n_steps
-    return _errors_at_fixes(data, states, theta)
+    return _errors_at_fixes(data, states, theta, arm)
 
 
-def _errors_at_fixes(data: SegmentData, states: np.ndarray, theta: np.ndarray) -> np.ndarray:
+def _errors_at_fixes(
+    data: SegmentData, states: np.ndarray, theta: np.ndarray, arm: np.ndarray | None
+) -> np.ndarray:
     """:func:`position_errors` of a log with sparse fixes, from :func:`odometry_paths`
-    ``states``: the mean over each segment's fixes after its start."""
+    ``states``: the mean over each segment's fixes after its start (a fix between samples
+    predicted part-way through its step, the antenna moved with the body)."""
     fixes = data.position_fixes()
     predicted = states
     if data.fix_fraction is not None:
+        centre = states.copy()
+        if arm is not None:
+            centre[..., :2] -= lever_offset(states[..., 2], arm)
         predicted = states.copy()
-        predicted[:, 1:] = partial_steps(states, data.inputs, theta, data.fix_fraction[:, 1:])[0]
+        part = partial_steps(centre, data.inputs, theta, data.fix_fraction[:, 1:])[0]
+        if arm is not None:
+            part[..., :2] += lever_offset(part[..., 2], arm)
+        predicted[:, 1:] = part
     distance = np.hypot(*(predicted[..., :2] - data.poses[..., :2]).transpose(2, 0, 1))
     used = fixes.copy()
     used[:, 0] = False
