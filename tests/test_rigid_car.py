@@ -100,3 +100,13 @@ def test_an_antenna_ahead_of_the_centre_of_gravity_is_found_and_kept(tmp_path):
     for name in ("c_e", "c_d", "t_r", "d"):
         parameter = result["parameters"][name]
         assert abs(result["theta_error"][name]) < 3 * parameter["sigma"], name
+
+
+def test_a_robots_axle_midpoint_moves_along_its_heading():
+    """The robot is the same body without tyre slip: its pose, the axle midpoint, never
+    moves sideways (spins on the spot included)."""
+    from graphcal.simulate.robot import simulate_robot
+
+    fine = simulate_robot(seed=2, runs=4).fine
+    _, across = rear_axle_velocity(fine.t, fine.px, fine.py, fine.psi, 0.0)
+    assert np.sqrt(np.mean(across**2)) <= 1e-3
