@@ -39,7 +39,7 @@ _PUBLIC = {
     "DEFECT_NAMES": "graphcal.simulate.defects",
     "DEFECTS_IN_ALL": "graphcal.simulate.defects",  # the defects "all" adds
     "simulate_robot": "graphcal.simulate.robot",  # a robot's runs, spins and stops
-    "RobotSettings": "graphcal.simulate.robot",
+    "RobotSettings": "graphcal.simulate.robot_settings",
     "theta_true_for": "graphcal.simulate.robot",
     "write_tum": "graphcal.data.tum",
     "read_tum": "graphcal.data.tum",

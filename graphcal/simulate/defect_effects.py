@@ -16,7 +16,7 @@ import numpy as np
 from graphcal.data.stream_grid import fixes_on_grid
 
 if TYPE_CHECKING:
-    from graphcal.simulate.defects import Defects
+    from graphcal.simulate.defect_settings import Defects
     from graphcal.simulate.drive import SyntheticDrive
 
 #: Samples of one chunk of the exact AR(1) recursion (:func:`ar1`).

@@ -29,7 +29,7 @@ from graphcal.model import PARAMETER_NAMES, wheel_rotations_for_motion, wrap_ang
 from graphcal.simulate.route import ROUTES, Route
 
 if TYPE_CHECKING:
-    from graphcal.simulate.defects import Defects
+    from graphcal.simulate.defect_settings import Defects
 
 #: Default true parameters, away from nominal: [1.985 m, 1.2 mm, 1.585 m, 1.5 mm·s²/m] in SI.
 THETA_TRUE_DEFAULT = np.array([1.985, 1.2e-3, 1.585, 1.5e-3])

@@ -17,12 +17,11 @@ import numpy as np
 import pandas as pd
 
 from graphcal.model import wrap_angle
+from graphcal.simulate.robot_settings import FINE_DT
 
 if TYPE_CHECKING:
-    from graphcal.simulate.robot import RobotSettings
+    from graphcal.simulate.robot_settings import RobotSettings
 
-#: Fine grid [s] of the noise-free simulation the streams sample (500 Hz).
-FINE_DT = 0.002
 #: Arc-length step [m] of a run's path before it is timed.
 PATH_STEP = 0.002
 #: Kinds of manoeuvre in the table of :func:`plan_manoeuvres`.
