@@ -18,15 +18,13 @@ members' calls from that pass:
 from __future__ import annotations
 
 from collections import defaultdict
-from typing import TYPE_CHECKING
+from dataclasses import dataclass
+from typing import Protocol
 
 import gtsam
 import numpy as np
 
-from graphcal.factors.chunk import chunk_errors
-
-if TYPE_CHECKING:
-    from graphcal.factors.chunk_factor import ChunkOdometryFactor
+from graphcal.factors.chunk import ChunkError, OdometryChunk, chunk_errors
 
 #: Chunks per vectorized evaluation: bounds the ``(C, L+1, 3, L, 2)`` rotation Jacobian
 #: (64 chunks of 50 steps: 8 MB).
@@ -45,6 +43,39 @@ class _Answer:
         self.blocks = blocks
 
 
+@dataclass(frozen=True)
+class ChunkArguments:
+    """What a chunk factor reads from a ``Values`` (states, not Pose2; ``None``: no slot)."""
+
+    start: np.ndarray
+    theta: np.ndarray
+    corrections: np.ndarray | None
+    end: np.ndarray | None
+    slip: np.ndarray | None
+    time_offset: np.ndarray | None
+    lever_arm: np.ndarray | None
+    heading_bias: np.ndarray | None
+
+
+class BatchMember(Protocol):
+    """What a batch needs of a member (:class:`~graphcal.factors.chunk_factor.ChunkOdometryFactor`
+    is one): its chunk, the rows of its error it keeps, its variables read cheaply and as
+    arguments, the shape it stacks with, and GTSAM's Jacobian blocks from a stacked result."""
+
+    chunk: OdometryChunk
+    rows: np.ndarray | None
+
+    def raw(self, values: gtsam.Values) -> np.ndarray: ...
+
+    def arguments(self, raw: np.ndarray) -> ChunkArguments: ...
+
+    def shape_signature(self) -> tuple: ...
+
+    def jacobian_blocks(
+        self, result: ChunkError, start: np.ndarray, end: np.ndarray | None
+    ) -> list[np.ndarray]: ...
+
+
 class ChunkBatch:
     """Chunk factors of one graph whose errors and Jacobians are computed together.
 
@@ -53,11 +84,11 @@ class ChunkBatch:
     """
 
     def __init__(self) -> None:
-        self.members: list[ChunkOdometryFactor] = []
+        self.members: list[BatchMember] = []
         self._answers: dict[int, _Answer] = {}
         self._stacked: dict[tuple[int, ...], tuple] = {}  # measurements of a block, stacked
 
-    def add(self, member: ChunkOdometryFactor) -> int:
+    def add(self, member: BatchMember) -> int:
         """Register ``member``; returns its index in the batch."""
         self.members.append(member)
         return len(self.members) - 1

@@ -19,28 +19,13 @@ Headings of Pose2 variables are unwrapped against the chunk's reference heading.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import gtsam
 import numpy as np
 
 from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk
-from graphcal.factors.chunk_batch import ChunkBatch
+from graphcal.factors.chunk_batch import ChunkArguments, ChunkBatch
 from graphcal.factors.poses import pose_sigmas
-
-
-@dataclass(frozen=True)
-class ChunkArguments:
-    """What a chunk factor reads from a ``Values`` (states, not Pose2; ``None``: no slot)."""
-
-    start: np.ndarray
-    theta: np.ndarray
-    corrections: np.ndarray | None
-    end: np.ndarray | None
-    slip: np.ndarray | None
-    time_offset: np.ndarray | None
-    lever_arm: np.ndarray | None
-    heading_bias: np.ndarray | None
 
 
 class ChunkOdometryFactor:
