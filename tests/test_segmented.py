@@ -16,6 +16,7 @@ from graphcal.graph.covariance import marginal_covariance
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.part_group import PartGroup
 from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.partitioned_lm import optimize
 from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.graph.solve import solve_lm
 from graphcal.graph.values import portable, restore
@@ -73,7 +74,7 @@ def test_segmented_graph_splits_at_the_shared_keys_only():
     segmented = PartitionedGraph(graph, values, [s])
     assert sorted(sorted(p.local) for p in segmented.parts) == [[a, b], [c, d]]
     assert segmented.shared_graph.size() == 1
-    iterations = segmented.optimize(20, 1e-12)
+    iterations = optimize(segmented, 20, 1e-12)
     result = segmented.values()
     # The linear problem's exact optimum, solved as one graph.
     exact = graph.linearize(values).optimize()
@@ -145,7 +146,7 @@ def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
             return original(lam)
 
         local.eliminate = failing_once
-        segmented.optimize(50, 1e-10)
+        optimize(segmented, 50, 1e-10)
     theta = segmented.shared_values.atVector(keys.THETA)
     assert len(calls) > 1 and calls[1] > calls[0]  # damped more after the failure
     # The same optimum from another damping path: within a thousandth of a sigma.
@@ -179,7 +180,7 @@ def _cubic_graph() -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, int]:
 def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
     graph, values, s = _cubic_graph()
     damped = PartitionedGraph(graph, values, [s])
-    damped.optimize(100, 1e-12)
+    optimize(damped, 100, 1e-12)
     dampings = []
     eliminate = PartGroup.eliminate
 
@@ -189,7 +190,7 @@ def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
 
     monkeypatch.setattr(PartGroup, "eliminate", recording)
     first = PartitionedGraph(graph, values, [s])
-    first.optimize(100, 1e-12, gauss_newton_first=True)
+    optimize(first, 100, 1e-12, gauss_newton_first=True)
     # The undamped first step overshoots and is not taken; every later step is damped.
     assert dampings[0] is None and all(lam is not None for lam in dampings[1:])
     for solved in (damped, first):

@@ -45,8 +45,8 @@ class ThetaEstimate:
         theta: ``[c_e, c_d, t_r, d]`` (the fixed one if theta was not a variable).
         covariance: 4×4 marginal covariance of theta (every other variable marginalized),
             from the graph's information at the solution (or at the linearization of the
-            solve's last Gauss–Newton step, :meth:`PartitionedGraph.optimize
-            <graphcal.graph.partitioned.PartitionedGraph.optimize>`); ``None`` if not computed.
+            solve's last Gauss–Newton step, :func:`graphcal.graph.partitioned_lm.optimize`);
+            ``None`` if not computed.
         start_states: ``(S, 3)`` estimated (or held) start states.
         iterations, initial_error, final_error: of the solve (graph error is half the
             whitened squared residual; after a last Gauss–Newton step, the error it

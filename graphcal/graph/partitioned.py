@@ -39,9 +39,7 @@ from graphcal.graph.linear_systems import (
 from graphcal.graph.part_group import PartGroup
 from graphcal.graph.part_workers import PartWorkers
 from graphcal.graph.partition import GraphPart, partition
-from graphcal.graph.partitioned_lm import optimize
 from graphcal.graph.values import copy_value, tangent_dims
-from graphcal.progress import Progress
 
 
 class PartitionedGraph:
@@ -153,9 +151,10 @@ class PartitionedGraph:
 
     def shared_information(self) -> np.ndarray:
         """The shared variables' information matrix at the current values (every part's
-        variables marginalized), in the order of :attr:`shared`. After :meth:`optimize`
-        stopped on a final Gauss–Newton step, that of its last linearization (one step, of at
-        most the solve's tolerance, before the current values); else computed at them."""
+        variables marginalized), in the order of :attr:`shared`. After
+        :func:`graphcal.graph.partitioned_lm.optimize` stopped on a final Gauss–Newton step,
+        that of its last linearization (one step, of at most the solve's tolerance, before the
+        current values); else computed at them."""
         if self._information is None:
             total, _, _ = self.system(None)
             self.workers.release()
@@ -204,21 +203,3 @@ class PartitionedGraph:
     def by_key(self, vector: np.ndarray) -> dict[int, np.ndarray]:
         """A shared-size ``vector`` cut into the shared keys' blocks."""
         return dict(zip(self.shared, split_by_key(vector, self.shared, self.dims), strict=True))
-
-    def optimize(
-        self,
-        max_iterations: int,
-        relative_error_tol: float,
-        progress: Progress | None = None,
-        *,
-        gauss_newton_first: bool = False,
-    ) -> int:
-        """Levenberg–Marquardt to convergence from the current values (updated in place);
-        returns the iterations used (:func:`graphcal.graph.partitioned_lm.optimize`)."""
-        return optimize(
-            self,
-            max_iterations,
-            relative_error_tol,
-            progress,
-            gauss_newton_first=gauss_newton_first,
-        )
