@@ -178,3 +178,78 @@ def test_cli_imports_only_the_public_api(path):
             assert name in public, f"{name} is not in graphcal.__all__"
         else:
             assert _unit(module) == "cli", module
+
+
+def _file_imports(path: Path) -> set[str]:
+    """The graphcal files ``path`` imports (at top level, inside functions and for type
+    checking alike): ``from graphcal.x import y`` names the file ``graphcal.x.y`` when it is
+    one, else ``graphcal.x``."""
+    out = set()
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            for alias in node.names:
+                name = f"{node.module}.{alias.name}"
+                out.add(name if name in MODULES else node.module)
+        elif isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+    return {name for name in out if name in MODULES}
+
+
+def _strongly_connected(edges: dict[str, set[str]]) -> list[set[str]]:
+    """Tarjan's strongly connected components of more than one node."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    components = []
+
+    def visit(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        for other in edges[node]:
+            if other not in index:
+                visit(other)
+                low[node] = min(low[node], low[other])
+            elif other in stack:
+                low[node] = min(low[node], index[other])
+        if low[node] == index[node]:
+            component = set()
+            while True:
+                member = stack.pop()
+                component.add(member)
+                if member == node:
+                    break
+            if len(component) > 1:
+                components.append(component)
+
+    for node in sorted(edges):
+        if node not in index:
+            visit(node)
+    return components
+
+
+#: The one file-level import cycle left: the recordings' modules of graphcal/data, which
+#: issue 37 splits into graphcal/log and graphcal/recording (it must shrink to nothing).
+KNOWN_CYCLE = {
+    f"graphcal.data.{name}"
+    for name in (
+        "bag_request bag_selection bag_streams bags can_log can_source can_streams "
+        "column_origins drive_log drive_log_checks drive_log_flags drive_log_turns "
+        "drive_log_validation import_turns import_units imu_mounting manifest manifest_bag "
+        "manifest_columns manifest_streams resampling wheel_scale"
+    ).split()
+}
+
+
+def test_no_import_cycle_between_files():
+    """No two files of graphcal import each other, directly or around a circle (imports
+    inside functions and for type checking count: a cycle hidden there is still one
+    concept split over files), but for the known one that is being removed."""
+    edges = {
+        module: _file_imports(path) - {module}
+        for module, path in ((_module_name(p), p) for p in sorted(ROOT.rglob("*.py")))
+    }
+    components = _strongly_connected(edges)
+    cycles = [sorted(c) for c in components if c != KNOWN_CYCLE]
+    assert not cycles, f"import cycles between files: {cycles}"
+    assert KNOWN_CYCLE in components, "graphcal/data's cycle shrank: shrink KNOWN_CYCLE too"
