@@ -110,3 +110,29 @@ def test_a_robots_axle_midpoint_moves_along_its_heading():
     fine = simulate_robot(seed=2, runs=4).fine
     _, across = rear_axle_velocity(fine.t, fine.px, fine.py, fine.psi, 0.0)
     assert np.sqrt(np.mean(across**2)) <= 1e-3
+
+
+@pytest.mark.parametrize(
+    ("arguments", "said"),
+    [
+        (["--streams", "rec", "--antenna-arm", "nan", "0"], "--antenna-arm nan 0: give the"),
+        (["--out", "d.csv", "--antenna-arm", "1", "0"], "--antenna-arm applies to --streams"),
+        (
+            ["--streams", "rec", "--vehicle", "ROBOT", "--antenna-arm", "1", "0"],
+            "remove --antenna-arm",
+        ),
+    ],
+)
+def test_a_wrong_antenna_arm_is_one_line_and_writes_nothing(tmp_path, monkeypatch, capsys,
+                                                            arguments, said):  # fmt: skip
+    from pathlib import Path
+
+    from graphcal.cli import main
+
+    robot = Path(__file__).resolve().parents[1] / "data" / "vehicles" / "mocap_robot.toml"
+    monkeypatch.chdir(tmp_path)
+    arguments = [str(robot) if a == "ROBOT" else a for a in arguments]
+    assert main(["simulate", *arguments]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and said in err, err
+    assert list(tmp_path.iterdir()) == []

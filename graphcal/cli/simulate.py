@@ -229,12 +229,16 @@ def _check_outputs(args: argparse.Namespace) -> None:
                     f"{given} applies to --streams DIR (the raw streams and their manifest), "
                     f"not to a drive-log CSV; add --streams DIR or remove {given.split()[0]}"
                 )
-    if args.antenna_arm is not None and (
-        args.vehicle is not None or not np.all(np.isfinite(args.antenna_arm))
-    ):
+    if args.antenna_arm is not None and args.vehicle is not None:
         raise GraphcalError(
-            "--antenna-arm places a car's GNSS antenna (finite metres ahead and left of its "
-            "centre of gravity); a robot (--vehicle) logs the motion-capture pose of its axle"
+            f"--antenna-arm places a car's GNSS antenna; a robot (--vehicle {args.vehicle}) "
+            "logs the motion-capture pose of its axle: remove --antenna-arm"
+        )
+    if args.antenna_arm is not None and not np.all(np.isfinite(args.antenna_arm)):
+        given = " ".join(f"{value:g}" for value in args.antenna_arm)
+        raise GraphcalError(
+            f"--antenna-arm {given}: give the antenna's distance ahead of and left of the "
+            "centre of gravity in metres, two finite numbers (e.g. --antenna-arm 1.2 0.3)"
         )
     check_raw_log_options(args)
 

@@ -17,7 +17,7 @@ along the vertical, which the yaw of the mounting does not change), and gravity 
 * An IMU ``x`` ahead of the rear axle (the point that moves along the heading) feels the
   turn's centripetal acceleration ``-x ω_z²`` along the car: ``x`` is fitted with the
   rotation (least squares on the longitudinal residual, each round; within
-  :data:`MAX_IMU_AHEAD`), or turns would read as a yaw (1.4° on a 12 km city drive with the
+  :data:`MAX_IMU_AHEAD`), or turns would read as a yaw (1.4° on a 4 km city drive with the
   IMU 1.35 m ahead).
 * Bins where the yaw rate changes (turn entries and exits, :data:`STEADY_YAW_ACCELERATION`)
   are left out: there speed × yaw rate is not the lateral acceleration (the sideslip's rate,

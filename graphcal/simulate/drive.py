@@ -247,7 +247,9 @@ def _rigid_body_path(
     return cg, heading, slip
 
 
-def _body_lateral_acceleration(t: np.ndarray, position: np.ndarray, heading: np.ndarray):
+def _body_lateral_acceleration(
+    t: np.ndarray, position: np.ndarray, heading: np.ndarray
+) -> np.ndarray:
     """The acceleration [m/s²] of the point at ``position (N, 2)`` across the heading (left
     positive), by second differences over the samples (the ends repeat their neighbours)."""
     acceleration = np.gradient(np.gradient(position, t, axis=0), t, axis=0)
@@ -272,8 +274,9 @@ def _true_log(
     chord = np.diff(cg, axis=0)
     chord_course = np.arctan2(chord[:, 1], chord[:, 0])
     sideslip = wrap_angle(chord_course - heading[:-1] - 0.5 * yaw_increment)
-    sideslip = np.where(np.hypot(chord[:, 0], chord[:, 1]) > 0, sideslip, 0.0)
-    distance = np.hypot(chord[:, 0], chord[:, 1]) * np.cos(sideslip)
+    length = np.hypot(chord[:, 0], chord[:, 1])
+    sideslip = np.where(length > 0, sideslip, 0.0)  # standing: no direction to have
+    distance = length * np.cos(sideslip)
     n_rl, n_rr = wheel_rotations_for_motion(
         distance, yaw_increment, lateral_acceleration[:-1], theta_true
     )
