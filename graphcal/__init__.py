@@ -20,11 +20,11 @@ __version__ = "0.1.0"
 
 _PUBLIC = {
     # Drive logs, synthetic drives and trajectory files.
-    "DriveLog": "graphcal.data.drive_log",
-    "load_drive_log": "graphcal.data.drive_log",
-    "write_drive_log": "graphcal.data.drive_log",
-    "open_log": "graphcal.data.open_log",  # a CSV or a recording, by path
-    "recording_path": "graphcal.data.open_log",  # a recording's directory as its manifest
+    "DriveLog": "graphcal.log.drive_log",
+    "load_drive_log": "graphcal.log.load",
+    "write_drive_log": "graphcal.log.drive_log",
+    "open_log": "graphcal.recording.open_log",  # a CSV or a recording, by path
+    "recording_path": "graphcal.recording.open_log",  # a recording's directory as its manifest
     "log_distance_line": "graphcal.report.log_summary",  # a log described, as `check` says
     "log_check_lines": "graphcal.report.log_summary",
     "log_excitation_lines": "graphcal.report.log_summary",
@@ -41,21 +41,26 @@ _PUBLIC = {
     "simulate_robot": "graphcal.simulate.robot",  # a robot's runs, spins and stops
     "RobotSettings": "graphcal.simulate.robot_settings",
     "theta_true_for": "graphcal.simulate.robot",
-    "write_tum": "graphcal.data.tum",
-    "read_tum": "graphcal.data.tum",
+    "write_tum": "graphcal.log.tum",
+    "read_tum": "graphcal.log.tum",
     # Recordings: streams manifests and ROS bags, resampled into drive logs.
-    "import_recording": "graphcal.data.importer",
-    "ImportedLog": "graphcal.data.importer",
-    "BagOptions": "graphcal.data.importer",
-    "read_recording": "graphcal.data.importer",
-    "is_recording": "graphcal.data.importer",  # a manifest or a bag, not a drive-log CSV
-    "MANIFEST_SUFFIXES": "graphcal.data.importer",
-    "write_import": "graphcal.data.import_output",
-    "check_import_output": "graphcal.data.import_output",  # before an import, not after
-    "manifest_help": "graphcal.data.manifest_help",  # every manifest key with its default
-    "Recording": "graphcal.data.streams",
-    "resample": "graphcal.data.resampling",
-    "read_bag": "graphcal.data.bags",
+    "import_recording": "graphcal.recording.importer",
+    "ImportedLog": "graphcal.recording.importer",
+    "BagOptions": "graphcal.recording.importer",
+    "read_recording": "graphcal.recording.importer",
+    "is_recording": "graphcal.recording.importer",  # a manifest or a bag, not a drive-log CSV
+    "MANIFEST_SUFFIXES": "graphcal.recording.importer",
+    "write_import": "graphcal.recording.import_output",
+    "check_import_output": "graphcal.recording.import_output",  # before an import, not after
+    "manifest_help": "graphcal.recording.manifest.help",  # every manifest key with its default
+    "Recording": "graphcal.recording.streams",
+    "resample": "graphcal.recording.resampling",
+    "read_bag": "graphcal.recording.bag.read",
+    "BagRequest": "graphcal.recording.bag.request",  # what read_bag reads (BagOptions: alias)
+    "read_manifest": "graphcal.recording.manifest_recording",
+    "Section": "graphcal.recording.section",  # a section's keys, as every source reads them
+    "WHEEL_KINDS": "graphcal.recording.vocabulary",  # [wheels] kind: each kind of wheel signal
+    "SPEED_UNITS": "graphcal.recording.vocabulary",
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",
     "write_streams": "graphcal.simulate.streams",

@@ -27,18 +27,19 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog, load_drive_log
-from graphcal.data.importer import ImportedLog
-from graphcal.data.segments import SegmentData, gather_segments
 from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.load import load_drive_log
+from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.joint import JointSettings
 from graphcal.pipeline.validation import position_errors
 from graphcal.progress import Progress
+from graphcal.recording.importer import ImportedLog
 from graphcal.simulate.drive import read_sidecar, truth_path
 
 

@@ -65,3 +65,9 @@ def length_unit(track: float) -> LengthUnit:
     """The unit of position errors and lever arms for a vehicle of nominal ``track`` [m]:
     mm for a small robot (below :data:`SMALL_TRACK`), m for a car."""
     return MILLIMETRES if track < SMALL_TRACK else METRES
+
+
+def time_text(t: float) -> str:
+    """A time [s] with every digit it has (the shortest text that reads back as the same
+    float), so that two different stamps never print alike: ``1763856111.5369999``."""
+    return repr(float(t))

@@ -23,9 +23,9 @@ import time
 
 import numpy as np
 
-from graphcal.data.drive_log_validation import validate_frame
 from graphcal.errors import GraphcalError
 from graphcal.evaluation import Truth, evaluate
+from graphcal.log.validation import validate_frame
 from graphcal.pipeline.joint import without_defect_model
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings

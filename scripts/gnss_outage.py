@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
-from graphcal.data.tum import write_tum
 from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.localization.dead_reckoning import (
     OutageSettings,
@@ -28,6 +27,7 @@ from graphcal.localization.dead_reckoning import (
     outage_table,
     pose_before_outage,
 )
+from graphcal.log.tum import write_tum
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings

@@ -21,11 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.data.importer import import_recording
 from graphcal.evaluation import Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings
+from graphcal.recording.importer import import_recording
 from graphcal.simulate.drive import simulate_drive
 from graphcal.simulate.streams import simulate_streams, write_streams
 

@@ -27,9 +27,9 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from graphcal.data.drive_log_validation import validate_frame
 from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.localization.online import OnlineResult, OnlineSettings, run_online
+from graphcal.log.validation import validate_frame
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.localization_inputs import prepare_localization
 from graphcal.simulate.defects import degrade, parse_defects

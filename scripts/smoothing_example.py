@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from graphcal.data.drive_log import load_drive_log
-from graphcal.data.drive_log_validation import validate_frame
-from graphcal.data.tum import write_tum
 from graphcal.localization.smoothing import SmoothingSettings, smooth_drive
+from graphcal.log.load import load_drive_log
+from graphcal.log.tum import write_tum
+from graphcal.log.validation import validate_frame
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.localization_inputs import prepare_localization
 from graphcal.report.tables import Z95

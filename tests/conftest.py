@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graphcal.data.drive_log import DriveLog
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.simulate.drive import (
     NoiseLevels,

@@ -54,7 +54,7 @@ def _third_party(imports: set[str]) -> set[str]:
 
 
 def test_the_architecture_is_discovered():
-    assert {"model", "factors", "graph", "pipeline", "localization", "data", "cli"} <= {
+    assert {"model", "factors", "graph", "pipeline", "localization", "log", "recording", "cli"} <= {
         _unit(m) for m in MODULES
     }
 
@@ -79,9 +79,46 @@ def test_nothing_imports_the_cli():
     assert importers == []
 
 
-@pytest.mark.parametrize("module", [m for m in MODULES if _unit(m) == "data"])
-def test_data_imports_no_factors(module):
+@pytest.mark.parametrize("module", [m for m in MODULES if _unit(m) in ("log", "recording")])
+def test_the_data_path_imports_no_factors(module):
     assert not {"factors", "graph", "pipeline", "localization"} & _graphcal_units(MODULES[module])
+
+
+@pytest.mark.parametrize("module", [m for m in MODULES if _unit(m) == "log"])
+def test_the_drive_log_knows_no_recording(module):
+    """A recording is imported into a drive log, never the other way round."""
+    assert "recording" not in _graphcal_units(MODULES[module])
+
+
+#: The packages of graphcal/recording that each read one source.
+SOURCES = ("manifest", "bag", "can", "nmea", "imu")
+#: What a source may import of graphcal besides its own package: the vocabulary of units and
+#: kinds, a section's keys, the shared stream types and conversions, and a CSV's reading.
+SOURCE_MAY_IMPORT = {
+    *(f"graphcal.recording.{name}" for name in ("vocabulary", "section", "streams")),
+    *(f"graphcal.recording.{name}" for name in ("stream_grid", "geodesy", "wheel_scale")),
+    "graphcal.errors",
+    "graphcal.units",
+    "graphcal.log.load",
+}
+
+
+def _source(module: str) -> str | None:
+    parts = module.split(".")
+    return parts[2] if parts[:2] == ["graphcal", "recording"] and len(parts) > 3 else None
+
+
+@pytest.mark.parametrize("module", [m for m in MODULES if _source(m) in SOURCES])
+def test_a_recording_source_imports_no_other_source(module):
+    """recording/<source> imports only the vocabulary, the shared stream types and its own
+    package (imports inside functions included): a new source or unit touches one place."""
+    own = f"graphcal.recording.{_source(module)}"
+    outside = {
+        name
+        for name in MODULES[module]
+        if name.startswith("graphcal") and not (name == own or name.startswith(own + "."))
+    }
+    assert outside <= SOURCE_MAY_IMPORT, sorted(outside - SOURCE_MAY_IMPORT)
 
 
 def test_pipeline_and_localization_are_siblings_on_the_graph_layer():
@@ -117,7 +154,8 @@ def test_no_import_cycle_between_packages():
 
 
 def test_fleet_sits_on_the_pipeline_and_never_sees_a_truth():
-    below = {"model", "factors", "graph", "pipeline", "localization", "data", "report", "simulate"}
+    below = {"model", "factors", "graph", "pipeline", "localization", "log", "recording"}
+    below |= {"report", "simulate"}
     for module, imports in MODULES.items():
         if _unit(module) in below | {"evaluation"}:
             assert "fleet" not in _graphcal_units(imports), module
@@ -228,28 +266,14 @@ def _strongly_connected(edges: dict[str, set[str]]) -> list[set[str]]:
     return components
 
 
-#: The one file-level import cycle left: the recordings' modules of graphcal/data, which
-#: issue 37 splits into graphcal/log and graphcal/recording (it must shrink to nothing).
-KNOWN_CYCLE = {
-    f"graphcal.data.{name}"
-    for name in (
-        "bag_request bag_selection bag_streams bags can_log can_source can_streams "
-        "column_origins drive_log drive_log_checks drive_log_flags drive_log_turns "
-        "drive_log_validation import_turns import_units imu_mounting manifest manifest_bag "
-        "manifest_columns manifest_streams resampling wheel_scale"
-    ).split()
-}
-
-
 def test_no_import_cycle_between_files():
     """No two files of graphcal import each other, directly or around a circle (imports
     inside functions and for type checking count: a cycle hidden there is still one
-    concept split over files), but for the known one that is being removed."""
+    concept split over files)."""
     edges = {
         module: _file_imports(path) - {module}
         for module, path in ((_module_name(p), p) for p in sorted(ROOT.rglob("*.py")))
     }
     components = _strongly_connected(edges)
-    cycles = [sorted(c) for c in components if c != KNOWN_CYCLE]
+    cycles = [sorted(c) for c in components]
     assert not cycles, f"import cycles between files: {cycles}"
-    assert KNOWN_CYCLE in components, "graphcal/data's cycle shrank: shrink KNOWN_CYCLE too"

@@ -12,11 +12,11 @@ import sys
 
 import pytest
 
-from graphcal.data.bag_fields import FieldRef, field_ref, parse_steps, resolve_field
-from graphcal.data.bag_layout import ARRAY, BASE, NAME, SEQUENCE
-from graphcal.data.bag_request import BagRequest
-from graphcal.data.bag_selection import select_streams
-from graphcal.data.bag_topics import (
+from graphcal.recording.bag.fields import FieldRef, field_ref, parse_steps, resolve_field
+from graphcal.recording.bag.layout import ARRAY, BASE, NAME, SEQUENCE
+from graphcal.recording.bag.request import BagRequest
+from graphcal.recording.bag.selection import select_streams
+from graphcal.recording.bag.topics import (
     IMU,
     JOINT_STATE,
     NAVSATFIX,
@@ -26,7 +26,7 @@ from graphcal.data.bag_topics import (
     pick_topic,
     resolve_joints,
 )
-from graphcal.data.streams import StreamError
+from graphcal.recording.streams import StreamError
 
 DATASPEED = "dbw_mkz_msgs/msg/WheelSpeedReport"
 VELOCITY = "autoware_auto_vehicle_msgs/msg/VelocityReport"
@@ -96,9 +96,10 @@ def _error(call, *args, **kwargs) -> str:
 def test_choosing_what_to_read_imports_no_rosbags():
     code = (
         "import sys; sys.modules['rosbags'] = None\n"
-        "import graphcal.data.bag_selection, graphcal.data.bag_topics, graphcal.data.bag_fields\n"
-        "import graphcal.data.bag_request, graphcal.data.bag_vendors, graphcal.data.bag_rows\n"
-        "import graphcal.data.bag_streams\n"
+        "import graphcal.recording.bag.selection, graphcal.recording.bag.topics\n"
+        "import graphcal.recording.bag.fields, graphcal.recording.bag.request\n"
+        "import graphcal.recording.bag.vendors, graphcal.recording.bag.rows\n"
+        "import graphcal.recording.bag.streams\n"
         "print(sorted(n for n in sys.modules if n.startswith('rosbags.')))"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

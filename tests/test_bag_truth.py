@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from graphcal.cli.simulate_streams import BAG_NAMES, write_streams_and_bag
-from graphcal.data.importer import import_recording
 from graphcal.evaluation import synthetic_truth
 from graphcal.model import PARAMETER_NAMES
+from graphcal.recording.importer import import_recording
 from graphcal.simulate.streams import simulate_streams
 
 pytest.importorskip("rosbags")

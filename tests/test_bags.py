@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.bag_reader import bag_topics, is_bag
-from graphcal.data.bag_topics import pick_joints
-from graphcal.data.bags import read_bag
-from graphcal.data.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
+from graphcal.recording.bag.read import read_bag
+from graphcal.recording.bag.reader import bag_topics, is_bag
+from graphcal.recording.bag.request import BagRequest
+from graphcal.recording.bag.topics import pick_joints
+from graphcal.recording.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
 from graphcal.simulate.bags import write_bag
 
 pytest.importorskip("rosbags")
@@ -103,7 +104,7 @@ def test_odometry_with_heading_round_trips(tmp_path, storage):
     recording = _recording(geodetic=False)
     path = write_bag(recording, tmp_path / STORAGES[storage], storage, pose_topic="/odom")
     assert bag_topics(path)["/odom"] == "nav_msgs/msg/Odometry"
-    _assert_same(read_bag(path, pose_topic="/odom"), recording)
+    _assert_same(read_bag(path, BagRequest(pose_topic="/odom")), recording)
 
 
 @pytest.mark.slow
@@ -126,7 +127,7 @@ def test_joint_velocities_and_no_imu(tmp_path):
     assert not read.wheels.cumulative
     _assert_same(read, recording)
     with pytest.raises(StreamError, match=r"no position .*--wheel-kind angular_speed") as error:
-        read_bag(path, wheel_kind="angle")
+        read_bag(path, BagRequest(wheel_kind="angle"))
     assert "\n" not in str(error.value)
 
 
@@ -152,16 +153,16 @@ def _one_line(error: pytest.ExceptionInfo, *words: str) -> None:
 def test_missing_topic_wrong_type_and_missing_joint(bags):
     path = bags["ros2"]
     with pytest.raises(StreamError) as error:
-        read_bag(path, pose_topic="/nope")
+        read_bag(path, BagRequest(pose_topic="/nope"))
     _one_line(error, "/nope", "--pose-topic", "/gnss/fix (sensor_msgs/msg/NavSatFix)")
     with pytest.raises(StreamError) as error:
-        read_bag(path, pose_topic="/imu/data")
+        read_bag(path, BagRequest(pose_topic="/imu/data"))
     _one_line(error, "/imu/data", "sensor_msgs/msg/Imu", "NavSatFix")
     with pytest.raises(StreamError) as error:
-        read_bag(path, rear_left="wheel_rl", rear_right="rear_right_wheel_joint")
+        read_bag(path, BagRequest(rear_left="wheel_rl", rear_right="rear_right_wheel_joint"))
     _one_line(error, "wheel_rl", "rear_left_wheel_joint", "--rear-left/--rear-right")
     with pytest.raises(StreamError) as error:
-        read_bag(path, rear_left="rear_left_wheel_joint")
+        read_bag(path, BagRequest(rear_left="rear_left_wheel_joint"))
     _one_line(error, "--rear-right", "rear_right_wheel_joint")
 
 
@@ -321,7 +322,7 @@ def test_zero_stamps_use_receive_times_and_velocity_fallback(tmp_path):
     with pytest.raises(StreamError) as error:
         read_bag(path)
     _one_line(error, "rl, rr", "--rear-left/--rear-right")
-    read = read_bag(path, rear_left="rl", rear_right="rr")
+    read = read_bag(path, BagRequest(rear_left="rl", rear_right="rr"))
     assert sum("receive times" in n for n in read.notes) == 2
     np.testing.assert_allclose(read.pose.t, 5.0 + 0.1 * np.arange(10), atol=1e-9)
     np.testing.assert_allclose(read.pose.heading, 0.0)
@@ -342,7 +343,7 @@ def test_several_candidate_topics_ask_for_the_flag(tmp_path):
     with pytest.raises(StreamError) as error:
         read_bag(path)
     _one_line(error, "/fix (NavSatFix)", "/pose (PoseStamped)", "--pose-topic")
-    assert read_bag(path, pose_topic="/pose").pose.source.endswith(":/pose")
+    assert read_bag(path, BagRequest(pose_topic="/pose")).pose.source.endswith(":/pose")
 
 
 def test_pick_joints():
@@ -355,7 +356,7 @@ def test_pick_joints():
 @pytest.mark.parametrize("storage", list(STORAGES))
 @pytest.mark.slow
 def test_vectorized_decoding_equals_rosbags_message_by_message(bags, storage, monkeypatch):
-    import graphcal.data.bag_reader as reader
+    import graphcal.recording.bag.reader as reader
 
     fast = read_bag(bags[storage])
     monkeypatch.setattr(reader, "FAST_DECODING", False)
@@ -369,7 +370,7 @@ def test_vectorized_decoding_equals_rosbags_message_by_message(bags, storage, mo
 
 
 def test_messages_of_different_layouts_are_not_decoded_together():
-    from graphcal.data.bag_layout import IMU, decode_fixed
+    from graphcal.recording.bag.layout import IMU, decode_fixed
 
     assert decode_fixed([b"\x00\x01" + bytes(10), b"\x00\x01" + bytes(11)], IMU, False) is None
     assert decode_fixed([b"\x01\x00" + bytes(400)], IMU, False) is None  # big-endian CDR
@@ -398,8 +399,8 @@ def _imu(t: float, rng: np.random.Generator):
 def test_real_imu_and_joint_messages_decode_vectorized_as_rosbags_does(tmp_path, monkeypatch):
     # Every number of a real IMU changes, and a JointState carries more joints than the two
     # rear wheels: only the frame id, names and lengths are the same in every message.
-    import graphcal.data.bag_reader as reader
-    from graphcal.data import bag_layout
+    import graphcal.recording.bag.reader as reader
+    from graphcal.recording.bag import layout as bag_layout
 
     rng = np.random.default_rng(3)
     messages = []

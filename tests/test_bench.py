@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from graphcal.bench.naive import build_naive_graph, solve_naive
-from graphcal.data.segments import gather_segments, select_segments, split_segments
+from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.settings import Settings
 from graphcal.simulate.drive import NoiseLevels, simulate_drive

@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.segments import (
+from graphcal.evaluation import Truth, evaluate
+from graphcal.log.segments import (
     SegmentData,
     gather_segments,
     select_segments,
     split_segments,
 )
-from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.selection import NoUsableSegments
@@ -57,7 +57,7 @@ def test_holding_the_start_pose_is_worse_than_estimating_it(drive):
 
 
 def test_staged_method_refuses_a_straight_drive(straight_log, tmp_path, capsys):
-    from graphcal.data.drive_log import write_drive_log
+    from graphcal.log.drive_log import write_drive_log
 
     log = straight_log
     with pytest.raises(NoUsableSegments, match=r"highest: 0\.000 rad/s"):

@@ -17,12 +17,12 @@ from cantools.database.can import Message, Signal  # noqa: E402
 from cantools.database.conversion import BaseConversion  # noqa: E402
 
 from graphcal.cli import main  # noqa: E402
-from graphcal.data.can_decode import decode_signals  # noqa: E402
-from graphcal.data.can_frames import EXTENDED_FLAG  # noqa: E402
-from graphcal.data.can_reader import read_frames  # noqa: E402
-from graphcal.data.importer import import_recording  # noqa: E402
-from graphcal.data.manifest import read_manifest  # noqa: E402
 from graphcal.pipeline.run import run_calibration  # noqa: E402
+from graphcal.recording.can.decode import decode_signals  # noqa: E402
+from graphcal.recording.can.frames import EXTENDED_FLAG  # noqa: E402
+from graphcal.recording.can.reader import read_frames  # noqa: E402
+from graphcal.recording.importer import import_recording  # noqa: E402
+from graphcal.recording.manifest_recording import read_manifest  # noqa: E402
 from graphcal.simulate.can_bus import IMU_ID, WHEEL_ID, CanFrames  # noqa: E402
 from graphcal.simulate.can_log import (  # noqa: E402
     CAR_DBC,

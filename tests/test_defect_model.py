@@ -132,7 +132,7 @@ def test_calibrate_reports_the_sensor_estimates(clean, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_tick_counts_are_found_in_the_log_and_their_rounding_modelled(clean):
-    from graphcal.data.quantization import ticks_per_revolution
+    from graphcal.log.quantization import ticks_per_revolution
 
     counted = degrade(clean, parse_defects("ticks=64"), 1)
     rotations = np.column_stack([counted.measured.n_rl, counted.measured.n_rr])
@@ -149,7 +149,7 @@ def test_a_time_offset_between_samples_leaves_the_wheel_counts_whole(clean):
     counts whose rounding the prior models; the graph's first order covers the rest."""
     import re
 
-    from graphcal.data.quantization import ticks_per_revolution
+    from graphcal.log.quantization import ticks_per_revolution
     from graphcal.pipeline.sensor_estimates import correct_log
 
     late = degrade(clean, parse_defects("latency=0.0625,ticks"), 1)

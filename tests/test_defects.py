@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.consistency import runs
-from graphcal.data.drive_log import load_drive_log, write_drive_log
-from graphcal.data.drive_log_validation import validate_frame
+from graphcal.log.consistency import runs
+from graphcal.log.drive_log import write_drive_log
+from graphcal.log.load import load_drive_log
+from graphcal.log.validation import validate_frame
 from graphcal.simulate.defect_effects import ar1, gauss_markov
 from graphcal.simulate.defects import (
     DEFECT_NAMES,

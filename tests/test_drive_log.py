@@ -7,7 +7,8 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import COLUMNS, DriveLogError, load_drive_log, write_drive_log
+from graphcal.log.drive_log import COLUMNS, DriveLogError, write_drive_log
+from graphcal.log.load import load_drive_log
 
 
 @pytest.fixture()

@@ -7,8 +7,6 @@ import numpy as np
 import pytest
 from numerical import retract_jacobian
 
-from graphcal.data.segments import gather_segments, split_segments
-from graphcal.data.timing import rotation_rate_changes
 from graphcal.factors import (
     ChunkBatch,
     ChunkOdometryFactor,
@@ -23,6 +21,8 @@ from graphcal.factors import (
     state_from_pose2,
     theta_prior_factor,
 )
+from graphcal.log.segments import gather_segments, split_segments
+from graphcal.log.timing import rotation_rate_changes
 from graphcal.model import THETA_NOMINAL
 
 THETA = np.array([1.99, 0.5e-3, 1.57, 1e-3])

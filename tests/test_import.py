@@ -11,12 +11,12 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.importer import import_recording
-from graphcal.data.segments import split_segments
-from graphcal.data.stream_grid import interval_means, wheel_rotations
-from graphcal.data.streams import Recording, WheelStream
 from graphcal.evaluation import Truth, evaluate
+from graphcal.log.segments import split_segments
 from graphcal.pipeline.run import run_calibration
+from graphcal.recording.importer import import_recording
+from graphcal.recording.stream_grid import interval_means, wheel_rotations
+from graphcal.recording.streams import Recording, WheelStream
 from graphcal.simulate.drive import simulate_drive
 from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams
 
@@ -298,8 +298,8 @@ def test_a_stream_whose_time_does_not_increase_is_refused(recording, tmp_path, c
 
 def test_streams_that_overlap_too_little_are_refused():
     t = np.arange(0.0, 100.0, 0.1)
-    from graphcal.data.resampling import resample
-    from graphcal.data.streams import PoseStream, StreamError
+    from graphcal.recording.resampling import resample
+    from graphcal.recording.streams import PoseStream, StreamError
 
     pose = PoseStream(t, t, 0 * t, None, None, "p")
     wheels = WheelStream(t + 80.0, t, t, True, "w")
@@ -403,9 +403,9 @@ def test_slow_gnss_is_fixes_at_their_times_and_short_overlap_is_warned_about(rec
 
 
 def test_a_manifest_naming_a_bag_applies_time_offsets_and_refuses_column_keys(small_bag, tmp_path):
-    from graphcal.data.bags import read_bag
-    from graphcal.data.manifest import read_manifest
-    from graphcal.data.streams import StreamError
+    from graphcal.recording.bag.read import read_bag
+    from graphcal.recording.manifest_recording import read_manifest
+    from graphcal.recording.streams import StreamError
 
     manifest = tmp_path / "bag.toml"
     manifest.write_text(f'bag = "{small_bag}"\n[imu]\ntime_offset = 1000.0\n')
@@ -477,7 +477,7 @@ def test_a_csv_written_by_import_keeps_what_its_rows_cannot_say(recording, tmp_p
     """Counts interpolated onto the grid are no longer whole, and a_y from the wheels looks
     like any a_y: the import's sidecar keeps the tick resolution and where a_y came from,
     and loading the CSV reads them back."""
-    from graphcal.data.drive_log import load_drive_log
+    from graphcal.log.load import load_drive_log
 
     manifest = recording / "manifest.toml"
     text = manifest.read_text().split("\n[imu]")[0]

@@ -11,13 +11,13 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.importer import import_recording
-from graphcal.data.imu_frame import angles, rotation, to_sensor, to_vehicle
-from graphcal.data.imu_mounting import parse_mounting
-from graphcal.data.manifest import read_manifest
-from graphcal.data.mounting_estimate import estimate_mounting
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.run import run_calibration
+from graphcal.recording.importer import import_recording
+from graphcal.recording.imu.estimate import estimate_mounting
+from graphcal.recording.imu.frame import angles, rotation, to_sensor, to_vehicle
+from graphcal.recording.imu.mounting import parse_mounting
+from graphcal.recording.manifest_recording import read_manifest
 from graphcal.simulate.mounted_imu import mount_imu, vehicle_frame_imu
 from graphcal.simulate.streams import EPOCH, simulate_streams, write_streams
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.data.antenna import move_to_centre
+from graphcal.log.antenna import move_to_centre
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 

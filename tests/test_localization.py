@@ -10,7 +10,6 @@ import pytest
 from numerical import retract_jacobian
 
 import graphcal
-from graphcal.data.tum import read_tum, write_tum
 from graphcal.errors import GraphcalError
 from graphcal.localization.dead_reckoning import OutageSettings, outage_errors, outage_table
 from graphcal.localization.keyframe_odometry import (
@@ -21,6 +20,7 @@ from graphcal.localization.keyframe_odometry import (
 from graphcal.localization.online import OnlineSettings, run_online
 from graphcal.localization.smoothing import SmoothingSettings, smooth_drive
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
+from graphcal.log.tum import read_tum, write_tum
 from graphcal.model import THETA_NOMINAL, integrate
 from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaStep, simulate_drive
 
@@ -96,7 +96,7 @@ def test_smoothing_with_5hz_gnss_recovers_theta_and_the_trajectory(short_drive):
 @pytest.fixture(scope="module")
 def slipping_counted_log():
     """4 km whose wheels slip slowly (0.15 %) and are counted in 96 ticks per revolution."""
-    from graphcal.data.drive_log_validation import validate_frame
+    from graphcal.log.validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(4.0, 1), parse_defects("slip,ticks"), 1)
@@ -105,7 +105,7 @@ def slipping_counted_log():
 
 @pytest.mark.slow
 def test_smoothing_models_tick_rounding_and_slow_slip(slipping_counted_log):
-    from graphcal.data.quantization import quantization_sigma
+    from graphcal.log.quantization import quantization_sigma
 
     drive, log = slipping_counted_log
     modelled = SmoothingSettings(tick_quantization=quantization_sigma(96), slip_sigma=0.0015)
@@ -121,7 +121,7 @@ def test_smoothing_models_tick_rounding_and_slow_slip(slipping_counted_log):
 
 @pytest.mark.slow
 def test_online_covers_tick_rounding_and_slow_slip(slipping_counted_log):
-    from graphcal.data.quantization import quantization_sigma
+    from graphcal.log.quantization import quantization_sigma
 
     drive, log = slipping_counted_log
     modelled = OnlineSettings(tick_quantization=quantization_sigma(96), slip_sigma=0.0015)
@@ -140,7 +140,7 @@ def test_online_covers_tick_rounding_and_slow_slip(slipping_counted_log):
 def test_prepare_localization_hands_over_the_calibrations_findings():
     from dataclasses import fields
 
-    from graphcal.data.drive_log_validation import validate_frame
+    from graphcal.log.validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(2.0, 3), parse_defects("latency,lever_arm"), 3)
@@ -221,7 +221,7 @@ def test_tum_round_trip(tmp_path):
 
 @pytest.mark.slow
 def test_smoothing_estimates_the_lever_arm_and_ignores_flagged_spikes():
-    from graphcal.data.drive_log_validation import validate_frame
+    from graphcal.log.validation import validate_frame
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(2.0, 3), parse_defects("lever_arm,outliers"), 3)

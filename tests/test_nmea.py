@@ -10,12 +10,12 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.importer import import_recording
-from graphcal.data.manifest import read_manifest
-from graphcal.data.nmea_fixes import read_nmea
 from graphcal.evaluation import Truth, evaluate
 from graphcal.files import atomic_write_csv
 from graphcal.pipeline.run import run_calibration
+from graphcal.recording.importer import import_recording
+from graphcal.recording.manifest_recording import read_manifest
+from graphcal.recording.nmea.fixes import read_nmea
 from graphcal.simulate.nmea import (
     nmea_lines,
     nmea_manifest,

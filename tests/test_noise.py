@@ -1,4 +1,4 @@
-"""The heading's white noise read from the log (graphcal.data.noise), on uniform and on
+"""The heading's white noise read from the log (graphcal.log.noise), on uniform and on
 sparse logs: what sets the heading's weight, so an overstated noise biases t_r and d."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.data.noise import heading_noise
-from graphcal.data.quantization import quantization_sigma
+from graphcal.log.noise import heading_noise
+from graphcal.log.quantization import quantization_sigma
 from graphcal.model import THETA_NOMINAL
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive

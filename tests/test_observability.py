@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.segments import gather_segments, select_segments, split_segments
 from graphcal.evaluation import cramer_rao_bound
 from graphcal.graph.observability import assess_observability
+from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.run import run_calibration

@@ -12,9 +12,10 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import DriveLog, load_drive_log
-from graphcal.data.drive_log_validation import validate_frame
 from graphcal.evaluation import Truth, evaluate
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.load import load_drive_log
+from graphcal.log.validation import validate_frame
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, SegmentSettings, Settings
 from graphcal.simulate.drive import simulate_drive

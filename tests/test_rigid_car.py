@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from graphcal.data.geodesy import geodetic_to_local
 from graphcal.model import lever_offset
+from graphcal.recording.geodesy import geodetic_to_local
 from graphcal.simulate.drive import VehicleMotion, simulate_drive
 from graphcal.simulate.streams import EPOCH, StreamSettings, simulate_streams
 

@@ -12,13 +12,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from graphcal.data.drive_log import DriveLogError, load_drive_log
-from graphcal.data.import_output import write_import
-from graphcal.data.importer import import_recording, read_recording
-from graphcal.data.segments import split_segments
-from graphcal.data.stream_grid import fixes_on_grid, grid_rate
-from graphcal.data.streams import PoseStream, StreamError
+from graphcal.log.drive_log import DriveLogError
+from graphcal.log.load import load_drive_log
+from graphcal.log.segments import split_segments
 from graphcal.pipeline.settings_file import load_vehicle
+from graphcal.recording.import_output import write_import
+from graphcal.recording.importer import import_recording, read_recording
+from graphcal.recording.stream_grid import fixes_on_grid, grid_rate
+from graphcal.recording.streams import PoseStream, StreamError
 from graphcal.simulate.robot import ROBOT_THETA_TRUE, RobotSettings, simulate_robot
 from graphcal.simulate.streams import write_streams
 

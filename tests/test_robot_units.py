@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.importer import import_recording
+from graphcal.log.drive_log import DriveLog
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.sensor_estimates import SensorEstimate
@@ -21,6 +20,7 @@ from graphcal.pipeline.settings import BatchingSettings, Settings
 from graphcal.pipeline.settings_file import load_vehicle
 from graphcal.pipeline.vehicle_settings import apply_vehicle
 from graphcal.pipeline.whole_log import estimate_lines
+from graphcal.recording.importer import import_recording
 from graphcal.report.figures import trajectory_figure, validation_figure
 from graphcal.report.results import summary_text
 from graphcal.report.tables import estimates_table, validation_table

@@ -7,7 +7,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.data.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.evaluation import cramer_rao_bounds
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
@@ -15,6 +14,7 @@ from graphcal.graph.covariance import marginal_covariance
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
+from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.pipeline.joint import JointSettings, solve_joint
 from graphcal.pipeline.joint_batches import solve_joint_batches
 

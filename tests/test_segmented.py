@@ -8,8 +8,6 @@ import gtsam
 import numpy as np
 import pytest
 
-from graphcal.data.drive_log import load_drive_log
-from graphcal.data.segments import gather_segments, select_segments, split_segments
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.covariance import marginal_covariance
@@ -20,6 +18,8 @@ from graphcal.graph.partitioned_lm import optimize
 from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.graph.solve import solve_lm
 from graphcal.graph.values import portable, restore
+from graphcal.log.load import load_drive_log
+from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.pipeline.joint import JointSettings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"

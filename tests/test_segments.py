@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graphcal.data.segments import (
+from graphcal.log.segments import (
     gather_segments,
     make_batches,
     select_segments,
@@ -47,7 +47,7 @@ def test_selection_keeps_turning_segments(drive):
 
 @pytest.mark.parametrize("statistic", ["mean", "median", "rms"])
 def test_statistics_agree_with_direct_computation(drive, statistic):
-    from graphcal.data.segments import smoothed_yaw_rate
+    from graphcal.log.segments import smoothed_yaw_rate
 
     log = drive.measured
     segments = split_segments(log, 150.0)

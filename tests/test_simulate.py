@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import load_drive_log
+from graphcal.log.load import load_drive_log
 from graphcal.model import integrate
 from graphcal.simulate.drive import (
     THETA_TRUE_DEFAULT,

@@ -70,7 +70,7 @@ def test_can_and_nmea_write_the_logs_their_manifest_reads_and_check_passes(
 def test_the_can_sample_is_the_csv_sample_in_the_dbcs_encoding(tmp_path):
     """The same seed with and without --can: the same drive log but for the DBC's steps
     (wheel speeds 0.01 km/h, lateral acceleration 0.002 m/s²)."""
-    from graphcal.data.importer import import_recording
+    from graphcal.recording.importer import import_recording
 
     _simulate(tmp_path / "csv", "--seed", "1")
     _simulate(tmp_path / "can", "--seed", "1", "--can")

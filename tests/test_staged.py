@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.segments import gather_segments, make_batches, select_segments, split_segments
+from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.pipeline import staged as staged_module
 from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
 from graphcal.pipeline.settings import Settings

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graphcal.data.quantization import ticks_per_revolution
+from graphcal.log.quantization import ticks_per_revolution
 
 
 def _speed(t: np.ndarray, low: float, high: float) -> np.ndarray:

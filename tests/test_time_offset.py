@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from graphcal.data.timing import shift_wheel_rotations
+from graphcal.log.timing import shift_wheel_rotations
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data.drive_log import write_drive_log
+from graphcal.log.drive_log import write_drive_log
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.trust import (
     EXIT_UNTRUSTED,

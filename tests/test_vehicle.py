@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 import graphcal
-from graphcal.data.drive_log import DriveLogError, load_drive_log
-from graphcal.data.drive_log_validation import validate_frame
 from graphcal.errors import GraphcalError
 from graphcal.graph.plausibility import PLAUSIBLE_THETA, plausible_ranges
+from graphcal.log.drive_log import DriveLogError
+from graphcal.log.load import load_drive_log
+from graphcal.log.validation import validate_frame
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.joint import JointSettings

@@ -14,13 +14,14 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.data import bag_reader
-from graphcal.data.bag_layout import decode_fields
-from graphcal.data.bags import read_bag
-from graphcal.data.importer import import_recording
-from graphcal.data.streams import Recording, StreamError
 from graphcal.evaluation import Truth, evaluate
 from graphcal.pipeline.run import run_calibration
+from graphcal.recording.bag import reader as bag_reader
+from graphcal.recording.bag.layout import decode_fields
+from graphcal.recording.bag.read import read_bag
+from graphcal.recording.bag.request import BagRequest
+from graphcal.recording.importer import import_recording
+from graphcal.recording.streams import Recording, StreamError
 from graphcal.simulate.bags import _Messages, _stamps, _write, write_bag
 from graphcal.simulate.streams import simulate_streams
 
@@ -189,7 +190,7 @@ def test_a_vendor_message_is_preferred_to_a_joint_state_and_two_ask_for_the_flag
     assert any("rather than the JointState /joint_states" in n for n in read.notes), read.notes
     # --wheel-topic picks the JointState, its joints named as before.
     joints = read_bag(
-        both, wheel_topic="/joint_states", rear_left="rl_joint", rear_right="rr_joint"
+        both, BagRequest(wheel_topic="/joint_states", rear_left="rl_joint", rear_right="rr_joint")
     )
     assert joints.wheels.source.endswith("/joint_states")
     np.testing.assert_allclose(joints.wheels.left, read.wheels.left, rtol=1e-14)
@@ -210,7 +211,7 @@ def test_a_vendor_message_is_preferred_to_a_joint_state_and_two_ask_for_the_flag
         VENDOR_TOPIC[DATASPEED],
         "--wheel-topic",
     )
-    read = read_bag(path, wheel_topic=VENDOR_TOPIC[DATASPEED])
+    read = read_bag(path, BagRequest(wheel_topic=VENDOR_TOPIC[DATASPEED]))
     assert read.wheels.source.endswith(VENDOR_TOPIC[DATASPEED])
 
 
@@ -283,11 +284,13 @@ def test_wheels_from_a_nested_indexed_field_in_km_h_and_from_an_rpm_array(custom
     joints = read_bag(written[storage, "joints"]).wheels
     read = read_bag(
         custom[storage],
-        rear_left="/car/wheels:wheels[2].speed_kmh",
-        rear_right="wheels[3].speed_kmh",  # on --rear-left's topic
-        wheel_kind="speed",
-        speed_unit="km/h",
-        circumference=CIRCUMFERENCE,
+        BagRequest(
+            rear_left="/car/wheels:wheels[2].speed_kmh",
+            rear_right="wheels[3].speed_kmh",
+            wheel_kind="speed",
+            speed_unit="km/h",
+            circumference=CIRCUMFERENCE,
+        ),
     )
     np.testing.assert_allclose(read.wheels.t, joints.t, rtol=0, atol=1e-9)
     np.testing.assert_allclose(read.wheels.left, joints.left, rtol=1e-13)
@@ -297,10 +300,9 @@ def test_wheels_from_a_nested_indexed_field_in_km_h_and_from_an_rpm_array(custom
     assert field.declares("speed_unit") == "km/h" and "--circumference 2 m" in field.unit
     rpm = read_bag(
         custom[storage],
-        wheel_topic="/car/wheels",
-        rear_left="rpm[2]",
-        rear_right="rpm[3]",
-        wheel_kind="rpm",
+        BagRequest(
+            wheel_topic="/car/wheels", rear_left="rpm[2]", rear_right="rpm[3]", wheel_kind="rpm"
+        ),
     )
     np.testing.assert_allclose(rpm.wheels.left, joints.left, rtol=1e-7)
 
@@ -312,15 +314,17 @@ def test_imu_signals_and_the_heading_from_fields_of_a_message_without_a_header(
     recording = sim.recording
     read = read_bag(
         custom[storage],
-        rear_left="/car/wheels:rpm[2]",
-        rear_right="/car/wheels:rpm[3]",
-        wheel_kind="rpm",
-        yaw_rate="/car/dynamics:yaw_rate_dps",
-        yaw_rate_unit="deg/s",
-        lateral_acceleration="/car/dynamics:lateral_acceleration",
-        heading="/car/dynamics:azimuth_deg",
-        heading_unit="deg",
-        heading_convention="compass",
+        BagRequest(
+            rear_left="/car/wheels:rpm[2]",
+            rear_right="/car/wheels:rpm[3]",
+            wheel_kind="rpm",
+            yaw_rate="/car/dynamics:yaw_rate_dps",
+            yaw_rate_unit="deg/s",
+            lateral_acceleration="/car/dynamics:lateral_acceleration",
+            heading="/car/dynamics:azimuth_deg",
+            heading_unit="deg",
+            heading_convention="compass",
+        ),
     )
     imu = read.imu
     # No header: the times are the bag's receive times (the sample times, to the ns, and to
@@ -387,11 +391,13 @@ def test_the_layout_is_found_through_the_definition_and_refused_when_it_changes(
     # Read message by message, the messages without wheels[2] are skipped and said so.
     read = read_bag(
         path,
-        rear_left="/car/wheels:wheels[2].speed_kmh",
-        rear_right="wheels[3].speed_kmh",
-        wheel_kind="speed",
-        speed_unit="km/h",
-        circumference=CIRCUMFERENCE,
+        BagRequest(
+            rear_left="/car/wheels:wheels[2].speed_kmh",
+            rear_right="wheels[3].speed_kmh",
+            wheel_kind="speed",
+            speed_unit="km/h",
+            circumference=CIRCUMFERENCE,
+        ),
     )
     assert len(read.wheels.t) == 50
     assert any("skipped" in n and "without wheels[2].speed_kmh" in n for n in read.notes)
@@ -588,13 +594,13 @@ def test_a_wrong_unit_of_a_field_names_the_field_and_the_flag_to_change(
 def test_a_joint_state_keeps_its_kinds_and_the_unit_flags_need_fields(written):
     path = written["ros2", "joints"]
     with pytest.raises(StreamError) as error:
-        read_bag(path, wheel_kind="speed")
+        read_bag(path, BagRequest(wheel_kind="speed"))
     _one_line(error, "--wheel-kind speed", "a JointState gives angle (position) or angular_speed")
     with pytest.raises(StreamError) as error:
-        read_bag(path, circumference=2.0)
+        read_bag(path, BagRequest(circumference=2.0))
     _one_line(error, "--circumference applies to wheels read from fields")
     with pytest.raises(StreamError) as error:
-        read_bag(path, wheel_kind="knots")
+        read_bag(path, BagRequest(wheel_kind="knots"))
     _one_line(error, "--wheel-kind 'knots' is unknown", "speed, angular_speed, rpm, ticks, angle")
 
 
@@ -620,9 +626,7 @@ def test_a_ros2_bag_without_definitions_reads_vendor_messages_by_their_published
     with pytest.raises(StreamError) as error:
         read_bag(
             without_definitions(custom["ros2"], "custom"),
-            rear_left="/car/wheels:rpm[2]",
-            rear_right="rpm[3]",
-            wheel_kind="rpm",
+            BagRequest(rear_left="/car/wheels:rpm[2]", rear_right="rpm[3]", wheel_kind="rpm"),
         )
     _one_line(error, "--rear-left /car/wheels:rpm[2]", "no definition of my_car_msgs/msg/Wheels")
 
@@ -651,7 +655,7 @@ def test_an_autoware_velocity_report_is_no_wheel_stream_and_says_so(sim, tmp_pat
     path = _write_drive(sim.recording, tmp_path / "autoware", "ros2", velocity, definition)
     for flags in ({}, {"wheel_topic": "/vehicle/status/velocity_status"}):
         with pytest.raises(StreamError) as error:
-            read_bag(path, **flags)
+            read_bag(path, BagRequest(**flags))
         _one_line(
             error, "/vehicle/status/velocity_status (VelocityReport)", "longitudinal speed only"
         )

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import graphcal.pipeline.warm_start as warm
-from graphcal.data.drive_log import load_drive_log
-from graphcal.data.segments import gather_segments, select_segments, split_segments, spread
 from graphcal.graph import keys
+from graphcal.log.load import load_drive_log
+from graphcal.log.segments import gather_segments, select_segments, split_segments, spread
 from graphcal.pipeline.joint import JointSettings, solve_joint
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"

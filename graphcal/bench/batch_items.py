@@ -18,8 +18,8 @@ import numpy as np
 
 from graphcal.bench.naive import build_naive_graph, naive_optimizer, solve_naive
 from graphcal.bench.recording import BenchRun, timed
-from graphcal.data.drive_log import load_drive_log
-from graphcal.data.segments import gather_segments, make_batches, select_segments, split_segments
+from graphcal.log.load import load_drive_log
+from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.model import integrate, integrate_with_jacobians
 from graphcal.pipeline.batch_calibration import calibrate_batch
 from graphcal.pipeline.input_estimation import estimate_inputs

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
 from graphcal.factors import ChunkOdometryFactor, OdometryChunk, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_FLOOR_SIGMAS
 from graphcal.graph.keyframes import gnss_keyframes
@@ -33,6 +32,7 @@ from graphcal.graph.keys import THETA, keyframe
 from graphcal.graph.solve import Driver, solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors, odometry_covariance
 from graphcal.localization.values import insert_states, states_from_values
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_PRIOR_SIGMAS
 
 FACTOR_KINDS = ("reintegrating", "preintegrated", "between")

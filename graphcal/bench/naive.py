@@ -16,10 +16,10 @@ import dataclasses
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.built_graph import BuiltGraph
+from graphcal.log.segments import SegmentData
 from graphcal.pipeline.batch_calibration import BatchSettings
 
 #: Sigmas [m, m, rad] of the per-step model equation: tight enough that theta agrees with the

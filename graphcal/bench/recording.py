@@ -15,8 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import SegmentData, Segments
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import SegmentData, Segments
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import Progress
 from graphcal.simulate.drive import SyntheticDrive

@@ -16,14 +16,14 @@ from typing import Any
 import numpy as np
 
 from graphcal.bench.recording import timed
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import SegmentData, make_batches
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.covariance import marginal_covariance
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.graph.solve import solve_lm
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import SegmentData, make_batches
 from graphcal.pipeline.joint import JointSettings, solve_joint, without_defect_model
 from graphcal.pipeline.joint_batches import solve_joint_batches
 from graphcal.pipeline.run import run_calibration

@@ -11,6 +11,8 @@ from pathlib import Path
 
 from graphcal import (
     MANIFEST_SUFFIXES,
+    SPEED_UNITS,
+    WHEEL_KINDS,
     BagOptions,
     GraphcalError,
     Progress,
@@ -127,7 +129,7 @@ def _add_wheel_field_options(g: argparse._ArgumentGroup) -> None:
     )
     g.add_argument(
         "--wheel-kind",
-        choices=["speed", "angular_speed", "rpm", "ticks", "angle"],
+        choices=list(WHEEL_KINDS),
         default=None,
         help="bag: joints: positions (angle) [rad] or velocities (angular_speed) [rad/s] "
         "(default: positions if logged); fields: any, as [wheels] kind (a vendor message: "
@@ -135,7 +137,7 @@ def _add_wheel_field_options(g: argparse._ArgumentGroup) -> None:
     )
     g.add_argument(
         "--speed-unit",
-        choices=["m/s", "km/h", "mph"],
+        choices=list(SPEED_UNITS),
         default=None,
         help="bag fields, --wheel-kind speed: their unit (default m/s)",
     )

@@ -18,7 +18,7 @@ predicted measurement of the state ``x_k = [p_k, ψ_k]`` is ``[p_k + R(ψ_k) · 
 (zero arm and bias unless given), and a wheel time offset ``τ`` turns the measured rotation of
 step k into ``n_k + τ · ṅ_k`` (the rotation over ``[t_k + τ, t_k+1 + τ]`` to first order;
 ``ṅ_k``, the chunk's ``rotation_rates``, from
-:func:`graphcal.data.timing.rotation_rate_changes`).
+:func:`graphcal.log.timing.rotation_rate_changes`).
 """
 
 from __future__ import annotations

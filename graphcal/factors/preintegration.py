@@ -77,7 +77,7 @@ class PreintegratedWheelOdometry:
         keep_correction_jacobian: also keep ``d_delta_d_corrections`` (3, 2L).
         quantization: standard deviation [rev] of the rounding error of each wheel's
             cumulative tick count (``1 / (ticks √12)``,
-            :func:`graphcal.data.quantization.quantization_sigma`), or 0. Its part of the
+            :func:`graphcal.log.quantization.quantization_sigma`), or 0. Its part of the
             covariance is computed over the whole interval when read, so appending in pieces
             gives the covariance of one block (consecutive keyframe intervals, separate
             preintegrations, treat the count at their common sample as two independent

@@ -120,8 +120,8 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
 
 
 def _calibrate(log: FleetLog, settings: Settings) -> dict[str, Any]:
-    from graphcal.data.open_log import open_log
     from graphcal.pipeline.run import run_calibration
+    from graphcal.recording.open_log import open_log
 
     nominal = settings.vehicle.theta_nominal
     drive, _ = open_log(log.path, settings.vehicle, min_distance=settings.segments.length)

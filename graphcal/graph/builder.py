@@ -31,8 +31,6 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData
-from graphcal.data.timing import rotation_rate_changes
 from graphcal.factors import (
     ChunkBatch,
     ChunkOdometryFactor,
@@ -53,6 +51,8 @@ from graphcal.graph.built_graph import (
 from graphcal.graph.chunking import chunk_bounds
 from graphcal.graph.graph_spec import SegmentGraphSpec
 from graphcal.graph.slip import slip_prior_factor, slip_step_factor
+from graphcal.log.segments import SegmentData
+from graphcal.log.timing import rotation_rate_changes
 from graphcal.model import aligned_trajectory, integrate
 
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
+from graphcal.log.drive_log import DriveLog
 
 
 def gnss_keyframes(log: DriveLog, rate_hz: float) -> np.ndarray:

@@ -13,7 +13,6 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.errors import CalibrationFailed
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
@@ -25,6 +24,7 @@ from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.partitioned_lm import optimize_partitioned
 from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.solve import solve_lm
+from graphcal.log.segments import SegmentData
 from graphcal.progress import Progress
 
 

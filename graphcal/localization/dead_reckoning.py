@@ -17,7 +17,6 @@ import gtsam
 import numpy as np
 import pandas as pd
 
-from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors.measured_pose import MeasuredPoseFactor
 from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
@@ -25,6 +24,7 @@ from graphcal.graph.keys import keyframe
 from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, states_from_values
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import integrate
 from graphcal.progress import Progress
 

@@ -20,7 +20,6 @@ from collections.abc import Sequence
 import gtsam
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import (
     PreintegratedWheelOdometry,
@@ -29,6 +28,7 @@ from graphcal.factors import (
     wheel_odometry_between_factor,
 )
 from graphcal.factors.preintegration import DEFAULT_FLOOR_SIGMAS, DEFAULT_WHEEL_NOISE
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL
 
 
@@ -72,7 +72,7 @@ def keyframe_odometry_factor(
         wheel_noise: standard deviation [rev] of one measured wheel rotation.
         floor_sigmas: model-error floor [m, m, rad] added to the propagated covariance.
         quantization: rounding sigma [rev] of the wheels' cumulative tick counts, or 0
-            (:func:`graphcal.data.quantization.quantization_sigma`).
+            (:func:`graphcal.log.quantization.quantization_sigma`).
         slip_key: a 2-vector of relative wheel-slip scales for the interval (needs
             ``theta_key``; see :class:`~graphcal.factors.WheelOdometryFactor`), or ``None``.
         slip_noise: ``(2, 2)`` covariance of slip scales taken as noise instead, or ``None``.

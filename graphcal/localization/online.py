@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import pose2_from_state, state_from_pose2, theta_prior_factor
 from graphcal.factors.measured_pose import MeasuredPoseFactor
@@ -36,6 +35,7 @@ from graphcal.graph.keys import theta as _theta_key
 from graphcal.graph.slip import slip_noise_covariance
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
 from graphcal.localization.smoothing import gnss_noise, gnss_usable
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate
 from graphcal.progress import Progress
 

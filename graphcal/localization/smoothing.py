@@ -25,7 +25,6 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
 from graphcal.errors import GraphcalError
 from graphcal.factors import MeasuredPoseFactor, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
@@ -37,6 +36,7 @@ from graphcal.graph.slip import slip_mean_sigma, slip_prior_factor, slip_step_fa
 from graphcal.graph.solve import solve_lm
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate, wrap_angle
 
 

@@ -12,12 +12,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph.estimates import ThetaEstimate
 from graphcal.graph.graph_spec import SegmentGraphSpec
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.log.segments import SegmentData
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.data.timing import whole_samples
+from graphcal.log.timing import whole_samples
 from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import SensorEstimate, run_of
 from graphcal.pipeline.staged import step1_thetas

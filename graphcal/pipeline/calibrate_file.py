@@ -1,5 +1,5 @@
 """Calibrate the drive log or recording at a path, as ``graphcal calibrate`` does: open it
-(:func:`graphcal.data.open_log.open_log`), run the calibration, and carry an import's doubts
+(:func:`graphcal.recording.open_log.open_log`), run the calibration, and carry an import's doubts
 into the run's warnings."""
 
 from __future__ import annotations
@@ -7,12 +7,12 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from graphcal.data.importer import BagOptions, ImportedLog
-from graphcal.data.open_log import open_log
 from graphcal.pipeline.calibration_run import CalibrationRun, Method
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import Progress
+from graphcal.recording.importer import BagOptions, ImportedLog
+from graphcal.recording.open_log import open_log
 
 
 def calibrate_file(
@@ -28,7 +28,7 @@ def calibrate_file(
 ) -> tuple[CalibrationRun, ImportedLog | None]:
     """Calibrate theta from the log at ``path`` (a drive-log CSV, or a recording imported in
     memory: ``rate`` [Hz], ``max_gap`` [s] and ``bag`` as in
-    :func:`~graphcal.data.open_log.open_log`); returns the run and the import (or ``None``).
+    :func:`~graphcal.recording.open_log.open_log`); returns the run and the import (or ``None``).
 
     Segments shorter than ``settings.segments.length`` make the log too short; a recording's
     import warnings come first in the run's warnings.

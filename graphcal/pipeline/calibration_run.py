@@ -8,9 +8,9 @@ from typing import Literal
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import SegmentData, Segments
 from graphcal.graph.observability import Observability
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import SegmentData, Segments
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration
 from graphcal.pipeline.model_check import ModelCheck

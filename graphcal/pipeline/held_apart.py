@@ -17,9 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import Segments, gather_segments, split_segments
 from graphcal.errors import GraphcalError
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import Segments, gather_segments, split_segments
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.validation import position_errors
 

@@ -15,10 +15,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.errors import CalibrationFailed, check_settings
 from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.log.segments import SegmentData
 from graphcal.model import integrate
 
 #: Smallest size-prior sigma [rev] of a correction (a step at standstill still may move).

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph.estimates import ThetaEstimate
@@ -36,6 +35,7 @@ from graphcal.graph.observability import (
     Observability,
     assess_observability,
 )
+from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
 from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.robust import solve_segment_graph_robust
@@ -92,7 +92,7 @@ class JointSettings:
         robust_threshold: fixes whose position residual exceeds this many times the
             residuals' scale are down-weighted (:mod:`graphcal.pipeline.robust`; 0: off).
         heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
-            white noise measured in the log (:mod:`graphcal.data.noise`) instead of the
+            white noise measured in the log (:mod:`graphcal.log.noise`) instead of the
             vehicle's ``heading_sigma``.
         fix_d: d is held at its ``theta_initial`` (the vehicle's ``fix_d``; its prior sigma in
             ``theta_prior_sigmas`` is then the vehicle's tight one): reported as fixed.

@@ -22,7 +22,6 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
@@ -32,6 +31,7 @@ from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.reduced_systems import reduced_systems
 from graphcal.graph.values import copy_value
+from graphcal.log.segments import SegmentData
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.progress import Progress

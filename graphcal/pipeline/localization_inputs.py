@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from graphcal.data.drive_log import DriveLog
+from graphcal.log.drive_log import DriveLog
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.sensor_estimates import correct_log

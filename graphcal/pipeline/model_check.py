@@ -30,11 +30,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData, gather_segments, spread
-from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.errors import CalibrationFailed
 from graphcal.graph.keys import LEVER_ARM
 from graphcal.graph.observability import condition_on_prior
+from graphcal.log.segments import SegmentData, gather_segments, spread
+from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.joint import JointSettings, solve_joint
 from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.sensor_estimates import detected_offsets, time_offsets

@@ -9,13 +9,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.antenna import move_to_centre
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.excitation import lever_arm_sigma
-from graphcal.data.noise import heading_noise
-from graphcal.data.quantization import quantization_sigma, ticks_per_revolution
-from graphcal.data.segments import SegmentData, Segments, gather_segments
 from graphcal.factors import pose_sigmas
+from graphcal.log.antenna import move_to_centre
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.excitation import lever_arm_sigma
+from graphcal.log.noise import heading_noise
+from graphcal.log.quantization import quantization_sigma, ticks_per_revolution
+from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.pipeline.selection import select
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import Progress
@@ -93,7 +93,7 @@ def _with_observable_lever_arm(
     data: SegmentData, settings: Settings, say: Progress, sensor: str = "position source"
 ) -> tuple[Settings, dict[str, float]]:
     """``settings`` without the lever arm as a variable when the selected segments cannot
-    show it even at best (:func:`~graphcal.data.excitation.lever_arm_sigma` above the
+    show it even at best (:func:`~graphcal.log.excitation.lever_arm_sigma` above the
     observability threshold, ``max_sigma_ratio`` × its prior sigma: a drive that barely
     turns), and what was left out (name → prior sigma)."""
     joint = settings.joint
@@ -126,7 +126,7 @@ def _mask_warnings(log: DriveLog) -> tuple[str, ...]:
 def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Settings:
     """``settings`` with the joint solve's tick quantization from the resolution the
     recording stated (``DriveLog.tick_resolution``) or the log's rotations show
-    (:mod:`graphcal.data.quantization`), unless the settings (or vehicle) give one."""
+    (:mod:`graphcal.log.quantization`), unless the settings (or vehicle) give one."""
     if settings.joint.tick_quantization > 0:
         return settings
     source = "the recording says"
@@ -147,7 +147,7 @@ def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Se
 
 def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Settings:
     """``settings`` whose joint heading weight follows the log's own heading noise
-    (:mod:`graphcal.data.noise`), if ``heading_noise_from_log``."""
+    (:mod:`graphcal.log.noise`), if ``heading_noise_from_log``."""
     joint = settings.joint
     if not joint.heading_noise_from_log:
         return settings

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.graph.estimates import SolvedGraph
+from graphcal.log.segments import SegmentData
 
 #: Fixes a position-noise estimate needs at least.
 MIN_NOISE_FIXES = 100

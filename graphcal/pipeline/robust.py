@@ -28,11 +28,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.graph.covariance import with_covariance
 from graphcal.graph.estimates import SolvedGraph
 from graphcal.graph.graph_spec import SegmentGraphSpec
 from graphcal.graph.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
+from graphcal.log.segments import SegmentData
 from graphcal.progress import Progress
 
 #: Median of the norm of a 2-D standard Gaussian, sqrt(2 ln 2).

@@ -41,10 +41,10 @@ from collections.abc import Callable
 import gtsam
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import make_batches
 from graphcal.errors import GraphcalError
 from graphcal.graph.observability import condition_on_prior
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import make_batches
 from graphcal.pipeline.batch_study import joint_batch_study
 from graphcal.pipeline.calibration_run import CalibrationRun, Method, MethodResult, validated_run
 from graphcal.pipeline.model_check import ModelCheck, check_model, theta_alone

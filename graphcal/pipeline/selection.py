@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import Segments, split_segments, yaw_rate_statistic
 from graphcal.errors import GraphcalError
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import Segments, split_segments, yaw_rate_statistic
 from graphcal.pipeline.settings import SegmentSettings, Settings
 from graphcal.pipeline.vehicle_settings import (
     CAR_SEGMENT_LENGTH,

@@ -17,11 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.antenna import move_to_centre
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import SegmentData
-from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.graph.estimates import NuisanceEstimate
+from graphcal.log.antenna import move_to_centre
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import SegmentData
+from graphcal.log.timing import shift_wheel_rotations, whole_samples
 
 #: Fixes with a robust weight below this are counted as down-weighted (an outlier's weight
 #: is ``(k σ̂ / |r|)²``: below 0.9 means more than ~5 % beyond the threshold).

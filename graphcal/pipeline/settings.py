@@ -113,7 +113,7 @@ from typing import Any
 
 import numpy as np
 
-from graphcal.data.segments import YawRateStatistic
+from graphcal.log.segments import YawRateStatistic
 from graphcal.pipeline.batch_calibration import BatchSettings
 from graphcal.pipeline.input_estimation import InputEstimationSettings
 from graphcal.pipeline.joint import JointSettings
@@ -248,7 +248,7 @@ class StagedSettings:
 
 @dataclass(frozen=True)
 class LeverArmSettings:
-    """The GNSS antenna's lever arm (:mod:`graphcal.data.antenna`), ahead of and left of the
+    """The GNSS antenna's lever arm (:mod:`graphcal.log.antenna`), ahead of and left of the
     centre of gravity [m].
 
     Attributes:

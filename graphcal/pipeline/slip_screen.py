@@ -16,7 +16,6 @@ import dataclasses
 import gtsam
 import numpy as np
 
-from graphcal.data.segments import SegmentData, spread
 from graphcal.errors import CalibrationFailed, exception_reason
 from graphcal.graph import keys
 from graphcal.graph.builder import build_segment_graph
@@ -27,6 +26,7 @@ from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.graph.values import copy_value
+from graphcal.log.segments import SegmentData, spread
 from graphcal.progress import Progress
 
 #: Slip is screened on this many segments spread over the log (all of a shorter log; the

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData
 from graphcal.errors import GraphcalError
+from graphcal.log.segments import SegmentData
 from graphcal.model import integrate
 from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs

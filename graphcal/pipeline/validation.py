@@ -7,7 +7,7 @@ by K), which is what the paper's figures in metres (e.g. the 2.42 m reachable li
 
 In a log with sparse fixes the error is the mean over the segment's fixes, each compared with
 the odometry at its own time (:func:`graphcal.model.partial_steps`). A segment whose first
-sample has no measured pose starts at the track there (:mod:`graphcal.data.track`) when a
+sample has no measured pose starts at the track there (:mod:`graphcal.log.track`) when a
 position and a heading were measured within :data:`TRACK_START_S` of it (a fused pose at
 20 Hz on the 40 Hz grid: the track is the pose interpolated over 50 ms); otherwise (no
 heading logged, or none near) it starts where its dead-reckoned path fits the fixes best
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData
+from graphcal.log.segments import SegmentData
 from graphcal.model import aligned_trajectory, integrate, lever_offset, partial_steps
 
 #: A segment starts at the track's pose [s] when a position fix and a heading were measured

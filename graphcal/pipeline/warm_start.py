@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.data.segments import SegmentData, spread
 from graphcal.errors import GraphcalError
 from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.log.segments import SegmentData, spread
 from graphcal.progress import Progress
 
 #: Segments of the sample a warm start solves.

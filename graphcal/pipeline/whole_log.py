@@ -25,12 +25,12 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.segments import SegmentData, Segments, gather_segments
-from graphcal.data.timing import shift_wheel_rotations, whole_samples
 from graphcal.factors import pose_sigmas
 from graphcal.graph.observability import condition_on_prior
 from graphcal.graph.plausibility import ImplausibleTheta
+from graphcal.log.drive_log import DriveLog
+from graphcal.log.segments import SegmentData, Segments, gather_segments
+from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.model import step_increments, wheel_lateral_acceleration
 from graphcal.pipeline.held_at_prior import (
     data_determine,
@@ -403,7 +403,7 @@ def estimate_lines(
     estimated: dict[str, SensorEstimate], log: DriveLog, unit: LengthUnit
 ) -> list[str]:
     """One progress line per sensor estimate: the time offset in ms, the lever arm of the
-    log's position sensor (:meth:`~graphcal.data.drive_log.DriveLog.position_sensor`) in the
+    log's position sensor (:meth:`~graphcal.log.drive_log.DriveLog.position_sensor`) in the
     vehicle's length ``unit``."""
     sensor = log.position_sensor()
     labels = {

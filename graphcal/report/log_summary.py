@@ -3,10 +3,10 @@ under the log's name: its size, distance, segments, excitation and what is maske
 
 from __future__ import annotations
 
-from graphcal.data.consistency import runs
-from graphcal.data.drive_log import DriveLog, measurement_line
-from graphcal.data.excitation import drive_excitation
-from graphcal.data.segments import split_segments, yaw_rate_statistic
+from graphcal.log.consistency import runs
+from graphcal.log.drive_log import DriveLog, measurement_line
+from graphcal.log.excitation import drive_excitation
+from graphcal.log.segments import split_segments, yaw_rate_statistic
 from graphcal.pipeline.settings import Settings
 from graphcal.vehicle import VehicleProfile
 

@@ -1,6 +1,8 @@
-"""Write a :class:`~graphcal.data.streams.Recording` as a ROS 1 bag or a ROS 2 bag, with rosbags.
+"""Write a :class:`~graphcal.recording.streams.Recording` as a ROS 1 bag or a ROS 2 bag, with
+rosbags.
 
-For tests and demos (``graphcal simulate``): the inverse of :func:`graphcal.data.bags.read_bag`.
+For tests and demos (``graphcal simulate``): the inverse of
+:func:`graphcal.recording.bag.read.read_bag`.
 The pose becomes ``sensor_msgs/NavSatFix`` (the heading in the Imu orientation, as from an
 INS) or ``nav_msgs/Odometry`` (the heading as orientation, the sideslip as the direction of
 the body-frame twist); the wheels a ``sensor_msgs/JointState``
@@ -19,8 +21,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from graphcal.data.geodesy import local_to_geodetic
-from graphcal.data.streams import Recording, StreamError
+from graphcal.recording.geodesy import local_to_geodetic
+from graphcal.recording.streams import Recording, StreamError
 
 Storage = Literal["ros1", "ros2", "mcap"]
 #: A topic's message type, record times [ns] and its k-th message.
@@ -128,7 +130,7 @@ def _pose_as_fix(recording: Recording, pose_message: str | None) -> bool:
 
 def _check_replaceable(path: Path) -> None:
     """Refuse to replace anything at ``path`` that is not a bag."""
-    from graphcal.data.bag_reader import is_bag
+    from graphcal.recording.bag.reader import is_bag
 
     if path.exists() and not is_bag(path):
         raise StreamError(

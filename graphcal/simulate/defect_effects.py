@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from graphcal.data.stream_grid import fixes_on_grid
+from graphcal.recording.stream_grid import fixes_on_grid
 
 if TYPE_CHECKING:
     from graphcal.simulate.defect_settings import Defects

@@ -32,7 +32,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog
+from graphcal.log.drive_log import DriveLog
 from graphcal.simulate.defect_effects import defective_pose, defective_wheels
 from graphcal.simulate.defect_settings import (
     DEFECT_NAMES,

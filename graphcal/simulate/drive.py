@@ -23,8 +23,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from graphcal.data.drive_log import DriveLog, write_drive_log
 from graphcal.files import atomic_write_text
+from graphcal.log.drive_log import DriveLog, write_drive_log
 from graphcal.model import PARAMETER_NAMES, wheel_rotations_for_motion, wrap_angle
 from graphcal.simulate.route import ROUTES, Route
 

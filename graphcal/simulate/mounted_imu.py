@@ -1,6 +1,6 @@
 """A synthetic recording's IMU mounted at an angle: 3-axis specific force and angular velocity
 in the IMU's own frame, with the manifest keys that rotate them back
-(:mod:`graphcal.data.imu_mounting`).
+(:mod:`graphcal.recording.imu.mounting`).
 
 The vehicle frame's signals are the noise-free drive's: longitudinal acceleration the
 derivative of the true speed, lateral acceleration and yaw rate as the vehicle-frame IMU of
@@ -15,7 +15,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 import pandas as pd
 
-from graphcal.data.imu_frame import GRAVITY, rotation, to_sensor
+from graphcal.recording.imu.frame import rotation, to_sensor
+from graphcal.recording.vocabulary import GRAVITY
 from graphcal.simulate.streams import EPOCH, SyntheticRecording
 
 

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from graphcal.data.geodesy import geodetic_to_local, local_to_geodetic
 from graphcal.files import atomic_write_text
+from graphcal.recording.geodesy import geodetic_to_local, local_to_geodetic
 from graphcal.simulate.streams import EPOCH, SyntheticRecording, replace_section
 
 #: Knots in m/s.

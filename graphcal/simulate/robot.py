@@ -27,9 +27,9 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 import pandas as pd
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.streams import PoseStream, Recording, WheelStream
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import integrate, partial_steps, wheel_rotations_for_motion, wrap_angle
+from graphcal.recording.streams import PoseStream, Recording, WheelStream
 from graphcal.simulate.drive import NoiseLevels, SyntheticDrive
 from graphcal.simulate.robot_manoeuvres import MANOEUVRES, plan_manoeuvres
 from graphcal.simulate.robot_settings import FINE_DT, RobotSettings

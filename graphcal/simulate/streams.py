@@ -6,7 +6,7 @@ around ``origin`` with a compass heading in degrees and the sideslip an INS woul
 wheel speeds from the CAN bus at 100 Hz in m/s (converted by the "ECU" with its own
 circumference) or cumulative tick counts, and an IMU at 100 Hz — each stream starting and
 sampling at its own instants, with timestamp jitter on the CAN bus. :func:`write_streams`
-writes them as CSV files with a streams manifest (:mod:`graphcal.data.manifest`) and a
+writes them as CSV files with a streams manifest (:mod:`graphcal.recording.manifest.manifest`) and a
 ``truth.json`` with ``theta_true``.
 """
 
@@ -21,11 +21,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from graphcal.data.drive_log import DriveLog
-from graphcal.data.geodesy import local_to_geodetic
-from graphcal.data.streams import ImuStream, PoseStream, Recording, WheelStream
 from graphcal.files import atomic_write_csv, atomic_write_text
+from graphcal.log.drive_log import DriveLog
 from graphcal.model import PARAMETER_NAMES, lever_offset
+from graphcal.recording.geodesy import local_to_geodetic
+from graphcal.recording.streams import ImuStream, PoseStream, Recording, WheelStream
 from graphcal.simulate.drive import (
     THETA_TRUE_DEFAULT,
     NoiseLevels,
@@ -222,7 +222,7 @@ def _recording(
     gnss: pd.DataFrame, wheels: pd.DataFrame, imu: pd.DataFrame, settings: StreamSettings
 ) -> Recording:
     """The streams as the manifest reader would return them (SI, local frame)."""
-    from graphcal.data.geodesy import geodetic_to_local
+    from graphcal.recording.geodesy import geodetic_to_local
 
     x, y, origin = geodetic_to_local(gnss["lat"].to_numpy(), gnss["lon"].to_numpy(), "gnss")
     pose = PoseStream(

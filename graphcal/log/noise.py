@@ -1,0 +1,137 @@
+"""Noise levels read from the log itself, so that the σ graphcal reports matches the error.
+
+A fused heading's white noise varies by an order of magnitude between systems (the paper's
+1.5°, a good INS's 0.1–0.3°); weighting it wrongly leaves the heading's slow bias and the
+wheels' tick quantization to bias t_r and d (``docs/defects.md``). At 40 Hz the motion
+changes the heading smoothly (a yaw acceleration of 0.5 rad/s² moves a second difference by
+0.02°), so the second differences of the measured heading are its white noise:
+``Δ²ψ_k = ε_k+1 − 2 ε_k + ε_k−1``, variance ``6 σ²``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graphcal.log.drive_log import DriveLog
+from graphcal.model import THETA_NOMINAL
+
+#: White noise has second differences of the same spread over one and over two steps; a
+#: heading interpolated or held from a slower stream has much wider ones over two steps. Above
+#: this ratio the log's heading noise is not estimated.
+MAX_WIDE_RATIO = 1.5
+#: Smallest heading noise [rad] reported (a heading smoother than this is weighted as this).
+MIN_HEADING_SIGMA = np.deg2rad(0.01)
+
+
+def heading_noise(
+    log: DriveLog,
+    nominal: np.ndarray | None = None,
+    wheel_noise: float = 0.0,
+    quantization: float = 0.0,
+) -> float | None:
+    """Robust sigma [rad] of the measured heading's white noise, from its second differences
+    away from masked samples (``1.4826 · MAD / √6``), or ``None`` for a log too short or
+    a heading interpolated or held from a slower stream (its noise is not white per sample;
+    the configured heading weight stays). A log whose headings are not at every sample
+    (sparse measurements) is measured on its own heading samples only
+    (:func:`sparse_heading_noise`; ``nominal``: the vehicle's theta, ``wheel_noise`` [rev]
+    per step and the tick ``quantization`` [rev] of the wheels)."""
+    if log.sparse:
+        if not log.heading_measured.any():
+            return None
+        nominal = THETA_NOMINAL if nominal is None else nominal
+        return sparse_heading_noise(log, nominal, wheel_noise, quantization)
+    return _uniform_heading_noise(log.psi, log.masked)
+
+
+def _uniform_heading_noise(
+    psi: np.ndarray, masked: np.ndarray | None, check_wide: bool = True
+) -> float | None:
+    """:func:`heading_noise` of headings at consecutive samples (``check_wide``: refuse
+    headings interpolated or held from a slower stream, which a uniform log may hold)."""
+    second = np.diff(psi, 2)
+    usable = np.ones(len(second), dtype=bool)
+    if masked is not None:
+        bad = np.asarray(masked)
+        usable &= ~(bad[:-2] | bad[1:-1] | bad[2:])
+    second = second[usable]
+    if len(second) < 100:
+        return None
+    wide = psi[4:] - 2.0 * psi[2:-2] + psi[:-4]  # over two steps each side
+    if check_wide and _mad(wide) > MAX_WIDE_RATIO * _mad(second):
+        return None  # interpolated or held from a slower stream: not white per sample
+    return max(1.4826 * _mad(second) / np.sqrt(6.0), float(MIN_HEADING_SIGMA))
+
+
+def _mad(values: np.ndarray) -> float:
+    """Median absolute deviation."""
+    return float(np.median(np.abs(values - np.median(values))))
+
+
+#: Heading samples at most this far apart [s] are measured on their own second differences:
+#: a yaw acceleration of 0.5 rad/s² moves one by 0.02° at 40 Hz and 0.3° at 4 Hz, the
+#: median far less; slower headings are measured against the wheels' yaw.
+MAX_PLAIN_SPACING_S = 0.25
+#: Variance of a cumulative count's rounding at a time between two counter samples, as a
+#: share of a count's (``(1 − a)² + a²``, averaged over the position ``a``).
+INTERPOLATED_ROUNDING_SHARE = 2.0 / 3.0
+
+
+def sparse_heading_noise(
+    log: DriveLog, nominal: np.ndarray, wheel_noise: float = 0.0, quantization: float = 0.0
+) -> float | None:
+    """Heading noise [rad] of a log with heading samples at their own times.
+
+    * Headings at most :data:`MAX_PLAIN_SPACING_S` apart (median): the uniform estimator
+      on runs of headings at consecutive rows (evenly spaced), else on consecutive heading
+      samples (the motion between them is far below the noise).
+    * Slower headings: the second differences of ``measured heading − wheel yaw`` (the
+      wheels' yaw, nominal theta, at each sample's own time, removes the motion), less what
+      the wheels add to them. For tick counts (``quantization`` [rev] > 0), the rounding
+      of each wheel's cumulative count, 12 (c/t_r)² q² per second difference, times
+      :data:`INTERPOLATED_ROUNDING_SHARE` for counts the recording gave at other instants
+      (``DriveLog.tick_resolution``); else the white noise per step (``wheel_noise``
+      [rev]), (m₁ + m₂) 2 (c/t_r)² σ² over m₁ + m₂ steps. An estimate that subtracts too
+      much overweights the heading, and a heading weighted by an understated noise biases
+      t_r and d further than an overstated one: the discount is the smallest that holds.
+
+    ``None`` for fewer than 100 usable samples."""
+    rows = np.flatnonzero(log.heading_measured)
+    if len(rows) < 3:
+        return None
+    times = log.t[rows] if log.fix_lag is None else (log.t - log.fix_lag)[rows]
+    psi = log.psi[rows]
+    masked = None if log.masked is None else np.asarray(log.masked)[rows]
+    if float(np.median(np.diff(times))) <= MAX_PLAIN_SPACING_S:
+        # Second differences need even spacing (uneven, a steady yaw rate leaks in: 0.4° at
+        # 0.3 rad/s over 25 and 50 ms): runs of headings at consecutive rows, if enough.
+        runs = rows[:-2][rows[2:] - rows[:-2] == 2]
+        if len(runs) >= 100:
+            second = log.psi[runs] - 2.0 * log.psi[runs + 1] + log.psi[runs + 2]
+            if log.masked is not None:
+                bad = np.asarray(log.masked)
+                second = second[~(bad[runs] | bad[runs + 1] | bad[runs + 2])]
+            if len(second) >= 100:
+                return max(1.4826 * _mad(second) / np.sqrt(6.0), float(MIN_HEADING_SIGMA))
+        return _uniform_heading_noise(psi, masked, check_wide=False)
+    yaw_per_rev = nominal[0] / nominal[2]
+    step_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * yaw_per_rev
+    wheel_yaw = np.concatenate([[0.0], np.cumsum(step_yaw)])
+    at_fix = wheel_yaw[rows]
+    fraction = log.fix_fraction
+    if fraction is not None:  # back to the sample's own time within the step before
+        before = np.maximum(rows - 1, 0)
+        at_fix = at_fix - (1.0 - fraction[rows]) * step_yaw[before]
+    second = np.diff(psi - at_fix, 2)
+    if masked is not None:
+        second = second[~(masked[:-2] | masked[1:-1] | masked[2:])]
+    if len(second) < 100:
+        return None
+    if quantization > 0:
+        share = INTERPOLATED_ROUNDING_SHARE if log.tick_resolution is not None else 1.0
+        from_wheels = 12.0 * share * quantization**2
+    else:
+        steps = float(np.median(rows[2:] - rows[:-2]))
+        from_wheels = 2.0 * steps * wheel_noise**2
+    variance = max((1.4826 * _mad(second)) ** 2 - yaw_per_rev**2 * from_wheels, 0.0) / 6.0
+    return max(float(np.sqrt(variance)), float(MIN_HEADING_SIGMA))

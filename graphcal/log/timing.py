@@ -1,0 +1,97 @@
+"""Time offsets between the streams of a drive log.
+
+A wheel signal that arrives ``offset`` seconds late against the pose has measured rotation
+over ``[t_k, t_k+1]`` equal to the true rotation over ``[t_k − offset, t_k+1 − offset]``.
+:func:`shift_wheel_rotations` undoes that by interpolating the cumulative rotation at the
+shifted times and differencing — never by moving samples.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from graphcal.log.drive_log import DriveLog
+
+
+def shift_wheel_rotations(log: DriveLog, offset: float | np.ndarray) -> DriveLog:
+    """``log`` with its wheel rotations taken ``offset`` seconds later (SI): one offset, or
+    one per run of the log (``DriveLog.run``), each run shifted within itself.
+
+    ``offset`` > 0 corrects wheels that are late against the pose: the rotation of interval
+    ``k`` becomes the measured rotation over ``[t_k + offset, t_k+1 + offset]``. The ends
+    (of the log, or of a run), where the shifted interval leaves them, repeat the nearest
+    measured rate.
+    """
+    offsets = np.atleast_1d(np.asarray(offset, float))
+    if not offsets.any():
+        return log
+    if len(offsets) not in (1, log.runs):
+        raise ValueError(f"{len(offsets)} time offsets for a log of {log.runs} runs")
+    if log.run is None:
+        spans = [(0, len(log.t), float(offsets[0]))]
+    else:
+        offsets = np.broadcast_to(offsets, (log.runs,))
+        starts = np.searchsorted(log.run, np.arange(log.runs))
+        ends = np.append(starts[1:], len(log.t))
+        spans = [(int(a), int(b), float(o)) for a, b, o in zip(starts, ends, offsets, strict=True)]
+    shifted = {}
+    for name in ("n_rl", "n_rr"):
+        rotations = np.array(getattr(log, name), dtype=float)
+        for a, b, value in spans:
+            if value != 0.0 and b - a > 1:
+                rotations[a:b] = _shifted(log.t[a:b], rotations[a:b], value)
+        shifted[name] = rotations
+    return dataclasses.replace(log, **shifted)
+
+
+def _shifted(t: np.ndarray, rotations: np.ndarray, offset: float) -> np.ndarray:
+    """The rotations per interval of samples at ``t`` taken ``offset`` [s] later
+    (:func:`shift_wheel_rotations` of one span)."""
+    step = np.append(np.diff(t), np.diff(t)[-1])  # row k's interval (the last repeats)
+    ends = np.append(t, t[-1] + step[-1])
+    cumulative = np.concatenate([[0.0], np.cumsum(rotations)])
+    at = np.interp(ends + offset, ends, cumulative)
+    # Beyond the span, continue at the first / last interval's rate.
+    before, after = ends + offset < ends[0], ends + offset > ends[-1]
+    rate_first, rate_last = rotations[0] / step[0], rotations[-1] / step[-1]
+    at[before] = (ends[before] + offset - ends[0]) * rate_first
+    at[after] = cumulative[-1] + (ends[after] + offset - ends[-1]) * rate_last
+    return np.diff(at)
+
+
+def whole_samples(offset: float, dt: float) -> float:
+    """``offset`` [s] rounded to a whole number of sample intervals ``dt`` [s]: the shifts
+    :func:`shift_wheel_rotations` makes without averaging neighbouring rotations."""
+    return float(np.round(offset / dt)) * dt
+
+
+#: Half-width [s] of the moving mean that smooths the wheel speeds of
+#: :func:`rotation_rate_changes`: the speed changes over ~1 s, the rotation noise per step.
+RATE_SMOOTHING_S = 0.25
+
+
+def rotation_rate_changes(rotations: np.ndarray, dt: float) -> np.ndarray:
+    """How each step's rotation changes per second of wheel time offset, ``(K, W)`` [rev/s].
+
+    The rotation over ``[t_k + τ, t_k+1 + τ]`` is ``n_k + τ · (ṅ(t_k+1) − ṅ(t_k))`` to first
+    order, with ``ṅ`` the wheel speed [rev/s] at the step boundaries: here from the rotations
+    ``(K, W)`` per step averaged over a centred window of :data:`RATE_SMOOTHING_S` on each
+    side (narrower near the ends), so that the rotation noise is not differenced.
+    """
+    rotations = np.asarray(rotations, float)
+    k = len(rotations)
+    if k < 2:
+        return np.zeros_like(rotations)
+    half = max(1, round(RATE_SMOOTHING_S / dt))
+    total = np.concatenate([np.zeros((1, *rotations.shape[1:])), np.cumsum(rotations, axis=0)])
+    steps = np.arange(k)
+    width = np.minimum(np.minimum(steps, k - 1 - steps), half)
+    speed = (total[steps + width + 1] - total[steps - width]) / ((2 * width + 1)[:, None] * dt)
+    # At the boundaries: between step centres, extrapolated linearly at the two ends.
+    inner = 0.5 * (speed[1:] + speed[:-1])
+    first = 1.5 * speed[0] - 0.5 * speed[1]
+    last = 1.5 * speed[-1] - 0.5 * speed[-2]
+    boundary = np.concatenate([first[None], inner, last[None]])
+    return np.diff(boundary, axis=0)

@@ -1,0 +1,170 @@
+"""Turns of a drive log's grid in windows of :data:`TURN_WINDOW_S`: the direction of travel,
+the signed turn of a signal per window, whether two signals turn the same way
+(:func:`turning`: the one of the wheels, the track and the heading that turns against the
+other two), the track's clear turns (:func:`track_turns`) and how a lateral acceleration
+compares with speed × yaw rate in them. Both an import (:mod:`graphcal.recording.import_turns`,
+:mod:`graphcal.recording.import_units`) and a drive-log CSV's checks
+(:mod:`graphcal.log.turn_checks`) judge their signals with these."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from graphcal.log.track import COURSE_MIN_REVS, course
+from graphcal.model import THETA_NOMINAL
+
+#: Window [s] over which the pose's and the wheels' turning are compared.
+TURN_WINDOW_S = 2.0
+#: Yaw [rad] in such a window for it to count as a turn, and turns needed for a verdict.
+TURN_MIN_YAW = 0.1
+TURN_MIN_COUNT = 5
+#: Share of turns in which two signals must agree; below it they turn opposite ways.
+TURN_MIN_AGREEMENT = 0.25
+
+
+def grid_course(c: dict, dt: float, nominal) -> np.ndarray:
+    """The grid track's direction of travel (:func:`~graphcal.log.track.course`), defined
+    where its 1 s chord spans half a wheel revolution (1 m for the paper's car)."""
+    return course(c["px"], c["py"], dt, min_distance=COURSE_MIN_REVS * float(nominal[0]))
+
+
+def turn_directions(yaw: np.ndarray, usable: np.ndarray, window: int) -> np.ndarray:
+    """Signed yaw [rad] over consecutive windows; NaN where a window holds masked samples."""
+    ends = np.arange(0, len(yaw), window)
+    turns = np.diff(yaw[ends])
+    clean = np.add.reduceat((~usable).astype(int), ends)[: len(turns)] == 0
+    return np.where(clean, turns, np.nan)
+
+
+def turn_agreement(a: np.ndarray, b: np.ndarray) -> float | None:
+    """Share of windows turning clearly in both signals where they turn the same way."""
+    both = (np.abs(a) > TURN_MIN_YAW) & (np.abs(b) > TURN_MIN_YAW)
+    if both.sum() < TURN_MIN_COUNT:
+        return None
+    return float((np.sign(a[both]) == np.sign(b[both])).mean())
+
+
+@dataclass(frozen=True)
+class Turning:
+    """How the wheels, the track (the positions' direction of travel) and the heading turn
+    against each other: the share of the clear turns in which each pair turns the same way
+    (:func:`turn_agreement`; ``None``: too few turns, or no heading logged)."""
+
+    wheels_track: float | None
+    heading_track: float | None
+    wheels_heading: float | None
+
+    def opposite(self) -> tuple[str, float] | None:
+        """The signal that turns against the other two and in what share of the turns:
+        ``("wheels", s)`` (the wheels swapped), ``("heading", s)`` (the heading's sign or
+        convention) or ``("track", s)`` (a mirrored track: x/y or latitude/longitude
+        swapped; without a heading, or the wheels swapped); ``None`` if nothing does."""
+        if _opposite(self.wheels_track) and _agree(self.heading_track):
+            return "wheels", 1 - self.wheels_track
+        if _opposite(self.heading_track) and _agree(self.wheels_track):
+            return "heading", 1 - self.heading_track
+        if _opposite(self.wheels_track) and (
+            self.heading_track is None or _agree(self.wheels_heading)
+        ):
+            return "track", 1 - self.wheels_track
+        return None
+
+
+def _opposite(value: float | None) -> bool:
+    return value is not None and value < TURN_MIN_AGREEMENT
+
+
+def _agree(value: float | None) -> bool:
+    return value is not None and value >= 1 - TURN_MIN_AGREEMENT
+
+
+def turning(columns: dict[str, np.ndarray], usable: np.ndarray, nominal, heading: bool) -> Turning:
+    """The :class:`Turning` of the grid's drive-log ``columns`` (``t``, ``px``, ``py``,
+    ``psi`` [rad], ``n_rl``, ``n_rr`` [rev]) over the ``usable`` samples, in windows of
+    :data:`TURN_WINDOW_S`: the wheels' yaw with the nominal theta ``nominal``, the track's
+    course and, if a ``heading`` was logged, ``psi``."""
+    c = columns
+    dt = float(c["t"][1] - c["t"][0])
+    window = max(1, round(TURN_WINDOW_S / dt))
+    wheel_yaw = np.concatenate(
+        [[0.0], np.cumsum((c["n_rr"][:-1] - c["n_rl"][:-1]) * nominal[0] / nominal[2])]
+    )
+    wheels = turn_directions(wheel_yaw, usable, window)
+    track = turn_directions(grid_course(c, dt, nominal), usable, window)
+    if not heading:
+        return Turning(turn_agreement(wheels, track), None, None)
+    psi = turn_directions(c["psi"], usable, window)
+    return Turning(
+        turn_agreement(wheels, track), turn_agreement(psi, track), turn_agreement(wheels, psi)
+    )
+
+
+#: Standard gravity [m/s²], and how far (relative) the ratio × it may be from 1 for an
+#: acceleration to be in g.
+STANDARD_GRAVITY = 9.80665
+G_RATIO_TOLERANCE = 0.3
+#: Shortest chord of a window whose turn counts (the course of a slower one is noise), in
+#: wheel revolutions (nominal c_e: 10 m for the paper's car).
+TURN_MIN_CHORD_REVS = 5.0
+
+
+@dataclass(frozen=True)
+class TrackTurns:
+    """The GNSS track's clear turns in consecutive windows of the grid."""
+
+    window: int
+    ends: np.ndarray  # first grid row of each window, and the last window's end
+    track: np.ndarray  # the track's turn [rad] in each window (NaN where masked)
+    chords: np.ndarray  # [m]
+    turning: np.ndarray  # windows that turn clearly while moving
+
+    def scale(self, turns: np.ndarray) -> tuple[float, int] | None:
+        """Median of |turns| / |the track's turns| over the clear turns, and the window of
+        the sharpest one; ``None`` if there are too few turns."""
+        if self.turning.sum() < TURN_MIN_COUNT:
+            return None
+        ratio = np.abs(turns[self.turning]) / np.abs(self.track[self.turning])
+        sharpest = int(np.flatnonzero(self.turning)[np.argmax(np.abs(self.track[self.turning]))])
+        return float(np.median(ratio)), sharpest
+
+
+def track_turns(
+    columns: dict[str, np.ndarray], masked: np.ndarray, nominal=THETA_NOMINAL
+) -> TrackTurns:
+    """The clear turns of the track of the grid's drive-log ``columns`` (``t`` [s], ``px``,
+    ``py`` [m]) in windows of :data:`TURN_WINDOW_S`, leaving out windows with ``masked``
+    samples; a chord must span :data:`TURN_MIN_CHORD_REVS` of the nominal c_e."""
+    c = columns
+    dt = float(c["t"][1] - c["t"][0])
+    window = max(1, round(TURN_WINDOW_S / dt))
+    ends = np.arange(0, len(c["t"]), window)
+    track = turn_directions(grid_course(c, dt, nominal), ~masked, window)
+    chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
+    least = TURN_MIN_CHORD_REVS * nominal[0]
+    turning = np.isfinite(track) & (np.abs(track) > TURN_MIN_YAW) & (chords > least)
+    return TrackTurns(window, ends, track, chords, turning)
+
+
+def lateral_acceleration_scale(
+    ay: np.ndarray, turns: TrackTurns, dt: float
+) -> tuple[float, int, float, float] | None:
+    """How many times speed × yaw rate of the track a lateral acceleration ``ay`` [m/s² as
+    logged, one per grid sample of ``dt`` s] is in the track's clear ``turns``: the median
+    ratio of their magnitudes, the window of the sharpest turn and, there, the mean ``ay``
+    and the track's speed × yaw rate [m/s²]; ``None`` if there are too few turns."""
+    sums = np.add.reduceat(ay, turns.ends)[: len(turns.track)]
+    counts = np.diff(np.append(turns.ends, len(ay)))[: len(turns.track)]
+    seconds = turns.window * dt
+    expected = turns.chords / seconds * np.nan_to_num(turns.track) / seconds
+    found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
+    if found is None:
+        return None
+    ratio, k = found
+    return ratio, k, float(sums[k] / counts[k]), float(expected[k])
+
+
+def looks_like_g(ratio: float) -> bool:
+    """A lateral acceleration ``ratio`` times speed × yaw rate is apparently in g (1/9.81)."""
+    return abs(ratio * STANDARD_GRAVITY - 1.0) < G_RATIO_TOLERANCE

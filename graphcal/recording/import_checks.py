@@ -1,0 +1,200 @@
+"""The streams of an import checked against each other (:func:`check_recording`): the
+wheels' distance against the GNSS track's, the direction of turns, the units, the heading
+against the direction of travel and the IMU's signs."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from graphcal.log.turns import (
+    TURN_MIN_AGREEMENT,
+    TURN_WINDOW_S,
+    grid_course,
+    turn_agreement,
+    turn_directions,
+)
+from graphcal.model import THETA_NOMINAL
+from graphcal.recording.import_keys import convention_key, is_flag, key_name, set_key, stream_advice
+from graphcal.recording.import_turns import check_turning
+from graphcal.recording.import_units import check_units
+from graphcal.recording.imu.mounting import mounted_fix
+from graphcal.recording.resampling import Resampled
+from graphcal.recording.stream_grid import interval_means
+from graphcal.recording.streams import Provenance, Recording, StreamError, provenance_of
+from graphcal.recording.vocabulary import SPEED_UNITS
+
+
+def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndarray) -> list[str]:
+    """Check the streams against each other; raise :class:`StreamError` (one line) for what is
+    certainly wrong, return warnings for what makes a calibration doubtful.
+
+    In order: the wheels' distance against the GNSS track's (a wrong speed unit,
+    circumference or tick count), the direction of turns (:func:`check_turning`), the
+    heading against the direction of travel (a constant offset), the IMU's signs and how
+    much of the streams overlap. (A slow GNSS needs no warning: each fix enters at its own
+    time, and the σ reported says what the fixes determine.)
+    """
+    c = resampled.columns
+    dt = float(c["t"][1] - c["t"][0])
+    usable = ~resampled.masked
+    _check_wheel_scale(c, usable, dt, recording, nominal)
+    check_units(resampled, recording, nominal)
+    check_turning(resampled, recording, nominal)
+    warnings = []
+    offset = _heading_offset(c, usable, dt, nominal)
+    if offset is not None and recording.pose.heading is not None:
+        where = provenance_of(recording.pose).at(("heading",))
+        if abs(offset) > HEADING_OFFSET_ERROR:
+            raise StreamError(
+                f"{where}: the heading differs from the direction of travel by "
+                f"{np.degrees(offset):+.0f}° on average; "
+                + stream_advice(
+                    provenance_of(recording.pose),
+                    "heading",
+                    f"check {convention_key(recording.pose)} and the heading's zero (an IMU's "
+                    "yaw has an arbitrary one), or leave the heading out (then positions only)",
+                )
+            )
+        if abs(offset) > HEADING_OFFSET_WARNING:
+            warnings.append(
+                f"the heading differs from the direction of travel by {np.degrees(offset):+.1f}° "
+                "on average (more than a sideslip explains): a mounting offset biases t_r and d"
+            )
+    _check_imu_signs(c, usable, dt, resampled, recording, nominal)
+    longest = max(s.end - s.start for s in resampled.streams)
+    covered = resampled.overlap[1] - resampled.overlap[0]
+    if covered < MIN_OVERLAP_OF_LONGEST * longest:
+        warnings.append(
+            f"the streams overlap for {covered:.0f} s of the {longest:.0f} s the longest covers; "
+            "the rest is left out (check the clocks)"
+        )
+    return warnings
+
+
+#: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's, and the
+#: distance the comparison needs, in wheel revolutions (nominal c_e: 50 m for the paper's
+#: car, 6.7 m for a robot's 0.27 m wheels), in windows of :data:`TURN_WINDOW_S` that each
+#: travel :data:`SCALE_WINDOW_REVS` (5 m for the car) on the wheels and the track (as the
+#: drive log's own check of positions against the wheels, which would otherwise speak of
+#: drive-log columns).
+WHEEL_SCALE_RANGE = (0.8, 1.25)
+MIN_SCALE_REVS = 25.0
+SCALE_WINDOW_REVS = 2.5
+#: Where too few windows are long enough (a vehicle far smaller than the nominal one), the
+#: whole log's wheel distance over its track [m, at least this long] must lie in this range:
+#: wide, since stops and turns on the spot are in it too.
+COARSE_SCALE_RANGE = (0.5, 2.0)
+COARSE_SCALE_MIN_TRACK = 10.0
+#: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°).
+HEADING_OFFSET_WARNING = np.radians(3.0)
+HEADING_OFFSET_ERROR = np.radians(15.0)
+#: Share of the longest stream the overlap should cover.
+MIN_OVERLAP_OF_LONGEST = 0.5
+#: Speed, in wheel revolutions per second (nominal c_e: 3 m/s for the paper's car, 0.4 m/s
+#: for a robot's 0.27 m wheels), above which the direction of travel is compared with the
+#: heading (forwards only: reversing travels against it).
+HEADING_CHECK_REVS_PER_S = 1.5
+
+
+def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nominal) -> None:
+    window = max(1, round(TURN_WINDOW_S / dt))
+    wheel = np.concatenate([[0.0], np.cumsum(0.5 * (c["n_rl"] + c["n_rr"])[:-1] * nominal[0])])
+    ends = np.arange(0, len(wheel), window)
+    rolled = np.abs(np.diff(wheel[ends]))  # net: a robot reversing rolls as far backwards
+    chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
+    clean = np.add.reduceat((~usable).astype(int), ends)[: len(rolled)] == 0
+    least = SCALE_WINDOW_REVS * nominal[0]
+    moving = clean & (rolled > least) & (chords > least)
+    low, high = WHEEL_SCALE_RANGE
+    if chords[moving].sum() < MIN_SCALE_REVS * nominal[0]:
+        if chords[clean].sum() < COARSE_SCALE_MIN_TRACK:
+            return
+        moving, (low, high) = clean, COARSE_SCALE_RANGE
+    ratio = rolled[moving].sum() / chords[moving].sum()
+    if not low <= ratio <= high:
+        wheels = provenance_of(recording.wheels)
+        raise StreamError(
+            f"{wheels.at(('rear_left', 'rear_right'))}: the wheels travel {ratio:.3g}x the "
+            f"distance of the GNSS track (with the nominal c_e = {nominal[0]:g} m); "
+            f"{_speed_unit_hint(wheels, ratio)}"
+        )
+
+
+def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
+    """How to fix wheels that travel ``ratio`` times the GNSS track's distance: the speed
+    unit that explains it, if one does, else every key that scales the wheels."""
+    field = wheels.fields.get("rear_left")
+    declared = None if field is None else field.declares("speed_unit")
+    if declared is not None:
+        for unit, factor in SPEED_UNITS.items():
+            implied = SPEED_UNITS[declared] / factor  # the ratio if the column were in `unit`
+            if unit != declared and abs(ratio / implied - 1.0) < 0.1:
+                return (
+                    f"the speeds are apparently in {unit}: {set_key(field, 'speed_unit', unit)} "
+                    f'(now "{declared}")'
+                )
+    scaled = {"circumference": "m", "ticks_per_revolution": ""}
+    for key, unit in scaled.items():
+        value = None if field is None else field.declares(key)
+        if value is not None:  # the wheels' distance is inversely proportional to it
+            others = "--wheel-kind, --speed-unit" if is_flag(field) else "kind, speed_unit"
+            return (
+                f"check {key_name(field, key)} ({float(value) * ratio:.4g}"
+                f"{unit and ' ' + unit} would match the GNSS track with the nominal c_e), "
+                f"{others}, the time units and the vehicle's c_e (--vehicle)"
+            )
+    kind = None if field is None else field.declares("kind")
+    if wheels.unit == "message" and kind is not None:  # a bag's fields (or a vendor message)
+        return f'check --wheel-kind (now "{kind}"), the fields and the vehicle\'s c_e (--vehicle)'
+    if wheels.unit == "message":
+        return (
+            "check --wheel-kind (angle: positions [rad]; angular_speed: velocities [rad/s]), the "
+            "joints and the vehicle's c_e (--vehicle)"
+        )
+    return (
+        "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
+        "the time units, and the vehicle's c_e (--vehicle)"
+    )
+
+
+def _heading_offset(c: dict, usable: np.ndarray, dt: float, nominal) -> float | None:
+    """Median of heading + sideslip − direction of travel [rad] while moving forwards, or
+    None."""
+    track = grid_course(c, dt, nominal)
+    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
+    forwards = (c["n_rl"] > 0) & (c["n_rr"] > 0)  # not a spin on the spot
+    moving = usable & forwards & (speed > HEADING_CHECK_REVS_PER_S * nominal[0])
+    if moving.sum() < 10.0 / dt:
+        return None
+    difference = np.angle(np.exp(1j * (c["psi"] + c["beta"] - track)))[moving]
+    return float(np.median(difference))
+
+
+def _check_imu_signs(
+    c: dict, usable: np.ndarray, dt: float, resampled, recording, nominal=THETA_NOMINAL
+) -> None:
+    """One line if the IMU's lateral acceleration or yaw rate turns against the GNSS track."""
+    imu = recording.imu
+    if imu is None:
+        return
+    window = max(1, round(TURN_WINDOW_S / dt))
+    track = turn_directions(grid_course(c, dt, nominal), usable, window)
+    grid = c["t"] + resampled.overlap[0]  # the streams' time base
+    for quantity, signal, hint in (
+        ("lateral_acceleration", imu.lateral_acceleration, "positive to the left"),
+        ("yaw_rate", imu.yaw_rate, "positive counter-clockwise"),
+    ):
+        name = quantity.replace("_", " ")
+        if signal is None:
+            continue
+        values = interval_means(imu.t, signal, grid)
+        integral = np.concatenate([[0.0], np.cumsum(values[:-1] * dt)])
+        agreement = turn_agreement(turn_directions(integral, usable, window), track)
+        if agreement is not None and agreement < TURN_MIN_AGREEMENT:
+            fix = mounted_fix(provenance_of(imu).fields.get(quantity))
+            raise StreamError(
+                f"{provenance_of(imu).at((quantity,))}: the IMU's {name} has the opposite sign "
+                f"to the turns of the GNSS track in {1 - agreement:.0%} of them; it must be "
+                f"{hint} (ROS REP 103: x forward, y left, z up): "
+                + (fix or "negate the column or fix the IMU's frame")
+            )
