@@ -91,6 +91,9 @@ _PUBLIC = {
     "write_results": "graphcal.report.results",
     "calibrate_joint": "graphcal.pipeline.joint",
     "solve_joint": "graphcal.pipeline.joint",
+    "SolveOptions": "graphcal.graph.solve_options",  # iterations, tolerance, workers, progress
+    "SolveOutcome": "graphcal.graph.solve_options",  # how a solve ended: status, iterations
+    "SolveStatus": "graphcal.graph.solve_options",
     "solve_joint_batches": "graphcal.pipeline.joint_batches",
     "JointSettings": "graphcal.pipeline.joint",
     "assess_observability": "graphcal.graph.observability",

@@ -11,6 +11,7 @@ from numerical import retract_jacobian
 
 import graphcal
 from graphcal.errors import GraphcalError
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.localization.dead_reckoning import OutageSettings, outage_errors, outage_table
 from graphcal.localization.keyframe_odometry import (
     keyframe_odometry_factor,
@@ -163,9 +164,13 @@ def test_python_driven_lm_matches_gtsams_optimizer(short_drive):
     from graphcal.localization.smoothing import build_smoothing_graph
 
     graph, values, _ = build_smoothing_graph(short_drive.measured, SmoothingSettings())
-    ours, ours_iterations = solve_lm(graph, values, 50, 1e-8, "smoothing", driver="python")
-    theirs, their_iterations = solve_lm(graph, values, 50, 1e-8, "smoothing", driver="gtsam")
-    assert ours_iterations == their_iterations
+    ours, ours_iterations = solve_lm(
+        graph, values, SolveOptions(50, 1e-8, "smoothing"), driver="python"
+    )
+    theirs, their_iterations = solve_lm(
+        graph, values, SolveOptions(50, 1e-8, "smoothing"), driver="gtsam"
+    )
+    assert ours_iterations.iterations == their_iterations.iterations
     assert graph.error(ours) == pytest.approx(graph.error(theirs), rel=1e-9)
     np.testing.assert_allclose(ours.atVector(THETA), theirs.atVector(THETA), rtol=1e-9)
 

@@ -17,6 +17,7 @@ from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.partitioned_lm import optimize
 from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.graph.solve import solve_lm
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.graph.values import portable, restore
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments
@@ -40,10 +41,10 @@ def test_segmented_solve_matches_the_single_graph_on_the_sample_drive():
     # (1.05 σ from 0 here) or of d (5.9 σ) is a few millionths of a σ: a point 1e-15 of this
     # graph's error above the minimum. At a tolerance of 1e-9 they differ by 3e-6 of d (and
     # GTSAM's own solve moves d by 2e-6 from 1e-9 to 1e-12); at 1e-14, by 1.4e-7.
-    single, _ = solve_lm(built.graph, built.values, 50, 1e-14, "single graph")
+    single, _ = solve_lm(built.graph, built.values, SolveOptions(50, 1e-14, "single graph"))
     single_covariance = marginal_covariance(built.graph, single, shared, "single graph")
 
-    solution = solve_segment_graph(data, spec, 50, 1e-14, "segmented")
+    solution = solve_segment_graph(data, spec, SolveOptions(50, 1e-14, "segmented"))
 
     theta = solution.theta
     reference = single.atVector(keys.THETA)
@@ -74,22 +75,22 @@ def test_segmented_graph_splits_at_the_shared_keys_only():
     segmented = PartitionedGraph(graph, values, [s])
     assert sorted(sorted(p.local) for p in segmented.parts) == [[a, b], [c, d]]
     assert segmented.shared_graph.size() == 1
-    iterations = optimize(segmented, 20, 1e-12)
+    outcome = optimize(segmented, SolveOptions(20, 1e-12))
     result = segmented.values()
     # The linear problem's exact optimum, solved as one graph.
     exact = graph.linearize(values).optimize()
     for key in (a, b, c, d, s):
         expected = values.atVector(key) + exact.at(key)
         assert np.allclose(result.atVector(key), expected, atol=1e-9)
-    assert iterations <= 3
+    assert outcome.converged and outcome.iterations <= 3
 
 
 @pytest.mark.slow
 def test_segments_shared_out_among_workers_give_the_same_result():
     data = _sample_segments()
     spec = JointSettings().graph_spec()
-    one = solve_segment_graph(data, spec, 50, 1e-7, "one process")
-    two = solve_segment_graph(data, spec, 50, 1e-7, "two processes", workers=2)
+    one = solve_segment_graph(data, spec, SolveOptions(50, 1e-7, "one process"))
+    two = solve_segment_graph(data, spec, SolveOptions(50, 1e-7, "two processes", workers=2))
     # Per-segment answers are combined in segment order: bit-identical, whatever the workers.
     assert np.array_equal(one.theta, two.theta)
     assert np.array_equal(one.covariance, two.covariance)
@@ -130,7 +131,7 @@ def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
     # call, or every later answer would belong to the call before it.
     data = _sample_segments()
     spec = JointSettings().graph_spec()
-    one = solve_segment_graph(data, spec, 50, 1e-10, "one process")
+    one = solve_segment_graph(data, spec, SolveOptions(50, 1e-10, "one process"))
     built = build_segment_graph(data, spec)
     segmented = PartitionedGraph(built.graph, built.values, shared_keys(spec))
     with segmented.parallel(2):
@@ -146,7 +147,7 @@ def test_a_failed_call_in_one_process_leaves_the_workers_in_step():
             return original(lam)
 
         local.eliminate = failing_once
-        optimize(segmented, 50, 1e-10)
+        optimize(segmented, SolveOptions(50, 1e-10))
     theta = segmented.shared_values.atVector(keys.THETA)
     assert len(calls) > 1 and calls[1] > calls[0]  # damped more after the failure
     # The same optimum from another damping path: within a thousandth of a sigma.
@@ -180,7 +181,7 @@ def _cubic_graph() -> tuple[gtsam.NonlinearFactorGraph, gtsam.Values, int]:
 def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
     graph, values, s = _cubic_graph()
     damped = PartitionedGraph(graph, values, [s])
-    optimize(damped, 100, 1e-12)
+    optimize(damped, SolveOptions(100, 1e-12))
     dampings = []
     eliminate = PartGroup.eliminate
 
@@ -190,7 +191,7 @@ def test_a_failed_gauss_newton_step_falls_back_to_damping(monkeypatch):
 
     monkeypatch.setattr(PartGroup, "eliminate", recording)
     first = PartitionedGraph(graph, values, [s])
-    optimize(first, 100, 1e-12, gauss_newton_first=True)
+    optimize(first, SolveOptions(100, 1e-12), gauss_newton_first=True)
     # The undamped first step overshoots and is not taken; every later step is damped.
     assert dampings[0] is None and all(lam is not None for lam in dampings[1:])
     for solved in (damped, first):

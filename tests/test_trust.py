@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
+from graphcal.graph.solve_options import SolveOutcome, SolveStatus
 from graphcal.log.drive_log import write_drive_log
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.trust import (
@@ -20,8 +21,7 @@ from graphcal.pipeline.trust import (
 )
 
 CLEAN = dict(
-    iterations=4,
-    max_iterations=30,
+    solve=SolveOutcome(SolveStatus.CONVERGED, 4, 30),
     chi2_per_dof=0.97,
     batch_theta=None,
     batch_covariance=None,
@@ -47,7 +47,7 @@ def test_a_clean_run_is_trusted():
 @pytest.mark.parametrize(
     ("change", "says"),
     [
-        ({"iterations": 30}, "iteration limit"),
+        ({"solve": SolveOutcome(SolveStatus.ITERATION_LIMIT, 30, 30)}, "iteration limit"),
         ({"chi2_per_dof": MAX_CHI2_PER_DOF + 0.3}, "do not fit the noise model"),
         ({"validation_calibrated": 10.0}, "validates worse than the nominal"),
     ],
@@ -133,3 +133,14 @@ def test_d_from_wheels_on_a_straight_road_is_not_calibrated():
     held = observability.without("d", "its lateral acceleration comes from the wheels")
     assert not held.calibrated[3] and held.verdicts()["d"] == "not observable"
     assert "d not observable (its lateral acceleration comes from the wheels)" in held.message()
+
+
+def test_a_solve_that_converged_on_its_last_allowed_iteration_is_converged():
+    """Convergence is the solve's status, not a count: a solve that met its tolerance on its
+    30th of 30 iterations converged; one that stopped because no step lowered the error is
+    at its minimum."""
+    for status in (SolveStatus.CONVERGED, SolveStatus.NOT_IMPROVING):
+        trust = assess_trust(**{**CLEAN, "solve": SolveOutcome(status, 30, 30)})
+        assert trust.trusted and trust.converged and trust.to_dict()["iterations"] == 30
+    staged = assess_trust(**{**CLEAN, "solve": None})  # no whole-log solve to judge
+    assert staged.trusted and staged.converged

@@ -10,6 +10,7 @@ import pytest
 
 import graphcal.pipeline.warm_start as warm
 from graphcal.graph import keys
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments, spread
 from graphcal.pipeline.joint import JointSettings, solve_joint
@@ -31,7 +32,7 @@ def test_a_short_log_starts_from_the_nominal_theta():
     data = _segments()
     spec = JointSettings().graph_spec()
     assert len(data) < warm.WARM_START_MIN_SEGMENTS
-    assert warm.warm_start(data, spec, 50, 1e-7) is None
+    assert warm.warm_start(data, spec, SolveOptions(50, 1e-7)) is None
 
 
 @pytest.mark.slow
@@ -41,7 +42,7 @@ def test_the_warm_started_solve_reaches_the_same_optimum(monkeypatch):
     cold, _ = solve_joint(data, settings)
     monkeypatch.setattr(warm, "WARM_START_SEGMENTS", 4)
     monkeypatch.setattr(warm, "WARM_START_MIN_SEGMENTS", 5)
-    start = warm.warm_start(data, settings.graph_spec(), 50, 1e-7)
+    start = warm.warm_start(data, settings.graph_spec(), SolveOptions(50, 1e-7))
     assert start is not None
     sigma = np.sqrt(np.diag(cold.covariance))
     assert np.all(np.abs(start[keys.THETA] - cold.theta) < 10 * sigma)

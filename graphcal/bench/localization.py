@@ -30,6 +30,7 @@ from graphcal.factors.preintegration import DEFAULT_FLOOR_SIGMAS
 from graphcal.graph.keyframes import gnss_keyframes
 from graphcal.graph.keys import THETA, keyframe
 from graphcal.graph.solve import Driver, solve_lm
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors, odometry_covariance
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.log.drive_log import DriveLog
@@ -101,8 +102,9 @@ def solve_smoothing(
     if estimate_theta:
         values.insert(THETA, theta)
         graph.add(theta_prior_factor(THETA, THETA_PRIOR_SIGMAS, theta))
-    result, iterations = solve_lm(graph, values, 50, 1e-8, f"smoothing ({kind})", driver=driver)
+    options = SolveOptions(50, 1e-8, f"smoothing ({kind})")
+    result, outcome = solve_lm(graph, values, options, driver=driver)
     seconds = time.perf_counter() - start
     states = states_from_values(result, keys, float(log.psi[keyframes[0]]))
     solved_theta = np.asarray(result.atVector(THETA)) if estimate_theta else theta
-    return SmoothingTiming(seconds, iterations, states, solved_theta)
+    return SmoothingTiming(seconds, outcome.iterations, states, solved_theta)

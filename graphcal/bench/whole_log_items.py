@@ -22,6 +22,7 @@ from graphcal.graph.covariance import marginal_covariance
 from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.graph.solve import solve_lm
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, make_batches
 from graphcal.pipeline.joint import JointSettings, solve_joint, without_defect_model
@@ -42,7 +43,7 @@ def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int
 
     def single_graph() -> tuple[np.ndarray, np.ndarray]:
         built = build_segment_graph(data, spec)
-        result, _ = solve_lm(built.graph, built.values, 50, 1e-7, "single graph")
+        result, _ = solve_lm(built.graph, built.values, SolveOptions(50, 1e-7, "single graph"))
         covariance = marginal_covariance(built.graph, result, shared, "single graph")
         return np.asarray(result.atVector(keys.THETA)), covariance[:4, :4]
 
@@ -51,7 +52,9 @@ def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int
     out: dict[str, Any] = {"segments": len(data), "single_graph_s": single_s}
     for workers in (1, 2):
         seconds, solution = timed(
-            lambda w=workers: solve_segment_graph(data, spec, 50, 1e-7, "segmented", workers=w),
+            lambda w=workers: solve_segment_graph(
+                data, spec, SolveOptions(50, 1e-7, "segmented", workers=w)
+            ),
             repeats,
         )
         scale = np.sqrt(np.outer(np.diag(covariance), np.diag(covariance)))

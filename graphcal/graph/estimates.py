@@ -10,6 +10,7 @@ import numpy as np
 
 from graphcal.graph.built_graph import BuiltGraph
 from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.solve_options import SolveOutcome
 
 
 @dataclass(frozen=True)
@@ -48,15 +49,17 @@ class ThetaEstimate:
             solve's last Gauss–Newton step, :func:`graphcal.graph.partitioned_lm.optimize`);
             ``None`` if not computed.
         start_states: ``(S, 3)`` estimated (or held) start states.
-        iterations, initial_error, final_error: of the solve (graph error is half the
-            whitened squared residual; after a last Gauss–Newton step, the error it
-            predicted, within far less than the solve's tolerance).
+        outcome: how the solve ended (:class:`~graphcal.graph.solve_options.SolveOutcome`:
+            status, iterations).
+        initial_error, final_error: of the solve (graph error is half the whitened squared
+            residual; after a last Gauss–Newton step, the error it predicted, within far
+            less than the solve's tolerance).
     """
 
     theta: np.ndarray
     covariance: np.ndarray | None
     start_states: np.ndarray
-    iterations: int
+    outcome: SolveOutcome
     initial_error: float
     final_error: float
     #: Residual dimensions minus unknowns: the χ² of a solve that fits its noise model,
@@ -72,6 +75,11 @@ class ThetaEstimate:
         if self.degrees_of_freedom <= 0:
             return None
         return 2.0 * self.final_error / self.degrees_of_freedom
+
+    @property
+    def iterations(self) -> int:
+        """Iterations the solve used."""
+        return self.outcome.iterations
 
     @property
     def theta_sigma(self) -> np.ndarray:
@@ -95,7 +103,7 @@ class SolvedGraph(ThetaEstimate):
             self.theta,
             self.covariance,
             self.start_states,
-            self.iterations,
+            self.outcome,
             self.initial_error,
             self.final_error,
             degrees_of_freedom=self.degrees_of_freedom,

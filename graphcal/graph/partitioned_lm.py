@@ -31,7 +31,7 @@ from graphcal.graph.levenberg_marquardt import (
     raised_scale,
 )
 from graphcal.graph.linear_systems import predicted_decrease, vector_values
-from graphcal.progress import Progress
+from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
 
 if TYPE_CHECKING:
     from graphcal.graph.partitioned import PartitionedGraph
@@ -45,11 +45,11 @@ GAUSS_NEWTON_FIDELITY = 0.1
 
 @dataclass(frozen=True)
 class _Iteration:
-    """How an iteration ended: the error after it, whether the values are at the minimum,
-    and how its step was taken (for the progress line)."""
+    """How an iteration ended: the error after it, whether it ends the solve (``stop``: why;
+    ``None``: go on) and how its step was taken (for the progress line)."""
 
     new_error: float
-    at_minimum: bool
+    stop: SolveStatus | None
     how: str
 
 
@@ -86,13 +86,16 @@ class _Solve:
             if ended is not None:
                 return ended
 
-    def finish(self, ended: _Iteration) -> bool:
-        """Move on to the error after the iteration; whether the solve has converged."""
+    def finish(self, ended: _Iteration) -> SolveStatus | None:
+        """Move on to the error after the iteration; why the solve stops (``None``: it goes
+        on)."""
         decrease = self.error - ended.new_error
         # Undamped, the next linearization decides (and serves the covariance).
-        done = ended.at_minimum or (converged(decrease, self.error, self.tol) and not self.undamped)
+        stop = ended.stop
+        if stop is None and converged(decrease, self.error, self.tol) and not self.undamped:
+            stop = SolveStatus.CONVERGED
         self.error = ended.new_error
-        return done
+        return stop
 
     def _damp_from_now_on(self) -> None:
         self.undamped = self.gauss_newton = False
@@ -149,7 +152,7 @@ class _Solve:
             self._damp_from_now_on()
             return None
         if judgement.verdict is Verdict.AT_MINIMUM:
-            return _Iteration(error, True, f"λ {self.damping.lam:.0e}")
+            return _Iteration(error, SolveStatus.NOT_IMPROVING, f"λ {self.damping.lam:.0e}")
         self.damping.increase()
         return None
 
@@ -160,7 +163,7 @@ class _Solve:
         graph.workers.accept()
         new_error = self.error - trial.predicted
         graph.moved(new_error, trial.total[:-1, :-1].copy())
-        return _Iteration(new_error, True, "Gauss–Newton")
+        return _Iteration(new_error, SolveStatus.CONVERGED, "Gauss–Newton")
 
     def _accept(self, candidate_shared: gtsam.Values, new_error: float, ratio: float) -> _Iteration:
         graph = self.graph
@@ -174,27 +177,23 @@ class _Solve:
         if not self.undamped:
             self.damping.decrease()
         self.undamped = self.gauss_newton and mild and abs(ratio - 1.0) <= GAUSS_NEWTON_FIDELITY
-        return _Iteration(new_error, False, how)
+        return _Iteration(new_error, None, how)
 
 
 def optimize(
-    graph: PartitionedGraph,
-    max_iterations: int,
-    relative_error_tol: float,
-    progress: Progress | None = None,
-    *,
-    gauss_newton_first: bool = False,
-) -> int:
+    graph: PartitionedGraph, options: SolveOptions, *, gauss_newton_first: bool = False
+) -> SolveOutcome:
     """Levenberg–Marquardt to convergence from ``graph``'s current values (updated in
-    place); returns the iterations used. Raises ``RuntimeError`` from GTSAM (or numpy's
-    ``LinAlgError``) if a system cannot be solved at any damping.
+    place), as ``options`` say (iteration limit, tolerance, progress); returns how it ended.
+    Raises ``RuntimeError`` from GTSAM (or numpy's ``LinAlgError``) if a system cannot be
+    solved at any damping.
 
     Once a step at no more than the first damping lowered the error by what its
     linearization predicted (within :data:`GAUSS_NEWTON_FIDELITY`), the next steps are
     undamped Gauss–Newton steps; if one fails or is not accepted, the solve damps again
     and stays Levenberg–Marquardt (a log whose parameters are barely determined, such as
     t_r and d on a straight road, needs the damping). The solve stops when an undamped step
-    would lower the error by at most ``relative_error_tol`` of it. That step is taken
+    would lower the error by at most ``options.relative_error_tol`` of it. That step is taken
     without evaluating the error (the error after it is the one predicted, exact to
     far below the tolerance), and its undamped linearization, a step this small from
     the solution, gives :meth:`~graphcal.graph.partitioned.PartitionedGraph.shared_information`
@@ -204,49 +203,40 @@ def optimize(
     ``gauss_newton_first``: the first step is already undamped (values near the optimum,
     such as a warm start's: no damping to compute).
 
-    ``progress`` gets a line per iteration (χ²/dof, damping λ, elapsed time) once the
+    ``options.progress`` gets a line per iteration (χ²/dof, damping λ, elapsed time) once the
     solve has run for :data:`PROGRESS_AFTER_S` (a long log's solve shows it is moving;
     a short one prints nothing)."""
     started = time.perf_counter()
     dof = max(1, graph.factor_dims() - graph.dim())
-    solve = _Solve(graph, relative_error_tol, gauss_newton_first)
-    iterations = 0
-    while iterations < max_iterations:
+    solve = _Solve(graph, options.relative_error_tol, gauss_newton_first)
+    iterations, stop = 0, None
+    while iterations < options.max_iterations:
         iterations += 1
         ended = solve.iterate()
         graph.workers.release()
-        done = solve.finish(ended)
+        stop = solve.finish(ended)
         elapsed = time.perf_counter() - started
-        if progress is not None and elapsed >= PROGRESS_AFTER_S:
-            progress(
+        if options.progress is not None and elapsed >= PROGRESS_AFTER_S:
+            options.progress(
                 f"  iteration {iterations}: χ²/dof {2.0 * solve.error / dof:.4f}, {ended.how} "
                 f"({elapsed:.0f} s)"
             )
-        if done:
+        if stop is not None:
             break
-    return iterations
+    return SolveOutcome(stop or SolveStatus.ITERATION_LIMIT, iterations, options.max_iterations)
 
 
 def optimize_partitioned(
     graph: PartitionedGraph,
-    max_iterations: int,
-    relative_error_tol: float,
-    label: str,
+    options: SolveOptions,
     error_type: type[GraphcalError] = GraphcalError,
-    progress: Progress | None = None,
     *,
     gauss_newton_first: bool = False,
-) -> int:
+) -> SolveOutcome:
     """:func:`optimize`, GTSAM's and numpy's exceptions turned into ``error_type`` with the
-    message ``"<label> failed: <reason>"``; returns the iterations."""
+    message ``"<options.label> failed: <reason>"``."""
     try:
-        return optimize(
-            graph,
-            max_iterations,
-            relative_error_tol,
-            progress,
-            gauss_newton_first=gauss_newton_first,
-        )
+        return optimize(graph, options, gauss_newton_first=gauss_newton_first)
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = exception_reason(exc)
-        raise error_type(f"{label} failed: {reason}") from exc
+        raise error_type(f"{options.label} failed: {reason}") from exc

@@ -24,8 +24,8 @@ from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.partitioned_lm import optimize_partitioned
 from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.solve import solve_lm
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
-from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -61,20 +61,17 @@ class ValuesStart:
 def solve_segment_graph(
     data: SegmentData,
     spec: SegmentGraphSpec,
-    max_iterations: int,
-    relative_error_tol: float,
-    label: str,
+    options: SolveOptions,
     *,
     start: BuilderStart | ValuesStart | None = None,
     covariance: bool = True,
-    workers: int = 1,
-    progress: Progress | None = None,
 ) -> SolvedGraph:
     """Build the graph of ``spec`` over ``data`` (or take the ``start``'s) and solve it with
     Levenberg–Marquardt from ``start`` (default: the builder's initial values), segment by
-    segment (:class:`~graphcal.graph.partitioned.PartitionedGraph`), the segments shared out
-    among ``workers`` processes (the result does not depend on it); ``progress`` gets a line
-    per iteration of a long solve.
+    segment (:class:`~graphcal.graph.partitioned.PartitionedGraph`), as ``options`` say: the
+    iteration limit and tolerance, ``label`` in errors, the segments shared out among
+    ``workers`` processes (the result does not depend on it), a ``progress`` line per
+    iteration of a long solve.
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
@@ -91,20 +88,13 @@ def solve_segment_graph(
         values, gauss_newton_first = built.values, start.gauss_newton_first
     partitioned = PartitionedGraph(built.graph, values, shared_keys(spec))
     if len(partitioned.parts) < 2:  # nothing to split: one graph under GTSAM's optimizer
-        return _solve_whole_graph(
-            built, values, max_iterations, relative_error_tol, label, covariance
-        )
+        return _solve_whole_graph(built, values, options, covariance)
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
-    with partitioned.parallel(workers):
-        iterations = optimize_partitioned(
-            partitioned,
-            max_iterations,
-            relative_error_tol,
-            label,
-            CalibrationFailed,
-            progress,
-            gauss_newton_first=gauss_newton_first,
+    label = options.label
+    with partitioned.parallel(options.workers):
+        outcome = optimize_partitioned(
+            partitioned, options, CalibrationFailed, gauss_newton_first=gauss_newton_first
         )
         if spec.estimate_theta:
             theta = np.asarray(partitioned.shared_values.atVector(keys.THETA))
@@ -118,7 +108,7 @@ def solve_segment_graph(
         theta=theta,
         covariance=marginal,
         start_states=built.start_states(result),
-        iterations=iterations,
+        outcome=outcome,
         initial_error=partitioned.initial_error,
         final_error=partitioned.error(),
         result=result,
@@ -130,21 +120,14 @@ def solve_segment_graph(
 
 
 def _solve_whole_graph(
-    built: BuiltGraph,
-    start: gtsam.Values,
-    max_iterations: int,
-    relative_error_tol: float,
-    label: str,
-    covariance: bool,
+    built: BuiltGraph, start: gtsam.Values, options: SolveOptions, covariance: bool
 ) -> SolvedGraph:
     """:func:`solve_segment_graph` for a graph that does not split into segments (theta
     alone, as in the batch solve of Step 1, or one segment with theta fixed, as in input
     estimation): GTSAM's optimizer and marginals, cheaper than the split machinery there."""
-    spec = built.spec
+    spec, label = built.spec, options.label
     initial_error = float(built.graph.error(start))
-    result, iterations = solve_lm(
-        built.graph, start, max_iterations, relative_error_tol, label, CalibrationFailed
-    )
+    result, outcome = solve_lm(built.graph, start, options, CalibrationFailed)
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
     if spec.estimate_theta:
@@ -156,7 +139,7 @@ def _solve_whole_graph(
         theta=theta,
         covariance=marginal,
         start_states=built.start_states(result),
-        iterations=iterations,
+        outcome=outcome,
         initial_error=initial_error,
         final_error=float(built.graph.error(result)),
         result=result,

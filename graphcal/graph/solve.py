@@ -17,6 +17,7 @@ from graphcal.graph.levenberg_marquardt import (
     raised_scale,
 )
 from graphcal.graph.linear_systems import add_damping, hessian_diagonal_by_column
+from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
 
 #: Who drives the Levenberg–Marquardt iterations (:func:`solve_lm`).
 Driver = Literal["gtsam", "python"]
@@ -25,13 +26,12 @@ Driver = Literal["gtsam", "python"]
 def solve_lm(
     graph: gtsam.NonlinearFactorGraph,
     values: gtsam.Values,
-    max_iterations: int,
-    relative_error_tol: float,
-    label: str,
+    options: SolveOptions,
     error_type: type[GraphcalError] = GraphcalError,
     driver: Driver = "gtsam",
-) -> tuple[gtsam.Values, int]:
-    """Optimize ``graph`` from ``values``; return the result and the iterations used.
+) -> tuple[gtsam.Values, SolveOutcome]:
+    """Optimize ``graph`` from ``values`` as ``options`` say (iteration limit, tolerance);
+    return the result and how the solve ended.
 
     Levenberg–Marquardt with diagonal damping (odometry residuals are tight, so the Hessian's
     diagonal spans many orders of magnitude), converged when the error falls by less than
@@ -49,29 +49,30 @@ def solve_lm(
       linearization predicts (then λ / 10), else λ × 10 up to 1e5; GTSAM's defaults.
 
     GTSAM's exceptions (e.g. an indeterminate linear system) become ``error_type`` with the
-    message ``"<label> failed: <reason>"``.
+    message ``"<options.label> failed: <reason>"``. GTSAM's optimizer does not say why it
+    stopped: below its iteration limit it converged.
     """
     try:
         if driver == "python":
-            return _levenberg_marquardt(graph, values, max_iterations, relative_error_tol)
+            return _levenberg_marquardt(graph, values, options)
         params = gtsam.LevenbergMarquardtParams()
-        params.setMaxIterations(max_iterations)
+        params.setMaxIterations(options.max_iterations)
         params.setDiagonalDamping(True)
-        params.setRelativeErrorTol(relative_error_tol)
+        params.setRelativeErrorTol(options.relative_error_tol)
         params.setAbsoluteErrorTol(1e-12)
         optimizer = gtsam.LevenbergMarquardtOptimizer(graph, values, params)
-        return optimizer.optimize(), int(optimizer.iterations())
+        result = optimizer.optimize()
+        iterations = int(optimizer.iterations())
+        return result, SolveOutcome.after(iterations, options, iterations < options.max_iterations)
     except RuntimeError as exc:
         reason = exception_reason(exc)
-        raise error_type(f"{label} failed: {reason}") from exc
+        raise error_type(f"{options.label} failed: {reason}") from exc
 
 
 def _levenberg_marquardt(
-    graph: gtsam.NonlinearFactorGraph,
-    values: gtsam.Values,
-    max_iterations: int,
-    relative_error_tol: float,
-) -> tuple[gtsam.Values, int]:
+    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, options: SolveOptions
+) -> tuple[gtsam.Values, SolveOutcome]:
+    relative_error_tol = options.relative_error_tol
     values = gtsam.Values(values)
     keys = list(graph.keyVector())
     zero = values.zeroVectors()
@@ -81,8 +82,8 @@ def _levenberg_marquardt(
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
     damping = Damping()
-    iterations = 0
-    while iterations < max_iterations:
+    iterations, stop = 0, None
+    while iterations < options.max_iterations:
         linear = graph.linearize(values)
         diagonal = hessian_diagonal_by_column(linear, int(first_column[-1]))
         damping_scale = raised_scale(damping_scale, diagonal)
@@ -113,11 +114,15 @@ def _levenberg_marquardt(
                 break
             if judgement.verdict is Verdict.AT_MINIMUM:
                 new_error = error  # no step lowers the error: at the minimum
+                stop = SolveStatus.NOT_IMPROVING
                 break
             damping.increase()
         decrease = error - new_error
-        done = converged(decrease, error, relative_error_tol)
+        if stop is None and converged(decrease, error, relative_error_tol):
+            stop = SolveStatus.CONVERGED
         error = new_error
-        if done:
+        if stop is not None:
             break
-    return values, iterations
+    return values, SolveOutcome(
+        stop or SolveStatus.ITERATION_LIMIT, iterations, options.max_iterations
+    )

@@ -22,6 +22,7 @@ from graphcal.factors.measured_pose import MeasuredPoseFactor
 from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
 from graphcal.graph.keys import keyframe
 from graphcal.graph.solve import solve_lm
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.log.drive_log import DriveLog
@@ -81,7 +82,8 @@ def pose_before_outage(
         graph.add(factor)
     values = gtsam.Values()
     insert_states(values, keys, log.poses[keyframes])
-    result, _ = solve_lm(graph, values, 20, 1e-8, "outage start pose", driver="python")
+    options = SolveOptions(20, 1e-8, "outage start pose")
+    result, _ = solve_lm(graph, values, options, driver="python")
     return states_from_values(result, keys, float(log.psi[keyframes[0]]))[-1]
 
 

@@ -34,6 +34,7 @@ from graphcal.graph.keys import LEVER_ARM, THETA, gap_slip, keyframe, keyframe_s
 from graphcal.graph.observability import Observability, assess_observability
 from graphcal.graph.slip import slip_mean_sigma, slip_prior_factor, slip_step_factor
 from graphcal.graph.solve import solve_lm
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.log.drive_log import DriveLog
@@ -325,9 +326,8 @@ def smooth_drive(log: DriveLog, settings: SmoothingSettings | None = None) -> Sm
     """
     settings = settings or SmoothingSettings()
     graph, values, keyframes = build_smoothing_graph(log, settings)
-    result, iterations = solve_lm(
-        graph, values, settings.max_iterations, 1e-8, "smoothing", driver="python"
-    )
+    options = SolveOptions(settings.max_iterations, 1e-8, "smoothing")
+    result, outcome = solve_lm(graph, values, options, driver="python")
     keys = [keyframe(i) for i in range(len(keyframes))]
     arm = None
     if settings.lever_arm_sigma > 0:
@@ -343,6 +343,6 @@ def smooth_drive(log: DriveLog, settings: SmoothingSettings | None = None) -> Sm
         np.asarray(result.atVector(THETA)),
         covariance,
         assess_observability(covariance, settings.theta_prior_sigmas),
-        iterations,
+        outcome.iterations,
         arm,
     )

@@ -17,6 +17,7 @@ from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph.estimates import ThetaEstimate
 from graphcal.graph.graph_spec import SegmentGraphSpec
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
@@ -72,7 +73,6 @@ def calibrate_batch(data: SegmentData, settings: BatchSettings | None = None) ->
         CalibrationFailed: if the solve diverges, the system is singular or theta implausible.
     """
     settings = settings or BatchSettings()
-    solved = solve_segment_graph(
-        data, settings.graph_spec(), settings.max_iterations, 1e-10, "batch solve"
-    )
+    options = SolveOptions(settings.max_iterations, 1e-10, "batch solve")
+    solved = solve_segment_graph(data, settings.graph_spec(), options)
     return solved.estimate()

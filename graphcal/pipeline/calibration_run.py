@@ -227,8 +227,7 @@ def _trust(
         )
     observability = result.observability
     return assess_trust(
-        iterations=whole.iterations if whole is not None else 0,
-        max_iterations=settings.joint.max_iterations if whole is not None else 1,
+        solve=whole.outcome if whole is not None else None,
         chi2_per_dof=whole.chi2_per_dof if whole is not None else None,
         batch_theta=batch_theta,
         batch_covariance=result.batch_covariance.get("joint"),

@@ -18,6 +18,7 @@ import numpy as np
 from graphcal.errors import CalibrationFailed, check_settings
 from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
 from graphcal.model import integrate
 
@@ -113,9 +114,8 @@ def estimate_inputs(
     settings = settings or InputEstimationSettings()
     poses, inputs = np.asarray(poses, float), np.asarray(inputs, float)
     data = SegmentData.single(poses, inputs)
-    solved = solve_segment_graph(
-        data, settings.graph_spec(theta), settings.max_iterations, 1e-6, "input estimation"
-    )
+    options = SolveOptions(settings.max_iterations, 1e-6, "input estimation")
+    solved = solve_segment_graph(data, settings.graph_spec(theta), options)
     corrections = solved.built.corrections(solved.result, 0)
     if not np.all(np.isfinite(corrections)):
         raise CalibrationFailed("input estimation produced non-finite corrections")

@@ -35,6 +35,7 @@ from graphcal.graph.observability import (
     Observability,
     assess_observability,
 )
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
 from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
@@ -315,20 +316,11 @@ def solve_joint(
     observability."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
-    label = "joint solve"
+    options = SolveOptions(settings.max_iterations, TOLERANCE, "joint solve", workers, progress)
     spec = settings.graph_spec()
-    start = warm_start(data, spec, settings.max_iterations, TOLERANCE, workers, progress)
+    start = warm_start(data, spec, options)
     solved, weights, residuals = solve_segment_graph_robust(
-        data,
-        spec,
-        settings.max_iterations,
-        TOLERANCE,
-        label,
-        settings.robust_threshold,
-        covariance=not auto,
-        workers=workers,
-        progress=progress,
-        shared_start=start,
+        data, spec, options, settings.robust_threshold, covariance=not auto, shared_start=start
     )
     del residuals
     noise = residual_noise(solved, data, weights)
@@ -340,18 +332,14 @@ def solve_joint(
             weights,
             settings.graph_spec(slip=True),
             settings.slip_detection,
-            settings.max_iterations,
-            TOLERANCE,
-            label,
-            workers,
-            progress,
+            options,
         )
     observability = settings.observability(solved.covariance)
     calibration = JointCalibration(
         solved.theta,
         solved.covariance,
         solved.start_states,
-        solved.iterations,
+        solved.outcome,
         solved.initial_error,
         solved.final_error,
         observability,

@@ -32,8 +32,8 @@ from graphcal.graph.covariance import with_covariance
 from graphcal.graph.estimates import SolvedGraph
 from graphcal.graph.graph_spec import SegmentGraphSpec
 from graphcal.graph.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
-from graphcal.progress import Progress
 
 #: Median of the norm of a 2-D standard Gaussian, sqrt(2 ln 2).
 RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
@@ -104,32 +104,24 @@ def solve_robust(
 def solve_segment_graph_robust(
     data: SegmentData,
     spec: SegmentGraphSpec,
-    max_iterations: int,
-    relative_error_tol: float,
-    label: str,
+    options: SolveOptions,
     threshold: float,
+    *,
     covariance: bool = True,
-    workers: int = 1,
-    progress: Progress | None = None,
     shared_start: dict[int, np.ndarray] | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
-    """:func:`~graphcal.graph.segment_solve.solve_segment_graph` with robust fix weights
-    (:func:`solve_robust`, whose three results it returns); ``threshold`` 0 solves once
-    without them. ``workers``: processes
-    the segments are shared out among; ``shared_start``: where the first solve starts the
-    graph-wide variables (e.g. :func:`~graphcal.pipeline.warm_start.warm_start`)."""
+    """:func:`~graphcal.graph.segment_solve.solve_segment_graph` (each solve as ``options``
+    say) with robust fix weights (:func:`solve_robust`, whose three results it returns);
+    ``threshold`` 0 solves once without them. ``shared_start``: where the first solve starts
+    the graph-wide variables (e.g. :func:`~graphcal.pipeline.warm_start.warm_start`)."""
 
     def solve(segments: SegmentData, initial) -> SolvedGraph:
         return solve_segment_graph(
             segments,
             spec,
-            max_iterations,
-            relative_error_tol,
-            label,
+            options,
             start=BuilderStart.warm(shared_start) if initial is None else ValuesStart(initial),
             covariance=False,
-            workers=workers,
-            progress=progress,
         )
 
     if threshold <= 0:
@@ -137,5 +129,5 @@ def solve_segment_graph_robust(
     else:
         solution, weights, residuals = solve_robust(data, spec, solve, threshold)
     if covariance:
-        solution = with_covariance(solution, label, workers)
+        solution = with_covariance(solution, options.label, options.workers)
     return solution, weights, residuals

@@ -25,9 +25,9 @@ from graphcal.graph.estimates import SolvedGraph
 from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.graph.values import copy_value
 from graphcal.log.segments import SegmentData, spread
-from graphcal.progress import Progress
 
 #: Slip is screened on this many segments spread over the log (all of a shorter log; the
 #: warm start's sample, :mod:`graphcal.pipeline.warm_start`): the statistic is a mean over
@@ -42,11 +42,7 @@ def with_slip_if_shown(
     weights: np.ndarray | None,
     spec: SegmentGraphSpec,
     detection: float,
-    max_iterations: int,
-    relative_error_tol: float,
-    label: str,
-    workers: int = 1,
-    progress: Progress | None = None,
+    options: SolveOptions,
 ) -> tuple[SolvedGraph, float]:
     """The solve with slip scales if the log shows slip, else ``solved``; both with their
     covariance, and the statistic that decided (see the module docstring).
@@ -58,13 +54,13 @@ def with_slip_if_shown(
             200 km log each is most of the memory).
         spec: the graph with slip scales.
         detection: slip is modelled when it lowers χ² by more than this per chunk.
-        max_iterations, relative_error_tol, label: of the solve with slip scales.
-        workers: processes the segments are shared out among.
-        progress: gets a line per iteration of a long solve.
+        options: of the solve with slip scales (its ``workers`` also screen and compute
+            the covariance).
 
     Raises:
         CalibrationFailed: if the screening step fails.
     """
+    label, workers = options.label, options.workers
     solved = _released(with_covariance(solved, label, workers))
     weighted = data if weights is None else dataclasses.replace(data, fix_weights=weights)
     screened = spread(len(data), SLIP_SCREEN_SEGMENTS)
@@ -77,17 +73,8 @@ def with_slip_if_shown(
     if len(screened) < len(data):
         with_slip = build_segment_graph(weighted, spec)
         initial = _moved(solved.result, np.arange(len(data)), with_slip.values, shared_keys(spec))
-    final = solve_segment_graph(
-        weighted,
-        spec,
-        max_iterations,
-        relative_error_tol,
-        label,
-        start=ValuesStart(initial, with_slip),
-        workers=workers,
-        progress=progress,
-    )
-    return dataclasses.replace(final, iterations=final.iterations + solved.iterations), statistic
+    final = solve_segment_graph(weighted, spec, options, start=ValuesStart(initial, with_slip))
+    return dataclasses.replace(final, outcome=solved.outcome.then(final.outcome)), statistic
 
 
 def _chi2_drop_per_chunk(

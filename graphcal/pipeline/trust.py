@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graphcal.graph.solve_options import SolveOutcome
 from graphcal.model import PARAMETER_NAMES
 
 #: χ² per degree of freedom above which the residuals do not fit the noise model: the σ
@@ -110,8 +111,7 @@ def spread_ratio(batch_theta: np.ndarray, batch_covariance: np.ndarray) -> np.nd
 
 def assess_trust(
     *,
-    iterations: int,
-    max_iterations: int,
+    solve: SolveOutcome | None,
     chi2_per_dof: float | None,
     batch_theta: np.ndarray | None,
     batch_covariance: np.ndarray | None,
@@ -122,7 +122,8 @@ def assess_trust(
     """Run the checks of the module docstring.
 
     Args:
-        iterations, max_iterations: of the whole-log solve.
+        solve: how the whole-log solve ended (its status and iterations; ``None``: there
+            was none).
         chi2_per_dof: its χ² per degree of freedom.
         batch_theta, batch_covariance: per-batch estimates ``(B, 4)`` and covariances
             ``(B, 4, 4)`` of the joint method (``None`` without batches).
@@ -135,7 +136,7 @@ def assess_trust(
         ratio = spread_ratio(batch_theta, batch_covariance)
     validates_worse = bool(validation_calibrated > validation_nominal)
     findings = [
-        _convergence(iterations, max_iterations),
+        _convergence(solve),
         _fit(chi2_per_dof),
         _spread(ratio, calibrated),
         _validation(validates_worse, validation_calibrated, validation_nominal),
@@ -145,9 +146,9 @@ def assess_trust(
         for name, reason in reasons.items():
             parameter_doubts.setdefault(name, reason)  # the first check's reason
     return TrustAssessment(
-        converged=iterations < max_iterations,
-        iterations=iterations,
-        max_iterations=max_iterations,
+        converged=solve is None or solve.converged,
+        iterations=0 if solve is None else solve.iterations,
+        max_iterations=1 if solve is None else solve.max_iterations,
         chi2_per_dof=chi2_per_dof,
         spread_ratio=ratio,
         validates_worse=validates_worse,
@@ -161,12 +162,12 @@ def assess_trust(
 _Finding = tuple[str | None, dict[str, str]]
 
 
-def _convergence(iterations: int, max_iterations: int) -> _Finding:
-    """The whole-log solve stopped before its iteration limit."""
-    if iterations < max_iterations:
+def _convergence(solve: SolveOutcome | None) -> _Finding:
+    """The whole-log solve converged (its status, not its iteration count)."""
+    if solve is None or solve.converged:
         return None, {}
     return (
-        f"the whole-log solve stopped at its iteration limit ({max_iterations}) without converging",
+        f"the whole-log solve {solve.message}",
         dict.fromkeys(PARAMETER_NAMES, "the solve did not converge"),
     )
 

@@ -11,13 +11,15 @@ its quadratic range. The optimum is the whole log's either way: only the path to
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from graphcal.errors import GraphcalError
 from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.segment_solve import solve_segment_graph
+from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData, spread
-from graphcal.progress import Progress
 
 #: Segments of the sample a warm start solves.
 WARM_START_SEGMENTS = 32
@@ -27,33 +29,22 @@ WARM_START_MIN_SEGMENTS = 3 * WARM_START_SEGMENTS
 
 
 def warm_start(
-    data: SegmentData,
-    spec: SegmentGraphSpec,
-    max_iterations: int,
-    relative_error_tol: float,
-    workers: int = 1,
-    progress: Progress | None = None,
+    data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions
 ) -> dict[int, np.ndarray] | None:
     """The graph-wide variables (theta, time offset, lever arm, by key) solved on
     :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, for the whole-log
     solve to start from; ``None`` for a log shorter than :data:`WARM_START_MIN_SEGMENTS`, a
     graph without theta, or a sample that cannot be solved (the whole log starts from
-    ``spec`` then)."""
+    ``spec`` then). The sample is solved as ``options`` say, quietly: ``options.progress``
+    gets one line."""
     if len(data) < WARM_START_MIN_SEGMENTS or not spec.estimate_theta:
         return None
     sample = spread(len(data), WARM_START_SEGMENTS)
-    if progress is not None:
-        progress(f"  start: theta from {len(sample)} segments spread over the log")
+    if options.progress is not None:
+        options.progress(f"  start: theta from {len(sample)} segments spread over the log")
+    quiet = dataclasses.replace(options, label="warm start", progress=None)
     try:
-        solved = solve_segment_graph(
-            data.take(sample),
-            spec,
-            max_iterations,
-            relative_error_tol,
-            "warm start",
-            covariance=False,
-            workers=workers,
-        )
+        solved = solve_segment_graph(data.take(sample), spec, quiet, covariance=False)
     except GraphcalError:
         return None
     return {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}

@@ -1,0 +1,81 @@
+"""How a Levenberg–Marquardt solve runs, passed as one value (:class:`SolveOptions`), and how
+it ended (:class:`SolveOutcome`: a status and a message, as scipy's ``OptimizeResult``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from dataclasses import dataclass
+
+from graphcal.progress import Progress
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """How one solve runs.
+
+    Attributes:
+        max_iterations: Levenberg–Marquardt iteration limit.
+        relative_error_tol: the solve converges when an iteration lowers the graph error by
+            at most this fraction of it (or 1e-12 absolutely).
+        label: names the solve in its errors (``"joint solve failed: ..."``).
+        workers: processes the segments of a graph that splits are shared out among (the
+            result does not depend on it).
+        progress: gets a line per iteration of a long solve; ``None``: quiet.
+    """
+
+    max_iterations: int = 50
+    relative_error_tol: float = 1e-7
+    label: str = "solve"
+    workers: int = 1
+    progress: Progress | None = None
+
+    def named(self, label: str) -> SolveOptions:
+        """The same options for a solve called ``label``."""
+        return dataclasses.replace(self, label=label)
+
+
+class SolveStatus(enum.Enum):
+    """Why a solve stopped."""
+
+    #: An iteration lowered the error by at most the tolerance.
+    CONVERGED = "converged"
+    #: No step lowered the error (at any damping the solve may use): the values are the
+    #: minimum as far as the solve can tell.
+    NOT_IMPROVING = "not improving"
+    #: The iteration limit came first.
+    ITERATION_LIMIT = "iteration limit"
+
+
+@dataclass(frozen=True)
+class SolveOutcome:
+    """How a solve ended: its :class:`SolveStatus`, the iterations it used and its limit."""
+
+    status: SolveStatus
+    iterations: int
+    max_iterations: int
+
+    @property
+    def converged(self) -> bool:
+        """The solve stopped at a minimum, not at its iteration limit."""
+        return self.status is not SolveStatus.ITERATION_LIMIT
+
+    @property
+    def message(self) -> str:
+        """One line: how the solve ended."""
+        if self.status is SolveStatus.ITERATION_LIMIT:
+            return f"stopped at its iteration limit ({self.max_iterations}) without converging"
+        how = "no step lowers the error" if self.status is SolveStatus.NOT_IMPROVING else ""
+        return f"converged after {self.iterations} iteration(s)" + (f" ({how})" if how else "")
+
+    def then(self, later: SolveOutcome) -> SolveOutcome:
+        """This solve followed by ``later`` (from this one's result, under the same limit):
+        ``later``'s status, the iterations of both."""
+        return SolveOutcome(later.status, self.iterations + later.iterations, later.max_iterations)
+
+    @classmethod
+    def after(cls, iterations: int, options: SolveOptions, stopped: bool) -> SolveOutcome:
+        """The outcome of a loop that ran ``iterations`` under ``options``'s limit and
+        ``stopped`` (converged) or ran out."""
+        status = SolveStatus.CONVERGED if stopped else SolveStatus.ITERATION_LIMIT
+        return cls(status, iterations, options.max_iterations)
