@@ -9,7 +9,10 @@ from numerical import retract_jacobian
 
 from graphcal.factors import (
     ChunkBatch,
+    ChunkNoise,
     ChunkOdometryFactor,
+    DefectKeys,
+    DefectValues,
     MeasuredPoseFactor,
     OdometryChunk,
     chunk_boundary_smoothness,
@@ -95,7 +98,7 @@ def test_chunk_factor_with_wheel_slip_scales(segment, with_corrections, rng):
         theta=T,
         corrections=C(0) if with_corrections else None,
         end=X1,
-        slip=S,
+        defects=DefectKeys(slip=S),
     ).factor()
     assert list(factor.keys())[-1] == S
     values = gtsam.Values()
@@ -128,7 +131,12 @@ def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, track
     rates = rotation_rate_changes(inputs[:, :2], 0.025)
     chunk = OdometryChunk(inputs, poses if tracked else None, float(poses[0, 2]), rates)
     factor = ChunkOdometryFactor(
-        chunk, X0, T, corrections=C(0), end=X1, time_offset=OFFSET, lever_arm=A, heading_bias=B
+        chunk,
+        X0,
+        T,
+        corrections=C(0),
+        end=X1,
+        defects=DefectKeys(time_offset=OFFSET, lever_arm=A, heading_bias=B),
     ).factor()
     assert list(factor.keys())[-3:] == [OFFSET, A, B]
     values = gtsam.Values()
@@ -151,9 +159,16 @@ def test_a_chunk_of_one_run_reads_its_element_of_the_runs_time_offsets(segment, 
         inputs, poses, float(poses[0, 2]), rotation_rate_changes(inputs[:, :2], 0.025)
     )
     factor = ChunkOdometryFactor(
-        chunk, X0, T, corrections=C(0), end=X1, time_offset=OFFSET, time_offset_slot=(1, 3)
+        chunk,
+        X0,
+        T,
+        corrections=C(0),
+        end=X1,
+        defects=DefectKeys(time_offset=OFFSET, time_offset_slot=(1, 3)),
     ).factor()
-    single = ChunkOdometryFactor(chunk, X0, T, corrections=C(0), end=X1, time_offset=OFFSET)
+    single = ChunkOdometryFactor(
+        chunk, X0, T, corrections=C(0), end=X1, defects=DefectKeys(time_offset=OFFSET)
+    )
     values = gtsam.Values()
     values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
     values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
@@ -182,7 +197,10 @@ def test_chunks_in_one_batch_give_what_each_gives_alone(segment, rng):
         a, b = bounds[j], bounds[j + 1]
         end = None if j == 2 else gtsam.symbol("x", j + 1)
         kwargs = dict(
-            corrections=C(j), end=end, time_offset=OFFSET, lever_arm=A, tracking_sigmas=None
+            corrections=C(j),
+            end=end,
+            defects=DefectKeys(time_offset=OFFSET, lever_arm=A),
+            noise=ChunkNoise(tracking=None),
         )
         chunk = OdometryChunk(inputs[a:b], poses[a : b + 1], None, rates[a:b])
         start = gtsam.symbol("x", j)
@@ -234,7 +252,7 @@ def test_time_offset_is_the_shifted_rotation_to_first_order(segment):
     exact = OdometryChunk(shifted, poses)
     start = poses[0]
     np.testing.assert_allclose(
-        chunk.error(start, THETA, time_offset=tau, jacobians=False).error,
+        chunk.error(start, THETA, jacobians=False, defects=DefectValues(time_offset=tau)).error,
         exact.error(start, THETA, jacobians=False).error,
         atol=1e-9,
     )
@@ -274,12 +292,16 @@ def test_down_weighted_fixes_get_wider_sigmas(segment):
     poses, inputs = segment[0][:11], segment[1][:10]
     weights = np.ones(10)
     weights[3] = 0.04
-    factor = ChunkOdometryFactor(OdometryChunk(inputs, poses), X0, T, fix_weights=weights)
+    factor = ChunkOdometryFactor(
+        OdometryChunk(inputs, poses), X0, T, noise=ChunkNoise(fix_weights=weights)
+    )
     sigmas = factor.sigmas.reshape(10, 3)
     np.testing.assert_allclose(sigmas[3, :2], 5.0 * sigmas[2, :2])
     assert sigmas[3, 2] == sigmas[2, 2]  # the heading is not a GNSS fix
     with pytest.raises(ValueError, match="fix weights"):
-        ChunkOdometryFactor(OdometryChunk(inputs, poses), X0, T, fix_weights=np.zeros(10))
+        ChunkOdometryFactor(
+            OdometryChunk(inputs, poses), X0, T, noise=ChunkNoise(fix_weights=np.zeros(10))
+        )
 
 
 def test_one_step_between_poses_is_eq_1_as_pose2_composition(rng):
@@ -389,9 +411,7 @@ def test_chunk_factor_with_fixes_between_samples_and_missing_components(segment,
         T,
         corrections=C(0),
         end=X1 if end else None,
-        slip=S,
-        time_offset=OFFSET,
-        lever_arm=A,
+        defects=DefectKeys(slip=S, time_offset=OFFSET, lever_arm=A),
     ).factor()
     positions, headings = measured[1:, 0].sum(), measured[1:, 1].sum()
     assert factor.dim() == 2 * positions + headings + (3 if end else 0)

@@ -20,7 +20,13 @@ a small factor class that consumes it, its error with the Jacobians beside it.
 
 from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk, chunk_errors
 from graphcal.factors.chunk_batch import ChunkBatch
-from graphcal.factors.chunk_factor import ChunkOdometryFactor, segment_odometry_factor
+from graphcal.factors.chunk_factor import (
+    ChunkNoise,
+    ChunkOdometryFactor,
+    DefectKeys,
+    segment_odometry_factor,
+)
+from graphcal.factors.chunk_inputs import DefectValues, StackedChunks
 from graphcal.factors.corrections import (
     chunk_boundary_smoothness,
     chunk_correction_prior,
@@ -47,10 +53,14 @@ __all__ = [
     "PAPER_POSE_WEIGHTS",
     "ChunkBatch",
     "ChunkError",
+    "ChunkNoise",
     "ChunkOdometryFactor",
+    "DefectKeys",
+    "DefectValues",
     "MeasuredPoseFactor",
     "OdometryChunk",
     "PreintegratedWheelOdometry",
+    "StackedChunks",
     "WheelOdometryFactor",
     "body_to_world",
     "chunk_boundary_smoothness",

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graphcal.factors.chunk_inputs import NO_DEFECTS, DefectValues, StackedChunks
 from graphcal.model import (
     N_RL,
     N_RR,
@@ -150,66 +151,64 @@ class OdometryChunk:
         corrections: np.ndarray | None = None,
         end: np.ndarray | None = None,
         jacobians: bool = True,
-        slip: np.ndarray | None = None,
-        time_offset: float | None = None,
-        lever_arm: np.ndarray | None = None,
-        heading_bias: float | None = None,
+        defects: DefectValues = NO_DEFECTS,
     ) -> ChunkError:
         """Residuals for a start state ``(3,)``, theta ``(4,)``, corrections ``(L, 2)`` [rev]
         added to the measured rotations, the end state ``(3,)`` of the next chunk (any
-        heading branch: the continuity heading is wrapped), relative slip scales ``(2,)``
-        of the two wheels (the rotation of wheel w becomes ``n_w · (1 + slip_w)``), the
-        wheels' time offset [s] (positive: wheels late against the pose), the antenna's
-        lever arm ``(2,)`` [m] (ahead, left of the centre of gravity) and the bias [rad] of
-        the measured heading. Arguments left ``None`` are zero and get no Jacobian."""
-        if time_offset is not None and self.rotation_rates is None:
+        heading branch: the continuity heading is wrapped) and the ``defects``' values
+        (:class:`DefectValues`). Arguments left ``None`` are zero and get no Jacobian."""
+        if defects.time_offset is not None and self.rotation_rates is None:
             raise ValueError("a time offset needs the chunk's rotation rates")
 
         def one(x):
             return None if x is None else np.asarray(x, float)[None]
 
+        def scalar(x):
+            return None if x is None else np.array([float(x)])
+
         batch = chunk_errors(
-            self.inputs[None],
-            one(self.measured_poses),
+            StackedChunks(
+                self.inputs[None],
+                one(self.measured_poses),
+                one(self.rotation_rates),
+                one(self.fractions),
+            ),
             one(start),
             one(theta),
             one(corrections),
             one(end),
             jacobians,
-            one(slip),
-            None if time_offset is None else np.array([float(time_offset)]),
-            one(self.rotation_rates),
-            one(lever_arm),
-            None if heading_bias is None else np.array([float(heading_bias)]),
-            one(self.fractions),
+            DefectValues(
+                one(defects.slip),
+                scalar(defects.time_offset),
+                one(defects.lever_arm),
+                scalar(defects.heading_bias),
+            ),
         )
         fields = (getattr(batch, f.name) for f in dataclasses.fields(batch))
         return ChunkError(*(None if x is None else x[0] for x in fields))
 
 
 def chunk_errors(
-    inputs: np.ndarray,
-    measured_poses: np.ndarray | None,
+    chunks: StackedChunks,
     start: np.ndarray,
     theta: np.ndarray,
     corrections: np.ndarray | None = None,
     end: np.ndarray | None = None,
     jacobians: bool = True,
-    slip: np.ndarray | None = None,
-    time_offset: np.ndarray | None = None,
-    rotation_rates: np.ndarray | None = None,
-    lever_arm: np.ndarray | None = None,
-    heading_bias: np.ndarray | None = None,
-    fractions: np.ndarray | None = None,
+    defects: DefectValues = NO_DEFECTS,
 ) -> ChunkError:
     """:meth:`OdometryChunk.error` of ``C`` chunks of ``L`` steps at once, vectorized over the
-    chunks: ``inputs (C, L, 4)``, ``measured_poses (C, L+1, 3)`` or ``None``, ``start (C, 3)``,
-    ``theta (C, 4)``, ``corrections (C, L, 2)``, ``end (C, 3)``, ``slip (C, 2)``,
-    ``time_offset (C,)`` with ``rotation_rates (C, L, 2)``, ``lever_arm (C, 2)``,
-    ``heading_bias (C,)``, ``fractions (C, L)`` (each tracked pose's measurement part-way
-    through its step, :func:`graphcal.model.partial_steps`; ``None``: at the samples). Every
-    field of the result has the leading chunk axis; the error has every tracking row (a
-    chunk's :attr:`~OdometryChunk.residual_rows` picks its own)."""
+    chunks: their measurements ``chunks`` (:class:`StackedChunks`), ``start (C, 3)``,
+    ``theta (C, 4)``, ``corrections (C, L, 2)``, ``end (C, 3)`` and the ``defects``
+    (:class:`DefectValues`: ``slip (C, 2)``, ``time_offset (C,)`` with the chunks'
+    rotation rates, ``lever_arm (C, 2)``, ``heading_bias (C,)``). Every field of the result
+    has the leading chunk axis; the error has every tracking row (a chunk's
+    :attr:`~OdometryChunk.residual_rows` picks its own)."""
+    inputs, measured_poses = chunks.inputs, chunks.measured_poses
+    rotation_rates, fractions = chunks.rotation_rates, chunks.fractions
+    slip, time_offset = defects.slip, defects.time_offset
+    lever_arm, heading_bias = defects.lever_arm, defects.heading_bias
     count, n_steps = inputs.shape[:2]
     rotations = _wheel_rotations(inputs, corrections, slip, time_offset, rotation_rates)
     states, d_start, d_theta = integrate_with_jacobians(start, rotations, theta, jacobians)

@@ -25,6 +25,7 @@ import gtsam
 import numpy as np
 
 from graphcal.factors.chunk import ChunkError, OdometryChunk, chunk_errors
+from graphcal.factors.chunk_inputs import DefectValues, StackedChunks
 
 #: Chunks per vectorized evaluation: bounds the ``(C, L+1, 3, L, 2)`` rotation Jacobian
 #: (64 chunks of 50 steps: 8 MB).
@@ -138,19 +139,20 @@ class ChunkBatch:
             return None if items[0] is None else np.stack(items)
 
         result = chunk_errors(
-            inputs,
-            measured,
+            StackedChunks(
+                inputs, measured, None if args[0].time_offset is None else rates, fractions
+            ),
             stacked("start"),
             stacked("theta"),
             stacked("corrections"),
             stacked("end"),
             jacobians,
-            stacked("slip"),
-            stacked("time_offset"),
-            None if args[0].time_offset is None else rates,
-            stacked("lever_arm"),
-            stacked("heading_bias"),
-            fractions,
+            DefectValues(
+                stacked("slip"),
+                stacked("time_offset"),
+                stacked("lever_arm"),
+                stacked("heading_bias"),
+            ),
         )
         blocks = None
         if jacobians:

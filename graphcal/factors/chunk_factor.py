@@ -19,6 +19,7 @@ Headings of Pose2 variables are unwrapped against the chunk's reference heading.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -26,6 +27,45 @@ import numpy as np
 from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk
 from graphcal.factors.chunk_batch import ChunkArguments, ChunkBatch
 from graphcal.factors.poses import pose_sigmas
+
+
+@dataclass(frozen=True)
+class DefectKeys:
+    """The keys of a chunk factor's defect variables (each ``None``: not estimated).
+
+    Attributes:
+        slip: key of the chunk's 2-vector of relative wheel-slip scales.
+        time_offset: key of the wheel time offset [s]: a vector of one element per run of
+            the log, of which this chunk's wheels read element ``time_offset_slot[0]`` of
+            ``time_offset_slot[1]`` (default the one of one).
+        lever_arm: key of the 2-vector antenna lever arm [m].
+        heading_bias: key of the 1-vector heading bias [rad].
+    """
+
+    slip: int | None = None
+    time_offset: int | None = None
+    lever_arm: int | None = None
+    heading_bias: int | None = None
+    time_offset_slot: tuple[int, int] = (0, 1)
+
+
+@dataclass(frozen=True)
+class ChunkNoise:
+    """The sigmas of a chunk factor's residuals.
+
+    Attributes:
+        tracking: ``[m, m, rad]`` of the tracking residuals (default
+            :func:`~graphcal.factors.poses.pose_sigmas`).
+        continuity: ``[m, m, rad]`` of the continuity residual (default
+            :data:`~graphcal.factors.chunk.CONTINUITY_SIGMAS`).
+        fix_weights: ``(L,)`` weight in (0, 1] of each tracked position (robust
+            down-weighting: its sigmas are divided by the weight's square root), or ``None``
+            for all 1.
+    """
+
+    tracking: np.ndarray | None = None
+    continuity: np.ndarray | None = None
+    fix_weights: np.ndarray | None = None
 
 
 class ChunkOdometryFactor:
@@ -38,19 +78,9 @@ class ChunkOdometryFactor:
         theta: theta's 4-vector key, or a fixed theta ``(4,)`` (SI).
         corrections: key of the chunk's ``2L``-vector of wheel-rotation corrections, or ``None``.
         end: key of the Pose2 the chunk must reach (the next chunk's start), or ``None``.
-        tracking_sigmas: ``[m, m, rad]`` of the tracking residuals (default
-            :func:`~graphcal.factors.poses.pose_sigmas`).
-        continuity_sigmas: ``[m, m, rad]`` of the continuity residual
-            (default :data:`CONTINUITY_SIGMAS`).
-        slip: key of the chunk's 2-vector of relative wheel-slip scales, or ``None``.
-        time_offset: key of the wheel time offset [s], or ``None``: a vector of one element
-            per run of the log, of which this chunk's wheels read element
-            ``time_offset_slot[0]`` of ``time_offset_slot[1]`` (default the one of one).
-        lever_arm: key of the 2-vector antenna lever arm [m], or ``None``.
-        heading_bias: key of the 1-vector heading bias [rad], or ``None``.
-        fix_weights: ``(L,)`` weight in (0, 1] of each tracked position (robust
-            down-weighting: its sigmas are divided by the weight's square root), or ``None``
-            for all 1.
+        noise: the residuals' sigmas and fix weights (:class:`ChunkNoise`; default: the
+            defaults there).
+        defects: keys of the defect variables (:class:`DefectKeys`; default: none).
         batch: the :class:`~graphcal.factors.chunk_batch.ChunkBatch` this factor is
             evaluated in, shared by the chunk factors of a graph (default: one of its own).
 
@@ -65,24 +95,22 @@ class ChunkOdometryFactor:
         theta: int | np.ndarray,
         corrections: int | None = None,
         end: int | None = None,
-        tracking_sigmas: np.ndarray | None = None,
-        continuity_sigmas: np.ndarray | None = None,
-        slip: int | None = None,
-        time_offset: int | None = None,
-        lever_arm: int | None = None,
-        heading_bias: int | None = None,
-        fix_weights: np.ndarray | None = None,
+        *,
+        noise: ChunkNoise = ChunkNoise(),
+        defects: DefectKeys = DefectKeys(),
         batch: ChunkBatch | None = None,
-        time_offset_slot: tuple[int, int] = (0, 1),
     ):
         self.chunk = chunk
-        self.slip_key = slip
-        self.time_offset_key = time_offset
-        self.time_offset_slot, self.time_offset_size = (int(n) for n in time_offset_slot)
+        self.slip_key = defects.slip
+        self.time_offset_key = defects.time_offset
+        slot = defects.time_offset_slot
+        self.time_offset_slot, self.time_offset_size = (int(n) for n in slot)
         if not 0 <= self.time_offset_slot < self.time_offset_size:
-            raise ValueError(f"time offset element {time_offset_slot} out of range")
-        self.lever_arm_key = lever_arm
-        self.heading_bias_key = heading_bias
+            raise ValueError(f"time offset element {slot} out of range")
+        self.lever_arm_key = defects.lever_arm
+        self.heading_bias_key = defects.heading_bias
+        tracking_sigmas, continuity_sigmas = noise.tracking, noise.continuity
+        fix_weights = noise.fix_weights
         self.start_key, self.start_state = _slot(start, 3, "start")
         self.theta_key, self.theta = _slot(theta, 4, "theta")
         self.corrections_key = corrections
@@ -295,4 +323,4 @@ def segment_odometry_factor(
     measured_poses = np.asarray(measured_poses, dtype=float)
     chunk = OdometryChunk(inputs, measured_poses)
     start = measured_poses[0] if start_key is None else start_key
-    return ChunkOdometryFactor(chunk, start, theta_key, tracking_sigmas=sigmas).factor()
+    return ChunkOdometryFactor(chunk, start, theta_key, noise=ChunkNoise(sigmas)).factor()

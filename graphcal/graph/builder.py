@@ -33,7 +33,9 @@ import numpy as np
 
 from graphcal.factors import (
     ChunkBatch,
+    ChunkNoise,
     ChunkOdometryFactor,
+    DefectKeys,
     MeasuredPoseFactor,
     OdometryChunk,
     chunk_boundary_smoothness,
@@ -275,14 +277,18 @@ def _add_chunks(
             theta,
             corrections=correction_key,
             end=None if last else keys.segment_pose(s, j + 1),
-            tracking_sigmas=wide.tracking,
-            continuity_sigmas=wide.continuity,
-            slip=None if spec.slip_sigma is None else keys.segment_slip(s, j),
-            time_offset=wide.time_offset_key,
-            time_offset_slot=(segment.run, spec.time_offset_runs),
-            lever_arm=wide.lever_arm_key,
-            heading_bias=bias_key,
-            fix_weights=None if weights is None else weights[a + 1 : b + 1],
+            noise=ChunkNoise(
+                wide.tracking,
+                wide.continuity,
+                None if weights is None else weights[a + 1 : b + 1],
+            ),
+            defects=DefectKeys(
+                slip=None if spec.slip_sigma is None else keys.segment_slip(s, j),
+                time_offset=wide.time_offset_key,
+                lever_arm=wide.lever_arm_key,
+                heading_bias=bias_key,
+                time_offset_slot=(segment.run, spec.time_offset_runs),
+            ),
             batch=batch,
         )
         slots.append(ChunkFactorSlot(int(graph.size()), s, a, b, factor.rows))
