@@ -106,6 +106,7 @@ _PUBLIC = {
     "time_window": "graphcal.pipeline.held_apart",
     # Fleets: many vehicles' daily logs on Dask (the ``fleet`` extra).
     "run_fleet": "graphcal.fleet.run",
+    "FleetOptions": "graphcal.fleet.run",
     "FleetRun": "graphcal.fleet.run",
     "discover_fleet": "graphcal.fleet.sources",
     "simulate_fleet": "graphcal.simulate.fleet",
@@ -124,6 +125,7 @@ _PUBLIC = {
     "preintegrate": "graphcal.factors",
     "keyframe_odometry_factor": "graphcal.localization.keyframe_odometry",
     "keyframe_odometry_factors": "graphcal.localization.keyframe_odometry",
+    "OdometryNoise": "graphcal.localization.keyframe_odometry",
     "odometry_covariance": "graphcal.localization.keyframe_odometry",
     "segment_odometry_factor": "graphcal.factors",
     "pose_measurement_factor": "graphcal.factors",

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -48,6 +49,22 @@ def odometry_covariance(
     return rotation @ body @ rotation.T + np.diag(np.asarray(floor_sigmas, float) ** 2)
 
 
+@dataclass(frozen=True)
+class OdometryNoise:
+    """The wheel odometry's noise between keyframes.
+
+    Attributes:
+        wheel: standard deviation [rev] of one measured wheel rotation.
+        floor_sigmas: model-error floor [m, m, rad] added to the propagated covariance.
+        quantization: rounding sigma [rev] of the wheels' cumulative tick counts, or 0
+            (:func:`graphcal.log.quantization.quantization_sigma`).
+    """
+
+    wheel: float = DEFAULT_WHEEL_NOISE
+    floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS
+    quantization: float = 0.0
+
+
 def keyframe_odometry_factor(
     start_key: int,
     end_key: int,
@@ -55,9 +72,7 @@ def keyframe_odometry_factor(
     inputs: np.ndarray,
     *,
     theta: np.ndarray = THETA_NOMINAL,
-    wheel_noise: float = DEFAULT_WHEEL_NOISE,
-    floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
-    quantization: float = 0.0,
+    noise: OdometryNoise = OdometryNoise(),
     slip_key: int | None = None,
     slip_noise: np.ndarray | None = None,
 ) -> gtsam.NonlinearFactor:
@@ -69,10 +84,8 @@ def keyframe_odometry_factor(
             (the factor is then a C++ ``BetweenFactorPose2``).
         inputs: measured ``[n_rl, n_rr, beta, ay]`` of the steps, ``(L, 4)``.
         theta: the fixed theta (``theta_key=None``), or where the interval is preintegrated.
-        wheel_noise: standard deviation [rev] of one measured wheel rotation.
-        floor_sigmas: model-error floor [m, m, rad] added to the propagated covariance.
-        quantization: rounding sigma [rev] of the wheels' cumulative tick counts, or 0
-            (:func:`graphcal.log.quantization.quantization_sigma`).
+        noise: the wheels' noise, the model-error floor and the ticks' rounding
+            (:class:`OdometryNoise`).
         slip_key: a 2-vector of relative wheel-slip scales for the interval (needs
             ``theta_key``; see :class:`~graphcal.factors.WheelOdometryFactor`), or ``None``.
         slip_noise: ``(2, 2)`` covariance of slip scales taken as noise instead, or ``None``.
@@ -82,9 +95,16 @@ def keyframe_odometry_factor(
         raise GraphcalError(
             f"keyframe odometry needs inputs (L, 4) with L >= 1, got {inputs.shape}"
         )
-    preintegrated = preintegrate(inputs, theta, wheel_noise, quantization=quantization)
+    preintegrated = preintegrate(inputs, theta, noise.wheel, quantization=noise.quantization)
     return _factor(
-        start_key, end_key, theta_key, preintegrated, theta, floor_sigmas, slip_key, slip_noise
+        start_key,
+        end_key,
+        theta_key,
+        preintegrated,
+        theta,
+        noise.floor_sigmas,
+        slip_key,
+        slip_noise,
     )
 
 
@@ -120,9 +140,7 @@ def keyframe_odometry_factors(
     theta_key: int | None,
     *,
     theta: np.ndarray = THETA_NOMINAL,
-    wheel_noise: float = DEFAULT_WHEEL_NOISE,
-    floor_sigmas: Sequence[float] = DEFAULT_FLOOR_SIGMAS,
-    quantization: float = 0.0,
+    noise: OdometryNoise = OdometryNoise(),
     slip_keys: Sequence[int | None] | None = None,
     slip_noise: Sequence[np.ndarray | None] | None = None,
 ) -> list[gtsam.NonlinearFactor]:
@@ -132,8 +150,7 @@ def keyframe_odometry_factors(
         log: the drive log (its wheel rotations, sideslip and lateral acceleration are used).
         keyframes: increasing sample indices of the keyframes, ``(M,)``.
         pose_keys: the Pose2 keys of the keyframes, ``(M,)``.
-        theta_key, theta, wheel_noise, floor_sigmas, quantization: as
-            :func:`keyframe_odometry_factor`.
+        theta_key, theta, noise: as :func:`keyframe_odometry_factor`.
         slip_keys: per interval ``(M − 1,)``, the key of its slip scales (intervals may share
             one; ``None`` for an interval without), or ``None`` for no slip scales.
         slip_noise: per interval, a ``(2, 2)`` covariance of slip scales taken as noise
@@ -159,7 +176,7 @@ def keyframe_odometry_factors(
     inputs = log.inputs
     intervals = [inputs[a:b] for a, b in itertools.pairwise(keyframes)]
     preintegrated = PreintegratedWheelOdometry.from_intervals(
-        intervals, theta, wheel_noise, quantization
+        intervals, theta, noise.wheel, noise.quantization
     )
     return [
         _factor(
@@ -168,7 +185,7 @@ def keyframe_odometry_factors(
             theta_key,
             p,
             theta,
-            floor_sigmas,
+            noise.floor_sigmas,
             None if slip_keys is None else slip_keys[i],
             None if slip_noise is None else slip_noise[i],
         )

@@ -33,7 +33,7 @@ from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
 from graphcal.graph.keys import keyframe as _pose_key
 from graphcal.graph.keys import theta as _theta_key
 from graphcal.graph.slip import slip_noise_covariance
-from graphcal.localization.keyframe_odometry import keyframe_odometry_factor
+from graphcal.localization.keyframe_odometry import OdometryNoise, keyframe_odometry_factor
 from graphcal.localization.smoothing import gnss_noise, gnss_usable
 from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate
@@ -318,8 +318,7 @@ class _OnlineRun:
             _theta_key(self.slice_index),
             self.inputs[a:b],
             theta=self.theta,
-            wheel_noise=settings.wheel_noise,
-            quantization=settings.tick_quantization,
+            noise=OdometryNoise(settings.wheel_noise, quantization=settings.tick_quantization),
             slip_noise=slip_noise,
         )
 

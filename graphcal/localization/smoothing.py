@@ -35,7 +35,7 @@ from graphcal.graph.observability import Observability, assess_observability
 from graphcal.graph.slip import slip_mean_sigma, slip_prior_factor, slip_step_factor
 from graphcal.graph.solve import solve_lm
 from graphcal.graph.solve_options import SolveOptions
-from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
+from graphcal.localization.keyframe_odometry import OdometryNoise, keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate, wrap_angle
@@ -193,8 +193,7 @@ def build_smoothing_graph(
         keys,
         THETA,
         theta=theta0,
-        wheel_noise=settings.wheel_noise,
-        quantization=settings.tick_quantization,
+        noise=OdometryNoise(settings.wheel_noise, quantization=settings.tick_quantization),
         slip_keys=slip_keys,
     ):
         graph.add(factor)
