@@ -142,9 +142,9 @@ def test_fleet_interrupted_and_resumed_finds_the_change(fleet_dir, tmp_path):
     assert 0 < len(finished) < VEHICLES * DAYS
     assert not list((out / "logs").glob("*/.*"))  # no half-written file
 
-    from graphcal.fleet.run import run_fleet
+    from graphcal.fleet.run import FleetOptions, run_fleet
 
-    run = run_fleet(fleet_dir, out, workers=2)
+    run = run_fleet(fleet_dir, out, options=FleetOptions(workers=2))
     assert run.reused == len(finished)
     assert run.computed == VEHICLES * DAYS - len(finished)
     assert all(path.read_bytes() == text for path, text in finished.items())
@@ -215,9 +215,9 @@ def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
 
         with Client(address, timeout=60) as client:
             client.wait_for_workers(2, timeout=60)
-        from graphcal.fleet.run import run_fleet
+        from graphcal.fleet.run import FleetOptions, run_fleet
 
-        run = run_fleet(manifest, tmp_path / "out", scheduler=address)
+        run = run_fleet(manifest, tmp_path / "out", options=FleetOptions(scheduler=address))
     finally:
         for process in processes[::-1]:
             process.terminate()
@@ -327,9 +327,9 @@ def test_ctrl_c_during_a_fleet_run_gives_one_line_and_the_rerun_resumes(small_fl
     finished = {p: p.read_bytes() for p in (out / "logs").glob("*/*.json")}
     assert finished and not list((out / "logs").glob("*/.*"))  # no half-written file
 
-    from graphcal.fleet.run import run_fleet
+    from graphcal.fleet.run import FleetOptions, run_fleet
 
-    run = run_fleet(small_fleet, out, workers=2)
+    run = run_fleet(small_fleet, out, options=FleetOptions(workers=2))
     assert run.reused == len(finished) and run.computed == SMALL_DAYS - len(finished)
     assert run.failed == 0 and len(pd.read_csv(out / "fleet.csv")) == SMALL_DAYS
     assert all(path.read_bytes() == text for path, text in finished.items())
@@ -339,14 +339,19 @@ def test_ctrl_c_during_a_fleet_run_gives_one_line_and_the_rerun_resumes(small_fl
 def test_an_interrupted_run_says_how_to_resume(small_fleet, tmp_path):
     """What ``graphcal: interrupted`` can name: how many results are kept, and that the
     same command continues."""
-    from graphcal.fleet.run import run_fleet
+    from graphcal.fleet.run import FleetOptions, run_fleet
 
     def interrupt_after_first(line: str) -> None:
         if "fleet: 1/" in line:
             os.kill(os.getpid(), signal.SIGINT)
 
     with pytest.raises(KeyboardInterrupt) as raised:
-        run_fleet(small_fleet, tmp_path / "out", workers=2, progress=interrupt_after_first)
+        run_fleet(
+            small_fleet,
+            tmp_path / "out",
+            options=FleetOptions(workers=2),
+            progress=interrupt_after_first,
+        )
     kept = len(list((tmp_path / "out" / "logs").glob("*/*.json")))
     assert str(raised.value).startswith(f"{kept} of {SMALL_DAYS} logs' results kept in ")
     assert "run the same command again" in str(raised.value)

@@ -20,7 +20,7 @@ def fleet_item(vehicles: int, days: int = 2, length_km: float = 4.0) -> dict[str
     """Run item (m); returns its measurements (see the module docstring)."""
     from distributed import Client, LocalCluster
 
-    from graphcal.fleet.run import run_fleet
+    from graphcal.fleet.run import FleetOptions, run_fleet
     from graphcal.simulate.fleet import simulate_fleet
 
     start = time.perf_counter()
@@ -38,7 +38,7 @@ def fleet_item(vehicles: int, days: int = 2, length_km: float = 4.0) -> dict[str
         simulate_fleet(source, vehicles, days, length_km, seed=0)
         for workers in (1, 2):
             start = time.perf_counter()
-            run = run_fleet(source, Path(tmp) / f"out{workers}", workers=workers)
+            run = run_fleet(source, Path(tmp) / f"out{workers}", options=FleetOptions(workers))
             wall = time.perf_counter() - start
             tasks = sum(r["seconds"] for r in run.results)
             logs = len(run.results)

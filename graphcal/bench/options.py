@@ -10,6 +10,7 @@ either.
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from typing import Any
 
 #: Each size of the two presets, side by side: ``(full benchmark, --quick)``.
@@ -29,9 +30,38 @@ FULL = {name: full for name, (full, _) in PRESET_SIZES.items()}
 QUICK = {name: quick for name, (_, quick) in PRESET_SIZES.items()}
 
 
+@dataclass(frozen=True)
+class BenchSizes:
+    """The sizes of a benchmark run (defaults: the full benchmark, :data:`FULL`).
+
+    Attributes:
+        length_km: the synthetic drive the solves run on [km].
+        repeats: timings per item (the fastest counts).
+        naive_iterations: iterations of the naive one-factor-per-step graph.
+        pipeline_batches: batches of the batch method's run.
+        agreement_segments: segments on which the factors' answers are compared.
+        import_hours: the recording the import items read [h].
+        scaling_km: drive lengths of the whole-log scaling item [km] (empty: none).
+        fleet_vehicles: vehicles of the fleet item (0: none).
+    """
+
+    length_km: float = FULL["length_km"]
+    repeats: int = FULL["repeats"]
+    naive_iterations: int = FULL["naive_iterations"]
+    pipeline_batches: int = FULL["pipeline_batches"]
+    agreement_segments: int = FULL["agreement_segments"]
+    import_hours: float = FULL["import_hours"]
+    scaling_km: tuple[float, ...] = FULL["scaling_km"]
+    fleet_vehicles: int = FULL["fleet_vehicles"]
+
+
 def resolve_bench_options(args: argparse.Namespace) -> dict[str, Any]:
     """The sizes the benchmark runs with: those given, the rest from the preset
     (:data:`QUICK` with ``--quick``, else :data:`FULL`)."""
     preset = QUICK if getattr(args, "quick", False) else FULL
     given = {name: getattr(args, name, None) for name in preset}
     return {name: preset[name] if value is None else value for name, value in given.items()}
+
+
+#: The full benchmark's sizes, as a :class:`BenchSizes`.
+FULL_SIZES = BenchSizes()

@@ -41,6 +41,7 @@ holds the items in the order they run; :func:`run_benchmarks` runs them.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 from collections.abc import Callable
@@ -59,7 +60,7 @@ from graphcal.bench.can_import import can_import_item
 from graphcal.bench.fleet import fleet_item
 from graphcal.bench.importing import import_item
 from graphcal.bench.localization_items import localization_items
-from graphcal.bench.options import resolve_bench_options
+from graphcal.bench.options import FULL_SIZES, BenchSizes, resolve_bench_options
 from graphcal.bench.recording import BenchRun, Recorder
 from graphcal.bench.scaling import scaling_item
 from graphcal.bench.whole_log_items import batch_study_items, segmented_items, whole_log_items
@@ -81,32 +82,13 @@ REPORT_ENTRIES = (
 
 
 def run_benchmarks(
-    length_km: float = 24.0,
-    repeats: int = 3,
-    workers: int = 2,
-    naive_iterations: int = 2,
-    pipeline_batches: int = 20,
-    agreement_segments: int = 3,
-    import_hours: float = 3.0,
-    scaling_km: tuple[float, ...] = (),
-    fleet_vehicles: int = 0,
-    progress: Progress | None = None,
+    sizes: BenchSizes = FULL_SIZES, workers: int = 2, progress: Progress | None = None
 ) -> dict[str, Any]:
-    """Run every item of :data:`ITEMS`; return ``{"config": ..., "items": [...],
-    "agreement": ...}`` (the entries of :data:`REPORT_ENTRIES` after the items)."""
+    """Run every item of :data:`ITEMS` at ``sizes`` on ``workers`` processes; return
+    ``{"config": ..., "items": [...], "agreement": ...}`` (the entries of
+    :data:`REPORT_ENTRIES` after the items)."""
     record = Recorder(progress or (lambda _line: None))
-    bench = BenchRun(
-        length_km,
-        repeats,
-        workers,
-        naive_iterations,
-        pipeline_batches,
-        agreement_segments,
-        import_hours,
-        scaling_km,
-        fleet_vehicles,
-        record,
-    )
+    bench = BenchRun(**dataclasses.asdict(sizes), workers=workers, record=record)
     entries: dict[str, Any] = {}
     for item in ITEMS:
         entries.update(item(bench))
@@ -259,7 +241,7 @@ def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
             "import": import_item(sizes["import_hours"]),
             "import_can": can_import_item(sizes["import_hours"]),
         }
-    report = run_benchmarks(workers=args.workers, progress=progress, **sizes)
+    report = run_benchmarks(BenchSizes(**sizes), args.workers, progress)
     report["config"]["quick"] = bool(getattr(args, "quick", False))
     return report
 

@@ -63,7 +63,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Calibrate every log of a fleet on Dask; per vehicle, changes of theta over days."""
-    from graphcal import run_fleet
+    from graphcal import FleetOptions, run_fleet
 
     settings = settings_from_args(args)
     keep = vehicle_settings_in(args.config) if args.config else set()
@@ -72,12 +72,14 @@ def run(args: argparse.Namespace) -> int:
         args.source,
         args.out,
         settings,
-        workers=args.workers or default_workers(),
-        scheduler=args.scheduler,
-        alpha=args.alpha,
-        keep=keep,
+        FleetOptions(
+            workers=args.workers or default_workers(),
+            scheduler=args.scheduler,
+            alpha=args.alpha,
+            keep=keep,
+            bar=not args.no_progress_bar,
+        ),
         progress=say,
-        bar=not args.no_progress_bar,
     )
     say(f"wrote {', '.join(p.name for p in fleet.written)} to {Path(args.out)}")
     for line in fleet.summary():

@@ -99,27 +99,40 @@ class FleetRun:
         return [head, *failed, *summary_lines(self.histories)]
 
 
+@dataclass(frozen=True)
+class FleetOptions:
+    """How a fleet run goes.
+
+    Attributes:
+        workers: worker processes of the local cluster (ignored with ``scheduler``).
+        scheduler: address of a running Dask scheduler, or ``None`` for a local cluster.
+        alpha: false-alarm probability of each day's change test.
+        keep: settings a vehicle's ``vehicle.toml`` or manifest profile must not override.
+        bar: a tqdm progress bar over the logs instead of a progress line per log.
+    """
+
+    workers: int = 2
+    scheduler: str | None = None
+    alpha: float = CHANGE_ALPHA
+    keep: Collection[str] = ()
+    bar: bool = False
+
+
 def run_fleet(
     source: str | os.PathLike[str],
     out: str | os.PathLike[str],
     settings: Settings | None = None,
-    workers: int = 2,
-    scheduler: str | None = None,
-    alpha: float = CHANGE_ALPHA,
-    keep: Collection[str] = (),
+    options: FleetOptions = FleetOptions(),
     progress: Progress | None = None,
-    bar: bool = False,
 ) -> FleetRun:
     """Calibrate every log of ``source`` (:func:`graphcal.fleet.sources.discover_fleet`)
     into ``out`` (see the module docstring).
 
     Args:
         settings: the run's settings (a vehicle's ``vehicle.toml`` or manifest profile is
-            applied on top, keeping the settings named in ``keep``).
-        workers: worker processes of the local cluster (ignored with ``scheduler``).
-        scheduler: address of a running Dask scheduler, or ``None`` for a local cluster.
-        alpha: false-alarm probability of each day's change test.
-        progress: gets progress lines; ``bar`` shows a tqdm progress bar instead.
+            applied on top, keeping the settings named in ``options.keep``).
+        options: the cluster, the change test's alpha, the bar (:class:`FleetOptions`).
+        progress: gets progress lines.
 
     Raises:
         GraphcalError: for a bad source, an unwritable ``out`` or an unreachable scheduler.
@@ -139,7 +152,7 @@ def run_fleet(
                 f"{other.vehicle}/{other.day} and {log.vehicle}/{log.day} would share a result "
                 "file; rename one (names keep letters, digits, '.', '_' and '-')"
             )
-    per_log = _settings_per_log(logs, settings, keep)
+    per_log = _settings_per_log(logs, settings, options.keep)
     say(f"{len(logs)} logs of {len({log.vehicle for log in logs})} vehicles in {source}")
     keys = [result_key(content_hash(log.path), s) for log, s in zip(logs, per_log, strict=True)]
     results: list[dict[str, Any] | None] = [
@@ -152,11 +165,12 @@ def run_fleet(
     with DeferredInterrupt() as interrupt:
         try:
             if pending:
-                with _client(workers, scheduler) as client:
+                with _client(options.workers, options.scheduler) as client:
                     interrupt.check()
                     say(f"calibrating {len(pending)} logs on {_describe(client)}")
+                    tasks = list(zip(logs, per_log, keys, strict=True))
                     calibrated = _calibrate(
-                        client, out, logs, per_log, keys, pending, say, bar, interrupt
+                        client, out, (tasks, pending), say, options.bar, interrupt
                     )
                     for i, result in calibrated:
                         results[i] = result
@@ -168,7 +182,7 @@ def run_fleet(
                 "command again to calibrate the others"
             ) from None
         final = [r for r in results if r is not None]
-        histories = _histories(final, alpha)
+        histories = _histories(final, options.alpha)
         try:
             written = write_fleet_report(final, histories, out)
         except OSError as exc:
@@ -262,17 +276,20 @@ def _describe(client) -> str:
 def _calibrate(
     client,
     out: Path,
-    logs,
-    per_log,
-    keys,
-    pending,
+    work: tuple[list[tuple[FleetLog, Settings, str]], list[int]],
     say: Progress,
     bar: bool,
     interrupt: DeferredInterrupt,
 ):
-    """Submit the pending logs; yield ``(index, result)`` as each finishes, after writing it.
-    Checks ``interrupt`` every :data:`POLL_SECONDS` (raises ``KeyboardInterrupt``)."""
+    """Submit the pending logs (``work``: every log's ``(log, settings, key)`` and the indices
+    of those pending); yield ``(index, result)`` as each finishes, after writing it. Checks
+    ``interrupt`` every :data:`POLL_SECONDS` (raises ``KeyboardInterrupt``)."""
     from distributed import as_completed
+
+    tasks, pending = work
+    logs = [log for log, _, _ in tasks]
+    per_log = [settings for _, settings, _ in tasks]
+    keys = [key for _, _, key in tasks]
 
     futures = {
         client.submit(calibrate_fleet_log, logs[i], per_log[i], keys[i], pure=False): i
