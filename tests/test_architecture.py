@@ -277,3 +277,29 @@ def test_no_import_cycle_between_files():
     components = _strongly_connected(edges)
     cycles = [sorted(c) for c in components]
     assert not cycles, f"import cycles between files: {cycles}"
+
+
+#: Most parameters a function may take (self and cls not counted): more says that some of
+#: them travel together and want a name (a settings or options object, a request).
+MAX_PARAMETERS = 8
+
+
+def _crowded_functions(path: Path) -> list[str]:
+    found = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if not isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            continue
+        a = node.args
+        names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs]
+        count = len(names) + (a.vararg is not None) + (a.kwarg is not None)
+        count -= bool(names) and names[0] in ("self", "cls")
+        # the CLI's argument adders mirror argparse's options, one parameter each
+        adder = path.parent.name == "cli" and node.name.startswith("add_")
+        if count > MAX_PARAMETERS and not adder:
+            found.append(f"{node.name} (line {node.lineno}: {count} parameters)")
+    return found
+
+
+@pytest.mark.parametrize("path", FILES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_function_takes_more_than_eight_parameters(path):
+    assert _crowded_functions(path) == []

@@ -14,7 +14,7 @@ from graphcal.recording.bag.reader import bag_topics, is_bag
 from graphcal.recording.bag.request import BagRequest
 from graphcal.recording.bag.topics import pick_joints
 from graphcal.recording.streams import ImuStream, PoseStream, Recording, StreamError, WheelStream
-from graphcal.simulate.bags import write_bag
+from graphcal.simulate.bags import BagTopics, write_bag
 
 pytest.importorskip("rosbags")
 
@@ -102,7 +102,9 @@ def test_navsatfix_recording_round_trips(bags, storage):
 @pytest.mark.slow
 def test_odometry_with_heading_round_trips(tmp_path, storage):
     recording = _recording(geodetic=False)
-    path = write_bag(recording, tmp_path / STORAGES[storage], storage, pose_topic="/odom")
+    path = write_bag(
+        recording, tmp_path / STORAGES[storage], storage, topics=BagTopics(pose="/odom")
+    )
     assert bag_topics(path)["/odom"] == "nav_msgs/msg/Odometry"
     _assert_same(read_bag(path, BagRequest(pose_topic="/odom")), recording)
 

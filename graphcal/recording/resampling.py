@@ -129,9 +129,8 @@ def resample(
         n_rl, n_rr = np.maximum(n_rl, 0.0), np.maximum(n_rr, 0.0)
     psi = _track_heading(pose, px, py, beta, grid, wheel_circumference, notes)
     fixes = _fixes(pose, grid, px, py, psi, notes)
-    ay = _lateral_acceleration(
-        recording.imu, pose, n_rl, n_rr, psi, grid, wheel_circumference, track_width, notes
-    )
+    nominal = np.array([wheel_circumference, 0.0, track_width, 0.0])
+    ay = _lateral_acceleration(recording.imu, pose, n_rl, n_rr, psi, grid, nominal, notes)
     masked, mask_notes = _mask(grid, reversing)
     imu = recording.imu
     columns = {
@@ -275,16 +274,16 @@ def _lateral_acceleration(
     n_rr: np.ndarray,
     psi: np.ndarray,
     grid: _Grid,
-    wheel_circumference: float,
-    track_width: float,
+    nominal: np.ndarray,
     notes: list[str],
 ) -> np.ndarray:
     """The lateral acceleration [m/s²] per row: the IMU's mean over each interval, else the
-    wheels' speed × a yaw rate (the IMU's, the heading's, else the wheels', with a note)."""
+    wheels' speed × a yaw rate (the IMU's, the heading's, else the wheels', with a note),
+    the wheels' rotations turned into distance and yaw with the ``nominal`` theta."""
     if imu is not None and imu.lateral_acceleration is not None:
         return interval_means(imu.t, imu.lateral_acceleration, grid.t)
     dt = grid.dt
-    speed = 0.5 * (n_rl + n_rr) * wheel_circumference / dt
+    speed = 0.5 * (n_rl + n_rr) * nominal[0] / dt
     if imu is not None and imu.yaw_rate is not None:
         yaw_rate = interval_means(imu.t, imu.yaw_rate, grid.t)
         notes.append("lateral acceleration not logged: speed × the IMU's yaw rate")
@@ -299,7 +298,6 @@ def _lateral_acceleration(
             "lateral acceleration not logged: speed × yaw rate of the wheels over "
             f"{YAW_RATE_WINDOW_S:g} s (nominal theta; derived again with the solved one)"
         )
-        nominal = np.array([wheel_circumference, 0.0, track_width, 0.0])
         return wheel_lateral_acceleration(n_rl, n_rr, nominal, dt, YAW_RATE_WINDOW_S)
     return speed * yaw_rate
 

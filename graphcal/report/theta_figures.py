@@ -5,6 +5,7 @@ every batch's estimate with its ±2σ interval next to the run's theta.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -46,15 +47,24 @@ def _theta_true(evaluation: Evaluation | None) -> np.ndarray | None:
     return None if evaluation is None else evaluation.theta_true
 
 
+@dataclass(frozen=True)
+class Recommended:
+    """The theta a figure recommends: its value ``(4,)`` (SI), legend entry and line style
+    (default :data:`RECOMMENDED_LINE`; :data:`NOT_TRUSTED_THETA`, dashed, for a run that is
+    not trusted)."""
+
+    theta: np.ndarray
+    label: str = THETA_NAMES["calibrated"]
+    style: dict | None = None
+
+
 def box_plots(
     estimates: dict[str, np.ndarray],
     title: str,
     theta_true: np.ndarray | None = None,
-    recommended: np.ndarray | None = None,
+    recommended: Recommended | None = None,
     not_observable: tuple[str, ...] = (),
     *,
-    recommended_label: str = THETA_NAMES["calibrated"],
-    recommended_style: dict | None = None,
     notes: Sequence[str] = (),
     held: tuple[str, ...] = (),
 ) -> Figure:
@@ -64,15 +74,13 @@ def box_plots(
         estimates: per step or method (``"step1"``, ``"step5"``, ``"joint"``, ...), thetas
             ``(B, 4)`` in SI; NaN rows are left out (a tick label says how many are left).
         title: figure title.
-        theta_true, recommended: drawn as horizontal lines when given.
+        theta_true, recommended: drawn as horizontal lines when given (``recommended``:
+            :class:`Recommended`, its value, legend entry and style).
         not_observable: parameters the data did not determine: ``recommended``'s value is
             drawn as the prior value kept (:data:`PRIOR_KEPT`), not as an estimate, and the
             panel's title says so.
         held: parameters the vehicle profile holds at their nominal (``fix_d``): the panel
             says so.
-        recommended_label, recommended_style: legend entry and line style of
-            ``recommended`` (e.g. :data:`NOT_TRUSTED_THETA`, dashed, for a run that is not
-            trusted).
         notes: caption lines below the legend, after the explanation of each step shown
             (:data:`STEP_NOTES`), e.g. why batches are not shown.
     """
@@ -92,10 +100,12 @@ def box_plots(
             ax.axhline(theta_true[i] * DISPLAY_SCALE[i], **TRUE_LINE, label="true θ")
         hidden = name in not_observable
         if recommended is not None and hidden:  # the prior value the run keeps, not an estimate
-            ax.axhline(recommended[i] * DISPLAY_SCALE[i], **PRIOR_LINE, label=PRIOR_KEPT)
+            value = recommended.theta[i] * DISPLAY_SCALE[i]
+            ax.axhline(value, **PRIOR_LINE, label=PRIOR_KEPT)
         elif recommended is not None:
-            style = recommended_style or RECOMMENDED_LINE
-            ax.axhline(recommended[i] * DISPLAY_SCALE[i], **style, label=recommended_label)
+            style = recommended.style or RECOMMENDED_LINE
+            value = recommended.theta[i] * DISPLAY_SCALE[i]
+            ax.axhline(value, **style, label=recommended.label)
         # What the panel lacks, in its title (over no line or box): beside the name it
         # overflows the panel
         if hidden:
@@ -135,10 +145,8 @@ def parameters_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         estimates,
         title,
         _theta_true(evaluation),
-        run.theta,
+        Recommended(run.theta, calibrated_name(run), calibrated_line(run)),
         hidden,
-        recommended_label=calibrated_name(run),
-        recommended_style=calibrated_line(run),
         notes=notes,
         held=tuple(
             name

@@ -16,6 +16,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
@@ -30,16 +31,24 @@ _Topic = tuple[str, np.ndarray, Callable[[int], Any]]
 _MISSING_ROSBAGS = 'writing ROS bags needs the rosbags package: pip install -e ".[ros]"'
 
 
+@dataclass(frozen=True)
+class BagTopics:
+    """The topics a written bag holds its streams in, and the rear wheels' joint names in its
+    JointState messages."""
+
+    pose: str = "/gnss/fix"
+    wheels: str = "/joint_states"
+    imu: str = "/imu/data"
+    rear_left: str = "rear_left_wheel_joint"
+    rear_right: str = "rear_right_wheel_joint"
+
+
 def write_bag(
     recording: Recording,
     path: str | Path,
     storage: Storage,
     *,
-    pose_topic: str = "/gnss/fix",
-    wheel_topic: str = "/joint_states",
-    imu_topic: str = "/imu/data",
-    rear_left: str = "rear_left_wheel_joint",
-    rear_right: str = "rear_right_wheel_joint",
+    topics: BagTopics = BagTopics(),
     pose_message: Literal["navsatfix", "odometry", "posestamped"] | None = None,
 ) -> Path:
     """Write ``recording`` as a bag at ``path``, atomically (temporary path, then rename).
@@ -50,8 +59,7 @@ def write_bag(
             and ``"mcap"`` (ROS 2 bag with mcap storage; its ``<name>.mcap`` file is also
             readable on its own). An existing bag at ``path`` is replaced.
         storage: ``"ros1"``, ``"ros2"`` or ``"mcap"``.
-        pose_topic, wheel_topic, imu_topic: topic names.
-        rear_left, rear_right: joint names of the rear wheels in the JointState messages.
+        topics: the topic names and the rear wheels' joint names (:class:`BagTopics`).
         pose_message: ``"navsatfix"`` (latitude/longitude; needs the pose's ``origin``; the
             heading goes into the Imu orientation, as an INS publishes it) or ``"odometry"``
             (local x, y, the heading as orientation and the sideslip as the direction of the
@@ -78,18 +86,18 @@ def write_bag(
     ros1 = storage == "ros1"
     typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     messages = _Messages(typestore, ros1)
-    topics = [
-        (pose_topic, *messages.pose(recording, as_fix, pose_message == "posestamped")),
-        (wheel_topic, *messages.wheels(recording, rear_left, rear_right)),
+    written = [
+        (topics.pose, *messages.pose(recording, as_fix, pose_message == "posestamped")),
+        (topics.wheels, *messages.wheels(recording, topics.rear_left, topics.rear_right)),
     ]
     if recording.imu is not None:
-        topics.append((imu_topic, *messages.imu(recording, as_fix)))
+        written.append((topics.imu, *messages.imu(recording, as_fix)))
 
     path.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f".{path.name}.", dir=path.parent))
     try:
         target = staging / path.name
-        _write(target, storage, typestore, topics)
+        _write(target, storage, typestore, written)
         _replace(target, path)
     finally:
         shutil.rmtree(staging, ignore_errors=True)

@@ -193,7 +193,7 @@ def read_nmea(
             f"{source}: none of its {len(gga.tod) + len(rmc.tod)} GGA/RMC sentences has a "
             "UTC time (the receiver never had a fix); log again once it has one"
         )
-    timed = _timed(gga, rmc, date, date_key, manifest, source, notes)
+    timed = _timed(gga, rmc, _GivenDate(date, date_key, manifest), source, notes)
     epochs = np.unique(timed.key)
     gga_at, rmc_at = _first_per_epoch(timed, epochs, gga, rmc, source, notes)
     heading = _headings(found, timed, epochs, source, notes)
@@ -235,12 +235,19 @@ def _position_sentences(found: Sentences, kind: str, count: int) -> _PositionSen
     )
 
 
+@dataclass(frozen=True)
+class _GivenDate:
+    """The UTC date the user gave (or ``None``), the key that gave it and where."""
+
+    date: datetime.date | str | None
+    key: str
+    manifest: str
+
+
 def _timed(
     gga: _PositionSentences,
     rmc: _PositionSentences,
-    date: datetime.date | str | None,
-    date_key: str,
-    manifest: str,
+    given: _GivenDate,
     source: str,
     notes: list[str],
 ) -> _Timed:
@@ -254,7 +261,7 @@ def _timed(
     timed = timed[np.argsort(seq[timed], kind="stable")]
     kind, seq, tod, index = kind[timed], seq[timed], tod[timed], index[timed]
     rolled = np.concatenate([[0], np.cumsum(np.diff(tod) < -ROLLOVER_MS)])
-    offset = _days(kind, index, rolled, gga, rmc, date, date_key, manifest, source, notes)
+    offset = _days(kind, index, rolled, gga, rmc, given, source, notes)
     key = (offset.astype(np.int64) + rolled) * DAY_MS + tod  # ms since 1970-01-01 UTC
     back = np.diff(key) < 0
     if back.any():
@@ -273,9 +280,7 @@ def _days(
     rolled: np.ndarray,
     gga: _PositionSentences,
     rmc: _PositionSentences,
-    date: datetime.date | str | None,
-    date_key: str,
-    manifest: str,
+    given_date: _GivenDate,
     source: str,
     notes: list[str],
 ) -> np.ndarray:
@@ -287,6 +292,7 @@ def _days(
     dated = np.zeros(len(kind), dtype=bool)
     dated[is_rmc] = rmc_days[index[is_rmc]] >= 0
     day_of[dated] = rmc_days[index[dated]] - rolled[dated]
+    date, date_key, manifest = given_date.date, given_date.key, given_date.manifest
     given = _date_days(date)
     if dated.any():
         first_day = pd.Series(day_of).bfill().to_numpy()[0]
