@@ -359,10 +359,10 @@ def test_fields_decoded_from_raw_bytes_equal_rosbags_message_by_message(
     monkeypatch.setattr(bag_reader, "decode_fields", spy)
     for path in [*custom.values(), *(written[s, DATASPEED] for s in STORAGES)]:
         decoded.clear()
-        fast = read_bag(path, **args) if path in custom.values() else read_bag(path)
+        fast = read_bag(path, BagRequest(**args)) if path in custom.values() else read_bag(path)
         assert decoded and all(decoded)  # every chunk of every field topic, vectorized
         monkeypatch.setattr(bag_reader, "FAST_DECODING", False)
-        slow = read_bag(path, **args) if path in custom.values() else read_bag(path)
+        slow = read_bag(path, BagRequest(**args)) if path in custom.values() else read_bag(path)
         monkeypatch.setattr(bag_reader, "FAST_DECODING", True)
         for a, b in ((fast.wheels.left, slow.wheels.left), (fast.wheels.t, slow.wheels.t)):
             np.testing.assert_array_equal(a, b)
