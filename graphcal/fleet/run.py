@@ -25,6 +25,7 @@ import logging
 import os
 import re
 import time
+import warnings
 from collections.abc import Collection
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
@@ -54,7 +55,7 @@ from graphcal.fleet.task import calibrate_fleet_log, content_hash, failed_result
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.settings_file import load_vehicle
 from graphcal.pipeline.vehicle_settings import apply_vehicle
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 
 #: How often [s] a run waiting for results checks for Ctrl-C.
 POLL_SECONDS = 0.1
@@ -118,6 +119,7 @@ class FleetOptions:
     bar: bool = False
 
 
+@reports_progress
 def run_fleet(
     source: str | os.PathLike[str],
     out: str | os.PathLike[str],
@@ -138,7 +140,6 @@ def run_fleet(
         GraphcalError: for a bad source, an unwritable ``out`` or an unreachable scheduler.
     """
     started = time.perf_counter()
-    say = progress or (lambda _line: None)
     settings = settings or Settings()
     out = Path(out)
     if out.exists() and not out.is_dir():  # before minutes of computation, not after
@@ -169,9 +170,7 @@ def run_fleet(
                     interrupt.check()
                     say(f"calibrating {len(pending)} logs on {_describe(client)}")
                     tasks = list(zip(logs, per_log, keys, strict=True))
-                    calibrated = _calibrate(
-                        client, out, (tasks, pending), say, options.bar, interrupt
-                    )
+                    calibrated = _calibrate(client, out, (tasks, pending), options.bar, interrupt)
                     for i, result in calibrated:
                         results[i] = result
             interrupt.check()
@@ -248,13 +247,18 @@ def _client(workers: int, scheduler: str | None):
         with client:
             yield client
         return
-    with sigint_blocked():  # the workers never see Ctrl-C (graphcal.fleet.interrupt)
+    # The workers never see Ctrl-C (graphcal.fleet.interrupt). Dask's own words stay out of
+    # the user's terminal: its scheduler's HTTP server moving off a busy port 8787 (another
+    # cluster's) and the workers' lost heartbeats once Ctrl-C closed the scheduler; a task
+    # that fails is reported per log (failed_result).
+    with sigint_blocked(), warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
         cluster = LocalCluster(
             n_workers=max(1, workers),
             threads_per_worker=1,
             processes=True,
             dashboard_address=None,
-            silence_logs=logging.ERROR,
+            silence_logs=logging.CRITICAL,
             preload=[WORKER_PRELOAD],
         )
     with ExitStack() as quiet, ExitStack() as stack:  # quiet outlasts the closing
@@ -277,7 +281,6 @@ def _calibrate(
     client,
     out: Path,
     work: tuple[list[tuple[FleetLog, Settings, str]], list[int]],
-    say: Progress,
     bar: bool,
     interrupt: DeferredInterrupt,
 ):
@@ -295,7 +298,7 @@ def _calibrate(
         client.submit(calibrate_fleet_log, logs[i], per_log[i], keys[i], pure=False): i
         for i in pending
     }
-    meter = _meter(len(futures), say, bar)
+    meter = _meter(len(futures), bar)
     try:
         for future in _as_finished(as_completed(futures), interrupt):
             i = futures[future]
@@ -335,7 +338,7 @@ def _write(path: Path, text: str) -> None:
         raise GraphcalError(f"cannot write {path}: {exc.strerror or exc}") from exc
 
 
-def _meter(total: int, say: Progress, bar: bool):
+def _meter(total: int, bar: bool):
     """A callable advanced once per finished log (``None``: close)."""
     if bar:
         from tqdm import tqdm
