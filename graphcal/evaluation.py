@@ -38,7 +38,7 @@ from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.joint import JointSettings
 from graphcal.pipeline.validation import position_errors
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 from graphcal.recording.importer import ImportedLog
 from graphcal.simulate.drive import read_sidecar, truth_path
 
@@ -172,6 +172,7 @@ def nees(theta: np.ndarray, covariance: np.ndarray, theta_true: np.ndarray) -> n
     return out
 
 
+@reports_progress
 def evaluate(
     run: CalibrationRun,
     truth: Truth,
@@ -183,7 +184,6 @@ def evaluate(
     Raises:
         GraphcalError: if the noise-free log does not match the measured one.
     """
-    say = progress or (lambda _line: None)
     theta_true = np.asarray(truth.theta, float)
     if truth.log is not None and len(truth.log) != len(run.log):
         raise GraphcalError(
@@ -227,6 +227,7 @@ def evaluate(
     )
 
 
+@reports_progress
 def synthetic_truth(
     run: CalibrationRun,
     log_path: str | os.PathLike[str],
@@ -240,31 +241,31 @@ def synthetic_truth(
         if imported.truth is None:
             return None
         where = "its manifest" if imported.truth_file is None else imported.truth_file
-        progress(f"synthetic recording: comparing with theta_true from {where}")
+        say(f"synthetic recording: comparing with theta_true from {where}")
         return Truth(imported.truth)
-    return _sidecar_truth(run, Path(log_path), progress)
+    return _sidecar_truth(run, Path(log_path))
 
 
-def _sidecar_truth(run: CalibrationRun, log_path: Path, progress: Progress) -> Truth | None:
+def _sidecar_truth(run: CalibrationRun, log_path: Path) -> Truth | None:
     """The truth in a synthetic drive's sidecar, or ``None`` for a real log."""
     sidecar = read_sidecar(log_path, len(run.log))
     if sidecar is None:
         return None
-    progress("synthetic drive: comparing with theta_true from its sidecar")
+    say("synthetic drive: comparing with theta_true from its sidecar")
     path = truth_path(log_path)
     truth_log = None
     if not path.exists():
         # An imported recording's sidecar carries theta_true but no noise-free drive; only
         # `graphcal simulate` writes one, and only then is its absence worth a word.
         if str(sidecar.get("generator", "")).endswith("simulate"):
-            progress(f"no Cramér–Rao bound: the noise-free drive {path} is missing")
+            say(f"no Cramér–Rao bound: the noise-free drive {path} is missing")
     else:
         try:
             truth_log = load_drive_log(path, reverses=run.settings.vehicle.reverses)
         except GraphcalError as exc:
-            progress(f"no Cramér–Rao bound: cannot use {path}: {exc}")
+            say(f"no Cramér–Rao bound: cannot use {path}: {exc}")
     if truth_log is not None and len(truth_log) != len(run.log):
-        progress(
+        say(
             f"no Cramér–Rao bound: {path.name} has {len(truth_log)} samples, the log {len(run.log)}"
         )
         truth_log = None

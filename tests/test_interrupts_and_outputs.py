@@ -98,3 +98,20 @@ def test_ctrl_c_during_import_says_one_line_and_writes_nothing(tmp_path, after):
     assert run.returncode == 130, run.stderr
     assert "Traceback" not in run.stderr, run.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["stderr.txt", "stdout.txt"]
+
+
+def _ctrl_c_in_the_worker(k: int) -> int:
+    """A task whose worker gets Ctrl-C (its own SIGINT: it dies of it, as in a terminal)."""
+    if k == 3:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(5)
+    return k
+
+
+def test_a_pool_broken_by_ctrl_c_ends_the_run_as_an_interrupt():
+    """Under load the workers can die of Ctrl-C before the parent sees its own SIGINT: the
+    pool breaks first. That is still an interrupt (exit 130, one line), not a crash."""
+    from graphcal.pipeline.parallel import map_tasks
+
+    with pytest.raises(KeyboardInterrupt):
+        map_tasks(_ctrl_c_in_the_worker, [(k,) for k in range(8)], workers=2)

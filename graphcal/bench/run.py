@@ -64,7 +64,7 @@ from graphcal.bench.options import FULL_SIZES, BenchSizes, resolve_bench_options
 from graphcal.bench.recording import BenchRun, Recorder
 from graphcal.bench.scaling import scaling_item
 from graphcal.bench.whole_log_items import batch_study_items, segmented_items, whole_log_items
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 
 #: The report's entries after ``config`` and ``items``, in their order in the JSON.
 REPORT_ENTRIES = (
@@ -81,13 +81,14 @@ REPORT_ENTRIES = (
 )
 
 
+@reports_progress
 def run_benchmarks(
     sizes: BenchSizes = FULL_SIZES, workers: int = 2, progress: Progress | None = None
 ) -> dict[str, Any]:
     """Run every item of :data:`ITEMS` at ``sizes`` on ``workers`` processes; return
     ``{"config": ..., "items": [...], "agreement": ...}`` (the entries of
     :data:`REPORT_ENTRIES` after the items)."""
-    record = Recorder(progress or (lambda _line: None))
+    record = Recorder()
     bench = BenchRun(**dataclasses.asdict(sizes), workers=workers, record=record)
     entries: dict[str, Any] = {}
     for item in ITEMS:
@@ -176,7 +177,7 @@ def scaling_items(bench: BenchRun) -> dict[str, Any]:
             iterations=run["iterations"],
         )
     if scaling["exponent"] is not None:
-        record.say(f"(k) time grows as length^{scaling['exponent']:.2f}")
+        say(f"(k) time grows as length^{scaling['exponent']:.2f}")
     end_to_end = scaling["end_to_end"]
     if end_to_end is not None:
         for name, label in (("csv_alone", "CSV alone"), ("with_truth", "with its truth")):
@@ -204,7 +205,7 @@ def fleet_items(bench: BenchRun) -> dict[str, Any]:
             task_mean_s=entry["task_mean_s"],
             overhead_per_log_s=entry["overhead_per_log_s"],
         )
-    bench.record.say(
+    say(
         f"(m) fleet: 2 workers over 1 {fleet['scaling_2_over_1']:.2f}x; local cluster "
         f"start and stop {fleet['cluster_start_stop_s']:.1f} s"
     )
@@ -230,6 +231,7 @@ ITEMS: tuple[Callable[[BenchRun], dict[str, Any]], ...] = (
 )
 
 
+@reports_progress
 def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
     """Run the benchmark with the options of :func:`graphcal.cli.bench.add_arguments`
     (sizes resolved by :func:`~graphcal.bench.options.resolve_bench_options`); returns the
@@ -241,7 +243,7 @@ def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
             "import": import_item(sizes["import_hours"]),
             "import_can": can_import_item(sizes["import_hours"]),
         }
-    report = run_benchmarks(BenchSizes(**sizes), args.workers, progress)
+    report = run_benchmarks(BenchSizes(**sizes), args.workers)
     report["config"]["quick"] = bool(getattr(args, "quick", False))
     return report
 

@@ -128,7 +128,7 @@ class _RemoteGroup:
 
 def _serve(connection, group: PartGroup) -> None:
     """A worker's loop: answer requests until :class:`Stop`. Ctrl-C ends the worker without
-    a word (:func:`~graphcal.pipeline.parallel.quiet_on_interrupt`'s reason)."""
+    a word (:func:`~graphcal.pipeline.parallel.quiet_worker`'s reason)."""
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     while True:
         request = connection.recv()

@@ -32,6 +32,7 @@ from graphcal.graph.levenberg_marquardt import (
 )
 from graphcal.graph.linear_systems import predicted_decrease, vector_values
 from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
+from graphcal.progress import say
 
 if TYPE_CHECKING:
     from graphcal.graph.partitioned import PartitionedGraph
@@ -203,9 +204,9 @@ def optimize(
     ``gauss_newton_first``: the first step is already undamped (values near the optimum,
     such as a warm start's: no damping to compute).
 
-    ``options.progress`` gets a line per iteration (χ²/dof, damping λ, elapsed time) once the
-    solve has run for :data:`PROGRESS_AFTER_S` (a long log's solve shows it is moving;
-    a short one prints nothing)."""
+    With ``options.report_iterations``, a line per iteration (χ²/dof, damping λ, elapsed
+    time, :func:`graphcal.progress.say`) once the solve has run for :data:`PROGRESS_AFTER_S`
+    (a long log's solve shows it is moving; a short one prints nothing)."""
     started = time.perf_counter()
     dof = max(1, graph.factor_dims() - graph.dim())
     solve = _Solve(graph, options.relative_error_tol, gauss_newton_first)
@@ -216,8 +217,8 @@ def optimize(
         graph.workers.release()
         stop = solve.finish(ended)
         elapsed = time.perf_counter() - started
-        if options.progress is not None and elapsed >= PROGRESS_AFTER_S:
-            options.progress(
+        if options.report_iterations and elapsed >= PROGRESS_AFTER_S:
+            say(
                 f"  iteration {iterations}: χ²/dof {2.0 * solve.error / dof:.4f}, {ended.how} "
                 f"({elapsed:.0f} s)"
             )

@@ -7,8 +7,6 @@ import dataclasses
 import enum
 from dataclasses import dataclass
 
-from graphcal.progress import Progress
-
 
 @dataclass(frozen=True)
 class SolveOptions:
@@ -21,14 +19,15 @@ class SolveOptions:
         label: names the solve in its errors (``"joint solve failed: ..."``).
         workers: processes the segments of a graph that splits are shared out among (the
             result does not depend on it).
-        progress: gets a line per iteration of a long solve; ``None``: quiet.
+        report_iterations: a long solve says a line per iteration
+            (:func:`graphcal.progress.say`).
     """
 
     max_iterations: int = 50
     relative_error_tol: float = 1e-7
     label: str = "solve"
     workers: int = 1
-    progress: Progress | None = None
+    report_iterations: bool = False
 
     def named(self, label: str) -> SolveOptions:
         """The same options for a solve called ``label``."""

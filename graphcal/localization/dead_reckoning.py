@@ -27,7 +27,7 @@ from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.log.drive_log import DriveLog
 from graphcal.model import integrate
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 
 
 @dataclass(frozen=True)
@@ -87,6 +87,7 @@ def pose_before_outage(
     return states_from_values(result, keys, float(log.psi[keyframes[0]]))[-1]
 
 
+@reports_progress
 def outage_errors(
     log: DriveLog,
     truth: DriveLog,
@@ -108,7 +109,6 @@ def outage_errors(
         ``start_t_s``, ``final_error_m``, ``mean_error_m``.
     """
     settings = settings or OutageSettings()
-    say = progress or (lambda _line: None)
     if len(truth) != len(log):
         raise GraphcalError(f"truth has {len(truth)} samples, the log {len(log)}")
     longest = round(max(settings.durations_s) / log.dt)

@@ -37,7 +37,7 @@ from graphcal.localization.keyframe_odometry import OdometryNoise, keyframe_odom
 from graphcal.localization.smoothing import gnss_noise, gnss_usable
 from graphcal.log.drive_log import DriveLog
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, integrate
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 
 
 @dataclass(frozen=True)
@@ -138,6 +138,7 @@ class OnlineResult:
         return float(self.update_seconds.sum() / span)
 
 
+@reports_progress
 def run_online(
     log: DriveLog,
     settings: OnlineSettings | None = None,
@@ -146,7 +147,6 @@ def run_online(
     """Feed ``log`` keyframe by keyframe into a fixed-lag smoother that estimates the
     trajectory and a slowly varying theta; return theta per slice and the update times."""
     settings = settings or OnlineSettings()
-    say = progress or (lambda _line: None)
     keyframes = gnss_keyframes(log, settings.gnss_rate_hz)
     if len(keyframes) < 2:
         raise GraphcalError("online: the log is shorter than two GNSS intervals")

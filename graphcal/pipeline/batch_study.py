@@ -20,7 +20,7 @@ from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import SensorEstimate, run_of
 from graphcal.pipeline.staged import step1_thetas
 from graphcal.pipeline.whole_log import WholeLog
-from graphcal.progress import Progress
+from graphcal.progress import say
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,6 @@ def joint_batch_study(
     batches: np.ndarray,
     values: gtsam.Values | None,
     workers: int,
-    say: Progress,
 ) -> BatchStudy:
     """Step 1 and the joint solve of each of the ``batches`` ``(B, N)`` of the selected
     segments of ``solved``; ``values``: the whole-log solution the linearized joint batches
@@ -62,7 +61,7 @@ def joint_batch_study(
         robust_threshold=0.0,
         slip="on" if solved.whole.slip_modelled else "off",
     )
-    step1 = step1_thetas(corrected.data, batches, settings, workers, say)
+    step1 = step1_thetas(corrected.data, batches, settings, workers)
     warnings = []
     step1_failed = int((~np.all(np.isfinite(step1), axis=1)).sum())
     if step1_failed:

@@ -10,11 +10,12 @@ import os
 from graphcal.pipeline.calibration_run import CalibrationRun, Method
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import Settings
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 from graphcal.recording.importer import BagOptions, ImportedLog
 from graphcal.recording.open_log import open_log
 
 
+@reports_progress
 def calibrate_file(
     path: str | os.PathLike[str],
     settings: Settings,
@@ -36,7 +37,6 @@ def calibrate_file(
     Raises:
         GraphcalError: the log cannot be read or calibrated.
     """
-    say = progress or _quiet
     log, imported = open_log(
         path,
         settings.vehicle,
@@ -51,7 +51,7 @@ def calibrate_file(
     if imported is not None:
         for line in imported.lines():
             say(line)
-    run = run_calibration(log, settings, method, progress=say, workers=workers)
+    run = run_calibration(log, settings, method, workers=workers)
     if imported is not None and imported.warnings:  # the import's doubts go with the result
         run = dataclasses.replace(run, warnings=(*imported.warnings, *run.warnings))
     return run, imported

@@ -21,7 +21,7 @@ from graphcal.pipeline.staged import StagedResult
 from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
 from graphcal.pipeline.validation import position_errors
 from graphcal.pipeline.whole_log import WholeLog
-from graphcal.progress import Progress
+from graphcal.progress import say
 
 Method = Literal["staged", "joint", "whole"]
 
@@ -147,7 +147,6 @@ def validated_run(
     corrected: PreparedLog,
     solved: WholeLog | None,
     result: MethodResult,
-    say: Progress,
 ) -> CalibrationRun:
     """The run: ``result`` validated on the validation segments of ``corrected`` (the log
     the method calibrated from), judged (:mod:`graphcal.pipeline.trust`), with every warning

@@ -13,7 +13,7 @@ from graphcal.graph.observability import with_prior_sigmas
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.joint import JointCalibration, JointSettings
 from graphcal.pipeline.prepare import PreparedLog
-from graphcal.progress import Progress
+from graphcal.progress import say
 
 
 def weak_prior_covariance(whole: JointCalibration, settings: JointSettings) -> np.ndarray:
@@ -39,7 +39,7 @@ def data_determine(
 
 
 def holding_what_is_not_observable(
-    whole: JointCalibration, settings: JointSettings, say: Progress
+    whole: JointCalibration, settings: JointSettings
 ) -> JointSettings:
     """``settings`` holding the parameters ``whole`` left not observable at their prior
     (:meth:`JointSettings.holding`; else ``settings`` itself): a direction the data do not
@@ -87,7 +87,7 @@ def still_not_calibrated(
 
 
 def without_an_unseen_lever_arm(
-    whole: JointCalibration, settings: JointSettings, prepared: PreparedLog, say: Progress
+    whole: JointCalibration, settings: JointSettings, prepared: PreparedLog
 ) -> tuple[JointSettings, dict[str, float]]:
     """``settings`` without the lever arm, and the variables left out of the graph, when
     ``whole`` found neither of the arm's components observable (else ``settings`` and

@@ -42,7 +42,7 @@ from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.robust import solve_segment_graph_robust
 from graphcal.pipeline.slip_screen import with_slip_if_shown
 from graphcal.pipeline.warm_start import warm_start
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress
 from graphcal.vehicle import HELD_SIGMA_SCALE
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
@@ -283,6 +283,7 @@ class JointCalibration(ThetaEstimate):
         return self.noise.position
 
 
+@reports_progress
 def calibrate_joint(
     data: SegmentData,
     settings: JointSettings | None = None,
@@ -297,9 +298,10 @@ def calibrate_joint(
     Raises:
         CalibrationFailed: if the solve fails or gives an implausible theta.
     """
-    return solve_joint(data, settings, workers, progress)[0]
+    return solve_joint(data, settings, workers)[0]
 
 
+@reports_progress
 def solve_joint(
     data: SegmentData,
     settings: JointSettings | None = None,
@@ -316,7 +318,9 @@ def solve_joint(
     observability."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
-    options = SolveOptions(settings.max_iterations, TOLERANCE, "joint solve", workers, progress)
+    options = SolveOptions(
+        settings.max_iterations, TOLERANCE, "joint solve", workers, report_iterations=True
+    )
     spec = settings.graph_spec()
     start = warm_start(data, spec, options)
     solved, weights, residuals = solve_segment_graph_robust(

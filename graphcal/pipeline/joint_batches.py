@@ -34,7 +34,7 @@ from graphcal.graph.values import copy_value
 from graphcal.log.segments import SegmentData
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 
 #: ``[batches] joint_solve``: how the joint method solves its batches.
 JOINT_BATCH_SOLVES = ("linearized", "exact")
@@ -55,6 +55,7 @@ class BatchEstimate:
     observability: Observability
 
 
+@reports_progress
 def solve_joint_batches(
     data: SegmentData,
     batches: np.ndarray,
@@ -88,12 +89,12 @@ def solve_joint_batches(
         )
     if batch_solve == "exact":
         tasks = [(data.take(batch), settings) for batch in batches]
-        solved = map_tasks(_exact_task, tasks, workers, progress, "joint batch solves")
+        solved = map_tasks(_exact_task, tasks, workers, "joint batch solves")
         return [
             None if r is None else BatchEstimate(r.theta, r.covariance, r.observability)
             for r in solved
         ]
-    return _linearized(data, np.asarray(batches, int), settings, start, workers, progress)
+    return _linearized(data, np.asarray(batches, int), settings, start, workers)
 
 
 def _exact_task(data: SegmentData, settings: JointSettings):
@@ -110,10 +111,8 @@ def _linearized(
     settings: JointSettings,
     start: gtsam.Values | None,
     workers: int,
-    progress: Progress | None,
 ) -> list[BatchEstimate | None]:
     """The ``"linearized"`` batch solves."""
-    say = progress or (lambda _line: None)
     spec = settings.graph_spec()
     built = build_segment_graph(data, spec)
     values = built.values if start is None else _completed(start, built.values)

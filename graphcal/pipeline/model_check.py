@@ -40,7 +40,7 @@ from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.sensor_estimates import detected_offsets, time_offsets
 from graphcal.pipeline.validation import position_errors
 from graphcal.pipeline.whole_log import WholeLog
-from graphcal.progress import Progress
+from graphcal.progress import say
 
 #: Groups of consecutive segments, alternately in the two folds.
 GROUPS = 4
@@ -138,9 +138,7 @@ def folds(count: int) -> np.ndarray:
     return (np.arange(count) * groups // count) % 2
 
 
-def check_model(
-    prepared: PreparedLog, solved: WholeLog, workers: int, say: Progress
-) -> ModelCheck | None:
+def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelCheck | None:
     """Cross-validate the defect model against theta alone (module docstring) when the
     whole-log solve ``solved`` of ``prepared`` found a sensor term; ``None`` when it found
     none, or the log has too few segments to check."""

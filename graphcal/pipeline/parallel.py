@@ -11,9 +11,10 @@ import signal
 import time
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
-from graphcal.progress import Progress
+from graphcal.progress import say, silence
 
 R = TypeVar("R")
 
@@ -30,7 +31,6 @@ def map_tasks(
     function: Callable[..., R],
     tasks: Sequence[tuple[Any, ...]],
     workers: int = 1,
-    progress: Progress | None = None,
     label: str = "tasks",
 ) -> list[R]:
     """``[function(*task) for task in tasks]``, in ``workers`` processes when more than one.
@@ -43,10 +43,10 @@ def map_tasks(
     step = max(1, total // 10)
 
     def report(done: int) -> None:
-        if progress is not None and (done % step == 0 or done == total):
+        if done % step == 0 or done == total:
             elapsed = time.perf_counter() - start
             eta = elapsed / done * (total - done) if done else 0.0
-            progress(f"{label}: {done}/{total} ({elapsed:.0f} s, about {eta:.0f} s left)")
+            say(f"{label}: {done}/{total} ({elapsed:.0f} s, about {eta:.0f} s left)")
 
     results: list[R] = []
     if workers <= 1 or total <= 1:
@@ -55,18 +55,33 @@ def map_tasks(
             report(len(results))
         return results
     chunk = max(1, total // (workers * 8))
-    with ProcessPoolExecutor(max_workers=workers, initializer=quiet_on_interrupt) as pool:
-        for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
-            results.append(result)
-            report(len(results))
+    with ProcessPoolExecutor(max_workers=workers, initializer=quiet_worker) as pool:
+        try:
+            for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
+                results.append(result)
+                report(len(results))
+        except BrokenProcessPool:
+            if _ended_by_ctrl_c(pool):  # the pool broke first, the parent's SIGINT comes next
+                raise KeyboardInterrupt from None
+            raise
     return results
 
 
-def quiet_on_interrupt() -> None:
-    """A worker process's Ctrl-C ends it without a word: the terminal sends SIGINT to every
-    process of the command, and the parent alone says ``graphcal: interrupted`` (workers
-    that raised KeyboardInterrupt printed ~140 lines of tracebacks, and the parent saw a
-    broken pipe, not the interrupt: exit 1)."""
+def _ended_by_ctrl_c(pool: ProcessPoolExecutor) -> bool:
+    """Whether a worker of the broken ``pool`` died of SIGINT (Ctrl-C reached it before the
+    parent noticed its own: under load the pool's breakage can come first, and the run
+    must still end as an interrupt, exit 130, not a crash)."""
+    processes = getattr(pool, "_processes", None) or {}
+    return any(process.exitcode == -signal.SIGINT for process in processes.values())
+
+
+def quiet_worker() -> None:
+    """A worker process says nothing: its progress is the parent's to report
+    (:func:`graphcal.progress.silence`), and its Ctrl-C ends it without a word: the terminal
+    sends SIGINT to every process of the command, and the parent alone says ``graphcal:
+    interrupted`` (workers that raised KeyboardInterrupt printed ~140 lines of tracebacks,
+    and the parent saw a broken pipe, not the interrupt: exit 1)."""
+    silence()
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 

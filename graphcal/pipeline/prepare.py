@@ -18,7 +18,7 @@ from graphcal.log.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.pipeline.selection import select
 from graphcal.pipeline.settings import Settings
-from graphcal.progress import Progress
+from graphcal.progress import say
 from graphcal.units import length_unit
 
 #: Weight of a fix the loader flagged as an isolated spike (its sigma ×100).
@@ -55,25 +55,23 @@ class PreparedLog:
     left_out: dict[str, float] = dataclasses.field(default_factory=dict)
 
 
-def prepare_log(
-    log: DriveLog, settings: Settings, say: Progress, fall_back_to_all: bool
-) -> PreparedLog:
+def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> PreparedLog:
     """``log`` cut, selected (:func:`~graphcal.pipeline.selection.select`, with
     ``fall_back_to_all``) and gathered, with the settings it completes.
 
     Raises:
         NoUsableSegments: no segment passes the selection, or the log is too short.
     """
-    segments, yaw, selected, validation_segments = select(log, settings, say, fall_back_to_all)
-    settings = _with_detected_ticks(log, settings, say)
-    settings = _with_heading_noise(log, settings, say)
+    segments, yaw, selected, validation_segments = select(log, settings, fall_back_to_all)
+    settings = _with_detected_ticks(log, settings)
+    settings = _with_heading_noise(log, settings)
     arm = settings.lever_arm
     log = move_to_centre(log, (arm.longitudinal, arm.lateral))  # a known arm
     flagged = None  # spikes the loader flagged get (almost) no weight
     if log.outlying is not None:
         flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
     data = gather_segments(log, selected, flagged)
-    settings, left_out = _with_observable_lever_arm(data, settings, say, log.position_sensor())
+    settings, left_out = _with_observable_lever_arm(data, settings, log.position_sensor())
     return PreparedLog(
         log=log,
         settings=settings,
@@ -90,7 +88,7 @@ def prepare_log(
 
 
 def _with_observable_lever_arm(
-    data: SegmentData, settings: Settings, say: Progress, sensor: str = "position source"
+    data: SegmentData, settings: Settings, sensor: str = "position source"
 ) -> tuple[Settings, dict[str, float]]:
     """``settings`` without the lever arm as a variable when the selected segments cannot
     show it even at best (:func:`~graphcal.log.excitation.lever_arm_sigma` above the
@@ -123,7 +121,7 @@ def _mask_warnings(log: DriveLog) -> tuple[str, ...]:
     )
 
 
-def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Settings:
+def _with_detected_ticks(log: DriveLog, settings: Settings) -> Settings:
     """``settings`` with the joint solve's tick quantization from the resolution the
     recording stated (``DriveLog.tick_resolution``) or the log's rotations show
     (:mod:`graphcal.log.quantization`), unless the settings (or vehicle) give one."""
@@ -145,7 +143,7 @@ def _with_detected_ticks(log: DriveLog, settings: Settings, say: Progress) -> Se
     return dataclasses.replace(settings, joint=joint)
 
 
-def _with_heading_noise(log: DriveLog, settings: Settings, say: Progress) -> Settings:
+def _with_heading_noise(log: DriveLog, settings: Settings) -> Settings:
     """``settings`` whose joint heading weight follows the log's own heading noise
     (:mod:`graphcal.log.noise`), if ``heading_noise_from_log``."""
     joint = settings.joint

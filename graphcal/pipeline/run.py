@@ -52,11 +52,12 @@ from graphcal.pipeline.prepare import PreparedLog, prepare_log
 from graphcal.pipeline.settings import Settings
 from graphcal.pipeline.staged import run_staged
 from graphcal.pipeline.whole_log import WholeLog, models_sensors, solve_whole_log
-from graphcal.progress import Progress
+from graphcal.progress import Progress, reports_progress, say
 
 METHODS = ("staged", "joint", "whole")
 
 
+@reports_progress
 def run_calibration(
     log: DriveLog,
     settings: Settings | None = None,
@@ -84,7 +85,6 @@ def run_calibration(
         GraphcalError: the calibration failed.
     """
     settings = settings or Settings()
-    say = progress or (lambda _line: None)
     if method not in METHODS:
         raise GraphcalError(f"unknown method {method!r}; use one of {', '.join(METHODS)}")
     if settings.batches.count == 0:  # no batch study: the whole-log solve alone
@@ -94,25 +94,25 @@ def run_calibration(
                 "method; the staged method works on batches"
             )
         method = "whole"
-    return _RUNS[method](log, settings, workers, say)
+    return _RUNS[method](log, settings, workers)
 
 
-def _run_whole(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
+def _run_whole(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
     """Only the joint solve over all selected segments: the recommended theta, no batches."""
-    prepared = prepare_log(log, settings, say, fall_back_to_all=True)
-    solved, _, check = _solve_checked(prepared, workers, say)
+    prepared = prepare_log(log, settings, fall_back_to_all=True)
+    solved, _, check = _solve_checked(prepared, workers)
     result = dataclasses.replace(_recommended(solved), model_check=check)
-    return validated_run("whole", solved.corrected, solved, result, say)
+    return validated_run("whole", solved.corrected, solved, result)
 
 
-def _run_joint(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
+def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
     """The joint solve over all selected segments (the recommended theta), then the batch
     study from its solution (:mod:`graphcal.pipeline.batch_study`)."""
-    prepared = prepare_log(log, settings, say, fall_back_to_all=True)
-    solved, values, check = _solve_checked(prepared, workers, say, keep_values=True)
+    prepared = prepare_log(log, settings, fall_back_to_all=True)
+    solved, values, check = _solve_checked(prepared, workers, keep_values=True)
     recommended = dataclasses.replace(_recommended(solved), model_check=check)
-    batches = _batches(solved.corrected, "joint", workers, say)
-    study = joint_batch_study(solved, batches, values, workers, say)
+    batches = _batches(solved.corrected, "joint", workers)
+    study = joint_batch_study(solved, batches, values, workers)
     del values  # the whole log's solution, most of the memory of a long log
     result = dataclasses.replace(
         recommended,
@@ -126,18 +126,18 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int, say: Progress) -
         batch_covariance=study.covariance,
         batch_excluded=study.excluded,
     )
-    return validated_run("joint", solved.corrected, solved, result, say)
+    return validated_run("joint", solved.corrected, solved, result)
 
 
-def _run_staged(log: DriveLog, settings: Settings, workers: int, say: Progress) -> CalibrationRun:
+def _run_staged(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
     """The paper's five steps over batches (:mod:`graphcal.pipeline.staged`) on the log the
     whole-log solve corrected, if the settings model the sensors; the recommended theta is
     the median of Step 5."""
-    prepared = prepare_log(log, settings, say, fall_back_to_all=False)
-    solved, check = _whole_log_corrections(prepared, workers, say)
+    prepared = prepare_log(log, settings, fall_back_to_all=False)
+    solved, check = _whole_log_corrections(prepared, workers)
     corrected = prepared if solved is None else solved.corrected
-    batches = _batches(corrected, "staged", workers, say)
-    staged = run_staged(corrected.data, batches, corrected.settings, workers, say)
+    batches = _batches(corrected, "staged", workers)
+    staged = run_staged(corrected.data, batches, corrected.settings, workers)
     result = MethodResult(
         theta=staged.final_theta,
         warnings=[*staged.warnings, *_few_segments_warning(batches, corrected)],
@@ -146,7 +146,7 @@ def _run_staged(log: DriveLog, settings: Settings, workers: int, say: Progress) 
         staged=staged,
         model_check=check,
     )
-    return validated_run("staged", corrected, solved, result, say)
+    return validated_run("staged", corrected, solved, result)
 
 
 _RUNS: dict[str, Callable[[DriveLog, Settings, int, Progress], CalibrationRun]] = {
@@ -157,7 +157,7 @@ _RUNS: dict[str, Callable[[DriveLog, Settings, int, Progress], CalibrationRun]] 
 
 
 def _whole_log_corrections(
-    prepared: PreparedLog, workers: int, say: Progress
+    prepared: PreparedLog, workers: int
 ) -> tuple[WholeLog | None, ModelCheck | None]:
     """The staged method's first step: when the joint settings model the sensors (a time
     offset, a lever arm, outlying fixes), the joint whole-log solve with its model check
@@ -166,21 +166,21 @@ def _whole_log_corrections(
     (``CalibrationRun.whole``) and the trust checks judge it. ``None`` otherwise."""
     if not models_sensors(prepared.settings.joint):
         return None, None
-    solved, _, check = _solve_checked(prepared, workers, say)
+    solved, _, check = _solve_checked(prepared, workers)
     return solved, check
 
 
 def _solve_checked(
-    prepared: PreparedLog, workers: int, say: Progress, keep_values: bool = False
+    prepared: PreparedLog, workers: int, keep_values: bool = False
 ) -> tuple[WholeLog, gtsam.Values | None, ModelCheck | None]:
     """The whole-log solve (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), then, if
     the settings ask for it and its defect model found something, the model check
     (:mod:`graphcal.pipeline.model_check`): when theta alone predicts held-apart segments at
     least as well, the whole-log solve again without the defect model's sensor terms."""
-    solved, values = solve_whole_log(prepared, workers, say, keep_values=keep_values)
+    solved, values = solve_whole_log(prepared, workers, keep_values=keep_values)
     if not prepared.settings.joint.model_check:
         return solved, values, None
-    check = check_model(prepared, solved, workers, say)
+    check = check_model(prepared, solved, workers)
     if check is None:
         return solved, values, None
     say(check.line())
@@ -191,7 +191,7 @@ def _solve_checked(
     simpler = dataclasses.replace(
         prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out={}
     )
-    solved, values = solve_whole_log(simpler, workers, say, keep_values=keep_values)
+    solved, values = solve_whole_log(simpler, workers, keep_values=keep_values)
     return solved, values, check
 
 
@@ -216,7 +216,7 @@ def _recommended(solved: WholeLog) -> MethodResult:
     return MethodResult(theta, warnings, covariance=covariance, observability=observability)
 
 
-def _batches(prepared: PreparedLog, method: Method, workers: int, say: Progress) -> np.ndarray:
+def _batches(prepared: PreparedLog, method: Method, workers: int) -> np.ndarray:
     """``(B, N)`` indices of the batches of the selected segments (fewer than N in a batch
     when fewer are selected)."""
     b, selected = prepared.settings.batches, prepared.selected

@@ -15,7 +15,7 @@ from graphcal.pipeline.vehicle_settings import (
     CAR_VALIDATION_LENGTH,
     segment_lengths,
 )
-from graphcal.progress import Progress
+from graphcal.progress import say
 
 
 class NoUsableSegments(GraphcalError, ValueError):
@@ -23,7 +23,7 @@ class NoUsableSegments(GraphcalError, ValueError):
 
 
 def select(
-    log: DriveLog, settings: Settings, progress: Progress, fall_back_to_all: bool = False
+    log: DriveLog, settings: Settings, fall_back_to_all: bool = False
 ) -> tuple[Segments, np.ndarray, Segments, Segments]:
     """Calibration segments, their yaw statistic [rad/s], the selected ones, validation
     segments.
@@ -37,18 +37,18 @@ def select(
     s = settings.segments
     circumference = float(settings.vehicle.theta_nominal[0])
     if settings.vehicle.size_scale() != 1.0:
-        progress(_lengths_line(settings))
+        say(_lengths_line(settings))
     for note in log.mask_notes:
-        progress(f"masked: {note}")
+        say(f"masked: {note}")
     segments = split_segments(log, s.length, s.stride, circumference)
     yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window)
     selected = segments.subset(yaw > s.min_yaw_rate)
-    progress(
+    say(
         f"segments: {len(selected)} of {len(segments)} {s.length:g} m segments have "
         f"{s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s"
     )
     if len(selected) == 0 and fall_back_to_all and len(segments) > 0:
-        progress(
+        say(
             f"no segment passes the yaw-rate selection: using all {len(segments)} segments; "
             "the observability check decides what they determine"
         )

@@ -28,7 +28,6 @@ from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
 from graphcal.pipeline.parallel import map_tasks
 from graphcal.pipeline.settings import Settings
-from graphcal.progress import Progress
 
 
 @dataclass(frozen=True)
@@ -79,14 +78,12 @@ def step1_thetas(
     batches: np.ndarray,
     settings: Settings,
     workers: int = 1,
-    progress: Progress | None = None,
 ) -> np.ndarray:
     """Step 1 alone: theta ``(B, 4)`` of each batch from the measured signals with the start
     poses held at their measurement; NaN rows for failed solves. The uncompensated baseline
     that the joint method is shown against."""
-    say = progress or (lambda _line: None)
     tasks = [(data.take(batch), settings.calibration) for batch in batches]
-    results = map_tasks(_batch_task, tasks, workers, say, "step1 batch solves")
+    results = map_tasks(_batch_task, tasks, workers, "step1 batch solves")
     return np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
 
 
@@ -149,25 +146,23 @@ def run_staged(
     batches: np.ndarray,
     settings: Settings,
     workers: int = 1,
-    progress: Progress | None = None,
 ) -> StagedResult:
     """Run Steps 1–5 on the selected segments ``data`` and the ``batches`` of their indices."""
-    say = progress or (lambda _line: None)
     n_batches, batch_size = batches.shape
 
     def batch_solves(step: str, heading: np.ndarray, rotations: np.ndarray | None) -> _Step:
-        return _batch_solves(step, data, batches, heading, rotations, settings, workers, say)
+        return _batch_solves(step, data, batches, heading, rotations, settings, workers)
 
     # Step 1: prior parameters, measured signals, start held at the measurement.
     step1 = batch_solves("step1", np.zeros((n_batches, batch_size)), None)
     # Step 2: orientation correction per segment of each batch (eq. 15).
     heading, step2_warnings = _orientation_corrections(
-        data, batches, step1.theta, settings, workers, say
+        data, batches, step1.theta, settings, workers
     )
     # Step 3: batch solves with the corrected heading.
     step3 = batch_solves("step3", heading, None)
     # Step 4: compensated rotations per used segment from several theta_II values.
-    step4 = _compensated_rotations(data, batches, heading, step3, settings, workers, say)
+    step4 = _compensated_rotations(data, batches, heading, step3, settings, workers)
     # Step 5: batch solves with compensated rotations and corrected heading.
     step5 = batch_solves("step5", heading, step4.rotations)
     steps = {"step1": step1, "step3": step3, "step5": step5}
@@ -202,7 +197,6 @@ def _batch_solves(
     rotations: np.ndarray | None,
     settings: Settings,
     workers: int,
-    say: Progress,
 ) -> _Step:
     """Step 1, 3 or 5: a batch solve per batch with the heading corrections ``(B, N)`` and
     the compensated ``rotations`` ``(S, K, 2)`` (``None``: the measured ones)."""
@@ -221,7 +215,7 @@ def _batch_solves(
         if step != "step1" and settings.staged.estimate_start_poses:
             solve = dataclasses.replace(solve, estimate_start_poses=True)
         tasks.append((sub, solve))
-    results = map_tasks(_batch_task, tasks, workers, say, f"{step} batch solves")
+    results = map_tasks(_batch_task, tasks, workers, f"{step} batch solves")
     failed = np.array([r is None for r in results])
     theta = np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
     starts = np.array([np.full((batch_size, 3), np.nan) if r is None else r[1] for r in results])
@@ -237,7 +231,6 @@ def _orientation_corrections(
     theta: np.ndarray,
     settings: Settings,
     workers: int,
-    say: Progress,
 ) -> tuple[np.ndarray, list[str]]:
     """Step 2: the heading correction Δψ [rad] ``(B, N)`` of each segment of each batch with
     its batch's Step 1 ``theta`` ``(B, 4)`` (0 where it failed), and a warning if any did."""
@@ -256,7 +249,7 @@ def _orientation_corrections(
                     settings.staged.heading_correction,
                 )
             )
-    results = map_tasks(_heading_task, tasks, workers, say, "step2 orientation corrections")
+    results = map_tasks(_heading_task, tasks, workers, "step2 orientation corrections")
     heading = np.array([0.0 if r is None else r for r in results]).reshape(n_batches, batch_size)
     n_failed = sum(r is None for r in results)
     if not n_failed:
@@ -285,7 +278,6 @@ def _compensated_rotations(
     step3: _Step,
     settings: Settings,
     workers: int,
-    say: Progress,
 ) -> _Step4:
     """Step 4: per segment used by a batch, input estimations with the thetas of several
     Step 3 batches (those with the segment first), averaged (trimmed mean)."""
@@ -311,7 +303,7 @@ def _compensated_rotations(
             f"step4: only {fewest} of {estimations} input estimations per segment were possible "
             f"({len(good_batches)} batches); the compensated rotations average fewer estimates"
         )
-    results = map_tasks(_rotation_task, tasks, workers, say, "step4 input estimations")
+    results = map_tasks(_rotation_task, tasks, workers, "step4 input estimations")
     step4 = _averaged(data, used, np.asarray(owners), results, settings.staged.trim_fraction)
     return dataclasses.replace(step4, warnings=warnings + step4.warnings)
 

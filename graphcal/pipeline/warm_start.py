@@ -20,6 +20,7 @@ from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.segment_solve import solve_segment_graph
 from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData, spread
+from graphcal.progress import say
 
 #: Segments of the sample a warm start solves.
 WARM_START_SEGMENTS = 32
@@ -35,14 +36,12 @@ def warm_start(
     :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, for the whole-log
     solve to start from; ``None`` for a log shorter than :data:`WARM_START_MIN_SEGMENTS`, a
     graph without theta, or a sample that cannot be solved (the whole log starts from
-    ``spec`` then). The sample is solved as ``options`` say, quietly: ``options.progress``
-    gets one line."""
+    ``spec`` then). The sample is solved as ``options`` say, without a line per iteration."""
     if len(data) < WARM_START_MIN_SEGMENTS or not spec.estimate_theta:
         return None
     sample = spread(len(data), WARM_START_SEGMENTS)
-    if options.progress is not None:
-        options.progress(f"  start: theta from {len(sample)} segments spread over the log")
-    quiet = dataclasses.replace(options, label="warm start", progress=None)
+    say(f"  start: theta from {len(sample)} segments spread over the log")
+    quiet = dataclasses.replace(options, label="warm start", report_iterations=False)
     try:
         solved = solve_segment_graph(data.take(sample), spec, quiet, covariance=False)
     except GraphcalError:

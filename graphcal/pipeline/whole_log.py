@@ -53,7 +53,7 @@ from graphcal.pipeline.sensor_estimates import (
     sensor_estimates,
 )
 from graphcal.pipeline.settings import Settings
-from graphcal.progress import Progress
+from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
@@ -100,7 +100,7 @@ class WholeLog:
 
 
 def solve_whole_log(
-    prepared: PreparedLog, workers: int, say: Progress, keep_values: bool = False
+    prepared: PreparedLog, workers: int, keep_values: bool = False
 ) -> tuple[WholeLog, gtsam.Values | None]:
     """The whole-log procedure of the module docstring on ``prepared``, and the last solve's
     value of every variable if ``keep_values`` (the joint batches' linearization point; else
@@ -113,19 +113,17 @@ def solve_whole_log(
     gathered, validation = prepared.data, prepared.validation
     try:
         whole, values, data, offset = solve_with_time_offset(
-            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
+            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
         )
     except ImplausibleTheta as runaway:
         settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
-        whole, values, data, offset = _holding_a_runaway(
-            prepared, settings.joint, runaway, say, workers
-        )
-    joint = _with_noise_levels(whole, settings.joint, gathered.has_heading(), say)
+        whole, values, data, offset = _holding_a_runaway(prepared, settings.joint, runaway, workers)
+    joint = _with_noise_levels(whole, settings.joint, gathered.has_heading())
     if log.ay_from_wheels:
-        whole = _d_on_a_straight_drive(whole, data, say)
+        whole = _d_on_a_straight_drive(whole, data)
     first = whole
-    joint = holding_what_is_not_observable(whole, joint, say)
-    joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared, say)
+    joint = holding_what_is_not_observable(whole, joint)
+    joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
     if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
         theta, _ = condition_on_prior(
             whole.theta,
@@ -143,10 +141,10 @@ def solve_whole_log(
     if joint is not settings.joint or log.ay_from_wheels:
         settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
         whole, values, data, offset = solve_with_time_offset(
-            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, say, workers
+            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
         )
     if log.ay_from_wheels:
-        whole = _d_on_a_straight_drive(whole, data, say)
+        whole = _d_on_a_straight_drive(whole, data)
     whole = still_not_calibrated(whole, first, settings.joint)
     if not keep_values:
         values = None
@@ -156,7 +154,7 @@ def solve_whole_log(
     estimated.update(not_estimated(left_out))
     down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
     lines = estimate_lines(estimated, log, length_unit(settings.vehicle.theta_nominal[2]))
-    _report(whole, lines, down_weighted, settings.joint, say)
+    _report(whole, lines, down_weighted, settings.joint)
     weights = prepared.fix_weights
     if whole.fix_weights is not None:
         weights = log_weights(data, whole.fix_weights, len(log.t))
@@ -168,7 +166,6 @@ def _holding_a_runaway(
     prepared: PreparedLog,
     settings: JointSettings,
     runaway: ImplausibleTheta,
-    say: Progress,
     workers: int,
 ) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
     """The whole-log solve under ``settings``, which hold the parameters that ran out of
@@ -187,7 +184,7 @@ def _holding_a_runaway(
         f"held at the prior, to see whether the data determine {them}"
     )
     whole, values, data, offset = solve_with_time_offset(
-        prepared.log, prepared.data, prepared.selected, prepared.fix_weights, settings, say, workers
+        prepared.log, prepared.data, prepared.selected, prepared.fix_weights, settings, workers
     )
     if any(data_determine(whole, settings, runaway.names)):
         raise runaway
@@ -200,7 +197,6 @@ def solve_with_time_offset(
     selected: Segments,
     flagged: np.ndarray | None,
     settings: JointSettings,
-    say: Progress,
     workers: int = 1,
 ) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
@@ -216,7 +212,7 @@ def solve_with_time_offset(
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
     the last solve, its values, the segments it solved and the shift [s] of each run's
     wheels."""
-    whole, values = _whole_log_solve(data, settings, say, workers)
+    whole, values = _whole_log_solve(data, settings, workers)
     shift = np.zeros(log.runs)
     for _ in range(OFFSET_ROUNDS - 1):
         found = detected_offsets(
@@ -229,7 +225,7 @@ def solve_with_time_offset(
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
         say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole, values = _whole_log_solve(data, settings, say, workers)
+        whole, values = _whole_log_solve(data, settings, workers)
     return whole, values, data, shift
 
 
@@ -239,12 +235,12 @@ def _per_run(runs: int) -> str:
 
 
 def _whole_log_solve(
-    data: SegmentData, settings: JointSettings, say: Progress, workers: int
+    data: SegmentData, settings: JointSettings, workers: int
 ) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
     processes), with the progress lines a user waits for, and the solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
-    result, values = solve_joint(data, settings, workers, say)
+    result, values = solve_joint(data, settings, workers)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
@@ -252,7 +248,7 @@ def _whole_log_solve(
 
 
 def _with_noise_levels(
-    whole: JointCalibration, settings: JointSettings, has_heading: bool, say: Progress
+    whole: JointCalibration, settings: JointSettings, has_heading: bool
 ) -> JointSettings:
     """``settings`` with the noise the whole-log solve's residuals show
     (:class:`~graphcal.pipeline.residual_noise.ResidualNoise`), else ``settings`` itself:
@@ -311,9 +307,7 @@ def _with_noise_levels(
     )
 
 
-def _d_on_a_straight_drive(
-    whole: JointCalibration, data: SegmentData, say: Progress
-) -> JointCalibration:
+def _d_on_a_straight_drive(whole: JointCalibration, data: SegmentData) -> JointCalibration:
     """``whole`` with d not calibrated when its lateral acceleration came from the wheels
     (no IMU, no heading) and the drive barely turns: d · a_y then fits mostly the noise of
     the wheels' own left/right difference (a_y is taken from it), not a load transfer."""
@@ -376,7 +370,6 @@ def _report(
     estimate_lines: list[str],
     down_weighted: DownWeightedFixes,
     settings: JointSettings,
-    say: Progress,
 ) -> None:
     """The progress lines of what the whole-log solve found: the sensor estimates (their
     lines: :func:`estimate_lines`), the fixes it down-weighted and slow wheel slip."""
