@@ -66,6 +66,7 @@ _PUBLIC = {
     "write_streams": "graphcal.simulate.streams",
     "write_raw_logs": "graphcal.simulate.raw_logs",  # a recording as candump + DBC, NMEA
     "write_bag": "graphcal.simulate.bags",  # a recording as a ROS 1/2 bag or MCAP file
+    "BagTopics": "graphcal.simulate.bags",  # the topics write_bag writes
     # The odometry model (eqs. 1-3).
     "THETA_NOMINAL": "graphcal.model",
     "PARAMETER_NAMES": "graphcal.model",

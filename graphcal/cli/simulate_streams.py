@@ -103,9 +103,13 @@ def write_streams_and_bag(sim, directory: Path, bag: str | None, mocap: bool = F
     refuse_a_file(directory)
     written = write_streams(sim, directory)
     if bag is not None:
-        from graphcal import write_bag
+        from graphcal import BagTopics, write_bag
 
-        pose = {"pose_topic": "/mocap/pose", "pose_message": "posestamped"} if mocap else {}
+        pose = (
+            {"topics": BagTopics(pose="/mocap/pose"), "pose_message": "posestamped"}
+            if mocap
+            else {}
+        )
         written.append(write_bag(sim.recording, directory / BAG_NAMES[bag], bag, **pose))
     return written
 
