@@ -70,8 +70,8 @@ def solve_segment_graph(
     Levenberg–Marquardt from ``start`` (default: the builder's initial values), segment by
     segment (:class:`~graphcal.graph.partitioned.PartitionedGraph`), as ``options`` say: the
     iteration limit and tolerance, ``label`` in errors, the segments shared out among
-    ``workers`` processes (the result does not depend on it), a ``progress`` line per
-    iteration of a long solve.
+    ``workers`` processes (the result does not depend on it), with ``report_iterations`` a
+    progress line per iteration of a long solve (:func:`graphcal.progress.say`).
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
     initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.

@@ -70,9 +70,11 @@ def map_tasks(
 def _ended_by_ctrl_c(pool: ProcessPoolExecutor) -> bool:
     """Whether a worker of the broken ``pool`` died of SIGINT (Ctrl-C reached it before the
     parent noticed its own: under load the pool's breakage can come first, and the run
-    must still end as an interrupt, exit 130, not a crash)."""
-    processes = getattr(pool, "_processes", None) or {}
-    return any(process.exitcode == -signal.SIGINT for process in processes.values())
+    must still end as an interrupt, exit 130, not a crash). Waits for the pool to have
+    reaped its workers: their exit codes are known only then."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=True)
+    return any(process.exitcode == -signal.SIGINT for process in processes)
 
 
 def quiet_worker() -> None:

@@ -149,7 +149,7 @@ def _run_staged(log: DriveLog, settings: Settings, workers: int) -> CalibrationR
     return validated_run("staged", corrected, solved, result)
 
 
-_RUNS: dict[str, Callable[[DriveLog, Settings, int, Progress], CalibrationRun]] = {
+_RUNS: dict[str, Callable[[DriveLog, Settings, int], CalibrationRun]] = {
     "staged": _run_staged,
     "joint": _run_joint,
     "whole": _run_whole,
