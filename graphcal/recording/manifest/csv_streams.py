@@ -1,6 +1,7 @@
 """The pose, wheel and IMU streams of a manifest's CSV sections (``[gnss]``/``[pose]``,
-``[wheels]``, ``[imu]``), in the units of :mod:`graphcal.recording.streams`; an NMEA log, a CAN
-log or a 3-axis IMU named in a section is read by its own module."""
+``[wheels]``, ``[imu]``), each read from its :class:`~graphcal.recording.section.Section`, in
+the units of :mod:`graphcal.recording.streams`; a section naming an NMEA log, a CAN log or a
+3-axis IMU goes to that source instead (:mod:`graphcal.recording.manifest_recording`)."""
 
 from __future__ import annotations
 
