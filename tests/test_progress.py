@@ -1,17 +1,20 @@
 """Progress goes through one channel, the ``graphcal.progress`` logger: an entry point's
-``progress=`` hears every line of the steps it calls, once, and a logging handler does too."""
+``progress=`` hears every line of the steps it calls, once; without it a program's logging
+hears them; a muted step and a worker say nothing."""
 
 from __future__ import annotations
 
 import logging
 
 from graphcal import Settings, calibrate_file
-from graphcal.progress import LOGGER, reporting_to, reports_progress, say
+from graphcal.progress import LOGGER, muted, reporting_to, reports_progress, say
 
 
 @reports_progress
 def _inner(progress=None) -> None:
     say("inner step")
+    with muted():
+        say("a fold's detail")
 
 
 @reports_progress
@@ -22,7 +25,7 @@ def _outer(progress=None) -> None:
 
 def test_an_entry_point_hears_its_steps_once_and_only_while_it_runs():
     heard: list[str] = []
-    _outer(progress=heard.append)
+    _outer(progress=heard.append)  # a bound method: a new object at each access
     assert heard == ["outer step", "inner step"]
     say("after the run")  # nobody listens any more
     assert heard == ["outer step", "inner step"] and not LOGGER.handlers
@@ -35,11 +38,15 @@ def test_no_listener_no_output(capsys):
     assert capsys.readouterr() == ("", "")
 
 
-def test_a_logging_handler_hears_a_real_calibration(caplog):
+def test_a_programs_logging_hears_a_real_calibration_that_has_no_progress(caplog):
+    with caplog.at_level(logging.INFO, logger="graphcal.progress"):
+        calibrate_file("data/sample_drive.csv", Settings(), "whole")
+    logged = [r.getMessage() for r in caplog.records if r.name == "graphcal.progress"]
+    assert any(line.startswith("loaded data/sample_drive.csv") for line in logged)
+    assert any("joint solve over all" in line for line in logged)
+    caplog.clear()
     heard: list[str] = []
     with caplog.at_level(logging.INFO, logger="graphcal.progress"):
         calibrate_file("data/sample_drive.csv", Settings(), "whole", progress=heard.append)
-    logged = [r.getMessage() for r in caplog.records if r.name == "graphcal.progress"]
-    assert heard == logged
-    assert any(line.startswith("loaded data/sample_drive.csv") for line in heard)
-    assert any("joint solve over all" in line for line in heard)
+    assert heard == logged  # the same lines, once: to progress=, not also to logging
+    assert not [r for r in caplog.records if r.name == "graphcal.progress"]

@@ -26,7 +26,6 @@ from graphcal.pipeline.input_estimation import estimate_inputs
 from graphcal.pipeline.joint import calibrate_joint
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.settings import BatchingSettings, Settings
-from graphcal.progress import say
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 
 
@@ -134,7 +133,9 @@ def agreement_item(bench: BenchRun) -> dict[str, Any]:
     exact = calibrate_batch(small, step1).theta
     approx, naive_iterations_used = solve_naive(small, step1)
     relative = float(np.linalg.norm(approx - exact) / np.linalg.norm(exact))
-    say(f"(a) vs (b) converged on {len(small)} whole segments: |dtheta|/|theta| = {relative:.2e}")
+    bench.record.say(
+        f"(a) vs (b) converged on {len(small)} whole segments: |dtheta|/|theta| = {relative:.2e}"
+    )
     gc.collect()
     return {
         "agreement": {

@@ -32,7 +32,8 @@ QUICK = {name: quick for name, (_, quick) in PRESET_SIZES.items()}
 
 @dataclass(frozen=True)
 class BenchSizes:
-    """The sizes of a benchmark run (defaults: the full benchmark, :data:`FULL`).
+    """The sizes of a benchmark run (defaults: the full benchmark's, :data:`FULL`, without
+    its scaling and fleet items, which take long).
 
     Attributes:
         length_km: the synthetic drive the solves run on [km].
@@ -51,8 +52,8 @@ class BenchSizes:
     pipeline_batches: int = FULL["pipeline_batches"]
     agreement_segments: int = FULL["agreement_segments"]
     import_hours: float = FULL["import_hours"]
-    scaling_km: tuple[float, ...] = FULL["scaling_km"]
-    fleet_vehicles: int = FULL["fleet_vehicles"]
+    scaling_km: tuple[float, ...] = ()
+    fleet_vehicles: int = 0
 
 
 def resolve_bench_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -61,7 +62,3 @@ def resolve_bench_options(args: argparse.Namespace) -> dict[str, Any]:
     preset = QUICK if getattr(args, "quick", False) else FULL
     given = {name: getattr(args, name, None) for name in preset}
     return {name: preset[name] if value is None else value for name, value in given.items()}
-
-
-#: The full benchmark's sizes, as a :class:`BenchSizes`.
-FULL_SIZES = BenchSizes()

@@ -18,7 +18,7 @@ from typing import Any
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments
 from graphcal.pipeline.settings import Settings
-from graphcal.progress import say
+from graphcal.progress import Progress
 from graphcal.simulate.drive import SyntheticDrive
 
 
@@ -41,7 +41,8 @@ class Recorder:
     """The report's rows, one per item: its name, median time [s], the process's peak
     memory after it [MB] and the item's own numbers; each said as a progress line."""
 
-    def __init__(self) -> None:
+    def __init__(self, progress: Progress | None = None) -> None:
+        self.say: Progress = progress or (lambda _line: None)
         self.rows: list[dict[str, Any]] = []
 
     def __call__(self, name: str, seconds: float, **extra: Any) -> None:
@@ -50,7 +51,7 @@ class Recorder:
         note = ", ".join(
             f"{k} {v:.4g}" if isinstance(v, float) else f"{k} {v}" for k, v in extra.items()
         )
-        say(f"{name:<46} {seconds:10.4f} s  {row['peak_mb']:7.0f} MB  {note}")
+        self.say(f"{name:<46} {seconds:10.4f} s  {row['peak_mb']:7.0f} MB  {note}")
 
 
 @dataclass

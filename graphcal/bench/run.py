@@ -60,11 +60,11 @@ from graphcal.bench.can_import import can_import_item
 from graphcal.bench.fleet import fleet_item
 from graphcal.bench.importing import import_item
 from graphcal.bench.localization_items import localization_items
-from graphcal.bench.options import FULL_SIZES, BenchSizes, resolve_bench_options
+from graphcal.bench.options import BenchSizes, resolve_bench_options
 from graphcal.bench.recording import BenchRun, Recorder
 from graphcal.bench.scaling import scaling_item
 from graphcal.bench.whole_log_items import batch_study_items, segmented_items, whole_log_items
-from graphcal.progress import Progress, reports_progress, say
+from graphcal.progress import Progress, muted
 
 #: The report's entries after ``config`` and ``items``, in their order in the JSON.
 REPORT_ENTRIES = (
@@ -81,18 +81,19 @@ REPORT_ENTRIES = (
 )
 
 
-@reports_progress
 def run_benchmarks(
-    sizes: BenchSizes = FULL_SIZES, workers: int = 2, progress: Progress | None = None
+    sizes: BenchSizes | None = None, workers: int = 2, progress: Progress | None = None
 ) -> dict[str, Any]:
     """Run every item of :data:`ITEMS` at ``sizes`` on ``workers`` processes; return
     ``{"config": ..., "items": [...], "agreement": ...}`` (the entries of
     :data:`REPORT_ENTRIES` after the items)."""
-    record = Recorder()
+    record = Recorder(progress)
+    sizes = sizes or BenchSizes()
     bench = BenchRun(**dataclasses.asdict(sizes), workers=workers, record=record)
     entries: dict[str, Any] = {}
     for item in ITEMS:
-        entries.update(item(bench))
+        with muted():  # the timed calls' own progress is not the report's
+            entries.update(item(bench))
     return {
         "config": _config(bench),
         "items": record.rows,
@@ -177,7 +178,7 @@ def scaling_items(bench: BenchRun) -> dict[str, Any]:
             iterations=run["iterations"],
         )
     if scaling["exponent"] is not None:
-        say(f"(k) time grows as length^{scaling['exponent']:.2f}")
+        record.say(f"(k) time grows as length^{scaling['exponent']:.2f}")
     end_to_end = scaling["end_to_end"]
     if end_to_end is not None:
         for name, label in (("csv_alone", "CSV alone"), ("with_truth", "with its truth")):
@@ -205,7 +206,7 @@ def fleet_items(bench: BenchRun) -> dict[str, Any]:
             task_mean_s=entry["task_mean_s"],
             overhead_per_log_s=entry["overhead_per_log_s"],
         )
-    say(
+    bench.record.say(
         f"(m) fleet: 2 workers over 1 {fleet['scaling_2_over_1']:.2f}x; local cluster "
         f"start and stop {fleet['cluster_start_stop_s']:.1f} s"
     )
@@ -231,7 +232,6 @@ ITEMS: tuple[Callable[[BenchRun], dict[str, Any]], ...] = (
 )
 
 
-@reports_progress
 def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
     """Run the benchmark with the options of :func:`graphcal.cli.bench.add_arguments`
     (sizes resolved by :func:`~graphcal.bench.options.resolve_bench_options`); returns the
@@ -243,7 +243,7 @@ def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
             "import": import_item(sizes["import_hours"]),
             "import_can": can_import_item(sizes["import_hours"]),
         }
-    report = run_benchmarks(BenchSizes(**sizes), args.workers)
+    report = run_benchmarks(BenchSizes(**sizes), args.workers, progress)
     report["config"]["quick"] = bool(getattr(args, "quick", False))
     return report
 

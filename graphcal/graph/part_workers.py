@@ -22,6 +22,7 @@ import numpy as np
 from graphcal.errors import exception_reason
 from graphcal.graph.part_group import PartGroup
 from graphcal.graph.values import Portable, copy_value, restore
+from graphcal.progress import silence
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,9 @@ class _RemoteGroup:
 
 def _serve(connection, group: PartGroup) -> None:
     """A worker's loop: answer requests until :class:`Stop`. Ctrl-C ends the worker without
-    a word (:func:`~graphcal.pipeline.parallel.quiet_worker`'s reason)."""
+    a word (:func:`~graphcal.pipeline.parallel.quiet_worker`'s reason), and the worker
+    reports no progress: its parent does."""
+    silence()
     signal.signal(signal.SIGINT, signal.SIG_DFL)
     while True:
         request = connection.recv()

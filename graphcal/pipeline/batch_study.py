@@ -20,7 +20,6 @@ from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
 from graphcal.pipeline.sensor_estimates import SensorEstimate, run_of
 from graphcal.pipeline.staged import step1_thetas
 from graphcal.pipeline.whole_log import WholeLog
-from graphcal.progress import say
 
 
 @dataclass(frozen=True)
@@ -76,7 +75,6 @@ def joint_batch_study(
         settings.batches.joint_solve,
         values,
         workers,
-        say,
     )
     nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
     theta = np.array([nan_theta if r is None else r.theta for r in estimates])

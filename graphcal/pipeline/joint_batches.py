@@ -34,7 +34,7 @@ from graphcal.graph.values import copy_value
 from graphcal.log.segments import SegmentData
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.parallel import map_tasks
-from graphcal.progress import Progress, reports_progress, say
+from graphcal.progress import Progress, muted, reports_progress, say
 
 #: ``[batches] joint_solve``: how the joint method solves its batches.
 JOINT_BATCH_SOLVES = ("linearized", "exact")
@@ -100,7 +100,8 @@ def solve_joint_batches(
 def _exact_task(data: SegmentData, settings: JointSettings):
     """One joint solve; ``None`` if it failed."""
     try:
-        return calibrate_joint(data, settings)
+        with muted():  # one batch of many: the parent reports the count
+            return calibrate_joint(data, settings)
     except GraphcalError:
         return None
 

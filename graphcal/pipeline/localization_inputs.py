@@ -10,6 +10,7 @@ from graphcal.pipeline.calibration_run import CalibrationRun
 from graphcal.pipeline.run import run_calibration
 from graphcal.pipeline.sensor_estimates import correct_log
 from graphcal.pipeline.settings import Settings
+from graphcal.progress import muted
 
 
 def wheel_model(run: CalibrationRun) -> dict[str, float]:
@@ -40,7 +41,8 @@ def prepare_localization(
 
     Runs the whole-log calibration (``settings``, default :class:`Settings`).
     """
-    run = run_calibration(log, settings or Settings(), "whole")
+    with muted():  # a step of the caller's, as before: quiet
+        run = run_calibration(log, settings or Settings(), "whole")
     wheels: dict[str, Any] = {**wheel_model(run), "theta_initial": run.theta}
     found = ", ".join(f"{n} {e.value:+.3f} ({e.verdict})" for n, e in run.estimated.items())
     summary = (

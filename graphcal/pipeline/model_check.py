@@ -40,7 +40,7 @@ from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.sensor_estimates import detected_offsets, time_offsets
 from graphcal.pipeline.validation import position_errors
 from graphcal.pipeline.whole_log import WholeLog
-from graphcal.progress import say
+from graphcal.progress import muted, say
 
 #: Groups of consecutive segments, alternately in the two folds.
 GROUPS = 4
@@ -188,7 +188,8 @@ def _held_apart_error(
     the antenna's on the lever arm that solve found (none without one); ``inf`` if that
     calibration fails."""
     try:
-        solve, values = solve_joint(train, settings, workers)
+        with muted():  # a fold's solve: its lines are not the user's concern
+            solve, values = solve_joint(train, settings, workers)
     except CalibrationFailed:
         return float("inf")
     arm = np.asarray(values.atVector(LEVER_ARM)) if values.exists(LEVER_ARM) else None
