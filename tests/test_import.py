@@ -254,6 +254,13 @@ def test_simulate_streams_command_writes_a_manifest(tmp_path, capsys):
         ("manifest.toml", 'file = "gnss.csv"', 'file = "gps.csv"', "gps.csv: no such file"),
         ("manifest.toml", 'yaw_rate = "wz"', 'yaw_rate = "gz"', "no column 'gz'"),
         ("manifest.toml", 'kind = "speed"', 'kind = "furlongs"', "kind = 'furlongs' is not known"),
+        ("manifest.toml", 'kind = "speed"', 'kind = ["speed"]', "kind = ['speed'] is not known"),
+        (
+            "manifest.toml",
+            'speed_unit = "m/s"',
+            "speed_unit = 3.6",
+            "speed_unit = 3.6 is not known",
+        ),
         ("manifest.toml", 'kind = "speed"\n', "", "[wheels] needs kind"),
         ("manifest.toml", "circumference = 2.0", "", "needs circumference"),
         ("manifest.toml", 'heading_unit = "deg"\n', "", "[gnss] needs heading_unit"),

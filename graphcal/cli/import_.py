@@ -101,5 +101,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 DESCRIPTION = (
-    run.__doc__ + " The manifest's keys are documented in graphcal/data/manifest.py and the README."
+    run.__doc__
+    + " The manifest's keys are documented in graphcal/recording/manifest/manifest.py "
+    + "(graphcal import --help-manifest) and the README."
 )

@@ -1,6 +1,6 @@
 """A fleet run: every log calibrated as a Dask task, results written as they arrive.
 
-* **Where**: a ``LocalCluster`` of ``workers`` single-threaded processes on this machine, or
+* **Where**: a ``LocalCluster`` of ``options.workers`` single-threaded processes on this machine, or
   any running Dask scheduler by address (``tcp://HOST:8786``), whose workers must have
   graphcal installed and see the logs' paths.
 * **Resumable**: each log's result is written atomically to ``OUT/logs/VEHICLE/DAY.json``

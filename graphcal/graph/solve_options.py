@@ -3,7 +3,6 @@ it ended (:class:`SolveOutcome`: a status and a message, as scipy's ``OptimizeRe
 
 from __future__ import annotations
 
-import dataclasses
 import enum
 from dataclasses import dataclass
 
@@ -28,10 +27,6 @@ class SolveOptions:
     label: str = "solve"
     workers: int = 1
     report_iterations: bool = False
-
-    def named(self, label: str) -> SolveOptions:
-        """The same options for a solve called ``label``."""
-        return dataclasses.replace(self, label=label)
 
 
 class SolveStatus(enum.Enum):

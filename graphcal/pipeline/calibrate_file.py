@@ -55,7 +55,3 @@ def calibrate_file(
     if imported is not None and imported.warnings:  # the import's doubts go with the result
         run = dataclasses.replace(run, warnings=(*imported.warnings, *run.warnings))
     return run, imported
-
-
-def _quiet(_line: str) -> None:
-    """No progress lines."""

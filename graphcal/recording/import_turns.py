@@ -1,8 +1,7 @@
-"""Turns of the import's grid in windows of :data:`TURN_WINDOW_S`: the direction of travel,
-the signed turn of a signal per window, and whether two signals turn the same way; and
-:func:`turning`, which finds the one of the wheels, the track and the heading that turns
-against the other two (mirrored tracks, headings and wheels), and :func:`check_turning`,
-which says so in a recording's terms."""
+"""Whether the wheels, the track and the heading of an import turn the same way
+(:func:`check_turning`): the one that turns against the other two
+(:func:`graphcal.log.turns.turning`: mirrored tracks, headings and wheels), said in the
+recording's terms."""
 
 from __future__ import annotations
 
@@ -19,7 +18,7 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
 
     A mirrored track (latitude/longitude or x/y swapped), a heading in the other convention
     (compass declared ENU) or swapped wheels (rear_left/rear_right) all show as turns in
-    opposite directions (:meth:`Turning.opposite`).
+    opposite directions (:meth:`~graphcal.log.turns.Turning.opposite`).
     """
     pose = recording.pose
     turns = turning(resampled.columns, ~resampled.masked, nominal, pose.heading is not None)

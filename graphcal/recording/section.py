@@ -93,7 +93,7 @@ class Section:
         known = ", ".join(options)
         if value is None:
             raise self.error(f"[{self.name}] needs {key} (one of {known})")
-        if value not in options:
+        if not isinstance(value, str) or value not in options:
             raise self.error(f"[{self.name}] {key} = {value!r} is not known; use one of {known}")
         return value
 

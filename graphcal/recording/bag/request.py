@@ -19,7 +19,7 @@ from graphcal.recording.vocabulary import (
 
 @dataclass(frozen=True)
 class BagRequest:
-    """What :func:`~graphcal.recording.bag.read.read_bag` was asked to read (its keyword arguments;
+    """What :func:`~graphcal.recording.bag.read.read_bag` is asked to read (a field left
     ``None``: detect).
 
     Attributes:

@@ -258,7 +258,7 @@ def mounted_imu(
 
 
 def mounted_fix(field: Field | None) -> str | None:
-    """For a quantity rotated from a mounted IMU's columns (:func:`read_mounted_imu`), the
+    """For a quantity rotated from a mounted IMU's columns (:func:`mounted_imu`), the
     keys to check, in the manifest's words (``check [imu] angular_velocity_unit (now
     "rad/s") and mounting (now [5, 0, 90])``); ``None`` for any other field."""
     mounting = None if field is None else field.declares("mounting")

@@ -152,7 +152,7 @@ def read_wheels(table: Section, notes: list[str]) -> WheelStream:
 def read_imu(table: Section, notes: list[str]) -> ImuStream:
     """The IMU stream of an ``[imu]`` section's CSV file in the vehicle frame: its lateral
     acceleration [m/s²] and yaw rate [rad/s] (a 3-axis IMU in its own frame is
-    :func:`read_imu_axes`'s)."""
+    :func:`graphcal.recording.imu.mounting.mounted_imu`'s)."""
     columns = {key: table.text(key, required=False) for key in ("lateral_acceleration", "yaw_rate")}
     columns = {key: value for key, value in columns.items() if value is not None}
     if not columns:
