@@ -1,15 +1,14 @@
 """Import a recording (streams manifest or ROS bag) into a validated drive log.
 
-:func:`import_recording` reads the streams (:mod:`graphcal.recording.manifest.manifest`,
+:func:`import_recording` reads the streams (:mod:`graphcal.recording.manifest_recording`,
 :mod:`graphcal.recording.bag.read`), puts them on the uniform grid
-(:func:`graphcal.recording.resampling.resample`),
-checks the streams against each other (:func:`graphcal.recording.import_checks.check_recording`:
-swapped latitude/longitude, a compass heading declared ENU, swapped wheels, wrong units) and
-validates the result as any drive-log CSV
-(:func:`graphcal.log.validation.validate_frame`),
-each column naming where it came from (:func:`graphcal.recording.column_origins.column_origins`).
-:func:`graphcal.recording.import_output.write_import` writes the drive-log CSV and a JSON sidecar
-saying where it came from.
+(:func:`graphcal.recording.resampling.resample`), checks the streams against each other
+(:func:`graphcal.recording.import_checks.check_recording`: swapped latitude/longitude, a
+compass heading declared ENU, swapped wheels, wrong units) and validates the result as any
+drive-log CSV (:func:`graphcal.log.validation.validate_frame`), each column naming where it
+came from (:func:`graphcal.recording.column_origins.column_origins`).
+:func:`graphcal.recording.import_output.write_import` writes the drive-log CSV and a JSON
+sidecar saying where it came from.
 """
 
 from __future__ import annotations

@@ -155,6 +155,10 @@ class MountedColumns:
             :data:`~graphcal.recording.vocabulary.ACCELERATION_UNITS`, ``ANGULAR_VELOCITY_UNITS``).
         columns: by role (``"acceleration[0]"``), the column to read; ``units`` how each
             role's unit was declared, for messages.
+        declared: how ``acceleration_unit`` and ``angular_velocity_unit`` read
+            (``'acceleration_unit = "g"'``, ``... by default``), for messages.
+        where: ``"manifest.toml: [imu] mounting"``, what messages about the mounting start
+            with.
     """
 
     mounting: np.ndarray | str
@@ -164,6 +168,8 @@ class MountedColumns:
     rate_unit: str
     columns: dict[str, str]
     units: dict[str, str]
+    declared: tuple[str, str]
+    where: str
 
 
 def mounted_columns(table: Section) -> MountedColumns:
@@ -193,7 +199,15 @@ def mounted_columns(table: Section) -> MountedColumns:
         for role in columns
     }
     return MountedColumns(
-        mounting, accelerations, rates, acceleration_unit, rate_unit, columns, units
+        mounting,
+        accelerations,
+        rates,
+        acceleration_unit,
+        rate_unit,
+        columns,
+        units,
+        (acceleration_declared, rate_declared),
+        where,
     )
 
 
@@ -212,9 +226,7 @@ def mounted_imu(
     source, t, values, provenance = read
     pose, wheels = drive
     accelerations, rates, mounting = asked.accelerations, asked.rates, asked.mounting
-    where = f"{table.source}: [imu] mounting"
-    acceleration_declared = table.declaration("acceleration_unit", "m/s²")
-    rate_declared = table.declaration("angular_velocity_unit", "rad/s")
+    where, (acceleration_declared, rate_declared) = asked.where, asked.declared
     force = rate = None
     if accelerations is not None:
         force = np.column_stack([values[f"acceleration[{i}]"] for i in range(3)])
