@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from graphcal.log.drive_log import COLUMNS, DriveLog
 from graphcal.log.segments import (
     gather_segments,
     make_batches,
@@ -112,3 +113,56 @@ def test_segments_of_an_overlapping_route_are_numerous():
         drive.measured, split_segments(drive.measured, 150.0, stride=25.0)
     )
     assert len(overlapping) > 4 * len(disjoint) > 0
+
+
+def _three_drives_on_one_clock(runs: bool) -> DriveLog:
+    """Three 400 m drives at 10 m/s, each parked 5 s at its start and end, with 30 s
+    between them masked (every stream stopped): the travelled distance is flat across each
+    gap. With ``runs`` the drives are also numbered runs."""
+    dt, speed, parked, gap = 0.025, 10.0, 5.0, 30.0
+    moving = np.full(round(40.0 / dt), speed * dt / 2.0)  # rev per step at c_e 2 m
+    rest = np.zeros(round(parked / dt))
+    drive = np.concatenate([rest, moving, rest])
+    pieces, masked, run = [], [], []
+    for k in range(3):
+        pieces.append(drive)
+        masked.append(np.zeros(len(drive), bool))
+        run.append(np.full(len(drive), k))
+        if k < 2:
+            pieces.append(np.zeros(round(gap / dt)))
+            masked.append(np.ones(round(gap / dt), bool))
+            run.append(np.full(round(gap / dt), k))
+    n = np.concatenate(pieces)
+    zeros = np.zeros(len(n))
+    return DriveLog(
+        np.arange(len(n)) * dt,
+        zeros,
+        zeros,
+        zeros,
+        n,
+        n,
+        zeros,
+        zeros,
+        masked=np.concatenate(masked),
+        run=np.concatenate(run) if runs else None,
+    )
+
+
+@pytest.mark.parametrize("runs", [False, True])
+@pytest.mark.parametrize("stride", [None, 50.0])
+def test_segments_of_drives_on_one_clock_stay_inside_their_drive(runs, stride):
+    log = _three_drives_on_one_clock(runs)
+    segments = split_segments(log, 150.0, stride=stride)
+    distance = log.travelled_distance()
+    assert len(segments) == (6 if stride is None else 3 * 6)  # 400 m: 2 of 150 m, or 6 at 50 m
+    for start, stop in zip(segments.start, segments.stop, strict=True):
+        assert not log.masked[start : stop + 1].any()  # no masked sample, no gap spanned
+        assert distance[stop] - distance[start] == pytest.approx(150.0, abs=0.3)
+
+
+def test_segments_never_span_a_run_boundary_without_a_mask():
+    log = _three_drives_on_one_clock(runs=True)
+    unmasked = DriveLog(*(getattr(log, c) for c in COLUMNS), run=log.run)
+    segments = split_segments(unmasked, 150.0, stride=50.0)
+    assert len(segments) == 3 * 6
+    assert all(np.ptp(log.run[a : b + 1]) == 0 for a, b in zip(segments.start, segments.stop))

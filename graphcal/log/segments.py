@@ -197,7 +197,7 @@ def split_segments(
     min_length = SHORT_STRETCH_SHARE * length if min_length is None else min_length
     distance = log.travelled_distance(wheel_circumference)
     starts, stops = [], []
-    for first, last in _stretches(log.masked, len(distance)):
+    for first, last in _stretches(log.masked, log.run, len(distance)):
         start, stop = _cut(distance, first, last, length, stride)
         if not len(start) and distance[last] - distance[first] >= min_length:
             start, stop = np.array([first]), np.array([last])
@@ -215,28 +215,38 @@ def split_segments(
 SHORT_STRETCH_SHARE = 0.1
 
 
-def _stretches(masked: np.ndarray | None, n: int) -> list[tuple[int, int]]:
-    """``[first, last]`` sample ranges (inclusive) of the runs of unmasked samples; one for
-    a log without masked samples."""
-    if masked is None or not np.any(masked):
-        return [(0, n - 1)]
-    free = np.concatenate([[False], ~np.asarray(masked, bool), [False]])
-    edges = np.flatnonzero(np.diff(free.astype(np.int8)))
-    return [(int(a), int(b) - 1) for a, b in zip(edges[::2], edges[1::2], strict=True) if b - 1 > a]
+def _stretches(
+    masked: np.ndarray | None, run: np.ndarray | None, n: int
+) -> list[tuple[int, int]]:
+    """``[first, last]`` sample ranges (inclusive, at least one step) of the unmasked samples,
+    each within one run: a run's first sample starts a stretch of its own (the step into it
+    crosses from one run to the next). One range for a log without masked samples or runs."""
+    free = np.ones(n, bool) if masked is None else ~np.asarray(masked, bool)
+    starts_new = free.copy()
+    starts_new[1:] &= ~free[:-1]
+    if run is not None:
+        starts_new[1:] |= free[1:] & (np.diff(np.asarray(run)) != 0)
+    continues = np.append(free[1:] & ~starts_new[1:], False)  # sample i+1 in i's stretch
+    first = np.flatnonzero(starts_new)
+    last = np.flatnonzero(free & ~continues)
+    return [(int(a), int(b)) for a, b in zip(first, last, strict=True) if b > a]
 
 
 def _cut(
     distance: np.ndarray, first: int, last: int, length: float, stride: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Segments of ``length`` [m] every ``stride`` [m] from sample ``first`` that end at
-    sample ``last`` at the latest (``distance``: travelled [m] at each sample)."""
-    offsets = distance[first] + np.arange(
-        0.0, distance[last] - distance[first] - length + 1e-9, stride
-    )
+    sample ``last`` at the latest (``distance``: travelled [m] at each sample).
+
+    The offsets are looked up in the stretch's own distances: the travelled distance is flat
+    across a standstill or a gap, so a lookup in the whole log would land where an earlier
+    stretch stopped and cut a segment across the gap."""
+    stretch = distance[first : last + 1]
+    offsets = stretch[0] + np.arange(0.0, stretch[-1] - stretch[0] - length + 1e-9, stride)
     # Both ends come from the nominal offsets, so with stride == length consecutive segments
     # share their boundary sample but no step.
-    start = np.searchsorted(distance, offsets, side="left")
-    stop = np.searchsorted(distance, offsets + length, side="left")
+    start = first + np.searchsorted(stretch, offsets, side="left")
+    stop = first + np.searchsorted(stretch, offsets + length, side="left")
     start, unique = np.unique(start, return_index=True)  # standstill can repeat a start
     stop = stop[unique]
     keep = (stop <= last) & (stop > start)
