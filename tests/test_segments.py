@@ -165,4 +165,5 @@ def test_segments_never_span_a_run_boundary_without_a_mask():
     unmasked = DriveLog(*(getattr(log, c) for c in COLUMNS), run=log.run)
     segments = split_segments(unmasked, 150.0, stride=50.0)
     assert len(segments) == 3 * 6
-    assert all(np.ptp(log.run[a : b + 1]) == 0 for a, b in zip(segments.start, segments.stop, strict=True))
+    spans = zip(segments.start, segments.stop, strict=True)
+    assert all(np.ptp(log.run[a : b + 1]) == 0 for a, b in spans)
