@@ -215,9 +215,7 @@ def split_segments(
 SHORT_STRETCH_SHARE = 0.1
 
 
-def _stretches(
-    masked: np.ndarray | None, run: np.ndarray | None, n: int
-) -> list[tuple[int, int]]:
+def _stretches(masked: np.ndarray | None, run: np.ndarray | None, n: int) -> list[tuple[int, int]]:
     """``[first, last]`` sample ranges (inclusive, at least one step) of the unmasked samples,
     each within one run: a run's first sample starts a stretch of its own (the step into it
     crosses from one run to the next). One range for a log without masked samples or runs."""
