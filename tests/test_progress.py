@@ -5,6 +5,7 @@ hears them; a muted step and a worker say nothing."""
 from __future__ import annotations
 
 import logging
+import re
 
 from graphcal import Settings, calibrate_file
 from graphcal.progress import LOGGER, muted, reporting_to, reports_progress, say
@@ -38,6 +39,11 @@ def test_no_listener_no_output(capsys):
     assert capsys.readouterr() == ("", "")
 
 
+def _untimed(lines: list[str]) -> list[str]:
+    """``lines`` without the elapsed seconds an iteration line ends in (``(3 s)``)."""
+    return [re.sub(r" \(\d+ s\)$", "", line) for line in lines]
+
+
 def test_a_programs_logging_hears_a_real_calibration_that_has_no_progress(caplog):
     with caplog.at_level(logging.INFO, logger="graphcal.progress"):
         calibrate_file("data/sample_drive.csv", Settings(), "whole")
@@ -48,5 +54,7 @@ def test_a_programs_logging_hears_a_real_calibration_that_has_no_progress(caplog
     heard: list[str] = []
     with caplog.at_level(logging.INFO, logger="graphcal.progress"):
         calibrate_file("data/sample_drive.csv", Settings(), "whole", progress=heard.append)
-    assert heard == logged  # the same lines, once: to progress=, not also to logging
+    # The same lines, once: to progress=, not also to logging (a long solve's iteration lines
+    # end in their elapsed seconds, which differ from run to run on a loaded machine).
+    assert _untimed(heard) == _untimed(logged)
     assert not [r for r in caplog.records if r.name == "graphcal.progress"]
