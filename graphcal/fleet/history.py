@@ -1,7 +1,8 @@
 """A vehicle's calibration over days: when theta changed, and theta since the last change.
 
 Each day's log gives the whole-log posterior of theta (under the solve's weak prior) with its
-covariance. Going through the days in order, the days since the last change are combined,
+covariance; a day whose calibration is not trusted has no honest covariance and is left out
+(and flagged). Going through the days in order, the days since the last change are combined,
 information-weighted with the prior counted once (``Σ = (Σ Σᵢ⁻¹ − (n−1) P)⁻¹``,
 ``θ = Σ (Σ Σᵢ⁻¹ θᵢ − (n−1) P μ)`` for the prior ``N(μ, P⁻¹)``), and each new day is tested
 against that combination:

@@ -2,16 +2,15 @@
 vehicle), ``fleet.parquet`` (if ``pyarrow`` is installed) and ``fleet.png``.
 
 Columns are SI, as in ``batches.csv``: ``c_e``, ``c_d``, ``t_r`` [m], ``d`` [s²] and their
-``sigma_*``; empty where a log failed or a parameter was not calibrated. ``fleet.csv`` also
+``sigma_*`` (every parameter's estimate with its marginal σ, ``verdict_*`` says how well it
+is determined); empty where a log failed. ``fleet.csv`` also
 has a ``verdict_*`` per parameter (after ``not_calibrated``; older files lack them):
-``calibrated``, ``not observable``, or ``calibrated given t_r = prior (σ conditional)`` where
-the value and its ``sigma_*`` hold only given another parameter at its prior
+``calibrated``, ``weakly determined`` or ``not observable``
 (:mod:`graphcal.graph.observability`).
 """
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 import os
 from pathlib import Path
@@ -23,26 +22,23 @@ import pandas as pd
 from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.fleet.history import VehicleHistory
 from graphcal.graph.observability import DEFAULT_MAX_SIGMA_RATIO as MAX_SIGMA_RATIO
-from graphcal.graph.observability import assess_observability
 from graphcal.model import PARAMETER_NAMES
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 
 
 def fleet_table(results: list[dict[str, Any]]) -> pd.DataFrame:
-    """One row per log: vehicle, day, status, reason, the recommended theta and σ (SI; no σ
-    for a parameter the log did not determine, which keeps its prior value), the parameters
-    not calibrated, each parameter's verdict (``verdict_d``: ``calibrated given t_r = prior
-    (σ conditional)`` where d's value and σ hold only for t_r at its prior), χ²/dof,
-    trusted, distance, segments, warnings, seconds, path, key."""
+    """One row per log: vehicle, day, status, reason, the recommended theta and σ (SI: each
+    parameter's posterior and marginal σ), the parameters
+    not calibrated, each parameter's verdict (``verdict_d``), χ²/dof, trusted, distance,
+    segments, warnings, seconds, path, key."""
     rows = []
     for r in results:
         row = {k: r.get(k) for k in ("vehicle", "day", "status", "reason")}
         theta, covariance = r.get("theta"), r.get("covariance")
         calibrated = r.get("calibrated") or [False] * len(PARAMETER_NAMES)
         for i, name in enumerate(PARAMETER_NAMES):
-            ok = theta is not None and calibrated[i]
             row[name] = float(theta[i]) if theta is not None else None
-            row[f"sigma_{name}"] = float(np.sqrt(covariance[i][i])) if ok else None
+            row[f"sigma_{name}"] = None if theta is None else float(np.sqrt(covariance[i][i]))
         row["not_calibrated"] = " ".join(
             n for n, ok in zip(PARAMETER_NAMES, calibrated, strict=True) if not ok
         )
@@ -57,17 +53,9 @@ def fleet_table(results: list[dict[str, Any]]) -> pd.DataFrame:
 
 
 def result_verdicts(result: dict[str, Any]) -> dict[str, str] | None:
-    """A log's verdicts under today's rule (:meth:`Observability.verdicts`), from its
-    posterior covariance, prior σ and calibrated flags — results kept from an earlier run
-    carry their own, older wording; ``None`` for a failed log. A result without those fields
-    gives the verdicts it stored."""
-    covariance, sigmas = result.get("posterior_covariance"), result.get("prior_sigmas")
-    calibrated = result.get("calibrated")
-    if covariance is None or sigmas is None or calibrated is None:
-        return result.get("verdicts")
-    observability = assess_observability(np.asarray(covariance, float), np.asarray(sigmas))
-    flags = np.asarray(calibrated, bool)
-    return dataclasses.replace(observability, calibrated=flags).verdicts()
+    """A log's verdicts as its run gave them (:meth:`Observability.verdicts`; results kept
+    from an earlier run carry their own, older wording); ``None`` for a failed log."""
+    return result.get("verdicts")
 
 
 def vehicles_table(histories: list[VehicleHistory]) -> pd.DataFrame:

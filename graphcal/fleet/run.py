@@ -385,14 +385,16 @@ def _histories(results: list[dict[str, Any]], alpha: float) -> list[VehicleHisto
                 np.asarray(r["prior_sigmas"], float),
             )
             for r in rows
-            if r["status"] == "ok"
+            if r["status"] == "ok" and r.get("trusted") is not False  # a σ to test against
         ]
         history = vehicle_history(vehicle, days, alpha)
         for r in rows:
             if r["status"] != "ok":
                 history.flags.append(f"{r['day']}: calibration failed: {r['reason']}")
             elif r.get("trusted") is False:
-                history.flags.append(f"{r['day']}: calibration not trusted")
+                history.flags.append(
+                    f"{r['day']}: calibration not trusted, left out of the change test"
+                )
         histories.append(history)
     flag_fleet_outliers(histories)
     return histories
