@@ -32,70 +32,48 @@ def test_parameters_left_at_their_prior_are_not_calibrated():
     assert np.allclose(np.abs(verdict.weak_directions[:, 2:]).sum(axis=1), 1.0, atol=1e-9)
 
 
-def test_a_parameter_tied_to_an_unobservable_one_is_named_with_it():
-    # c_d known only relative to t_r: correlation 0.99 with an unobservable t_r.
-    sigma = PRIOR * [1e-3, 0.05, 0.95, 1e-2]
-    correlation = np.eye(4)
-    correlation[1, 2] = correlation[2, 1] = 0.99
-    verdict = assess_observability(correlation * np.outer(sigma, sigma), PRIOR)
-    assert verdict.verdicts()["c_d"] == "calibrated given t_r = prior (σ conditional)"
-    assert verdict.verdicts()["t_r"] == "not observable"
-    assert "c_d holds only given t_r = prior" in verdict.message()
+def test_a_parameter_the_data_inform_more_than_the_prior_is_weakly_determined():
+    # c_e not calibrated but its σ 30 % of the reference: the data's information about it is
+    # 10× the reference prior's. t_r's 95 %: the data add a tenth of the prior's.
+    sigma = PRIOR * [0.3, 1e-2, 0.95, 1e-2]
+    verdict = assess_observability(np.diag(sigma**2), PRIOR, reference_sigmas=PRIOR)
+    assert verdict.verdicts() == {
+        "c_e": "weakly determined",
+        "c_d": "calibrated",
+        "t_r": "not observable",
+        "d": "calibrated",
+    }
+    assert verdict.not_calibrated == ["c_e", "t_r"]
+    message = verdict.message()
+    assert "c_e weakly determined (σ 30 mm from the data; calibrated needs ≤ 10 mm)" in message
+    assert "t_r not observable (σ 190 mm from the data" in message
 
 
-def _covariance(ratio, correlations):
-    """Theta's posterior covariance (SI) with σ = ``ratio`` × prior σ and the given
-    ``{(i, j): ρ}``."""
-    correlation = np.eye(4)
-    for (i, j), rho in correlations.items():
-        correlation[i, j] = correlation[j, i] = rho
-    sigma = PRIOR * np.asarray(ratio, float)
-    return correlation * np.outer(sigma, sigma)
-
-
-def _held_at(covariance, calibrated, prior_mean):
-    from graphcal.graph.observability import condition_on_prior
-
-    return condition_on_prior(THETA_NOMINAL, covariance, calibrated, prior_mean, PRIOR)
-
-
-def test_a_moderate_correlation_with_a_barely_determined_parameter_is_named():
-    """d correlated only 0.6 with t_r, which the data shrank to half its prior σ: were t_r's
-    prior one σ off, d (held at t_r's prior) would move by 1.5 of its conditional σ — so
-    its value and σ hold only given t_r = prior, and the verdict says so."""
-    covariance = _covariance([1e-3, 1e-2, 0.5, 0.05], {(3, 2): 0.6})
-    verdict = assess_observability(covariance, PRIOR)
-    assert verdict.not_calibrated == ["t_r"]
-    assert verdict.verdicts()["d"] == "calibrated given t_r = prior (σ conditional)"
-    assert verdict.verdicts()["c_e"] == "calibrated"
-    # What the verdict claims, measured: move t_r's prior by one σ, d moves by 1.5 σ.
-    calibrated = verdict.calibrated
-    held, conditioned = _held_at(covariance, calibrated, THETA_NOMINAL)
-    moved, _ = _held_at(covariance, calibrated, THETA_NOMINAL + [0, 0, PRIOR[2], 0])
-    shift = abs(moved[3] - held[3]) / np.sqrt(conditioned[3, 3])
-    assert shift == pytest.approx(1.5, rel=1e-9)
-    assert verdict.prior_shifts()[3, 2] == pytest.approx(shift, rel=1e-9)
-
-
-def test_two_unobservable_parameters_are_both_named():
-    covariance = _covariance([1e-3, 0.05, 0.9, 0.9], {(1, 2): 0.6, (1, 3): -0.6})
-    verdict = assess_observability(covariance, PRIOR)
-    assert verdict.verdicts()["c_d"] == "calibrated given t_r, d = prior (σ conditional)"
+def test_weakly_determined_is_judged_on_the_reference_not_the_prior():
+    # The same data under a prior twice as wide: the same verdicts.
+    data_information = 1.0 / (PRIOR * [0.3, 1e-2, 0.95, 1e-2]) ** 2 - 1.0 / PRIOR**2
+    for scale in (0.5, 2.0):
+        prior = scale * PRIOR
+        covariance = np.diag(1.0 / (data_information + 1.0 / prior**2))
+        verdict = assess_observability(covariance, prior, reference_sigmas=PRIOR)
+        assert list(verdict.verdicts().values()) == [
+            "weakly determined", "calibrated", "not observable", "calibrated"
+        ]  # fmt: skip
 
 
 @pytest.mark.slow
-def test_a_4_km_day_names_what_c_d_holds_only_given():
-    """A 4 km city day where neither t_r nor d is observable: c_d, conditioned on them at
-    their prior, is nearly 6 of its σ from its truth. Its verdict says that its value and σ
-    hold only given t_r and d at their prior (the former rule called it calibrated)."""
+def test_a_4_km_day_reports_what_it_does_not_determine_with_its_uncertainty():
+    """A 4 km city day that does not calibrate t_r or d: c_d's σ is its marginal one,
+    t_r's and d's uncertainty in it. Held at t_r and d's prior (the rule before issue 43),
+    c_d was nearly 6 of its conditional σ from its truth and still "calibrated"."""
     drive = simulate_drive(length_km=4.0, seed=56)
     run = run_calibration(drive.measured, Settings(), "whole", workers=1)
     verdicts = run.verdicts()
-    assert verdicts["t_r"] == verdicts["d"] == "not observable"
-    assert verdicts["c_d"] == "calibrated given t_r, d = prior (σ conditional)"
-    error = abs(run.theta[1] - drive.theta_true[1]) / np.sqrt(run.covariance[1, 1])
-    assert error > 3
-    assert verdicts["c_e"] == "calibrated"  # a prior one σ off moves it by < 1 σ
+    assert run.observability.not_calibrated == ["t_r", "d"]
+    sigma = np.sqrt(np.diag(run.covariance))
+    error = np.abs(run.theta - drive.theta_true) / sigma
+    assert np.all(error < 3), error
+    assert verdicts["c_e"] == "calibrated"
 
 
 def test_a_city_batch_determines_every_parameter(drive):
@@ -128,13 +106,18 @@ def straight_drive():
 
 
 @pytest.mark.slow
-def test_straight_drive_run_keeps_unobservable_parameters_at_the_prior(straight_drive):
+def test_straight_drive_run_reports_unobservable_parameters_near_their_prior(straight_drive):
     settings = Settings(batches=BatchingSettings(count=3))
     run = run_calibration(straight_drive.measured, settings, "joint", workers=1)
     assert run.observability.not_calibrated == ["t_r", "d"]
-    np.testing.assert_array_equal(run.theta[2:], THETA_NOMINAL[2:])
-    error = np.abs(run.theta[:2] - straight_drive.theta_true[:2])
-    assert np.all(error < 4 * np.sqrt(np.diag(run.covariance))[:2]), error
+    sigma = np.sqrt(np.diag(run.covariance))
+    prior = settings.joint.theta_prior_sigmas
+    # t_r and d: the data barely touch them (t_r a little, through the road's wide bends);
+    # their estimates keep most of the prior's σ.
+    assert np.all(sigma[2:] > 0.5 * prior[2:]) and np.all(sigma[2:] <= prior[2:])
+    assert np.all(np.abs(run.theta[2:] - THETA_NOMINAL[2:]) < 2 * sigma[2:])
+    error = np.abs(run.theta - straight_drive.theta_true)
+    assert np.all(error < 3 * sigma), error / sigma
     # Every batch is degenerate: all are left out, each with its reason.
     assert list(run.batch_excluded["joint"]) == ["not observable: t_r, d"] * 3
     assert any("t_r, d not calibrated" in w for w in run.warnings)
@@ -157,9 +140,10 @@ def test_cli_straight_drive_names_what_it_cannot_calibrate(tmp_path, capsys):
     assert doc["method"] == "whole"
     status = {name: doc["parameters"][name]["status"] for name in PARAMETER_NAMES}
     assert status["c_e"].startswith("calibrated") and status["c_d"].startswith("calibrated")
-    for name in ("t_r", "d"):
-        assert status[name].startswith("not calibrated")
-        assert doc["parameters"][name]["sigma"] is None
+    prior = doc["settings"]["joint"]["theta_prior_sigmas"]
+    for i, name in ((2, "t_r"), (3, "d")):
+        assert status[name].startswith("not calibrated: not observable")
+        assert 0.5 * prior[i] < doc["parameters"][name]["sigma"] <= prior[i]
     truth = doc.get("theta_true")
     assert truth is not None
     for name, tolerance in (("c_e", 0.6e-3), ("c_d", 0.3e-3)):
@@ -167,26 +151,3 @@ def test_cli_straight_drive_names_what_it_cannot_calibrate(tmp_path, capsys):
         low, high = entry["ci95"]
         assert low < entry["value"] < high and high - low < 2 * tolerance
         assert abs(entry["value"] - truth[name]) < tolerance
-
-
-def test_holding_an_unobservable_parameter_at_its_prior_conditions_the_others(rng):
-    """Gaussian conditioning: the calibrated block's covariance is the inverse of its
-    information block, and the estimate moves along the correlation."""
-    from graphcal.graph.observability import condition_on_prior
-
-    root = rng.standard_normal((4, 4))
-    covariance = root @ root.T * 1e-6 + np.diag(PRIOR**2) * [0, 0, 0.9, 0]
-    theta = THETA_NOMINAL + [1e-3, 2e-4, 0.05, 1e-4]
-    calibrated = np.array([True, True, False, True])
-    held, conditioned = condition_on_prior(theta, covariance, calibrated, THETA_NOMINAL, PRIOR)
-    c = np.flatnonzero(calibrated)
-    information = np.linalg.inv(covariance)
-    np.testing.assert_allclose(
-        conditioned[np.ix_(c, c)], np.linalg.inv(information[np.ix_(c, c)]), rtol=1e-9
-    )
-    assert held[2] == THETA_NOMINAL[2] and conditioned[2, 2] == PRIOR[2] ** 2
-    # The shift is what the information form gives: x_c = θ_c − I_cc⁻¹ I_cu (μ_u − θ_u).
-    shift = -np.linalg.solve(information[np.ix_(c, c)], information[c, 2]) * (
-        THETA_NOMINAL[2] - theta[2]
-    )
-    np.testing.assert_allclose(held[c], theta[c] + shift, rtol=1e-9)

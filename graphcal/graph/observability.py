@@ -22,32 +22,19 @@ Typical degeneracies (``docs/method.md``):
 * too little lateral acceleration: d is not observable;
 * a short city day (4 km) where t_r is not observable: d is known only together with t_r.
 
-**Calibrated given X = prior.** The reported theta holds the unobservable parameters U at
-their prior mean μ_U and moves the calibrated ones C by Gaussian conditioning
-(:func:`condition_on_prior`): ``θ_C|U = θ̂_C + G (μ_U − θ̂_U)``, ``G = Σ_CU Σ_UU⁻¹``, with
-the conditional covariance ``Σ_C|U = Σ_CC − G Σ_UC``. That value and σ are right only if
-the true θ_U is μ_U. Were u_j's true value one prior σ (``σp_j``) away from μ_j, θ_i would
-be off by ``|G_ij| σp_j`` (to first order), an error its σ_i|U does not contain. So
-
-    q_ij = |G_ij| σp_j / σ_i|U
-
-is the shift of i, in its own (conditional) σ, that a prior one σ off in j causes; for a
-single unobservable j, ``G_ij = Σ_ij / Σ_jj`` and ``σ_i|j = σ_i √(1 − ρ_ij²)``, i.e.
-``q_ij = |ρ_ij| / (r_j √(1 − ρ_ij²))`` with ``r_j = σ_j / σp_j``. A calibrated i with
-``q_ij > HOLDS_GIVEN_SHIFT`` (1) for some unobservable j is **calibrated given j = prior**:
-its value and σ are conditional on j's prior. Under an honest prior (the true u_j about
-σp_j from μ_j) a parameter left "calibrated" errs by about ``√(1 + Σ_j q_ij²)`` of its σ
-(at most √2 for one unobservable j).
-
-The threshold 1 was chosen with a measurement (``docs/fleet.md``, "Values that hold only
-given a prior"): on the 32 of 300 simulated 4 km city days (seeds 0–299) where t_r, or t_r
-and d, were not observable, re-solving with j's prior mean moved by one σp_j moved each
-conditioned θ_i by q_ij of its σ (measured / predicted 0.84–1.03, median 1.00, 99 pairs), so
-q > 1 says what it means. With an unobservable prior so moved (either way), every parameter
-a threshold of 1 leaves "calibrated" stayed within 3 of its σ of the truth (35 of them, rms
-1.15 σ, largest 2.8 σ); a threshold of 1.5 left one beyond 3 σ, 3 left four (up to 5.3 σ).
-The former rule (|correlation| > 0.9) marked only d (q 37–70) and called c_d "calibrated"
-on days where it was 5.2–6.5 σ from its truth (q 8.7–26).
+**What is reported.** Every parameter's value is its posterior under the weak prior and its
+σ the marginal one: the uncertainty of every parameter the data leave open (a straight
+road's t_r, on which c_d then depends) is in it, so no value holds "only given" another's
+prior. A parameter that is not calibrated but whose σ from the data and the reference prior
+is at most :data:`WEAK_SIGMA_RATIO` of the reference sigma — the data carry at least as much
+information about it as the reference prior does, so its estimate is mostly theirs — is
+**weakly determined**: its estimate with that σ is what is written, never the nominal (a
+skid-steer robot's c_e 3σ below its datasheet value, σ 17 % of its reference: keeping the
+datasheet's is the worse answer). Otherwise it is **not observable**: the estimate is mostly
+the prior's. Like "calibrated", both are read on the reference prior, so the prior's width
+changes none (an estimate's distance from the nominal would not do: a direction the data
+barely see moves in proportion to the prior's variance, the real highway minute's t_r 1.5σ
+from its nominal at the documented prior and 2.2σ at twice its width).
 """
 
 from __future__ import annotations
@@ -61,11 +48,12 @@ from graphcal.model import PARAMETER_NAMES
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS
 
 DEFAULT_MAX_SIGMA_RATIO = 0.1
-#: A calibrated parameter holds only given an unobservable one's prior when a prior one σ
-#: off would move it by more than this many of its (conditional) σ (module docstring).
-HOLDS_GIVEN_SHIFT = 1.0
-#: The note a verdict carries when its value and σ hold only given other parameters' prior.
-CONDITIONAL_NOTE = "(σ conditional)"
+#: A parameter that is not calibrated is weakly determined when its σ from the data and the
+#: reference prior is at most this share of the reference sigma: the data's information about
+#: it is at least the reference prior's (module docstring).
+WEAK_SIGMA_RATIO = 1.0 / np.sqrt(2.0)
+#: The verdict of a parameter the data inform without calibrating it.
+WEAK_VERDICT = "weakly determined"
 #: The verdict of a parameter the vehicle profile holds at its nominal value.
 HELD_VERDICT = "fixed at nominal (vehicle profile)"
 
@@ -100,7 +88,8 @@ class Observability:
     reference: np.ndarray | None = None
 
     def without(self, name: str, reason: str) -> Observability:
-        """These verdicts with ``name`` not calibrated, for ``reason``."""
+        """These verdicts with ``name`` not calibrated (nor weakly determined), for
+        ``reason``."""
         calibrated = self.calibrated.copy()
         calibrated[PARAMETER_NAMES.index(name)] = False
         reasons = {**self.reasons, name: reason}
@@ -113,83 +102,52 @@ class Observability:
 
     @property
     def not_calibrated(self) -> list[str]:
-        """Names of the parameters the data did not determine (held ones aside)."""
+        """Names of the parameters the data did not determine (held ones aside; the weakly
+        determined ones among them)."""
         return [
             n
             for n, ok, held in zip(PARAMETER_NAMES, self.calibrated, self.held, strict=True)
             if not (ok or held)
         ]
 
-    def prior_shifts(self) -> np.ndarray:
-        """``(4, 4)`` q_ij: how far the reported (conditioned) θ_i moves, in its conditional
-        σ, were unobservable j's prior mean one prior σ off (module docstring); 0 where i is
-        not calibrated or j is. Computed in prior-σ units from ``correlation`` and
-        ``sigma_ratio`` (``Σ/σpσpᵀ = diag(r) ρ diag(r)``), so no units enter."""
-        shifts = np.zeros((len(PARAMETER_NAMES), len(PARAMETER_NAMES)))
-        c = np.flatnonzero(self.calibrated)
-        u = np.flatnonzero(~np.asarray(self.calibrated, bool))
-        if len(c) == 0 or len(u) == 0:
-            return shifts
-        ratio = np.asarray(self.sigma_ratio, float)
-        scaled = np.asarray(self.correlation, float) * np.outer(ratio, ratio)
-        gain = np.linalg.solve(scaled[np.ix_(u, u)], scaled[np.ix_(u, c)]).T  # G, prior-σ units
-        conditional = scaled[np.ix_(c, c)] - gain @ scaled[np.ix_(u, c)]
-        sigma = np.sqrt(np.maximum(np.diag(conditional), np.finfo(float).tiny))
-        shifts[np.ix_(c, u)] = np.abs(gain) / sigma[:, None]
-        return np.nan_to_num(shifts, nan=np.inf)
-
-    def ties(self) -> list[tuple[str, str, float]]:
-        """``(calibrated, unobservable, q)``: a calibrated parameter that holds only given
-        the unobservable one's prior — a prior one σ off would move it by q > 1 of its
-        conditional σ (:meth:`prior_shifts`) — e.g. d given t_r on a 4 km day."""
-        shifts = self.prior_shifts()
-        return [
-            (PARAMETER_NAMES[i], PARAMETER_NAMES[j], float(shifts[i, j]))
-            for i, j in zip(*np.nonzero(shifts > HOLDS_GIVEN_SHIFT), strict=True)
-        ]
-
-    def given(self) -> dict[str, list[str]]:
-        """Per calibrated parameter that holds only given others' prior: those others."""
-        out: dict[str, list[str]] = {}
-        for name, other, _ in self.ties():
-            out.setdefault(name, []).append(other)
-        return out
+    @property
+    def weakly_determined(self) -> np.ndarray:
+        """``(4,)`` True where a parameter is not calibrated (nor held, nor left out for a
+        reason) but the data's information about it is at least the reference prior's
+        (σ ratio at most :data:`WEAK_SIGMA_RATIO`)."""
+        informed = np.asarray(self.sigma_ratio, float) <= WEAK_SIGMA_RATIO
+        reasoned = np.isin(PARAMETER_NAMES, list(self.reasons))
+        return (
+            informed & ~np.asarray(self.calibrated, bool) & ~np.asarray(self.held, bool) & ~reasoned
+        )
 
     def verdicts(self) -> dict[str, str]:
-        """Per parameter: ``"calibrated"``, ``"not observable"``, :data:`HELD_VERDICT` or, for
-        one whose value and
-        σ hold only given unobservable parameters at their prior,
-        ``"calibrated given t_r = prior (σ conditional)"`` (``"given t_r, d = prior"`` for
-        two)."""
-        given = self.given()
+        """Per parameter: ``"calibrated"``, :data:`WEAK_VERDICT`, ``"not observable"`` or
+        :data:`HELD_VERDICT`."""
+        weak = self.weakly_determined
         out = {}
-        for name, ok, held in zip(PARAMETER_NAMES, self.calibrated, self.held, strict=True):
-            if held:
+        for i, name in enumerate(PARAMETER_NAMES):
+            if self.held[i]:
                 out[name] = HELD_VERDICT
-            elif not ok:
-                out[name] = "not observable"
-            elif name in given:
-                out[name] = f"calibrated given {', '.join(given[name])} = prior {CONDITIONAL_NOTE}"
-            else:
+            elif self.calibrated[i]:
                 out[name] = "calibrated"
+            else:
+                out[name] = WEAK_VERDICT if weak[i] else "not observable"
         return out
 
     def message(self) -> str:
         """One line naming what the data did not determine (empty if nothing)."""
         if not self.degenerate:
             return ""
-        parts = [
-            f"{name} not observable ({self.reasons.get(name) or self._sigma_text(name)})"
-            for name in self.not_calibrated
-        ]
-        shifts: dict[str, list[str]] = {}
-        for a, b, q in self.ties():
-            shifts.setdefault(a, []).append(f"{b}'s by {q:.1f}")
-        parts += [
-            f"{a} holds only given {', '.join(self.given()[a])} = prior (a prior one σ off "
-            f"would move {a}: {', '.join(moves)} of its σ)"
-            for a, moves in shifts.items()
-        ]
+        weak = self.weakly_determined
+        parts = []
+        for name in self.not_calibrated:
+            i = PARAMETER_NAMES.index(name)
+            why = self.reasons.get(name) or self._sigma_text(name)
+            if weak[i]:
+                parts.append(f"{name} weakly determined ({why})")
+            else:
+                parts.append(f"{name} not observable ({why})")
         return "; ".join(parts)
 
     def _sigma_text(self, name: str) -> str:
@@ -265,34 +223,3 @@ def with_prior_sigmas(covariance: np.ndarray, prior: np.ndarray, other: np.ndarr
     ratio = other / prior
     out = np.linalg.inv(data + np.diag(1.0 / ratio**2))
     return 0.5 * (out + out.T) * np.outer(prior, prior)
-
-
-def condition_on_prior(
-    theta: np.ndarray,
-    covariance: np.ndarray,
-    calibrated: np.ndarray,
-    prior_mean: np.ndarray,
-    prior_sigmas: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """Theta and covariance with the unobservable parameters held at their prior.
-
-    The calibrated parameters were estimated jointly with the unobservable ones; holding
-    those at the prior mean moves the calibrated ones along their correlation (Gaussian
-    conditioning): ``θ_c + Σ_cu Σ_uu⁻¹ (μ_u − θ_u)`` with covariance
-    ``Σ_cc − Σ_cu Σ_uu⁻¹ Σ_uc``. The unobservable entries become the prior mean with the
-    prior's variance and no correlation.
-    """
-    theta = np.asarray(theta, float).copy()
-    covariance = np.asarray(covariance, float).copy()
-    c = np.flatnonzero(calibrated)
-    u = np.flatnonzero(~np.asarray(calibrated, bool))
-    if len(u) == 0:
-        return theta, covariance
-    gain = covariance[np.ix_(c, u)] @ np.linalg.inv(covariance[np.ix_(u, u)])
-    theta[c] += gain @ (np.asarray(prior_mean, float)[u] - theta[u])
-    conditioned = covariance[np.ix_(c, c)] - gain @ covariance[np.ix_(u, c)]
-    theta[u] = np.asarray(prior_mean, float)[u]
-    out = np.zeros_like(covariance)
-    out[np.ix_(c, c)] = 0.5 * (conditioned + conditioned.T)
-    out[u, u] = np.asarray(prior_sigmas, float)[u] ** 2
-    return theta, out

@@ -1,6 +1,6 @@
-"""What the data do not determine, held at its prior: a direction a weak prior lets drift
-is solved again held at ``theta_initial`` by a tight prior (:meth:`JointSettings.holding`),
-and judged all the same on the data's information under the weak prior; a lever arm the
+"""Parameters held at their prior, and judged all the same on the data's information under
+the weak prior: one that ran out of its plausible range in the first solve is solved again
+held at ``theta_initial`` by a tight prior (:meth:`JointSettings.holding`); a lever arm the
 solve found not observable is left out of the graph."""
 
 from __future__ import annotations
@@ -38,52 +38,22 @@ def data_determine(
     return [bool(calibrated[PARAMETER_NAMES.index(name)]) for name in names]
 
 
-def holding_what_is_not_observable(
-    whole: JointCalibration, settings: JointSettings
-) -> JointSettings:
-    """``settings`` holding the parameters ``whole`` left not observable at their prior
-    (:meth:`JointSettings.holding`; else ``settings`` itself): a direction the data do not
-    determine goes where a weak prior lets it (t_r 1.04–1.54 m on the real highway minute
-    for its prior sigma ×4 to ×½, a_y derived from the wheels with it), and the calibrated
-    parameters, linearized there, followed it, their verdicts with them. Slow slip stays as
-    ``whole`` decided: a held parameter off its truth leaves a misfit that slip scales would
-    take (and c_d with it) on a 4 km day where the free solve showed none."""
-    names = whole.observability.not_calibrated
-    if not names:
-        return settings
-    say(
-        f"{', '.join(names)} not observable: solved again with "
-        f"{'it' if len(names) == 1 else 'them'} held at the prior"
-    )
-    if settings.slip == "auto":
-        settings = dataclasses.replace(settings, slip="on" if whole.slip_modelled else "off")
-    return settings.holding(names)
-
-
-def still_not_calibrated(
-    whole: JointCalibration, first: JointCalibration, settings: JointSettings
+def judged_with_what_is_held(
+    whole: JointCalibration, settings: JointSettings, held: dict[str, str]
 ) -> JointCalibration:
-    """``whole`` (solved under ``settings``, with the parameters the ``first`` solve left not
-    observable held at their prior) with those parameters not calibrated, for ``first``'s
-    reasons where it gave one, ``first``'s slip statistic where ``whole`` had slip decided
-    for it, and its covariance under the weak prior (the tight one taken out): what the
-    parameters' uncertainty is, and what a fleet's day-to-day comparison combines."""
+    """``whole`` (solved under ``settings``, which may hold parameters at their prior by a
+    tight one) judged under the weak prior: its covariance with the tight prior's information
+    taken out — every other parameter's σ then includes what a held one leaves open — its
+    verdicts from that covariance, and each ``held`` parameter (name → why) not calibrated."""
     if not settings.held_at_prior:
         return whole
-    observability = whole.observability
-    for name in first.observability.not_calibrated:
-        reason = first.observability.reasons.get(name)
-        if reason is not None or observability.calibrated[PARAMETER_NAMES.index(name)]:
-            observability = observability.without(name, reason or "the data did not determine it")
-    statistic = whole.slip_statistic
-    if statistic is None:
-        statistic = first.slip_statistic
-    return dataclasses.replace(
-        whole,
-        covariance=weak_prior_covariance(whole, settings),
-        observability=observability,
-        slip_statistic=statistic,
-    )
+    covariance = weak_prior_covariance(whole, settings)
+    weak = dataclasses.replace(settings, held_at_prior=())
+    observability = weak.observability(covariance)
+    for name in settings.held_at_prior:
+        reason = held.get(name, "the data did not determine it")
+        observability = observability.without(name, reason)
+    return dataclasses.replace(whole, covariance=covariance, observability=observability)
 
 
 def without_an_unseen_lever_arm(

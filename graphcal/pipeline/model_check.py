@@ -32,7 +32,6 @@ import numpy as np
 
 from graphcal.errors import CalibrationFailed
 from graphcal.graph.keys import LEVER_ARM
-from graphcal.graph.observability import condition_on_prior
 from graphcal.log.segments import SegmentData, gather_segments, spread
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.joint import JointSettings, solve_joint
@@ -184,7 +183,7 @@ def _held_apart_error(
     train: SegmentData, held: SegmentData, settings: JointSettings, workers: int
 ) -> float:
     """Mean position error [m] of ``held`` dead-reckoned with theta calibrated from
-    ``train`` under ``settings`` (unobservable parameters at their prior), the fixes taken as
+    ``train`` under ``settings`` (every parameter its posterior), the fixes taken as
     the antenna's on the lever arm that solve found (none without one); ``inf`` if that
     calibration fails."""
     try:
@@ -193,11 +192,4 @@ def _held_apart_error(
     except CalibrationFailed:
         return float("inf")
     arm = np.asarray(values.atVector(LEVER_ARM)) if values.exists(LEVER_ARM) else None
-    theta, _ = condition_on_prior(
-        solve.theta,
-        solve.covariance,
-        solve.observability.calibrated,
-        settings.theta_initial,
-        settings.theta_prior_sigmas,
-    )
-    return float(np.mean(position_errors(held, theta, aligned=True, arm=arm)))
+    return float(np.mean(position_errors(held, solve.theta, aligned=True, arm=arm)))

@@ -16,6 +16,7 @@ from graphcal.log.excitation import lever_arm_sigma
 from graphcal.log.noise import heading_noise
 from graphcal.log.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.log.segments import SegmentData, Segments, gather_segments
+from graphcal.model import step_increments
 from graphcal.pipeline.selection import select
 from graphcal.pipeline.settings import Settings
 from graphcal.progress import say
@@ -40,6 +41,8 @@ class PreparedLog:
         warnings: what a user must know about the log (masked samples).
         left_out: sensor quantities the settings estimate but the drive cannot show, left
             out of the graph (:func:`_with_observable_lever_arm`): name → prior sigma.
+        held: parameters of theta the settings hold at their prior because the recording
+            cannot show them (:func:`_with_d_the_drive_can_show`): name → why.
     """
 
     log: DriveLog
@@ -53,6 +56,7 @@ class PreparedLog:
     validation: SegmentData
     warnings: tuple[str, ...]
     left_out: dict[str, float] = dataclasses.field(default_factory=dict)
+    held: dict[str, str] = dataclasses.field(default_factory=dict)
 
 
 def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> PreparedLog:
@@ -72,6 +76,7 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
         flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
     data = gather_segments(log, selected, flagged)
     settings, left_out = _with_observable_lever_arm(data, settings, log.position_sensor())
+    settings, held = _with_d_the_drive_can_show(log, data, settings)
     return PreparedLog(
         log=log,
         settings=settings,
@@ -84,6 +89,7 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
         validation=gather_segments(log, validation_segments),
         warnings=_mask_warnings(log),
         left_out=left_out,
+        held=held,
     )
 
 
@@ -108,6 +114,46 @@ def _with_observable_lever_arm(
     )
     joint = dataclasses.replace(joint, lever_arm_sigma=0.0)
     return dataclasses.replace(settings, joint=joint), {"lever_arm": settings.joint.lever_arm_sigma}
+
+
+#: Mean |yaw rate| [rad/s] of the wheels (over 1 s, nominal theta) below which a drive whose
+#: lateral acceleration comes from the wheels cannot show d (straight roads: 0.00–0.01; a
+#: city drive's selected segments 0.25).
+D_FROM_WHEELS_MIN_YAW_RATE = 0.05
+
+
+def _with_d_the_drive_can_show(
+    log: DriveLog, data: SegmentData, settings: Settings
+) -> tuple[Settings, dict[str, str]]:
+    """``settings`` holding d at its prior when its lateral acceleration comes from the
+    wheels (no IMU, no heading) and the drive barely turns, and why (name → reason; else
+    ``settings`` and nothing). d · a_y then fits the noise of the wheels' own left/right
+    difference, from which a_y is taken, not a load transfer: on a straight road it is one
+    weak direction with c_d, and a weak prior let d drift along it (2–3 mm·s²/m on the real
+    highway minute) with c_d following, which predicted held-apart road worse (73 → 60 %). Its
+    prior's uncertainty stays in every other parameter's σ."""
+    if not log.ay_from_wheels or settings.joint.fix_d:
+        return settings, {}
+    rate = mean_wheel_yaw_rate(data, settings.joint.theta_initial)
+    if rate >= D_FROM_WHEELS_MIN_YAW_RATE:
+        return settings, {}
+    reason = (
+        f"its lateral acceleration comes from the wheels, on a drive that barely turns "
+        f"(mean |yaw rate| {rate:.3f} rad/s): held at its nominal; log an IMU"
+    )
+    say(f"d not estimated: {reason}")
+    joint = settings.joint.holding(("d",))
+    return dataclasses.replace(settings, joint=joint), {"d": reason}
+
+
+def mean_wheel_yaw_rate(data: SegmentData, theta: np.ndarray) -> float:
+    """Mean |yaw rate| [rad/s] of ``data``'s segments from their wheels with ``theta``, over
+    1 s windows (0 for segments shorter than that)."""
+    window = max(1, round(1.0 / data.dt))
+    _, omega = step_increments(data.inputs, theta)
+    turned = np.cumsum(omega, axis=1)[:, window - 1 :: window]
+    rates = np.abs(np.diff(turned, axis=1)) / (window * data.dt)
+    return float(rates.mean()) if rates.size else 0.0
 
 
 def _mask_warnings(log: DriveLog) -> tuple[str, ...]:

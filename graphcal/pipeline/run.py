@@ -42,7 +42,6 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import GraphcalError
-from graphcal.graph.observability import condition_on_prior
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import make_batches
 from graphcal.pipeline.batch_study import joint_batch_study
@@ -196,24 +195,21 @@ def _solve_checked(
 
 
 def _recommended(solved: WholeLog) -> MethodResult:
-    """The whole-log theta with unobservable parameters at their prior, its covariance and
-    observability, with a warning naming the parameters kept at the prior."""
-    whole, settings = solved.whole, solved.corrected.settings.joint
-    theta, covariance = condition_on_prior(
-        whole.theta,
-        whole.covariance,
-        whole.observability.calibrated,
-        settings.theta_initial,
-        settings.theta_prior_sigmas,
-    )
+    """The whole-log theta (every parameter its posterior under the weak prior), its
+    marginal covariance and observability, with a warning naming what the data did not
+    calibrate."""
+    whole = solved.whole
     observability = whole.observability
     warnings = []
     if observability.degenerate:
         warnings.append(
             f"{', '.join(observability.not_calibrated)} not calibrated: "
-            f"{observability.message()}; kept at the prior (nominal) value"
+            f"{observability.message()}; each reported at its estimate under the prior, "
+            "with its σ"
         )
-    return MethodResult(theta, warnings, covariance=covariance, observability=observability)
+    return MethodResult(
+        whole.theta, warnings, covariance=whole.covariance, observability=observability
+    )
 
 
 def _batches(prepared: PreparedLog, method: Method, workers: int) -> np.ndarray:

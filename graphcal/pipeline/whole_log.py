@@ -8,9 +8,13 @@ Top-down, :func:`solve_whole_log` runs:
    slip screen), repeated with the wheels shifted by whole samples while it finds a time
    offset;
 2. the noise the residuals show (:func:`_with_noise_levels`) and, for a log whose lateral
-   acceleration comes from the wheels, that acceleration derived again with the solved theta;
-   the rounds again if either changed the graph;
-3. d's verdict on a drive that barely turns (:func:`_d_on_a_straight_drive`);
+   acceleration comes from the wheels (and whose d is estimated), that acceleration derived
+   again with the solved theta; the rounds again if either changed the graph;
+3. theta judged under the weak prior
+   (:func:`~graphcal.pipeline.held_at_prior.judged_with_what_is_held`): every parameter its
+   posterior with its marginal σ, what the settings held at its prior
+   (the vehicle's, the preparation's or a runaway's) not calibrated, its uncertainty in the
+   others' σ;
 4. the sensor estimates (time offset, lever arm; :mod:`graphcal.pipeline.sensor_estimates`),
    the down-weighted fixes and the slip verdict, reported;
 5. the log corrected by the estimates, and its segments gathered again with the solve's fix
@@ -26,16 +30,14 @@ import gtsam
 import numpy as np
 
 from graphcal.factors import pose_sigmas
-from graphcal.graph.observability import condition_on_prior
 from graphcal.graph.plausibility import ImplausibleTheta
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
-from graphcal.model import step_increments, wheel_lateral_acceleration
+from graphcal.model import wheel_lateral_acceleration
 from graphcal.pipeline.held_at_prior import (
     data_determine,
-    holding_what_is_not_observable,
-    still_not_calibrated,
+    judged_with_what_is_held,
     without_an_unseen_lever_arm,
 )
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
@@ -61,10 +63,8 @@ OFFSET_ROUNDS = 4
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this
 #: share (a variance component; one more solve).
 POSITION_NOISE_TOLERANCE = 0.25
-#: Mean |yaw rate| [rad/s] of the wheels (over 1 s) below which a drive whose lateral
-#: acceleration comes from the wheels does not determine d (straight roads: 0.00–0.01; a
-#: city drive's selected segments 0.25).
-D_FROM_WHEELS_MIN_YAW_RATE = 0.05
+#: Why a parameter that left its plausible range in the first solve is held at its prior.
+RUNAWAY_REASON = "it left its plausible range in a free solve; held at its prior"
 
 
 @dataclass(frozen=True)
@@ -111,6 +111,7 @@ def solve_whole_log(
     """
     log, settings = prepared.log, prepared.settings
     gathered, validation = prepared.data, prepared.validation
+    held = dict(prepared.held)
     try:
         whole, values, data, offset = solve_with_time_offset(
             log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
@@ -118,34 +119,23 @@ def solve_whole_log(
     except ImplausibleTheta as runaway:
         settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
         whole, values, data, offset = _holding_a_runaway(prepared, settings.joint, runaway, workers)
+        held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
     joint = _with_noise_levels(whole, settings.joint, gathered.has_heading())
-    if log.ay_from_wheels:
-        whole = _d_on_a_straight_drive(whole, data)
-    first = whole
-    joint = holding_what_is_not_observable(whole, joint)
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
-    if log.ay_from_wheels:  # derived with the nominal theta: again with the solved one
-        theta, _ = condition_on_prior(
-            whole.theta,
-            whole.covariance,
-            first.observability.calibrated | first.observability.held,
-            joint.theta_initial,
-            joint.theta_prior_sigmas,
-        )
+    rederive = log.ay_from_wheels and "d" not in settings.joint.held_at_prior
+    if rederive:  # a_y derived with the nominal theta: again with the solved one
         log = dataclasses.replace(
-            log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, theta, log.dt)
+            log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, whole.theta, log.dt)
         )
         gathered = gather_segments(log, prepared.selected, prepared.fix_weights)
         validation = gather_segments(log, prepared.validation_segments)
         say("lateral acceleration of the wheels derived again with the solved theta")
-    if joint is not settings.joint or log.ay_from_wheels:
+    if joint is not settings.joint or rederive:
         settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
         whole, values, data, offset = solve_with_time_offset(
             log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
         )
-    if log.ay_from_wheels:
-        whole = _d_on_a_straight_drive(whole, data)
-    whole = still_not_calibrated(whole, first, settings.joint)
+    whole = judged_with_what_is_held(whole, settings.joint, held)
     if not keep_values:
         values = None
     estimated = _with_total_offset(
@@ -305,25 +295,6 @@ def _with_noise_levels(
         pose_weights=(x, y, weight),
         wheel_noise=wheel,
     )
-
-
-def _d_on_a_straight_drive(whole: JointCalibration, data: SegmentData) -> JointCalibration:
-    """``whole`` with d not calibrated when its lateral acceleration came from the wheels
-    (no IMU, no heading) and the drive barely turns: d · a_y then fits mostly the noise of
-    the wheels' own left/right difference (a_y is taken from it), not a load transfer."""
-    window = max(1, round(1.0 / data.dt))
-    _, omega = step_increments(data.inputs, whole.theta)
-    turned = np.cumsum(omega, axis=1)[:, window - 1 :: window]
-    rates = np.abs(np.diff(turned, axis=1)) / (window * data.dt)
-    rate = float(rates.mean()) if rates.size else 0.0
-    if rate >= D_FROM_WHEELS_MIN_YAW_RATE or not whole.observability.calibrated[3]:
-        return whole
-    reason = (
-        f"its lateral acceleration comes from the wheels, on a drive that barely turns "
-        f"(mean |yaw rate| {rate:.3f} rad/s): log an IMU"
-    )
-    say(f"d not calibrated: {reason}")
-    return dataclasses.replace(whole, observability=whole.observability.without("d", reason))
 
 
 def _with_total_offset(

@@ -62,9 +62,11 @@ THETA_UNITS = {"c_e": "m", "c_d": "m", "t_r": "m", "d": "s^2 (m per m/s^2)"}
 def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None) -> dict[str, dict]:
     """Per parameter: value (SI), its standard deviation, 95 % interval and verdict.
 
-    A parameter the data did not determine keeps its prior (nominal) value, has no sigma or
-    interval and says so in ``status``. Staged runs have no covariance of the recommended
-    theta (a median over batches); their entries carry the value and the method.
+    Every estimated parameter has its posterior value under the weak prior, its marginal σ and
+    95 % interval; ``status`` says how well the data determined it (``calibrated``; ``not
+    calibrated: weakly determined ...``; ``not calibrated: not observable ...``). One the
+    vehicle profile holds has the nominal and no σ. Staged runs have no covariance of the
+    recommended theta (a median over batches); their entries carry the value and the method.
     """
     out: dict[str, dict] = {}
     for i, name in enumerate(PARAMETER_NAMES):
@@ -75,18 +77,24 @@ def parameter_summary(run: CalibrationRun, evaluation: Evaluation | None = None)
             continue
         sigma = float(np.sqrt(run.covariance[i, i]))
         verdict = run.verdicts()[name]
+        entry["sigma"] = sigma
+        entry["ci95"] = [entry["value"] - Z95 * sigma, entry["value"] + Z95 * sigma]
         if run.observability.calibrated[i]:
             entry["status"] = verdict
-            entry["sigma"] = sigma
-            entry["ci95"] = [entry["value"] - Z95 * sigma, entry["value"] + Z95 * sigma]
         elif run.observability.held[i]:
             entry["status"] = f"{verdict}: not estimated; the value is the nominal"
             entry["sigma"] = None
+            del entry["ci95"]
+        elif run.observability.weakly_determined[i]:
+            entry["status"] = (
+                "not calibrated: weakly determined (the data's information about it is at "
+                "least the reference prior's); the estimate with its σ"
+            )
         else:
             entry["status"] = (
-                "not calibrated: not observable from this drive; the value is the prior"
+                "not calibrated: not observable from this drive; the estimate stays near the "
+                "prior, with about its σ"
             )
-            entry["sigma"] = None
             entry["prior_sigma"] = float(run.settings.joint.theta_prior_sigmas[i])
         # the σ the data give it over the reference sigma its verdict is judged against
         entry["sigma_over_reference_sigma"] = float(run.observability.sigma_ratio[i])
@@ -266,14 +274,9 @@ def _batches_section(run: CalibrationRun) -> dict:
 
 
 def _mark_not_calibrated(doc: dict, not_calibrated: list[str]) -> None:
-    """List the parameters the data did not determine and blank their numbers outside
-    ``parameters`` (display value, error to the truth)."""
+    """List the parameters the data did not determine (their numbers stay: each is its
+    estimate with its σ)."""
     doc["not_calibrated"] = not_calibrated
-    for name in not_calibrated:
-        i = PARAMETER_NAMES.index(name)
-        doc["theta_display"][f"{name} [{DISPLAY_UNITS[i]}]"] = None
-        if "theta_error" in doc:
-            doc["theta_error"][name] = None
 
 
 def _findings_sections(run: CalibrationRun) -> dict:

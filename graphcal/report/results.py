@@ -68,6 +68,15 @@ def batches_frame(run: CalibrationRun, evaluation: Evaluation | None = None) -> 
 NOT_TRUSTED_ROW = "estimated (not trusted)"
 
 
+def not_observable(run: CalibrationRun) -> set[str]:
+    """The parameters the run's data did not determine and did not move from the nominal
+    (weakly determined ones are estimates, shown as numbers)."""
+    o = run.observability
+    if o is None:
+        return set()
+    return {n for n in o.not_calibrated if not o.weakly_determined[PARAMETER_NAMES.index(n)]}
+
+
 def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> str:
     """The human-readable summary printed by the CLI.
 
@@ -79,12 +88,12 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
     rows = {"nominal": run.settings.vehicle.theta_nominal, ours: run.theta}
     if truth is not None:
         rows["true"] = truth
-    hidden = set(run.observability.not_calibrated) if run.observability is not None else set()
+    hidden = not_observable(run)
     parts = [theta_table(rows, {ours: hidden})]
     if hidden:
         parts[0] += (
             f"\n{NOT_OBSERVABLE}: not observable from this drive, not calibrated "
-            "(calibration.json keeps the nominal value and says so)"
+            "(calibration.json has its estimate, near the prior, with its σ)"
         )
     if run.estimated:
         parts.append(estimates_table(run.estimated, vehicle_length_unit(run)))
@@ -107,7 +116,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
                 run.verdicts(),
                 None if evaluation is None else evaluation.crb,
                 truth,
-                estimated=run.observability.calibrated,
+                estimated=~run.observability.held,
             )
         )
     if run.staged is not None:

@@ -136,12 +136,11 @@ def interval_table(
 ) -> str:
     """Theta with 1σ, its 95 % interval and the verdict of each parameter.
 
-    Values in display units; σ and interval half-widths in mm (mm·s²/m for d). A parameter
-    whose verdict starts with "calibrated" gets its σ and interval. Of the others, those
-    ``estimated`` (``(4,)`` bool: the data determined them, e.g.
-    :attr:`~graphcal.graph.observability.Observability.calibrated`) keep their estimate but
-    no σ or interval, since a check failed (not trusted); the rest show their prior value.
-    Without ``estimated`` every parameter not calibrated is taken to be at its prior.
+    Values in display units; σ and interval half-widths in mm (mm·s²/m for d). Every
+    parameter's value is its estimate with its σ and interval, whatever its verdict (one
+    not observable is its prior's, about), except one held by the vehicle profile (its
+    nominal) and one whose verdict says it is not trusted: its σ is not honest. ``estimated``
+    (``(4,)`` bool) marks the parameters that are estimates (default: all not held).
     """
     sigma = np.sqrt(np.diag(covariance))
     header = ["parameter", "value", "1σ", "95 % interval"]
@@ -152,21 +151,18 @@ def interval_table(
         spread = "mm·s²/m" if name == "d" else "mm"
         value = theta[i] * DISPLAY_SCALE[i]
         row = [f"{name} [{DISPLAY_UNITS[i]}; {spread}]", _FORMATS[i].format(value)]
-        calibrated = verdicts[name].startswith("calibrated")
-        # An estimate (not the prior) whether or not it passed the checks.
-        estimate = calibrated or (estimated is not None and bool(estimated[i]))
-        if calibrated:
+        held = verdicts[name] == HELD_VERDICT
+        estimate = not held and (estimated is None or bool(estimated[i]))
+        if verdicts[name].startswith("not trusted"):
+            row += ["-", "none: not trusted"]
+        elif estimate:
             half = Z95 * sigma[i] * DISPLAY_SCALE[i]
             row += [
                 f"{sigma[i] * DEVIATION_SCALE[i]:.3f}",
                 f"{_FORMATS[i].format(value - half)} … {_FORMATS[i].format(value + half)}",
             ]
-        elif estimate:
-            row += ["-", "none: not trusted"]
-        elif verdicts[name] == HELD_VERDICT:
-            row += ["-", "nominal value, held"]
         else:
-            row += ["-", "prior value, not calibrated"]
+            row += ["-", "nominal value, held"]
         if crb is not None:
             row.append(f"{np.sqrt(crb[i, i]) * DEVIATION_SCALE[i]:.3f}" if estimate else "-")
         if truth is not None:
