@@ -18,9 +18,10 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.errors import GraphcalError
-from graphcal.fleet.history import DayEstimate, chi2_survival, combine, vehicle_history
+from graphcal.fleet.history import DayEstimate, combine, vehicle_history
 from graphcal.fleet.sources import discover_fleet
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS
+from graphcal.statistics import chi2_survival
 
 pytest.importorskip("distributed")
 

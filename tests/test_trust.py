@@ -12,6 +12,7 @@ from graphcal.cli import main
 from graphcal.graph.solve_options import SolveOutcome, SolveStatus
 from graphcal.log.drive_log import write_drive_log
 from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.agreement import Agreement, segment_agreement
 from graphcal.pipeline.trust import (
     EXIT_UNTRUSTED,
     MAX_CHI2_PER_DOF,
@@ -19,6 +20,7 @@ from graphcal.pipeline.trust import (
     assess_trust,
     spread_ratio,
 )
+from graphcal.statistics import chi2_survival
 
 CLEAN = dict(
     solve=SolveOutcome(SolveStatus.CONVERGED, 4, 30),
@@ -58,19 +60,60 @@ def test_each_check_makes_the_run_untrusted(change, says):
     assert set(trust.parameter_doubts) == {"c_e", "c_d", "t_r", "d"}
 
 
-def test_batches_that_spread_beyond_their_sigma_distrust_only_those_parameters(rng):
-    sigma = np.array([2e-4, 2e-4, 6e-3, 1e-4])
-    theta = rng.normal(size=(200, 4)) * sigma * np.array([6.0, 1.0, 1.0, 1.0])
-    covariance = np.broadcast_to(np.diag(sigma**2), (200, 4, 4))
-    trust = assess_trust(**{**CLEAN, "batch_theta": theta, "batch_covariance": covariance})
-    assert set(trust.parameter_doubts) == {"c_e"} and "c_e " in trust.doubts[0]
-    assert trust.spread_ratio[0] == pytest.approx(6.0 * NORMAL_IQR, rel=0.15)
-    # A parameter the data did not determine spreads with its prior; it is not judged.
-    calibrated = np.array([False, True, True, True])
-    kept = assess_trust(
-        **{**CLEAN, "batch_theta": theta, "batch_covariance": covariance, "calibrated": calibrated}
-    )
-    assert kept.trusted
+def test_groups_that_disagree_scale_only_their_parameters_sigma():
+    # c_e's groups differ from the whole log by χ² 40 on 7 degrees of freedom; the rest by
+    # what honest σ give.
+    statistic = np.array([40.0, 6.0, 8.0, 5.0])
+    p_value = np.array([chi2_survival(t, 7) for t in statistic])
+    agreement = Agreement(statistic, 7, p_value)
+    np.testing.assert_allclose(agreement.sigma_scale, [np.sqrt(40.0 / 7.0), 1.0, 1.0, 1.0])
+    trust = assess_trust(**{**CLEAN, "agreement": agreement})
+    assert trust.trusted  # the σ is scaled, not the run distrusted
+    assert trust.to_dict()["agreement"]["sigma_scale"]["c_e"] == pytest.approx(2.39, abs=0.01)
+
+
+@pytest.mark.slow
+def test_an_unmodelled_latency_is_never_confidently_wrong_with_the_whole_method(tmp_path):
+    """Issue 43: 8 km, wheels 50 ms late, `--method whole --no-defect-model`: every parameter
+    was "calibrated", c_e −2.7σ, t_r +4.8σ, d −5.4σ; the joint method's batch spread had
+    passed t_r. The segments' groups disagree, and their scatter scales the σ."""
+    log = tmp_path / "late.csv"
+    assert main(["simulate", "--length-km", "8", "--seed", "3", "--defects", "latency=0.05",
+                 "--out", str(log)]) == 0  # fmt: skip
+    out = tmp_path / "out"
+    status = main(["calibrate", str(log), "--method", "whole", "--no-defect-model",
+                   "--out", str(out)])  # fmt: skip
+    result = json.loads((out / "calibration.json").read_text())
+    assert status in (0, EXIT_UNTRUSTED)
+    assert result["trust"]["agreement"]["sigma_scale"]["t_r"] > 2.0
+    for name in PARAMETER_NAMES:
+        entry = result["parameters"][name]
+        if entry["status"] == "calibrated":
+            error = entry["value"] - result["theta_true"][name]
+            assert abs(error) < 3 * entry["sigma"], (name, error, entry["sigma"])
+
+
+def test_honest_groups_agree(rng):
+    """Groups of segments whose estimates scatter as their σ say: the χ² statistic follows
+    its null distribution, and a false alarm is as rare as the test's rate."""
+    from graphcal.graph.reduced_systems import ReducedSystems
+
+    n, segments, trials = 4, 16, 400
+    alarms = 0
+    for _ in range(trials):
+        information = np.diag(1.0 / np.array([2e-4, 2e-4, 6e-3, 1e-4]) ** 2) / segments
+        # Each segment's data: its information and, for a true theta of 0, its noise.
+        noise = rng.standard_normal((segments, n)) @ np.linalg.cholesky(information).T
+        systems = np.zeros((segments, n + 1, n + 1))
+        systems[:, :n, :n] = information
+        systems[:, :n, n] = noise
+        shared = np.zeros((n + 1, n + 1))
+        shared[:n, :n] = np.diag(1.0 / np.array([0.1, 0.01, 0.2, 0.01]) ** 2)
+        reduced = ReducedSystems((0, 1, 2, 3), np.zeros(n), systems, shared)
+        found = segment_agreement(reduced, segments)
+        alarms += bool(found.disagreeing.any())
+    assert found.dof == 7
+    assert alarms <= 4  # 4 parameters at 10⁻³ each: about 1.6 of 400, rarely more than 4
 
 
 @pytest.mark.slow

@@ -23,12 +23,12 @@ many of its own σ) is flagged, as is any day whose calibration failed or was no
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from graphcal.model import PARAMETER_NAMES
+from graphcal.statistics import chi2_survival
 
 #: Default false-alarm probability of one day's change test.
 CHANGE_ALPHA = 1e-3
@@ -118,25 +118,6 @@ def combine(estimates: list[DayEstimate]) -> tuple[np.ndarray, np.ndarray]:
     covariance = np.linalg.inv(information)
     covariance = 0.5 * (covariance + covariance.T)
     return covariance @ vector, covariance
-
-
-def chi2_survival(x: float, dof: int) -> float:
-    """P(χ²_dof > x) for an integer ``dof`` ≥ 1 (closed form; no SciPy)."""
-    if x <= 0:
-        return 1.0
-    half = 0.5 * x
-    if dof % 2 == 0:
-        term, total = 1.0, 1.0
-        for i in range(1, dof // 2):
-            term *= half / i
-            total += term
-        return math.exp(-half) * total
-    total = math.erfc(math.sqrt(half))
-    term = math.sqrt(half) * math.exp(-half) / math.gamma(1.5)
-    for i in range(1, (dof + 1) // 2):
-        total += term
-        term *= half / (i + 0.5)
-    return min(1.0, total)
 
 
 def vehicle_history(

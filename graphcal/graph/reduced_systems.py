@@ -82,7 +82,15 @@ class ReducedSystems:
 
     def solve(self, batches: np.ndarray) -> BatchSolution:
         """Each batch's Gauss–Newton step and covariance (see the module docstring)."""
-        systems = self.batch_systems(batches)
+        return self._solved(self.batch_systems(batches))
+
+    def solve_groups(self, groups: list[np.ndarray]) -> BatchSolution:
+        """:meth:`solve` for groups of segments of any sizes (lists of segment indices)."""
+        systems = [self.segments[np.asarray(g, int)].sum(axis=0) + self.shared for g in groups]
+        return self._solved(np.array(systems).reshape(len(groups), *self.shared.shape))
+
+    def _solved(self, systems: np.ndarray) -> BatchSolution:
+        """The Gauss–Newton step and covariance of each augmented Hessian of ``systems``."""
         n = self.dimension
         information = 0.5 * (systems[:, :n, :n] + systems[:, :n, :n].transpose(0, 2, 1))
         values = np.full((len(systems), n), np.nan)

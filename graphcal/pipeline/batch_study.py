@@ -9,15 +9,15 @@ samples with the rest of the offset as their prior, the lever arm a variable.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
-import gtsam
 import numpy as np
 
-from graphcal.log.timing import whole_samples
-from graphcal.pipeline.joint_batches import BatchEstimate, solve_joint_batches
-from graphcal.pipeline.sensor_estimates import SensorEstimate, run_of
+from graphcal.pipeline.joint_batches import (
+    BatchEstimate,
+    linearized_batches,
+    solve_joint_batches,
+)
 from graphcal.pipeline.staged import step1_thetas
 from graphcal.pipeline.whole_log import WholeLog
 
@@ -42,24 +42,12 @@ class BatchStudy:
     warnings: list[str]
 
 
-def joint_batch_study(
-    solved: WholeLog,
-    batches: np.ndarray,
-    values: gtsam.Values | None,
-    workers: int,
-) -> BatchStudy:
+def joint_batch_study(solved: WholeLog, batches: np.ndarray, workers: int) -> BatchStudy:
     """Step 1 and the joint solve of each of the ``batches`` ``(B, N)`` of the selected
-    segments of ``solved``; ``values``: the whole-log solution the linearized joint batches
-    start from (:func:`~graphcal.pipeline.joint_batches.solve_joint_batches`)."""
+    segments of ``solved``, the linearized ones from its segments' systems at its solution
+    (:attr:`~graphcal.pipeline.whole_log.WholeLog.systems`)."""
     corrected = solved.corrected
     settings = corrected.settings
-    # The fixes weighted as the whole-log solve found: batches solve without robust rounds.
-    batch_settings = dataclasses.replace(
-        settings.joint,
-        **_batch_time_offset(solved.estimated, corrected.log.dt),
-        robust_threshold=0.0,
-        slip="on" if solved.whole.slip_modelled else "off",
-    )
     step1 = step1_thetas(corrected.data, batches, settings, workers)
     warnings = []
     step1_failed = int((~np.all(np.isfinite(step1), axis=1)).sum())
@@ -68,14 +56,12 @@ def joint_batch_study(
             f"step1: {step1_failed} of {len(batches)} batch solves of the Step 1 "
             "baseline failed and are left out of its statistics"
         )
-    estimates = solve_joint_batches(
-        solved.batch_data(),
-        batches,
-        batch_settings,
-        settings.batches.joint_solve,
-        values,
-        workers,
-    )
+    if settings.batches.joint_solve == "linearized":
+        estimates = linearized_batches(solved.systems, batches, solved.batch_settings())
+    else:
+        estimates = solve_joint_batches(
+            solved.batch_data(), batches, solved.batch_settings(), "exact", workers=workers
+        )
     nan_theta, nan_matrix = np.full(4, np.nan), np.full((4, 4), np.nan)
     theta = np.array([nan_theta if r is None else r.theta for r in estimates])
     covariance = np.array([nan_matrix if r is None else r.covariance for r in estimates])
@@ -109,14 +95,3 @@ def _exclusion_warnings(reasons: np.ndarray) -> list[str]:
     if len(reasons) and all(reasons != ""):
         out.append("no joint batch determines every parameter; see the recommended theta's verdict")
     return out
-
-
-def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict:
-    """The joint batches' time-offset prior: what the whole-log estimate of each run leaves
-    beyond the whole-sample shift of its log, with their largest σ (no variable if the
-    whole-log solve had none)."""
-    found = [e for e in estimated.values() if run_of(e.name)[0] == "time_offset"]
-    if not found:
-        return {"time_offset_sigma": 0.0}
-    rest = [e.value - (whole_samples(e.value, dt) if e.detected else 0.0) for e in found]
-    return {"time_offset_sigma": max(e.sigma for e in found), "time_offset_means": tuple(rest)}

@@ -158,7 +158,7 @@ def validated_run(
     }
     batch_errors = _batch_errors(validation, result)
     whole = None if solved is None else solved.whole
-    trust = _trust(whole, settings, result, segment_errors)
+    trust = _trust(solved, result, segment_errors)
     warnings = [
         *corrected.warnings,
         *result.warnings,
@@ -211,13 +211,11 @@ def _batch_errors(validation: SegmentData, result: MethodResult) -> dict[str, np
 
 
 def _trust(
-    whole: JointCalibration | None,
-    settings: Settings,
-    result: MethodResult,
-    segment_errors: dict[str, np.ndarray],
+    solved: WholeLog | None, result: MethodResult, segment_errors: dict[str, np.ndarray]
 ) -> TrustAssessment:
     """The trust checks (:func:`~graphcal.pipeline.trust.assess_trust`) of the whole-log
     solve (if any), the joint batches (if any) and the validation."""
+    whole = None if solved is None else solved.whole
     calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
     batch_theta = None
     if "joint" in result.batch_covariance:
@@ -231,6 +229,7 @@ def _trust(
         batch_theta=batch_theta,
         batch_covariance=result.batch_covariance.get("joint"),
         calibrated=observability.calibrated if observability is not None else np.ones(4, bool),
+        agreement=None if solved is None else solved.agreement,
         validation_calibrated=float(calibrated),
         validation_nominal=float(nominal),
     )

@@ -29,7 +29,7 @@ from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.observability import Observability
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.plausibility import check_plausible
-from graphcal.graph.reduced_systems import reduced_systems
+from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.graph.values import copy_value
 from graphcal.log.segments import SegmentData
 from graphcal.pipeline.joint import JointSettings, calibrate_joint
@@ -114,6 +114,21 @@ def _linearized(
     workers: int,
 ) -> list[BatchEstimate | None]:
     """The ``"linearized"`` batch solves."""
+    systems = segment_systems(data, settings, start, workers)
+    return linearized_batches(systems, batches, settings)
+
+
+def segment_systems(
+    data: SegmentData, settings: JointSettings, start: gtsam.Values | None, workers: int
+) -> ReducedSystems:
+    """Every segment of ``data`` eliminated down to the shared variables of the joint graph
+    of ``settings``, linearized at ``start`` (the whole-log solution; ``None``: the builder's
+    initial values): what the linearized batch solves and the segments' agreement
+    (:mod:`graphcal.pipeline.agreement`) are read from.
+
+    Raises:
+        CalibrationFailed: if a segment's own variables are indeterminate.
+    """
     spec = settings.graph_spec()
     built = build_segment_graph(data, spec)
     values = built.values if start is None else _completed(start, built.values)
@@ -123,16 +138,23 @@ def _linearized(
     say(f"joint batches: {len(data)} segments linearized at the whole-log solution")
     try:
         with segmented.parallel(workers):
-            systems = reduced_systems(segmented, len(data))
+            return reduced_systems(segmented, len(data))
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = exception_reason(exc)
         raise CalibrationFailed(f"joint batches failed: {reason}") from exc
-    solution = systems.solve(batches)
+
+
+def linearized_batches(
+    systems: ReducedSystems, batches: np.ndarray, settings: JointSettings
+) -> list[BatchEstimate | None]:
+    """Each batch's estimate from the segments' ``systems`` (``None`` where singular or
+    implausible)."""
+    solution = systems.solve(np.asarray(batches, int))
     out: list[BatchEstimate | None] = []
     for theta, covariance in zip(
         solution.values[:, :4], solution.covariance[:, :4, :4], strict=True
     ):
-        out.append(_estimate(theta, covariance, settings, spec.theta))
+        out.append(_estimate(theta, covariance, settings, settings.theta_initial))
     say(f"joint batches: {len(batches)} solved from the segments' systems")
     return out
 

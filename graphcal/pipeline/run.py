@@ -38,7 +38,6 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 
-import gtsam
 import numpy as np
 
 from graphcal.errors import GraphcalError
@@ -97,22 +96,23 @@ def run_calibration(
 
 
 def _run_whole(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
-    """Only the joint solve over all selected segments: the recommended theta, no batches."""
+    """Only the joint solve over all selected segments: the recommended theta, checked by
+    the segments' agreement, no batches."""
     prepared = prepare_log(log, settings, fall_back_to_all=True)
-    solved, _, check = _solve_checked(prepared, workers)
+    solved, check = _solve_checked(prepared, workers)
     result = dataclasses.replace(_recommended(solved), model_check=check)
     return validated_run("whole", solved.corrected, solved, result)
 
 
 def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
-    """The joint solve over all selected segments (the recommended theta), then the batch
-    study from its solution (:mod:`graphcal.pipeline.batch_study`)."""
+    """The joint solve over all selected segments (the recommended theta), checked by the
+    segments' agreement, then the batch study from its solution
+    (:mod:`graphcal.pipeline.batch_study`)."""
     prepared = prepare_log(log, settings, fall_back_to_all=True)
-    solved, values, check = _solve_checked(prepared, workers, keep_values=True)
+    solved, check = _solve_checked(prepared, workers)
     recommended = dataclasses.replace(_recommended(solved), model_check=check)
     batches = _batches(solved.corrected, "joint", workers)
-    study = joint_batch_study(solved, batches, values, workers)
-    del values  # the whole log's solution, most of the memory of a long log
+    study = joint_batch_study(solved, batches, workers)
     result = dataclasses.replace(
         recommended,
         warnings=[
@@ -165,33 +165,29 @@ def _whole_log_corrections(
     (``CalibrationRun.whole``) and the trust checks judge it. ``None`` otherwise."""
     if not models_sensors(prepared.settings.joint):
         return None, None
-    solved, _, check = _solve_checked(prepared, workers)
+    solved, check = _solve_checked(prepared, workers)
     return solved, check
 
 
-def _solve_checked(
-    prepared: PreparedLog, workers: int, keep_values: bool = False
-) -> tuple[WholeLog, gtsam.Values | None, ModelCheck | None]:
+def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, ModelCheck | None]:
     """The whole-log solve (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), then, if
     the settings ask for it and its defect model found something, the model check
     (:mod:`graphcal.pipeline.model_check`): when theta alone predicts held-apart segments at
     least as well, the whole-log solve again without the defect model's sensor terms."""
-    solved, values = solve_whole_log(prepared, workers, keep_values=keep_values)
+    solved = solve_whole_log(prepared, workers)
     if not prepared.settings.joint.model_check:
-        return solved, values, None
+        return solved, None
     check = check_model(prepared, solved, workers)
     if check is None:
-        return solved, values, None
+        return solved, None
     say(check.line())
     if not check.theta_alone:
-        return solved, values, check
-    del values
+        return solved, check
     joint = theta_alone(prepared.settings.joint)
     simpler = dataclasses.replace(
         prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out={}
     )
-    solved, values = solve_whole_log(simpler, workers, keep_values=keep_values)
-    return solved, values, check
+    return solve_whole_log(simpler, workers), check
 
 
 def _recommended(solved: WholeLog) -> MethodResult:

@@ -9,10 +9,13 @@ its noise levels. Four checks need nothing but the run itself:
   about 1 when the noise model fits (0.97 on the sample drive); above
   :data:`MAX_CHI2_PER_DOF` the residuals are larger than the model allows (a lever arm, a
   heading noisier than assumed, outliers);
-* **spread** (joint method): the interquartile range of the batch estimates over the median
-  per-batch σ. For an honest σ and independent batches it is about 1.35 (the IQR of a
-  normal distribution in σ); batches that share segments make it smaller. Above
-  :data:`MAX_SPREAD_RATIO` the batches disagree far more than their σ allows;
+* **agreement** (joint and whole methods): groups of consecutive segments each give theta,
+  and a χ² test tells whether they differ from the whole log's by more than their σ allow
+  (:mod:`graphcal.pipeline.agreement`); where they do, the σ was already scaled by their
+  scatter before the verdicts, so it is reported, not judged here. (The joint method's
+  batch spread, the interquartile range of the batch estimates over the median per-batch
+  σ, about 1.35 for honest σ and independent batches, is reported as ``spread_ratio``:
+  batches that share segments make it smaller, so it is no test);
 * **validation**: the calibrated theta predicts the validation segments worse than the
   nominal one.
 
@@ -29,13 +32,12 @@ import numpy as np
 
 from graphcal.graph.solve_options import SolveOutcome
 from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.agreement import Agreement
 
 #: χ² per degree of freedom above which the residuals do not fit the noise model: the σ
 #: would be understated by more than sqrt(1.5) = 1.22 (statistical noise on the whole-log
 #: solve's tens of thousands of degrees of freedom is about 0.01).
 MAX_CHI2_PER_DOF = 1.5
-#: Batch IQR over median batch σ above which σ is not honest (1.35 when it is).
-MAX_SPREAD_RATIO = 2.5
 #: Exit status of ``graphcal calibrate`` when the result is written but not to be trusted.
 EXIT_UNTRUSTED = 3
 #: Normal distribution's interquartile range in units of its σ.
@@ -56,7 +58,8 @@ class TrustAssessment:
         iterations, max_iterations: of the whole-log solve.
         chi2_per_dof: its χ² per degree of freedom (``None`` if unknown).
         spread_ratio: ``(4,)`` batch IQR / median batch σ per parameter, or ``None``
-            without batches with σ.
+            without batches with σ (reported, not judged).
+        agreement: the segments' agreement test, or ``None`` where it was not run.
         validates_worse: the calibrated theta validates worse than the nominal one.
         parameter_doubts: per parameter, why it is not to be trusted (absent if it is).
         doubts: the run-level reasons, one line each.
@@ -67,6 +70,7 @@ class TrustAssessment:
     max_iterations: int
     chi2_per_dof: float | None
     spread_ratio: np.ndarray | None
+    agreement: Agreement | None
     validates_worse: bool
     parameter_doubts: dict[str, str]
     doubts: tuple[str, ...]
@@ -91,7 +95,7 @@ class TrustAssessment:
                 n: (float(r) if np.isfinite(r) else None)
                 for n, r in zip(PARAMETER_NAMES, self.spread_ratio, strict=True)
             },
-            "max_spread_ratio": MAX_SPREAD_RATIO,
+            "agreement": None if self.agreement is None else self.agreement.to_dict(),
             "validates_worse_than_nominal": self.validates_worse,
             "doubts": list(self.doubts),
         }
@@ -118,6 +122,7 @@ def assess_trust(
     calibrated: np.ndarray,
     validation_calibrated: float,
     validation_nominal: float,
+    agreement: Agreement | None = None,
 ) -> TrustAssessment:
     """Run the checks of the module docstring.
 
@@ -127,9 +132,10 @@ def assess_trust(
         chi2_per_dof: its χ² per degree of freedom.
         batch_theta, batch_covariance: per-batch estimates ``(B, 4)`` and covariances
             ``(B, 4, 4)`` of the joint method (``None`` without batches).
-        calibrated: ``(4,)`` the parameters the data determined (observability); the spread
-            of the others is the prior's and is not judged.
+        calibrated: ``(4,)`` the parameters the data determined (observability); the
+            agreement of the others is not judged.
         validation_calibrated, validation_nominal: E_p [m] of both thetas.
+        agreement: the segments' agreement test (``None``: not run).
     """
     ratio = None
     if batch_theta is not None and batch_covariance is not None:
@@ -138,7 +144,6 @@ def assess_trust(
     findings = [
         _convergence(solve),
         _fit(chi2_per_dof),
-        _spread(ratio, calibrated),
         _validation(validates_worse, validation_calibrated, validation_nominal),
     ]
     parameter_doubts: dict[str, str] = {}
@@ -151,6 +156,7 @@ def assess_trust(
         max_iterations=1 if solve is None else solve.max_iterations,
         chi2_per_dof=chi2_per_dof,
         spread_ratio=ratio,
+        agreement=agreement,
         validates_worse=validates_worse,
         parameter_doubts=parameter_doubts,
         doubts=tuple(doubt for doubt, _ in findings if doubt is not None),
@@ -181,25 +187,6 @@ def _fit(chi2_per_dof: float | None) -> _Finding:
         f"when they do; limit {MAX_CHI2_PER_DOF:g}): a defect the model does not cover "
         "(lever arm, latency, outliers, a noisier heading) or noise levels set too low",
         dict.fromkeys(PARAMETER_NAMES, f"residuals {chi2_per_dof:.1f}× the noise model"),
-    )
-
-
-def _spread(ratio: np.ndarray | None, calibrated: np.ndarray) -> _Finding:
-    """The batches of the calibrated parameters disagree no more than their σ allows."""
-    if ratio is None:
-        return None, {}
-    spread = [
-        (name, float(r))
-        for name, r, ok in zip(PARAMETER_NAMES, ratio, calibrated, strict=True)
-        if ok and np.isfinite(r) and r > MAX_SPREAD_RATIO
-    ]
-    if not spread:
-        return None, {}
-    listed = ", ".join(f"{name} {r:.1f}×" for name, r in spread)
-    return (
-        f"the batches disagree far more than their σ allows (IQR over median σ: "
-        f"{listed}; about {NORMAL_IQR:.2f} when σ is honest, limit {MAX_SPREAD_RATIO:g})",
-        {name: f"batches spread {r:.1f}× their σ" for name, r in spread},
     )
 
 

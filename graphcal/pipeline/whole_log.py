@@ -31,16 +31,24 @@ import numpy as np
 
 from graphcal.factors import pose_sigmas
 from graphcal.graph.plausibility import ImplausibleTheta
+from graphcal.graph.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.model import wheel_lateral_acceleration
+from graphcal.pipeline.agreement import (
+    Agreement,
+    agreement_line,
+    segment_agreement,
+    with_agreement,
+)
 from graphcal.pipeline.held_at_prior import (
     data_determine,
     judged_with_what_is_held,
     without_an_unseen_lever_arm,
 )
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
+from graphcal.pipeline.joint_batches import segment_systems
 from graphcal.pipeline.prepare import PreparedLog
 from graphcal.pipeline.residual_noise import honest_sigma
 from graphcal.pipeline.sensor_estimates import (
@@ -81,6 +89,11 @@ class WholeLog:
         corrected: what comes after it works on: the log corrected by the observable
             estimates, the settings with the fixes' noise it found, the fix weights it used
             (per sample of the log) and the segments gathered again from that log.
+        systems: every selected segment reduced to the shared variables at the solution, in
+            the batches' settings (:meth:`batch_data`, :meth:`batch_settings`): what the
+            linearized batches and the agreement test are solved from.
+        agreement: whether groups of the segments agree within their σ
+            (:mod:`graphcal.pipeline.agreement`); theta's σ are scaled by it.
     """
 
     whole: JointCalibration
@@ -88,6 +101,18 @@ class WholeLog:
     down_weighted: DownWeightedFixes
     solved_log: DriveLog
     corrected: PreparedLog
+    systems: ReducedSystems | None = None
+    agreement: Agreement | None = None
+
+    def batch_settings(self) -> JointSettings:
+        """The joint settings of batches of this log: its fixes weighted as the solve found
+        them (no robust rounds), its slip verdict, the rest of its time offset their prior."""
+        return dataclasses.replace(
+            self.corrected.settings.joint,
+            **_batch_time_offset(self.estimated, self.corrected.log.dt),
+            robust_threshold=0.0,
+            slip="on" if self.whole.slip_modelled else "off",
+        )
 
     def batch_data(self) -> SegmentData:
         """The selected segments for batches whose graph has the time offset and lever arm
@@ -99,12 +124,8 @@ class WholeLog:
         return gather_segments(batch_log, self.corrected.selected, self.corrected.fix_weights)
 
 
-def solve_whole_log(
-    prepared: PreparedLog, workers: int, keep_values: bool = False
-) -> tuple[WholeLog, gtsam.Values | None]:
-    """The whole-log procedure of the module docstring on ``prepared``, and the last solve's
-    value of every variable if ``keep_values`` (the joint batches' linearization point; else
-    ``None``, freed as soon as it is not needed).
+def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
+    """The whole-log procedure of the module docstring on ``prepared``.
 
     Raises:
         CalibrationFailed: if a solve fails or gives an implausible theta.
@@ -136,8 +157,6 @@ def solve_whole_log(
             log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
         )
     whole = judged_with_what_is_held(whole, settings.joint, held)
-    if not keep_values:
-        values = None
     estimated = _with_total_offset(
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
     )
@@ -149,7 +168,17 @@ def solve_whole_log(
     if whole.fix_weights is not None:
         weights = log_weights(data, whole.fix_weights, len(log.t))
     corrected = _corrected(prepared, log, settings, weights, estimated, validation)
-    return WholeLog(whole, estimated, down_weighted, log, corrected), values
+    solved = WholeLog(whole, estimated, down_weighted, log, corrected)
+    systems = segment_systems(solved.batch_data(), solved.batch_settings(), values, workers)
+    del values  # the whole log's solution, most of the memory of a long log
+    agreement = segment_agreement(systems, len(prepared.selected))
+    say(agreement_line(agreement))
+    return dataclasses.replace(
+        solved,
+        whole=with_agreement(whole, agreement, settings.joint),
+        systems=systems,
+        agreement=agreement,
+    )
 
 
 def _holding_a_runaway(
@@ -396,3 +425,14 @@ def estimate_lines(
 def models_sensors(settings: JointSettings) -> bool:
     """The joint settings estimate a time offset or lever arm, or weight outliers."""
     return max(settings.time_offset_sigma, settings.lever_arm_sigma, settings.robust_threshold) > 0
+
+
+def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict:
+    """The joint batches' time-offset prior: what the whole-log estimate of each run leaves
+    beyond the whole-sample shift of its log, with their largest σ (no variable if the
+    whole-log solve had none)."""
+    found = [e for e in estimated.values() if run_of(e.name)[0] == "time_offset"]
+    if not found:
+        return {"time_offset_sigma": 0.0}
+    rest = [e.value - (whole_samples(e.value, dt) if e.detected else 0.0) for e in found]
+    return {"time_offset_sigma": max(e.sigma for e in found), "time_offset_means": tuple(rest)}
