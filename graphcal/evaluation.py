@@ -21,6 +21,7 @@ beside a simulated bag); a real log has none.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -133,17 +134,21 @@ def cramer_rao_systems(
     theta_true: np.ndarray,
     settings: JointSettings | None = None,
     workers: int = 1,
+    tied: bool = False,
 ) -> ReducedSystems:
     """The measurements' information of every segment of ``data`` at the truth, reduced to
     the shared variables (:mod:`graphcal.graph.reduced_systems`): the joint graph without
     the prior on theta linearized as :func:`cramer_rao_bound` does, each segment eliminated
     once (in ``workers`` processes). A batch's bound is the theta block of the inverse of
-    its members' summed information: exactly the bound of the batch's own graph.
+    its members' summed information: exactly the bound of the batch's own graph. With
+    ``tied`` (and the settings' ``tie_segments``), consecutive segments are one trajectory,
+    as the whole-log solve has them: only the sum over all segments is then meaningful.
 
     Raises:
         GraphcalError: if a segment's own variables are indeterminate.
     """
     settings = settings or JointSettings()
+    settings = dataclasses.replace(settings, tie_segments=tied and settings.tie_segments)
     spec = settings.graph_spec(theta_prior=False)
     built = build_segment_graph(data, spec)
     states, corrections = [], []
@@ -155,7 +160,7 @@ def cramer_rao_systems(
     segmented = PartitionedGraph(built.graph, values, shared_keys(spec))
     try:
         with segmented.parallel(workers):
-            return reduced_systems(segmented, len(data))
+            return reduced_systems(segmented, len(data), joined=tied)
     except (RuntimeError, np.linalg.LinAlgError) as exc:
         reason = exception_reason(exc)
         raise GraphcalError(f"Cramér–Rao bound failed: {reason}") from exc
@@ -170,6 +175,30 @@ def nees(theta: np.ndarray, covariance: np.ndarray, theta_true: np.ndarray) -> n
     errors = theta[good] - theta_true
     out[good] = np.einsum("bi,bij,bj->b", errors, np.linalg.inv(covariance[good]), errors)
     return out
+
+
+def _whole_log_bound(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    settings: JointSettings,
+    workers: int,
+) -> np.ndarray | None:
+    """The Cramér–Rao bound ``(4, 4)`` of all of ``data``'s segments together, tied as the
+    whole-log solve ties them; ``None`` (said why) where it has none."""
+    try:
+        systems = cramer_rao_systems(data, truth, theta_true, settings, workers, tied=True)
+    except GraphcalError as exc:
+        say(f"no Cramér–Rao bound: {exc}")
+        return None
+    crb = systems.solve(np.arange(len(data))[None]).covariance[0, :4, :4]
+    if not np.all(np.isfinite(crb)):
+        say(
+            "no Cramér–Rao bound: the measurements' information matrix of theta is "
+            "singular (a parameter is not identifiable from this drive)"
+        )
+        return None
+    return crb
 
 
 @reports_progress
@@ -195,20 +224,15 @@ def evaluate(
         true_data = gather_segments(truth.log, run.selected)
         settings = run.settings.joint
         joint_batches = run.batches is not None and "joint" in run.batch_theta
-        if run.covariance is not None or joint_batches:
+        if run.covariance is not None:
+            say("Cramér–Rao bound: the whole log's information at the truth")
+            crb = _whole_log_bound(run.data, true_data, theta_true, settings, workers)
+        if joint_batches:
             say("Cramér–Rao bounds: every segment's information at the truth")
             try:
                 systems = cramer_rao_systems(run.data, true_data, theta_true, settings, workers)
             except GraphcalError as exc:
-                say(f"no Cramér–Rao bound: {exc}")
-        if systems is not None and run.covariance is not None:
-            crb = systems.solve(np.arange(len(run.data))[None]).covariance[0, :4, :4]
-            if not np.all(np.isfinite(crb)):
-                crb = None
-                say(
-                    "no Cramér–Rao bound: the measurements' information matrix of theta is "
-                    "singular (a parameter is not identifiable from this drive)"
-                )
+                say(f"no Cramér–Rao bound of the batches: {exc}")
         if systems is not None and joint_batches:
             solved = np.all(np.isfinite(run.batch_theta["joint"]), axis=1)
             bounds = systems.solve(run.batches).covariance[:, :4, :4]

@@ -26,7 +26,9 @@ and the naive per-step benchmark (chunks of one step).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+import itertools
+from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
@@ -85,7 +87,10 @@ class _GraphWide:
 
 @dataclass(frozen=True)
 class _Segment:
-    """One segment's measurements, initial states ``nominal`` and chunk ``bounds``."""
+    """One segment's measurements, initial states ``nominal`` and chunk ``bounds``; whether
+    its start's position and heading are measured, and whether it is tied to the segment
+    before (its start is that one's end, measured there) and after (its last chunk ends at
+    that one's start)."""
 
     index: int
     poses: np.ndarray
@@ -96,6 +101,9 @@ class _Segment:
     nominal: np.ndarray
     bounds: np.ndarray
     run: int = 0
+    start_measured: np.ndarray = field(default_factory=lambda: np.ones(2, bool))
+    tied_before: bool = False
+    tied_after: bool = False
 
 
 def _vector_prior(key: int, size: int, sigma: float, mean: float = 0.0) -> gtsam.PriorFactorVector:
@@ -124,10 +132,17 @@ def build_segment_graph(
     all_bounds = []
     slots: list[ChunkFactorSlot] = []
     start_measured = data.start_measured()
+    tied = spec.tied(data)
+    nominals = _chain_nominals(data, tied, wide)
     for s in range(len(data)):
-        segment = _segment(data, s, spec, wide)
+        segment = dataclasses.replace(
+            _segment(data, s, spec, nominals[s]),
+            start_measured=start_measured[s],
+            tied_before=bool(tied[s]),
+            tied_after=s + 1 < len(data) and bool(tied[s + 1]),
+        )
         all_bounds.append(segment.bounds)
-        _add_segment(graph, values, data, segment, spec, wide, start_measured[s], slots)
+        _add_segment(graph, values, data, segment, spec, wide, slots)
     return BuiltGraph(graph, values, all_bounds, spec, data, tuple(slots))
 
 
@@ -184,17 +199,47 @@ def _add_graph_wide(
     )
 
 
-def _segment(data: SegmentData, s: int, spec: SegmentGraphSpec, wide: _GraphWide) -> _Segment:
-    """Segment ``s``'s measurements, its states on the odometry and its chunking."""
+def _chain_nominals(data: SegmentData, tied: np.ndarray, wide: _GraphWide) -> list[np.ndarray]:
+    """Each segment's states on the odometry ``(K+1, 3)``: integrated from its measured start,
+    or, tied, from the end of the one before, so that a chain of tied segments is one path;
+    with a solved start theta each chain is moved as one rigid body to fit its fixes."""
+    out: list[np.ndarray] = []
+    heads = [*np.flatnonzero(~tied), len(data)]
+    for head, stop in itertools.pairwise(heads):
+        paths, fitted, measured = [], [], []
+        state = data.segment(head)[0][0]
+        for s in range(head, stop):
+            poses, inputs = data.segment(s)
+            path = integrate(state, inputs, wide.integrate_with)
+            state = path[-1]
+            weights, which = data.weights_of(s), data.measured_of(s)
+            weight = np.ones(len(poses)) if weights is None else weights
+            if which is not None:  # the fixes, not the track between them
+                weight = weight * which[:, 0]
+            if s > head:  # the shared sample counted once, in the segment before
+                path, poses, weight = path[1:], poses[1:], weight[1:]
+            paths.append(path)
+            measured.append(poses)
+            fitted.append(weight)
+        chain = np.concatenate(paths)
+        if wide.align:  # a solved theta's path, from where it fits the fixes best
+            chain = aligned_trajectory(
+                chain, np.concatenate(measured), np.concatenate(fitted), wide.arm
+            )
+        offset = 0  # each segment starts at the sample the one before ends at
+        for s in range(head, stop):
+            steps = int(data.n_steps[s])
+            out.append(chain[offset : offset + steps + 1])
+            offset += steps
+    return out
+
+
+def _segment(data: SegmentData, s: int, spec: SegmentGraphSpec, nominal: np.ndarray) -> _Segment:
+    """Segment ``s``'s measurements, its states on the odometry (``nominal``) and its
+    chunking."""
     poses, inputs = data.segment(s)
     weights = data.weights_of(s)
     measured, fractions = data.measured_of(s), data.fractions_of(s)
-    nominal = integrate(poses[0], inputs, wide.integrate_with)
-    if wide.align:  # a solved theta's path, from where it fits the fixes best
-        fitted = weights
-        if measured is not None:  # the fixes, not the track between them
-            fitted = measured[:, 0] * (1.0 if weights is None else weights)
-        nominal = aligned_trajectory(nominal, poses, fitted, wide.arm)
     bounds = chunk_bounds(len(inputs), spec.chunk_steps)
     return _Segment(s, poses, inputs, weights, measured, fractions, nominal, bounds, data.run_of(s))
 
@@ -206,11 +251,10 @@ def _add_segment(
     segment: _Segment,
     spec: SegmentGraphSpec,
     wide: _GraphWide,
-    start_measured: np.ndarray,
     slots: list[ChunkFactorSlot],
 ) -> None:
     """Segment ``segment``'s variables, priors and chunk factors (their slots appended to
-    ``slots``); ``start_measured``: its start's position and heading are measured."""
+    ``slots``)."""
     s, bounds = segment.index, segment.bounds
     heading = with_heading(data, s)
     insert_segment(values, s, bounds, segment.nominal, spec, heading)
@@ -220,7 +264,8 @@ def _add_segment(
     if spec.heading_bias_sigma is not None and heading:
         bias_key = keys.segment_heading_bias(s)
         graph.add(_vector_prior(bias_key, 1, spec.heading_bias_sigma))
-    if spec.start_prior_sigmas is not None and start_measured.any():
+    start_measured = segment.start_measured
+    if spec.start_prior_sigmas is not None and start_measured.any() and not segment.tied_before:
         weights = segment.weights
         start_weight = 1.0 if weights is None else float(weights[0])
         _add_start_prior(
@@ -250,10 +295,12 @@ def _add_chunks(
     slots: list[ChunkFactorSlot],
 ) -> None:
     """The chunk factors of ``segment`` (with their correction variables), evaluated together
-    (vectorized); ``rates``: the wheels' rotation rate changes (with a time offset)."""
+    (vectorized); ``rates``: the wheels' rotation rate changes (with a time offset). A
+    segment tied to the next ends its last chunk at that one's start."""
     s, bounds, poses, inputs = segment.index, segment.bounds, segment.poses, segment.inputs
     weights, measured, fractions = segment.weights, segment.measured, segment.fractions
     theta = wide.fixed_theta if wide.theta_key is None else wide.theta_key
+    next_start = keys.segment_pose(s + 1) if segment.tied_after else None
     n_chunks = len(bounds) - 1
     batch = ChunkBatch()  # the segment's chunk factors evaluated together, vectorized
     for j in range(n_chunks):
@@ -276,7 +323,7 @@ def _add_chunks(
             poses[0] if held_start else keys.segment_pose(s, j),
             theta,
             corrections=correction_key,
-            end=None if last else keys.segment_pose(s, j + 1),
+            end=next_start if last else keys.segment_pose(s, j + 1),
             noise=ChunkNoise(
                 wide.tracking,
                 wide.continuity,

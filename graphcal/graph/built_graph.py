@@ -75,7 +75,8 @@ class BuiltGraph:
             if self.spec.lever_arm_sigma is not None:
                 arm = np.asarray(result.atVector(keys.LEVER_ARM))
             antenna = starts[:, :2] + lever_offset(starts[:, 2], arm)
-            measured = data.start_measured()
+            # A tied start's fix is the segment before's last, tracked there.
+            measured = data.start_measured() & ~self.spec.tied(data)[:, None]
             out[:, 0, :2] = np.where(measured[:, :1], antenna - data.poses[:, 0, :2], 0.0)
             heading = np.angle(np.exp(1j * (starts[:, 2] - data.poses[:, 0, 2])))
             out[:, 0, 2] = np.where(measured[:, 1], heading, 0.0)

@@ -10,6 +10,7 @@ import numpy as np
 
 from graphcal.factors import CONTINUITY_SIGMAS
 from graphcal.graph import keys
+from graphcal.log.segments import SegmentData
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,10 @@ class SegmentGraphSpec:
             variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
             or ``None`` for none.
+        tie_segments: a segment that starts where the one before it ends, in one continuous
+            stretch of the log (:meth:`~graphcal.log.segments.SegmentData.tied`), starts at
+            that segment's end pose (a continuity residual) instead of a free start under
+            its measured pose: consecutive segments are one trajectory. Needs free starts.
     """
 
     theta: np.ndarray
@@ -83,6 +88,7 @@ class SegmentGraphSpec:
     time_offset_runs: int = 1
     lever_arm_sigma: float | None = None
     heading_bias_sigma: float | None = None
+    tie_segments: bool = False
 
     def for_runs(self, runs: int) -> SegmentGraphSpec:
         """This spec for a log of ``runs`` runs (one time offset element each)."""
@@ -100,6 +106,14 @@ class SegmentGraphSpec:
                 f"time_offset_mean has {len(means)} values for {self.time_offset_runs} runs"
             )
         return means
+
+    def tied(self, data: SegmentData) -> np.ndarray:
+        """``(S,)`` which segments of ``data`` start at the end of the one before in this
+        graph (``tie_segments`` with free starts;
+        :meth:`~graphcal.log.segments.SegmentData.tied`)."""
+        if not self.tie_segments or self.start_prior_sigmas is None:
+            return np.zeros(len(data), bool)
+        return data.tied()
 
     def nuisance_keys(self) -> dict[str, int]:
         """Graph-wide variables besides theta, by name: ``"time_offset"``, ``"lever_arm"``."""

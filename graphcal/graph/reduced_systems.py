@@ -105,23 +105,28 @@ class ReducedSystems:
         return BatchSolution(values, covariance)
 
 
-def reduced_systems(partitioned: PartitionedGraph, segment_count: int) -> ReducedSystems:
+def reduced_systems(
+    partitioned: PartitionedGraph, segment_count: int, joined: bool = False
+) -> ReducedSystems:
     """The :class:`ReducedSystems` of a segment graph (:mod:`graphcal.graph.builder`)
     split by ``partitioned``, at its current values; ``segment_count`` segments (indexed as the
     graph's keys index them). Eliminates every part once (in the workers of
-    :meth:`PartitionedGraph.parallel` if entered).
+    :meth:`PartitionedGraph.parallel` if entered). With ``joined``, a part may hold tied
+    segments (one trajectory): its system is its first segment's, the others' are zero, so
+    that only sums over whole chains (the whole log) are meaningful.
 
     Raises:
-        ValueError: if a part of the graph holds variables of more than one segment.
+        ValueError: if a part of the graph holds variables of more than one segment and
+            not ``joined``.
         RuntimeError: from GTSAM if a segment's own variables are indeterminate.
     """
     parts, shared = partitioned.part_systems()
     segments = np.zeros((segment_count, *shared.shape))
     for part, system in zip(partitioned.parts, parts, strict=True):
         owners = {keys.segment_of(key) for key in part.local}
-        if len(owners) != 1:
+        if len(owners) != 1 and not joined:
             raise ValueError(f"a part of the graph joins segments {sorted(owners)}")
-        (owner,) = owners
+        owner = min(owners)
         if not 0 <= owner < segment_count:
             raise ValueError(f"segment {owner} outside 0..{segment_count - 1}")
         segments[owner] += system

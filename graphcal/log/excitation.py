@@ -70,17 +70,19 @@ def drive_excitation(
     yaw_statistic: str = "mean",
     yaw_window: float = 1.0,
     wheel_circumference: float = 2.0,
+    theta: np.ndarray | None = None,
 ) -> Excitation:
-    """The excitation of ``log`` and the parameters it is expected to determine."""
+    """The excitation of ``log`` and the parameters it is expected to determine (``theta``:
+    the vehicle's nominal, for the wheels' yaw rate of a log without a heading)."""
     distance = float(log.travelled_distance(wheel_circumference)[-1])
-    yaw_rate = np.abs(smoothed_yaw_rate(log, yaw_window))
+    yaw_rate = np.abs(smoothed_yaw_rate(log, yaw_window, theta))
     # Either wheel turning, either way: a robot spinning on the spot is driving too.
     moving = np.concatenate([np.abs(log.n_rl[:-1]) + np.abs(log.n_rr[:-1]) > 0, [False]])
     if log.masked is not None:
         moving &= ~log.masked
     turning_share = float((yaw_rate[moving] > TURNING_YAW_RATE).mean()) if moving.any() else 0.0
     segments = split_segments(log, segment_length, None, wheel_circumference)
-    statistic = yaw_rate_statistic(log, segments, yaw_statistic, yaw_window)
+    statistic = yaw_rate_statistic(log, segments, yaw_statistic, yaw_window, theta)
     turning = segments.subset(np.flatnonzero(statistic > min_yaw_rate))
     max_ay = 0.0
     if len(turning):

@@ -16,7 +16,7 @@ from typing import Literal
 import numpy as np
 
 from graphcal.log.drive_log import DriveLog
-from graphcal.model import THETA_NOMINAL
+from graphcal.model import THETA_NOMINAL, step_increments
 
 YawRateStatistic = Literal["mean", "median", "rms"]
 
@@ -44,6 +44,14 @@ class Segments:
     def subset(self, index: np.ndarray) -> Segments:
         """The segments picked by a boolean mask or an index array."""
         return Segments(self.start[index], self.stop[index], self.length)
+
+
+#: Consecutive segments tied into one trajectory at most (:meth:`SegmentData.tied`): a chain
+#: is one part of the partitioned solve, and every call of a Python factor copies its part's
+#: variables (``docs/performance.md``), so a chain's cost grows with its square. 16 of the
+#: car's 150 m segments are 2.4 km, of a robot's 53 m 850 m: longer chains add next to
+#: nothing to what is known of theta.
+TIED_CHAIN = 16
 
 
 @dataclass(frozen=True)
@@ -146,6 +154,25 @@ class SegmentData:
             None if self.run is None else self.run[index],
             self.runs,
         )
+
+    def tied(self, longest: int = TIED_CHAIN) -> np.ndarray:
+        """``(S,)`` True where a segment starts at the sample where the one before it ends
+        (consecutive segments of one continuous stretch: one trajectory), in chains of at
+        most ``longest`` segments (the next one starts a chain of its own). All False
+        without sample indices."""
+        tied = np.zeros(len(self), bool)
+        if self.sample_index is None or len(self) < 2:
+            return tied
+        ends = self.sample_index[np.arange(len(self)), self.n_steps]
+        tied[1:] = self.sample_index[1:, 0] == ends[:-1]
+        if self.run is not None:
+            tied[1:] &= self.run[1:] == self.run[:-1]
+        chain = 0
+        for s in range(len(self)):  # a loop over segments, not samples
+            chain = chain + 1 if tied[s] else 1
+            if chain > longest:
+                tied[s], chain = False, 1
+        return tied
 
     def measured_of(self, index: int) -> np.ndarray | None:
         """Measured components ``(k+1, 2)`` of segment ``index`` without padding, or ``None``."""
@@ -251,8 +278,13 @@ def _cut(
     return start[keep], stop[keep]
 
 
-def smoothed_yaw_rate(log: DriveLog, window_s: float = 1.0) -> np.ndarray:
-    """Yaw rate [rad/s] from the measured heading, as a central difference over ``window_s``.
+def smoothed_yaw_rate(
+    log: DriveLog, window_s: float = 1.0, theta: np.ndarray | None = None
+) -> np.ndarray:
+    """Yaw rate [rad/s] from the measured heading, as a central difference over ``window_s``;
+    from the wheels with ``theta`` (default the paper's car's nominal) where the log
+    measured the heading at fewer than half its samples (its ``psi`` is then the track of
+    the fixes, whose noise reads as turns: a robot's 2.5 Hz fixes of 1.5 m).
 
     Differencing over a window keeps heading noise (1.5° per sample in the paper) from
     dominating the per-sample rate.
@@ -261,7 +293,12 @@ def smoothed_yaw_rate(log: DriveLog, window_s: float = 1.0) -> np.ndarray:
     index = np.arange(len(log))
     ahead = np.minimum(index + half, len(log) - 1)
     behind = np.maximum(index - half, 0)
-    return (log.psi[ahead] - log.psi[behind]) / (log.t[ahead] - log.t[behind])
+    heading = log.psi
+    if log.measured is not None and np.mean(log.measured[:, 1]) < 0.5:
+        theta = THETA_NOMINAL if theta is None else np.asarray(theta, float)
+        _, omega = step_increments(log.inputs[:-1], theta)
+        heading = np.concatenate([[0.0], np.cumsum(omega)])
+    return (heading[ahead] - heading[behind]) / (log.t[ahead] - log.t[behind])
 
 
 def yaw_rate_statistic(
@@ -269,9 +306,11 @@ def yaw_rate_statistic(
     segments: Segments,
     statistic: YawRateStatistic = "mean",
     window_s: float = 1.0,
+    theta: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Per-segment statistic of the absolute smoothed yaw rate [rad/s], shape ``(S,)``."""
-    rate = np.abs(smoothed_yaw_rate(log, window_s))
+    """Per-segment statistic of the absolute smoothed yaw rate [rad/s], shape ``(S,)``
+    (:func:`smoothed_yaw_rate`, the wheels' with ``theta`` in a log without a heading)."""
+    rate = np.abs(smoothed_yaw_rate(log, window_s, theta))
     if len(segments) == 0:
         return np.zeros(0)
     if statistic == "mean":

@@ -97,6 +97,9 @@ class JointSettings:
             vehicle's ``heading_sigma``.
         fix_d: d is held at its ``theta_initial`` (the vehicle's ``fix_d``; its prior sigma in
             ``theta_prior_sigmas`` is then the vehicle's tight one): reported as fixed.
+        tie_segments: consecutive segments of a continuous stretch are one trajectory (each
+            starts at the end pose of the one before, :mod:`graphcal.graph.builder`);
+            ``False``: every segment has a free start under its measured pose.
         model_check: when the defect model finds a time offset, a lever arm or slip, check
             it against theta alone on held-apart segments and calibrate with the one that
             predicts them better (:mod:`graphcal.pipeline.model_check`).
@@ -130,6 +133,7 @@ class JointSettings:
     robust_threshold: float = 5.0
     heading_noise_from_log: bool = True
     fix_d: bool = False
+    tie_segments: bool = True
     model_check: bool = True
     held_at_prior: tuple[str, ...] = field(default=(), metadata={"run_state": True})
     time_offset_means: tuple[float, ...] = field(default=(), metadata={"run_state": True})
@@ -230,6 +234,7 @@ class JointSettings:
             time_offset_mean=self.time_offset_means or self.time_offset_mean,
             lever_arm_sigma=_optional(self.lever_arm_sigma),
             heading_bias_sigma=_optional(self.heading_bias_sigma),
+            tie_segments=self.tie_segments,
         )
 
 

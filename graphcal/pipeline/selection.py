@@ -41,7 +41,8 @@ def select(
     for note in log.mask_notes:
         say(f"masked: {note}")
     segments = split_segments(log, s.length, s.stride, circumference)
-    yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window)
+    nominal = settings.vehicle.theta_nominal
+    yaw = yaw_rate_statistic(log, segments, s.yaw_statistic, s.yaw_window, nominal)
     selected = segments.subset(yaw > s.min_yaw_rate)
     say(
         f"segments: {len(selected)} of {len(segments)} {s.length:g} m segments have "

@@ -86,6 +86,7 @@ Every section and key, with the defaults::
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
     heading_noise_from_log = true  # heading weight from the log's own heading noise
     fix_d = false               # (v) d held at theta_initial (the vehicle's fix_d)
+    tie_segments = true         # consecutive segments of a continuous stretch: one trajectory
     model_check = true          # a time offset, lever arm or slip found: checked against
                                 # theta alone on held-apart segments; the better one is used
 

@@ -106,12 +106,14 @@ class WholeLog:
 
     def batch_settings(self) -> JointSettings:
         """The joint settings of batches of this log: its fixes weighted as the solve found
-        them (no robust rounds), its slip verdict, the rest of its time offset their prior."""
+        them (no robust rounds), its slip verdict, the rest of its time offset their prior,
+        each segment on its own (its system reduced alone; a batch is any set of them)."""
         return dataclasses.replace(
             self.corrected.settings.joint,
             **_batch_time_offset(self.estimated, self.corrected.log.dt),
             robust_threshold=0.0,
             slip="on" if self.whole.slip_modelled else "off",
+            tie_segments=False,
         )
 
     def batch_data(self) -> SegmentData:

@@ -22,7 +22,8 @@ def log_check_lines(log: DriveLog, settings: Settings) -> list[str]:
     ``settings.segments`` with how many turn enough to be selected."""
     seg = settings.segments
     segments = split_segments(log, seg.length, seg.stride, settings.vehicle.theta_nominal[0])
-    yaw = yaw_rate_statistic(log, segments, seg.yaw_statistic, seg.yaw_window)
+    nominal = settings.vehicle.theta_nominal
+    yaw = yaw_rate_statistic(log, segments, seg.yaw_statistic, seg.yaw_window, nominal)
     lines = [
         f"  samples          {len(log)} at {log.dt * 1e3:.1f} ms ({1 / log.dt:.1f} Hz)",
         f"  duration         {log.t[-1] - log.t[0]:.1f} s",
@@ -48,6 +49,7 @@ def log_excitation_lines(log: DriveLog, settings: Settings) -> list[str]:
         seg.yaw_statistic,
         seg.yaw_window,
         wheel_circumference=float(settings.vehicle.theta_nominal[0]),
+        theta=settings.vehicle.theta_nominal,
     )
     return [f"  {line}" for line in excitation.lines()]
 
