@@ -201,6 +201,8 @@ def test_settings_file_overrides_defaults_and_rejects_unknown_keys(tmp_path):
             "[calibration] theta_nominal is now theta_initial",
         ),
         ({"joint": {"theta_nominal": [2.0, 0.0, 1.55, 0.0]}}, "[joint] theta_nominal is now"),
+        ({"joint": {"slip_detection": 1.3}}, "[joint] slip_detection (a χ² drop per chunk) is now"),
+        ({"joint": {"slip_alpha": 1.5}}, "joint.slip_alpha must be in (0, 1), got 1.5"),
     ],
 )
 def test_bad_settings_are_one_line_errors(data, message):

@@ -33,17 +33,18 @@ def slipping():
 @pytest.mark.slow
 def test_slip_is_detected_and_modelled(slipping):
     run = _run(slipping, "auto")
-    assert run.whole.slip_modelled and run.whole.slip_statistic > 1.3
+    assert run.whole.slip_modelled and run.whole.slip_test.z > 10
     assert wheel_model(run)["slip_sigma"] == run.settings.joint.slip_sigma > 0  # for localization
     assert _z(run, slipping).max() < 3
-    assert _z(_run(slipping, "off"), slipping).max() > 4  # white wheel noise only: wrong
+    # White wheel noise only: the segments' groups disagree, and their scatter scales σ.
+    assert _run(slipping, "off").trust.agreement.sigma_scale.max() > 1.5
 
 
 @pytest.mark.slow
 def test_a_drive_without_slip_is_solved_without_slip_scales():
     clean = simulate_drive(4.0, 1)
     run = _run(clean, "auto")
-    assert not run.whole.slip_modelled and run.whole.slip_statistic < 1.3
+    assert not run.whole.slip_modelled and abs(run.whole.slip_test.z) < 3
     assert wheel_model(run) == {"tick_quantization": 0.0, "slip_sigma": 0.0, "slip_time": 5.0}
     off = _run(clean, "off")
     np.testing.assert_allclose(run.theta, off.theta, rtol=1e-9)
@@ -61,12 +62,28 @@ def test_slip_screened_on_a_spread_sample_decides_as_the_whole_log(slipping, mon
     monkeypatch.setattr(slip_screen, "SLIP_SCREEN_SEGMENTS", 5)
     sampled = _run(slipping, "auto")
     assert len(whole.data) > 5
-    assert sampled.whole.slip_modelled and sampled.whole.slip_statistic > 1.3
-    assert sampled.whole.slip_statistic != whole.whole.slip_statistic  # another sample
-    assert abs(sampled.whole.slip_statistic - whole.whole.slip_statistic) < 0.5 * (
-        whole.whole.slip_statistic
-    )
+    per_chunk = [r.whole.slip_test.statistic / r.whole.slip_test.chunks for r in (whole, sampled)]
+    assert sampled.whole.slip_modelled and sampled.whole.slip_test.z > 3
+    assert sampled.whole.slip_test.chunks < whole.whole.slip_test.chunks  # another sample
+    assert abs(per_chunk[1] - per_chunk[0]) < 0.5 * per_chunk[0]
     # Once slip is shown, the same solve with slip over all segments: the same theta.
     np.testing.assert_allclose(sampled.theta, whole.theta, rtol=1e-7)
     clean = _run(simulate_drive(4.0, 1), "auto")
     assert not clean.whole.slip_modelled
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [4, 5])
+def test_a_little_slip_is_found_by_the_test_of_its_own_noise(seed):
+    """Issue 43: 0.05 % slow slip left c_d 4-5σ off and "calibrated": its χ² drop per chunk
+    (0.89-1.18 on those drives) stayed under the fixed threshold of 1.3, which drives without
+    slip (0.49-0.60) left far below. The test against the drop the log's own noise would give
+    finds it; the same drive without slip is left without slip scales."""
+    clean = simulate_drive(8.0, seed)
+    slipping = degrade(clean, parse_defects("slip=0.0005"), seed)
+    found = _run(slipping, "auto")
+    # Found; the model check may then keep theta alone where it predicts held-apart
+    # segments as well (seed 5).
+    shown = found.whole.slip_modelled or "slow wheel slip" in found.model_check.found
+    assert shown and _z(found, slipping).max() < 3
+    assert not _run(clean, "auto").whole.slip_modelled

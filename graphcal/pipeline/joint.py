@@ -40,7 +40,7 @@ from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
 from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.robust import solve_segment_graph_robust
-from graphcal.pipeline.slip_screen import with_slip_if_shown
+from graphcal.pipeline.slip_screen import SlipTest, with_slip_if_shown
 from graphcal.pipeline.warm_start import warm_start
 from graphcal.progress import Progress, reports_progress
 from graphcal.vehicle import HELD_SIGMA_SCALE
@@ -78,10 +78,9 @@ class JointSettings:
         slip_sigma: stationary sigma of the modelled relative slip scale of each rear wheel
             per chunk (slow, coloured slip; 0.0015 = 0.15 %).
         slip_time: correlation time [s] of the slip scales from chunk to chunk.
-        slip_detection: with ``slip = "auto"``, slip is modelled when adding it lowers the
-            whole solve's χ² by more than this per chunk (measured 0.55–0.59 on drives
-            without slip, about 1.0 with 10 Hz fixes interpolated to 40 Hz, 1.1 with 0.05 %
-            slip and 4–5.6 with 0.15 %, ``docs/defects.md``).
+        slip_alpha: with ``slip = "auto"``, the false-alarm rate of the slip screen's test
+            (:mod:`graphcal.pipeline.slip_screen`): slip is modelled when adding it lowers
+            χ² by more than the data's own noise would at this rate.
         time_offset_sigma: prior sigma [s] of the wheels' time offset against the pose,
             estimated with theta (0: not estimated).
         time_offset_mean: that prior's mean [s]: the offset left in the log's wheels after
@@ -125,7 +124,7 @@ class JointSettings:
     slip: str = "auto"
     slip_sigma: float = 0.0015
     slip_time: float = 5.0
-    slip_detection: float = 1.3
+    slip_alpha: float = 1e-3
     time_offset_sigma: float = 0.5
     time_offset_mean: float = 0.0
     lever_arm_sigma: float = 2.0
@@ -175,6 +174,8 @@ class JointSettings:
             raise ValueError(
                 f"joint.slip must be one of {', '.join(SLIP_MODES)}, got {self.slip!r}"
             )
+        if not 0.0 < self.slip_alpha < 1.0:  # NaN fails too
+            raise ValueError(f"joint.slip_alpha must be in (0, 1), got {self.slip_alpha!r}")
         means = (self.time_offset_mean, *self.time_offset_means)
         if not all(abs(m) <= MAX_TIME_OFFSET_MEAN for m in means):  # NaN fails too
             raise ValueError(
@@ -194,7 +195,7 @@ class JointSettings:
                 "wheel_noise": self.wheel_noise,
                 "slip_time": self.slip_time,
                 "slip_sigma": self.slip_sigma,
-                "slip_detection": self.slip_detection,
+                "slip_alpha": self.slip_alpha,
                 "max_sigma_ratio": self.max_sigma_ratio,
             },
             non_negative={
@@ -267,10 +268,9 @@ class JointCalibration(ThetaEstimate):
         fix_weights: ``(S, K+1)`` robust weight of each measured pose of the segments, or
             ``None`` if every fix kept weight 1.
         slip_modelled: the solve has slip scales.
-        slip_statistic: with ``slip = "auto"``, how much adding slip scales lowered χ², per
-            chunk, on the screened segments (all, or
-            :data:`~graphcal.pipeline.slip_screen.SLIP_SCREEN_SEGMENTS` spread over a longer
-            log; ``None`` otherwise).
+        slip_test: with ``slip = "auto"``, the slip screen's test on the screened segments
+            (all, or :data:`~graphcal.pipeline.slip_screen.SLIP_SCREEN_SEGMENTS` spread over
+            a longer log; ``None`` otherwise).
         noise: the noise the residuals show (:class:`ResidualNoise`), before slip was
             modelled: variance components of the solve. The fixes' RMS is the true σ within
             4 % at 1–10 Hz on 12 km simulated drives, whatever the settings assumed.
@@ -279,7 +279,7 @@ class JointCalibration(ThetaEstimate):
     observability: Observability
     fix_weights: np.ndarray | None = None
     slip_modelled: bool = False
-    slip_statistic: float | None = None
+    slip_test: SlipTest | None = None
     noise: ResidualNoise = field(default_factory=lambda: ResidualNoise())
 
     @property
@@ -340,7 +340,7 @@ def solve_joint(
             data,
             weights,
             settings.graph_spec(slip=True),
-            settings.slip_detection,
+            settings.slip_alpha,
             options,
         )
     observability = settings.observability(solved.covariance)

@@ -78,7 +78,7 @@ Every section and key, with the defaults::
     slip = "auto"               # slow wheel slip modelled: auto (when the log shows it) | on | off
     slip_sigma = 0.0015         # its relative scale per wheel and chunk (0.15 %)
     slip_time = 5.0             # s, its correlation time from chunk to chunk
-    slip_detection = 1.3        # auto: modelled when it lowers chi2 by more than this per chunk
+    slip_alpha = 0.001          # auto: false-alarm rate of the test that decides it
     time_offset_sigma = 0.5     # s, prior of the wheels' time offset (estimated); 0 = off
     time_offset_mean = 0.0      # s, its prior mean (the offset known to remain in the log)
     lever_arm_sigma = 2.0       # m, prior of the GNSS antenna's lever arm (estimated); 0 = off

@@ -31,6 +31,11 @@ _MOVED = {
     ),
     "calibration.theta_nominal": "[calibration] theta_nominal is now theta_initial",
     "joint.theta_nominal": "[joint] theta_nominal is now theta_initial",
+    "joint.slip_detection": (
+        "[joint] slip_detection (a χ² drop per chunk) is now slip_alpha: slip is modelled "
+        "when the drop exceeds what the log's own noise gives at this false-alarm rate "
+        "(default 0.001)"
+    ),
     "time_offset": (
         "[time_offset] is gone: the joint solve estimates the wheels' time offset with theta "
         "([joint] time_offset_sigma, 0 = off)"

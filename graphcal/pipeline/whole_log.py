@@ -379,19 +379,16 @@ def _report(
         say(line)
     if whole.fix_weights is not None:
         say(down_weighted.summary())
-    if whole.slip_statistic is not None:
+    if whole.slip_test is not None:
         say(slip_line(whole, settings))
 
 
 def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
     """One line: whether the whole-log solve found slow wheel slip and modelled it."""
-    statistic = f"χ² lower by {whole.slip_statistic:.2f} per chunk with slip scales"
+    test = whole.slip_test.describe()
     if whole.slip_modelled:
-        return (
-            f"slow wheel slip found ({statistic} > {settings.slip_detection:g}): modelled; "
-            "σ includes it"
-        )
-    return f"no slow wheel slip ({statistic} ≤ {settings.slip_detection:g})"
+        return f"slow wheel slip found ({test}): modelled; σ includes it"
+    return f"no slow wheel slip ({test}; limit at a false-alarm rate of {settings.slip_alpha:g})"
 
 
 def estimate_lines(

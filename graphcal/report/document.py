@@ -306,10 +306,10 @@ def _findings_sections(run: CalibrationRun) -> dict:
             "wheel_correction_chi2_per_row": run.whole.noise.wheel_chi2,
             "heading_from_log": bool(joint.heading_noise_from_log),
         }
-    if run.whole is not None and run.whole.slip_statistic is not None:
+    if run.whole is not None and run.whole.slip_test is not None:
         out["wheel_slip"] = {
             "modelled": run.whole.slip_modelled,
-            "chi2_drop_per_chunk": run.whole.slip_statistic,
-            "detection_threshold": run.settings.joint.slip_detection,
+            **run.whole.slip_test.to_dict(),
+            "false_alarm_rate": run.settings.joint.slip_alpha,
         }
     return out

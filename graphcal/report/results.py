@@ -99,7 +99,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
         parts.append(estimates_table(run.estimated, vehicle_length_unit(run)))
     if run.down_weighted is not None:
         parts.append(run.down_weighted.summary())
-    if run.whole is not None and run.whole.slip_statistic is not None:
+    if run.whole is not None and run.whole.slip_test is not None:
         parts.append(slip_line(run.whole, run.settings.joint))
     if run.covariance is not None and run.observability is not None:
         solve = f"joint solve over all {len(run.selected)} selected segments"
