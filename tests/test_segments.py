@@ -167,3 +167,26 @@ def test_segments_never_span_a_run_boundary_without_a_mask():
     assert len(segments) == 3 * 6
     spans = zip(segments.start, segments.stop, strict=True)
     assert all(np.ptp(log.run[a : b + 1]) == 0 for a, b in spans)
+
+
+def test_a_log_without_a_heading_is_selected_by_its_wheels_yaw_rate(drive):
+    """Where the heading was not measured, ``psi`` is the fixes' track, whose noise reads as
+    turns (a robot's 2.5 Hz fixes of 1.5 m); the wheels turn as the vehicle does."""
+    import dataclasses
+
+    from graphcal.log.segments import smoothed_yaw_rate
+    from graphcal.model import THETA_NOMINAL
+
+    log = drive.measured
+    measured = np.ones((len(log), 2), bool)
+    measured[:, 1] = False
+    noisy = np.random.default_rng(0).normal(0.0, 0.3, len(log))  # the track's course noise
+    track = dataclasses.replace(log, psi=log.psi + noisy, measured=measured)
+    truth = smoothed_yaw_rate(drive.truth)
+    wheels = smoothed_yaw_rate(track, theta=drive.theta_true)
+    assert np.sqrt(np.mean((wheels - truth) ** 2)) < 0.01  # rad/s
+    from_track = dataclasses.replace(track, measured=None)  # read as a measured heading
+    assert np.sqrt(np.mean((smoothed_yaw_rate(from_track) - truth) ** 2)) > 0.1
+    default = smoothed_yaw_rate(track)  # the car's nominal theta
+    assert np.sqrt(np.mean((default - truth) ** 2)) < 0.03  # c_d nominal 0: a small bias
+    assert THETA_NOMINAL[2] != drive.theta_true[2]
