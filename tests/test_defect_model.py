@@ -185,3 +185,21 @@ def test_the_quantization_prior_has_the_covariance_of_differenced_counts():
     expected = np.zeros((12, 12))
     expected[0::2, 0::2] = expected[1::2, 1::2] = per_wheel
     np.testing.assert_allclose(np.linalg.inv(information), expected, rtol=1e-9, atol=1e-15)
+
+
+def test_an_estimate_without_information_is_not_observable_and_no_nan_goes_on():
+    """Issue 43: a robot's one 350 m segment left its time offset without information; the
+    NaN reached the batches' prior (`joint.time_offset_mean must be ... got 0.0`, a
+    traceback naming the wrong value)."""
+    import dataclasses
+
+    from graphcal.graph.estimates import NuisanceEstimate
+    from graphcal.pipeline.joint import JointSettings
+    from graphcal.pipeline.sensor_estimates import sensor_estimates
+
+    singular = NuisanceEstimate(np.array([np.nan]), np.array([[np.nan]]), 0.5)
+    (estimate,) = sensor_estimates({"time_offset": singular}, 0.1).values()
+    assert not estimate.observable and estimate.value == 0.0 and estimate.sigma == 0.5
+    assert estimate.verdict == "not observable"
+    with pytest.raises(ValueError, match=r"within ±1, got nan"):
+        dataclasses.replace(JointSettings(), time_offset_means=(0.0, float("nan")))

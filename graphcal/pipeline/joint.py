@@ -177,10 +177,11 @@ class JointSettings:
         if not 0.0 < self.slip_alpha < 1.0:  # NaN fails too
             raise ValueError(f"joint.slip_alpha must be in (0, 1), got {self.slip_alpha!r}")
         means = (self.time_offset_mean, *self.time_offset_means)
-        if not all(abs(m) <= MAX_TIME_OFFSET_MEAN for m in means):  # NaN fails too
+        bad = [m for m in means if not abs(m) <= MAX_TIME_OFFSET_MEAN]  # NaN fails too
+        if bad:
             raise ValueError(
                 f"joint.time_offset_mean must be a number of seconds within "
-                f"±{MAX_TIME_OFFSET_MEAN:g}, got {self.time_offset_mean!r}"
+                f"±{MAX_TIME_OFFSET_MEAN:g}, got {bad[0]!r}"
             )
         check_settings(
             "joint",

@@ -107,17 +107,22 @@ def detected_offsets(estimates: dict[str, SensorEstimate], runs: int) -> np.ndar
 def sensor_estimates(
     nuisance: dict[str, NuisanceEstimate], max_sigma_ratio: float
 ) -> dict[str, SensorEstimate]:
-    """One :class:`SensorEstimate` per component of the nuisance variables of a solve."""
+    """One :class:`SensorEstimate` per component of the nuisance variables of a solve. A
+    component whose estimate or σ is not a number (its information singular: the drive does
+    not show it at all) is not observable, at its prior: no NaN goes on to correct the log
+    or to set the batches' prior."""
     found = {}
     for variable, estimate in nuisance.items():
         observable = estimate.observable(max_sigma_ratio)
         for i, name in enumerate(component_names(variable, len(estimate.value))):
+            value, sigma = float(estimate.value[i]), float(estimate.sigma[i])
+            if not (np.isfinite(value) and np.isfinite(sigma)):
+                found[name] = SensorEstimate(
+                    name, 0.0, estimate.prior_sigma, estimate.prior_sigma, False
+                )
+                continue
             found[name] = SensorEstimate(
-                name,
-                float(estimate.value[i]),
-                float(estimate.sigma[i]),
-                estimate.prior_sigma,
-                bool(observable[i]),
+                name, value, sigma, estimate.prior_sigma, bool(observable[i])
             )
     return found
 
