@@ -35,3 +35,17 @@ def chi2_quantile(probability: float, dof: int) -> float:
         else:
             high = middle
     return 0.5 * (low + high)
+
+
+def scaled_chi2_deviate(x: float, mean: float, sd: float) -> float:
+    """The standard normal deviate of ``x`` under the scaled χ² ``g·χ²_h`` with this
+    ``mean`` and ``sd`` (Satterthwaite: ``g = sd²/(2 mean)``, ``h = 2 mean²/sd²``), by the
+    Wilson–Hilferty cube root: a weighted sum of χ²₁ terms (a quadratic form of Gaussian
+    noise) is skewed, and with few terms its upper tail is far heavier than a normal one of
+    the same mean and sd. Tends to ``(x − mean)/sd`` as ``h`` grows."""
+    if sd <= 0.0 or mean <= 0.0:
+        return math.inf if x > mean else 0.0
+    h = 2.0 * mean**2 / sd**2
+    g = sd**2 / (2.0 * mean)
+    v = 2.0 / (9.0 * h)
+    return ((max(x, 0.0) / (g * h)) ** (1.0 / 3.0) - (1.0 - v)) / math.sqrt(v)

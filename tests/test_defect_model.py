@@ -57,7 +57,11 @@ def test_the_time_offset_is_recovered_and_theta_stays_unbiased(clean):
         dataclasses.replace(SETTINGS, joint=without_defect_model(SETTINGS.joint)),
         "whole",
     )
-    assert np.max(np.abs(_errors_in_sigma(plain, late))) > 5  # what the model prevents
+    # What the model prevents: without it the estimate is biased by more than 5 of the
+    # model's σ; the segments' agreement test scales the plain run's σ to cover that bias.
+    sigma = np.sqrt(np.diag(run.covariance))
+    assert np.max(np.abs((plain.theta - late.theta_true) / sigma)) > 5
+    assert np.all(np.abs(_errors_in_sigma(plain, late)) < 3)
 
 
 @pytest.mark.slow

@@ -37,7 +37,7 @@ def test_a_2_km_straight_road_from_plain_fixes_calibrates_what_it_determines(tmp
     result = json.loads((out / "calibration.json").read_text())
     parameters = result["parameters"]
     assert parameters["t_r"]["status"].startswith("not calibrated: not observable")
-    assert parameters["t_r"]["value"] == 1.55
+    assert parameters["t_r"]["value"] == pytest.approx(1.55, abs=1e-6)  # held at its prior
     for index, name in enumerate(("c_e", "c_d")):
         assert parameters[name]["status"].startswith("calibrated"), parameters[name]
         error = parameters[name]["value"] - THETA_TRUE_DEFAULT[index]

@@ -44,7 +44,13 @@ def judged_with_what_is_held(
     """``whole`` (solved under ``settings``, which may hold parameters at their prior by a
     tight one) judged under the weak prior: its covariance with the tight prior's information
     taken out — every other parameter's σ then includes what a held one leaves open — its
-    verdicts from that covariance, and each ``held`` parameter (name → why) not calibrated."""
+    verdicts from that covariance, and each ``held`` parameter (name → why) not calibrated.
+    A parameter a tight prior holds (``held_at_prior``, the vehicle's ``fix_d``) is written
+    at ``theta_initial`` exactly, not the 1e-11 from it that the tight prior leaves."""
+    tight = settings.held() | np.isin(PARAMETER_NAMES, settings.held_at_prior)
+    if tight.any():
+        theta = np.where(tight, np.asarray(settings.theta_initial, float), whole.theta)
+        whole = dataclasses.replace(whole, theta=theta)
     if not settings.held_at_prior:
         return whole
     covariance = weak_prior_covariance(whole, settings)

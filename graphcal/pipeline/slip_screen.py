@@ -10,9 +10,11 @@ the graph eliminated. Without slip the gradient is the data's noise, ``g_s ~ N(0
     E[T] = tr(A_s⁻¹ H_s),    Var[T] = 2 tr((A_s⁻¹ H_s)²)
 
 are known from the same linearization: the statistic's own null distribution on this log,
-its rates, noise and driving, not a threshold read off one drive. Slip is modelled when T
-lies more than the normal quantile of ``1 −`` ``[joint] slip_alpha`` (10⁻³: 3.09) of its
-null σ above E[T]; the solve with slip then continues from there to convergence. The test
+its rates, noise and driving, not a threshold read off one drive. T is a quadratic form of
+Gaussian noise, so its null distribution is taken as the scaled χ² of that mean and variance
+(Satterthwaite), read through the Wilson–Hilferty cube root as a normal deviate z (a short
+log's few chunks give a skewed T: 7 against 2 ± 1 is z 3.3, not 5). Slip is modelled when z
+exceeds the normal quantile of ``1 −`` ``[joint] slip_alpha`` (10⁻³: 3.09); the solve with slip then continues from there to convergence. The test
 is taken on at most :data:`SLIP_SCREEN_SEGMENTS` segments spread over the log: a long log's
 costs a fraction of one of its iterations.
 
@@ -42,6 +44,7 @@ from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.graph.solve_options import SolveOptions
 from graphcal.graph.values import copy_value
 from graphcal.log.segments import SegmentData, spread
+from graphcal.statistics import scaled_chi2_deviate
 
 #: The key letter of the slip scales (:func:`graphcal.graph.keys.segment_slip`).
 SLIP_LETTER = chr(gtsam.Symbol(keys.segment_slip(0)).chr())
@@ -68,8 +71,10 @@ class SlipTest:
 
     @property
     def z(self) -> float:
-        """How many of its null σ T lies above its null mean."""
-        return (self.statistic - self.expected) / max(self.spread, 1e-12)
+        """T's standard normal deviate under its null distribution, a scaled χ² of its mean
+        and σ (:func:`~graphcal.statistics.scaled_chi2_deviate`: few chunks give a skewed,
+        heavy-tailed T; many, ``(T − E)/σ``)."""
+        return scaled_chi2_deviate(self.statistic, self.expected, self.spread)
 
     def shown(self, alpha: float) -> bool:
         """The log shows slip at false-alarm rate ``alpha``."""

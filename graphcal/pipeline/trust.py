@@ -16,8 +16,8 @@ its noise levels. Four checks need nothing but the run itself:
   batch spread, the interquartile range of the batch estimates over the median per-batch
   σ, about 1.35 for honest σ and independent batches, is reported as ``spread_ratio``:
   batches that share segments make it smaller, so it is no test);
-* **validation**: the calibrated theta predicts the validation segments worse than the
-  nominal one.
+* **validation**: the calibrated parameters (the others at their nominal) predict the
+  validation segments worse than the nominal theta.
 
 A parameter that fails a check is not reported as calibrated: its verdict says why, the run
 is marked untrusted in ``calibration.json`` and ``graphcal calibrate`` exits with status
