@@ -2,7 +2,7 @@
 the documented prior sigmas, and with them doubled and halved. The verdicts must not move
 (``graphcal.graph.observability`` judges against fixed reference sigmas, not the prior).
 
-    python scripts/prior_width.py                 # the sample drive, the car's four forms, the robot
+    python scripts/prior_width.py       # the sample drive, the car's four forms, the robot
     python scripts/prior_width.py LOG [--vehicle FILE]
 
 Prints one row per recording and prior scale: the verdicts and theta.

@@ -14,13 +14,15 @@ its rates, noise and driving, not a threshold read off one drive. T is a quadrat
 Gaussian noise, so its null distribution is taken as the scaled χ² of that mean and variance
 (Satterthwaite), read through the Wilson–Hilferty cube root as a normal deviate z (a short
 log's few chunks give a skewed T: 7 against 2 ± 1 is z 3.3, not 5). Slip is modelled when z
-exceeds the normal quantile of ``1 −`` ``[joint] slip_alpha`` (10⁻³: 3.09); the solve with slip then continues from there to convergence. The test
-is taken on at most :data:`SLIP_SCREEN_SEGMENTS` segments spread over the log: a long log's
-costs a fraction of one of its iterations.
+exceeds the normal quantile of ``1 −`` ``[joint] slip_alpha`` (10⁻³: 3.09); the solve with
+slip then continues from there to convergence. The test is taken on at most
+:data:`SLIP_SCREEN_SEGMENTS` segments spread over the log: a long log's costs a fraction of
+one of its iterations.
 
 Measured (8 km city drive, seed 4, 161 chunks screened): without slip T = 103.4 against
-E = 97.9 ± 11.4 (z 0.5); 0.05 % slip, z 10.4 (per chunk 1.34, where the former fixed
-threshold of 1.3 per chunk let drives of 0.89–1.18 pass with c_d 4–5σ off); 0.15 %, z 82.
+E = 97.9 ± 11.4 (z 0.5); 0.05 % slip, (T − E)/σ 10.4, z 7.8 (per chunk 1.34, where the
+former fixed threshold of 1.3 per chunk let drives of 0.89–1.18 pass with c_d 4–5σ off);
+0.15 %, (T − E)/σ 82.
 """
 
 from __future__ import annotations
