@@ -16,10 +16,12 @@ Methods:
   (:mod:`graphcal.pipeline.joint_batches`), at the cost of one whole-log iteration.
 * ``"whole"`` — only the joint solve over all selected segments: quick, no batches.
 
-With the joint and whole methods, parameters the data do not determine
-(:mod:`graphcal.graph.observability`) stay at their prior (the nominal value) and are
-reported as not calibrated. If no segment passes the yaw-rate selection they use all
-segments: the observability check, not the selection, then decides what the drive determines.
+With the joint and whole methods, every parameter is its posterior under the weak prior,
+and those the data do not determine well (:mod:`graphcal.graph.observability`) are reported
+as not calibrated, with their estimate and σ. If fewer than
+:data:`~graphcal.pipeline.selection.MIN_SELECTED_SEGMENTS` segments pass the yaw-rate
+selection they use all segments: the observability check, not the selection, then decides
+what the drive determines.
 
 Each method is one function (``_run_staged``, ``_run_joint``, ``_run_whole``):
 :func:`~graphcal.pipeline.prepare.prepare_log` (selection, the settings the log completes,

@@ -18,6 +18,13 @@ from graphcal.pipeline.vehicle_settings import (
 from graphcal.progress import say
 
 
+#: With fewer selected segments than this, the joint and whole methods use every segment of the
+#: log: so few carry little information, and the segments' agreement test needs this many
+#: groups (:data:`graphcal.pipeline.agreement.GROUPS`). A 373 m robot log kept 1 of 7 53 m
+#: segments (mean |yaw rate| > 0.15 rad/s, a car's rule) and calibrated nothing from it.
+MIN_SELECTED_SEGMENTS = 8
+
+
 class NoUsableSegments(GraphcalError, ValueError):
     """The log has no segment that passes the selection."""
 
@@ -28,8 +35,9 @@ def select(
     """Calibration segments, their yaw statistic [rad/s], the selected ones, validation
     segments.
 
-    With ``fall_back_to_all``, a log where no segment passes the yaw-rate selection uses all
-    its segments instead of failing (for methods that judge observability themselves).
+    With ``fall_back_to_all`` (for methods that judge observability themselves), a log where
+    fewer than :data:`MIN_SELECTED_SEGMENTS` segments pass the yaw-rate selection uses all
+    its segments instead (none passing is then no failure).
 
     Raises:
         NoUsableSegments: the log is too short, or no segment passes the selection.
@@ -48,9 +56,10 @@ def select(
         f"segments: {len(selected)} of {len(segments)} {s.length:g} m segments have "
         f"{s.yaw_statistic} |yaw rate| > {s.min_yaw_rate:g} rad/s"
     )
-    if len(selected) == 0 and fall_back_to_all and len(segments) > 0:
+    if len(selected) < MIN_SELECTED_SEGMENTS and fall_back_to_all and len(segments) > len(selected):
+        passing = "no segment passes" if len(selected) == 0 else f"only {len(selected)} pass"
         say(
-            f"no segment passes the yaw-rate selection: using all {len(segments)} segments; "
+            f"{passing} the yaw-rate selection: using all {len(segments)} segments; "
             "the observability check decides what they determine"
         )
         selected = segments
