@@ -89,8 +89,8 @@ def check_units(
 
     Each is compared with the GNSS track in its clear turns
     (:func:`~graphcal.log.turns.track_turns`: a course over chords long beside the fixes'
-    noise; ``nominal``: the vehicle's theta): the heading's turn and the yaw rate's integral with the
-    track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
+    noise; ``nominal``: the vehicle's theta): the heading's turn and the yaw rate's integral
+    with the track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
     speed × the track's yaw rate (an acceleration in g is 1/9.81 of it).
     """
     fixed = None if resampled.measured is None else resampled.measured[:, 0]
