@@ -114,8 +114,13 @@ TURN_MIN_CHORD_REVS = 5.0
 #: fixes' rate (20 Hz fixes of 1 m noise 1 s apart turn by ±0.15 rad on their own).
 TRACK_HALF_CHORD_SIGMAS = 25.0
 #: A window's turn counts as a turn of the track only beyond this many of the standard
-#: errors its course's noise gives it (σ / half chord), and beyond :data:`TURN_MIN_YAW`.
+#: errors its course's noise gives it (σ / half chord, or the robust scatter of the track's
+#: turns where the wheels turn less than :data:`STRAIGHT_WHEEL_YAW` [rad], if larger), and
+#: beyond :data:`TURN_MIN_YAW`; and the wheels (nominal θ) must turn the same way, by at
+#: least :data:`TURN_MIN_YAW` / :data:`WHEEL_TURN_SLACK`.
 TRACK_TURN_SIGMAS = 5.0
+STRAIGHT_WHEEL_YAW = 0.05
+WHEEL_TURN_SLACK = 4.0
 
 
 @dataclass(frozen=True)
@@ -203,8 +208,24 @@ def track_turns(
     track = _window_turns(heading, usable, ends)
     chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
     least = TURN_MIN_CHORD_REVS * nominal[0]
+    wheel_yaw = np.concatenate(
+        [[0.0], np.cumsum((c["n_rr"] - c["n_rl"])[:-1] * nominal[0] / nominal[2])]
+    )
+    wheels = _window_turns(wheel_yaw, usable, ends)
     clear = max(TURN_MIN_YAW, TRACK_TURN_SIGMAS * sigma / half)
-    turning = np.isfinite(track) & (np.abs(track) > clear) & (chords > least)
+    # Where the wheels roll straight on, the course's turns are its own noise, correlated
+    # noise included (which the fixes' second differences do not show).
+    straight = np.isfinite(track) & (np.abs(wheels) < STRAIGHT_WHEEL_YAW) & (chords > least)
+    if straight.sum() >= TURN_MIN_COUNT:
+        scatter = np.abs(track[straight] - np.median(track[straight]))
+        clear = max(clear, TRACK_TURN_SIGMAS * 1.4826 * float(np.median(scatter)))
+    # A turn of the track is one of the wheels too (same way, at a nominal t_r within a
+    # factor WHEEL_TURN_SLACK of the vehicle's).
+    with np.errstate(invalid="ignore"):
+        agree = (np.sign(wheels) == np.sign(track)) & (
+            np.abs(wheels) > TURN_MIN_YAW / WHEEL_TURN_SLACK
+        )
+        turning = np.isfinite(track) & (np.abs(track) > clear) & (chords > least) & agree
     return TrackTurns(ends, track, chords, turning, usable)
 
 
