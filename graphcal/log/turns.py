@@ -134,16 +134,14 @@ class TrackTurns:
     chords: np.ndarray  # [m]
     turning: np.ndarray  # windows that turn clearly while moving
     usable: np.ndarray  # grid rows not masked
+    wheels: np.ndarray  # the wheels' turn [rad] in each window (nominal θ)
+    wheel_ay: np.ndarray  # mean of the wheels' speed × yaw rate [m/s²] in each window
 
     def turns_of(self, yaw: np.ndarray) -> np.ndarray:
         """The turn [rad] of another signal's ``yaw`` in each window (its values at the
         window's ends: a heading's noise is small beside a clear turn, an integrated yaw
         rate has none), NaN where masked."""
         return _window_turns(yaw, self.usable, self.ends)
-
-    def duration(self, dt: float) -> np.ndarray:
-        """Each window's duration [s]."""
-        return np.diff(self.ends) * dt
 
     def scale(self, turns: np.ndarray) -> tuple[float, int] | None:
         """Median of |turns| / |the track's turns| over the clear turns, and the window of
@@ -226,7 +224,10 @@ def track_turns(
             np.abs(wheels) > TURN_MIN_YAW / WHEEL_TURN_SLACK
         )
         turning = np.isfinite(track) & (np.abs(track) > clear) & (chords > least) & agree
-    return TrackTurns(ends, track, chords, turning, usable)
+    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
+    rate = (c["n_rr"] - c["n_rl"]) * nominal[0] / nominal[2] / dt
+    wheel_ay = np.add.reduceat(speed * rate, ends[:-1]) / np.diff(np.append(ends[:-1], n))
+    return TrackTurns(ends, track, chords, turning, usable, wheels, wheel_ay)
 
 
 def lateral_acceleration_scale(
@@ -235,11 +236,17 @@ def lateral_acceleration_scale(
     """How many times speed × yaw rate of the track a lateral acceleration ``ay`` [m/s² as
     logged, one per grid sample of ``dt`` s] is in the track's clear ``turns``: the median
     ratio of their magnitudes, the window of the sharpest turn and, there, the mean ``ay``
-    and the track's speed × yaw rate [m/s²]; ``None`` if there are too few turns."""
+    and the track's speed × yaw rate [m/s²]; ``None`` if there are too few turns.
+
+    The track's speed × yaw rate in a window is the wheels' (nominal θ: speed at each
+    sample times yaw rate, averaged) scaled by the track's turn over the wheels': a window
+    as long as a chord many times the fixes' noise holds stops, spins and bends, whose
+    speeds and turns the window's totals alone would mix up."""
     sums = np.add.reduceat(ay, turns.ends[:-1])
-    counts = np.diff(turns.ends)
-    seconds = np.maximum(turns.duration(dt), dt)
-    expected = turns.chords / seconds * np.nan_to_num(turns.track) / seconds
+    counts = np.diff(np.append(turns.ends[:-1], len(ay)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        expected = turns.wheel_ay * np.nan_to_num(turns.track) / turns.wheels
+    expected = np.where(np.isfinite(expected), expected, 0.0)
     found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
     if found is None:
         return None
