@@ -34,10 +34,10 @@ def recording(streams_dir, tmp_path):
     return tmp_path / "rec"
 
 
-def _edit(path, old: str, new: str) -> None:
+def _edit(path, old: str, new: str, count: int = -1) -> None:
     text = path.read_text()
     assert old in text, old
-    path.write_text(text.replace(old, new))
+    path.write_text(text.replace(old, new, count))
 
 
 def _change(path, column: str, change) -> None:
@@ -165,6 +165,48 @@ def test_times_in_ms_of_one_stream_name_that_stream(recording, tmp_path, capsys)
     assert f"the times of {recording / 'wheels.csv'} look like ms" in err, err
     assert "(median interval 10 ms read as 10 s, " in err, err
     assert 'set time_unit = "ms" in [wheels]' in err, err
+
+
+def _thinned_to_1_hz(recording, seed: int = 0) -> None:
+    """Every 10th fix of gnss.csv, stamped with ±2 ms of jitter (a 1 Hz receiver, times in s)."""
+    frame = pd.read_csv(recording / "gnss.csv").iloc[::10].reset_index(drop=True)
+    frame["t"] += np.random.default_rng(seed).uniform(-0.002, 0.002, len(frame))
+    frame.to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_1_hz_receiver_stamped_in_seconds_imports(recording, tmp_path, capsys, seed):
+    """The most common receiver: a median interval just over 1 s is no reason to read ms."""
+    _thinned_to_1_hz(recording, seed)
+    assert np.median(np.diff(pd.read_csv(recording / "gnss.csv")["t"])) > 1.0
+    out = tmp_path / "drive.csv"
+    assert main(["import", str(recording / "manifest.toml"), "--out", str(out)]) == 0, (
+        capsys.readouterr().err
+    )
+    assert out.is_file()
+
+
+def test_a_1_hz_receiver_declared_in_ms_is_told_to_say_s(recording, tmp_path, capsys):
+    """1 s intervals declared ms read as a 1 kHz stream: only the spans tell, 1000x shorter
+    than the wheels' and the IMU's."""
+    _thinned_to_1_hz(recording)
+    _edit(recording / "manifest.toml", 'time = "t"\n', 'time = "t"\ntime_unit = "ms"\n', 1)
+    err = _refused(recording, tmp_path, capsys)
+    assert f"the times of {recording / 'gnss.csv'} look like s (they span " in err, err
+    assert 'set time_unit = "s" in [gnss]' in err, err
+
+
+def test_a_500_hz_imu_in_ms_read_as_s_names_the_imu(recording, tmp_path, capsys):
+    """2 ms intervals read as 2 s are a plausible 0.5 Hz rate; the IMU's span, 1000x the
+    other streams', names the unit."""
+    frame = pd.read_csv(recording / "imu.csv")
+    t = np.arange(frame["t"].iloc[0], frame["t"].iloc[-1], 0.002)
+    fine = pd.DataFrame({c: np.interp(t, frame["t"], frame[c]) for c in frame.columns})
+    fine["t"] = 1000.0 * t
+    fine.to_csv(recording / "imu.csv", index=False, float_format="%.17g")
+    err = _refused(recording, tmp_path, capsys)
+    assert f"the times of {recording / 'imu.csv'} look like ms (they span " in err, err
+    assert 'set time_unit = "ms" in [imu]' in err, err
 
 
 # --- row F: the drive log's own checks, traced back to the streams ------------------------

@@ -123,3 +123,56 @@ def test_counts_with_a_little_white_noise_on_top_give_the_resolution():
     rotations += np.random.default_rng(5).normal(0.0, 0.05 / 96, rotations.shape)
     rotations[0] += 0.5 / 96
     assert ticks_per_revolution(rotations) == 96
+
+
+# --- issue 43: counts that stay the same through long cruises -------------------------------
+
+
+def _cruising(
+    rate: float, ticks: int, count: int, seconds: float = 1200.0, share: float = 0.7
+) -> np.ndarray:
+    """Angles [rev] (N+1, 2) of a city drive whose cruises (``share`` of the time) turn the
+    wheels ``count`` + 0.003 ticks per interval: the counters (each at its own phase) read
+    ``count`` over and over."""
+    t = np.arange(int(seconds * rate)) / rate
+    per = _speed(t, 0.0, 20.0) / 2.0 / rate  # rev per interval of a 2 m wheel
+    cruise = np.sin(2 * np.pi * t / 400.0) > np.cos(np.pi * share)
+    per[cruise] = (count + 0.003) / ticks
+    angle = np.concatenate([[0.0], np.cumsum(per)])
+    return np.column_stack([angle, angle])
+
+
+@pytest.mark.parametrize("rate", RATES)
+@pytest.mark.parametrize(("ticks", "count"), [(16, 3), (96, 17), (96, 18), (500, 71), (4096, 573)])
+def test_counts_that_stay_the_same_through_cruises_give_the_resolution(rate, ticks, count):
+    """17 ticks per interval over and over: second differences 0, yet every rotation sits on
+    the 1/96 grid (issue 43: found none, c_d 7.6σ off). An even cruise count (18 = 2 × 9) is
+    on the grids of 48 and 32 too; the rest of the drive tells them apart."""
+    rotations = _counted(_cruising(rate, ticks, count), ticks)
+    same = np.mean(np.diff(np.round(rotations[:, 0] * ticks)) == 0)
+    assert same > 0.7  # the counts mostly repeat
+    assert ticks_per_revolution(rotations) == ticks
+    rotations[0] += 0.37 / ticks  # a first reading from another epoch
+    assert ticks_per_revolution(rotations) == ticks
+
+
+def test_a_counter_that_reads_one_or_two_ticks_per_interval_gives_its_resolution():
+    """A 16-tick wheel at 100 Hz, 0–20 m/s on a 2 m wheel: counts of 0, 1 or 2 (a spread of
+    a fraction of a tick), 98 % of them 1."""
+    rotations = _car(100.0, 600.0, 16)
+    assert ticks_per_revolution(rotations) == 16
+
+
+@pytest.mark.parametrize("rate", RATES)
+def test_a_continuous_signal_that_cruises_has_no_resolution(rate):
+    """The same cruises, continuous: exactly at a count per interval (no noise) and with the
+    paper's wheel noise (5e-4 rev); and a narrow range of speeds (a robot)."""
+    angles = _cruising(rate, 96, 17, share=0.9)
+    exact = np.diff(angles, axis=0)
+    assert ticks_per_revolution(exact) is None
+    noisy = exact + np.random.default_rng(6).normal(0.0, 5e-4, exact.shape)
+    assert ticks_per_revolution(noisy) is None
+    narrow = np.diff(_angles(600.0, rate, 0.9, 1.1, 0.26), axis=0)
+    assert ticks_per_revolution(narrow) is None
+    narrow += np.random.default_rng(7).normal(0.0, 5e-4, narrow.shape)
+    assert ticks_per_revolution(narrow) is None

@@ -6,9 +6,11 @@ of ticks, ``n = m / T`` (plus, at most, a little noise of its own). Its rounding
 signal, and it is not white per interval: the joint solve models it
 (``[joint] tick_quantization``, :func:`graphcal.factors.chunk_correction_prior`). Logs rarely
 say their encoder's resolution, so :func:`ticks_per_revolution` finds it: the smallest ``T``
-for which the rotations in ticks, ``n T``, lie close to whole numbers — the mean resultant
-length ``|mean(exp(2πi n T))|``, 1 for exact counts and about ``1/√N`` for a continuous
-signal — if they do so at every speed, whatever a few samples off the tick grid say.
+for which the rotations in ticks, ``n T``, lie close to whole numbers — the resultant along
+whole counts ``mean(cos(2π n T))``, 1 for exact counts and about ``1/√N`` for a continuous
+signal — if they sit on its grid closer than a continuous signal's would by chance, whatever
+a few samples off the grid say, and whether the counts dither or stay the same through a
+cruise.
 """
 
 from __future__ import annotations
@@ -21,16 +23,12 @@ import numpy as np
 TICK_RANGE = (4, 4096)
 #: Rotations the search looks at (evenly spaced through the log).
 SAMPLES = 2000
-#: Only resolutions that spread the rotations over at least this many ticks (standard
-#: deviation of the rotations inside their 1st–99th percentiles, so that one huge interval
-#: does not count) are tried: a continuous signal in a narrower range has a high resultant too.
-MIN_SPREAD_TICKS = 2.0
-#: Share of intervals whose count differs from the previous one's, at least, for a counter
-#: (measured 0.36–0.52 on counted drives, 0.008–0.02 on continuous ones).
-MIN_COUNT_CHANGES = 0.15
-#: Robust σ [ticks] of the second differences of the counts, at least, for a counter (about
-#: 1.3 for rounded counts; a continuous signal's, at the found resolution, is far smaller).
-MIN_DITHER_TICKS = 0.5
+#: Chance, at most, that the rotations of a continuous signal sit as close to the grid of the
+#: resolution found as they do, over every resolution tried (step 4).
+MAX_CHANCE = 1e-3
+#: Closeness to the grid [ticks] below which a recorded rotation's own precision (its float
+#: or CSV digits) makes chance no smaller.
+GRID_PRECISION_TICKS = 1e-4
 #: The best resolution must put the counts this close to whole numbers (mean resultant
 #: length; ``exp(−2π² (σ T)²)`` for white noise σ on top of the counts: 0.5 at σ = 0.19 tick).
 MIN_RESULTANT = 0.5
@@ -51,9 +49,11 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
     """The encoder resolution [ticks/rev] of rotations ``(N, ...)`` [rev per interval], or
     ``None`` if they are not counts of one tick size.
 
-    1. The resultant ``R(T) = |mean(exp(2πi n T))|`` of every candidate ``T`` on
-       :data:`SAMPLES` positive rotations; the best ``T``. ``R`` is a mean of unit vectors,
-       so one sample moves it by at most ``2/N`` whatever its size: a reset or wrap (one huge
+    1. The resultant ``R(T) = mean(cos(2π n T))`` of every candidate ``T`` on
+       :data:`SAMPLES` positive rotations; the best ``T``, every ``T`` of :data:`TICK_RANGE`
+       tried (a continuous signal in a narrow range may fit a small ``T``; step 4 refuses
+       it, its values fill the tick). ``R`` is a mean of cosines, so one sample moves it by
+       at most ``2/N`` whatever its size: a reset or wrap (one huge
        or negative interval; negative ones are left out anyway) or a glitch cannot move it
        far, but it can decide between candidates that fit the counts equally well.
     2. Robust refinement: the samples more than :data:`OFF_GRID_TICKS` from the best ``T``'s
@@ -72,12 +72,14 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
        its grid, ``R(kT) − R(T)`` is at most :data:`MULTIPLE_Z` standard errors of the
        per-sample differences (of ``cos`` of the residual phases) above zero, where white
        noise would put it below.
-       Divisors are tried even where they spread the rotations over fewer than
-       :data:`MIN_SPREAD_TICKS` (a 64-tick car at 100 Hz, 0–20 m/s, 1.4 ticks): that bound
-       keeps a continuous signal's narrow range from fitting a small ``T``, but a divisor is
-       only tried for a best ``kT`` that fits, and only taken if it fits the same samples.
-    4. The counts change between intervals and dither as rounded counts do
-       (:data:`MIN_DITHER_TICKS`).
+    4. The rotations sit on the grid beyond chance (:func:`_on_grid_beyond_chance`): at
+       most :data:`MAX_OFF_GRID` of them farther from it than a tolerance ``ε`` [ticks], and
+       so many of their distinct values within ``ε`` of it that a continuous signal's would
+       be there by chance at most :data:`MAX_CHANCE`, over every resolution tried. Counts
+       that stay the same through a cruise are evidence too (17 ticks over and over sit on
+       the grid to 10⁻¹² tick); a continuous signal's values fill the tick, and one that
+       dwells at a simple fraction of a revolution per interval is one value on the grid
+       among the many its other speeds take.
     """
     n = np.asarray(rotations, float).reshape(-1)
     n = n[np.isfinite(n) & (n > 0)]
@@ -85,39 +87,52 @@ def ticks_per_revolution(rotations: np.ndarray) -> int | None:
         return None
     n = n[np.linspace(0, len(n) - 1, min(SAMPLES, len(n))).astype(int)]
     candidates = np.arange(TICK_RANGE[0], TICK_RANGE[1] + 1)
-    spread = np.std(np.clip(n, *np.percentile(n, [1.0, 99.0])))
-    candidates = candidates[candidates * spread >= MIN_SPREAD_TICKS]
-    if not len(candidates):
-        return None
     resultant = _resultants(n, candidates)
     best = int(candidates[np.argmax(resultant)])
     best = _refined(n, best, candidates)
     if resultant[best - candidates[0]] < MIN_RESULTANT:
         return None
     ticks = _smallest_fitting(n, best)
-    # A counter's rotation jumps between neighbouring counts from one interval to the next
-    # even at a steady speed; a continuous signal that dwells at one speed (a cruise) can
-    # look like whole counts there, but its rounded count hardly ever changes.
-    first = np.asarray(rotations, float)[..., 0].reshape(-1)
-    counts = np.round(first * ticks)
-    if np.mean(np.diff(counts) != 0) < MIN_COUNT_CHANGES:
-        return None
-    # Rounding a cumulative count makes each interval's count dither: its second difference
-    # is e_k+3 − 3 e_k+2 + 3 e_k+1 − e_k in ticks (e uniform in ±½: σ = 1.29 ticks). A
-    # continuous signal that only looks counted — a cruise at a speed near a simple fraction
-    # of a revolution per interval — is smooth from one interval to the next.
-    second = np.diff(first[np.isfinite(first)], 2) * ticks
-    if len(second) and 1.4826 * np.median(np.abs(second - np.median(second))) < MIN_DITHER_TICKS:
+    if not _on_grid_beyond_chance(np.asarray(rotations, float), ticks, len(candidates)):
         return None
     return ticks
 
 
+def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> bool:
+    """Whether the positive rotations [rev] sit on the grid of ``ticks`` per revolution
+    closer than a continuous signal's would by chance, ``tried`` resolutions searched (step 4
+    of :func:`ticks_per_revolution`).
+
+    The tolerance ``ε`` [ticks] is the distance to the grid that all but
+    :data:`MAX_OFF_GRID` of the rotations keep (at least :data:`GRID_PRECISION_TICKS`).
+    Chance is judged on the distinct values at a resolution of ``ε/2``, not on samples: a
+    continuous signal that dwells at one speed gives one value however long it dwells, and
+    each of its values lands within ``ε`` of the grid with probability ``p = 2.5 ε`` (the
+    share of such values in a tick). ``k`` of ``K`` values on the grid have chance at most
+    ``exp(−K D(k/K ‖ p))`` (Chernoff; ``p^K`` when all are), times ``tried``."""
+    n = rotations.reshape(-1)
+    ticked = n[np.isfinite(n) & (n > 0)] * ticks
+    if not len(ticked):
+        return False
+    off = np.abs(ticked - np.round(ticked))
+    tolerance = max(float(np.quantile(off, 1.0 - MAX_OFF_GRID)), GRID_PRECISION_TICKS)
+    values = np.unique(np.round(ticked / (0.5 * tolerance))) * (0.5 * tolerance)
+    share = float(np.mean(np.abs(values - np.round(values)) <= tolerance))
+    chance = 2.5 * tolerance
+    if share <= chance or chance >= 1.0:
+        return False
+    divergence = share * math.log(share / chance)
+    if share < 1.0:
+        divergence += (1.0 - share) * math.log((1.0 - share) / (1.0 - chance))
+    return -len(values) * divergence + math.log(tried) <= math.log(MAX_CHANCE)
+
+
 def _residuals(n: np.ndarray, ticks: int) -> tuple[np.ndarray, np.ndarray]:
-    """Unit phasors ``exp(2πi n T)`` and the residuals [ticks, −½…½] from their mean phase."""
+    """Unit phasors ``exp(2πi n T)`` and the residuals [ticks, −½…½] from whole counts (a
+    counter's rotations are differences of whole readings: its grid has no offset, so values
+    of one fraction of a tick, e.g. a divisor's, are off it)."""
     phasors = np.exp(2j * np.pi * n * ticks)
-    mean = phasors.mean()
-    centred = phasors * (np.conj(mean) / abs(mean) if abs(mean) > 0 else 1.0)
-    return phasors, np.angle(centred) / (2 * np.pi)
+    return phasors, np.angle(phasors) / (2 * np.pi)
 
 
 def _refined(n: np.ndarray, best: int, candidates: np.ndarray, reach: int = 2) -> int:
@@ -142,8 +157,7 @@ def _smallest_fitting(n: np.ndarray, best: int) -> int:
         z = phasors[on_grid]
         zk = z ** (best // int(ticks))
         # Per-sample cos of the residual phase, whose mean is each one's resultant.
-        fit = np.real(z * np.conj(z.mean())) / max(abs(z.mean()), 1e-300)
-        fit_k = np.real(zk * np.conj(zk.mean())) / max(abs(zk.mean()), 1e-300)
+        fit, fit_k = np.real(z), np.real(zk)
         gain = fit_k - fit
         if gain.mean() <= MULTIPLE_Z * gain.std() / math.sqrt(len(gain)) + 1e-9:
             return int(ticks)
@@ -151,7 +165,9 @@ def _smallest_fitting(n: np.ndarray, best: int) -> int:
 
 
 def _resultants(n: np.ndarray, candidates: np.ndarray, block: int = 256) -> np.ndarray:
-    """``|mean(exp(2πi n T))|`` for every ``T`` of ``candidates`` (consecutive integers).
+    """``mean(cos(2π n T))``, the resultant along whole counts, for every ``T`` of
+    ``candidates`` (consecutive integers); values bunched at one fraction of a tick (a narrow
+    range of a continuous signal, or a divisor's grid) do not fit.
 
     Per block of candidates, the first row is ``exp(2πi n T₀)`` and each next one the row
     before times ``exp(2πi n)`` (a running product instead of a sine and cosine per
@@ -165,7 +181,7 @@ def _resultants(n: np.ndarray, candidates: np.ndarray, block: int = 256) -> np.n
         rows[0] = np.exp(2j * np.pi * n * candidates[start])
         rows[1:] = step
         np.cumprod(rows, axis=0, out=rows)
-        out[start : start + size] = np.abs(rows.mean(axis=1))
+        out[start : start + size] = np.real(rows.mean(axis=1))
     return out
 
 

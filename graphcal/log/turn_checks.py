@@ -72,15 +72,16 @@ def check_turn_directions(log: DriveLog, nominal: np.ndarray) -> None:
 
 def check_lateral_acceleration_units(log: DriveLog, nominal: np.ndarray) -> None:
     """One line if ``ay`` is apparently in g: about 1/9.81 of speed × yaw rate of the track
-    in its clear turns (2 s windows over 5 wheel revolutions of the nominal c_e). A log
+    in its clear turns (:func:`~graphcal.log.turns.track_turns`). A log
     without a lateral acceleration (``ay`` all 0) or hardly turning is not judged."""
     columns, excluded = _columns(log)
-    turns = track_turns(columns, excluded, nominal)
+    fixed = None if log.measured is None else log.measured[:, 0]
+    turns = track_turns(columns, excluded, nominal, fixed)
     found = lateral_acceleration_scale(log.ay, turns, log.dt)
     if found is None or not looks_like_g(found[0]):
         return
     ratio, k, logged, expected = found
-    start, end = log.t[turns.ends[k]], log.t[min(turns.ends[k] + turns.window, len(log) - 1)]
+    start, end = log.t[turns.ends[k]], log.t[turns.ends[k + 1]]
     raise fail(
         log.source,
         "ay",

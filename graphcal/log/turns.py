@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.log.track import COURSE_MIN_REVS, course
+from graphcal.log.track import COURSE_HALF_REVS, COURSE_MIN_REVS, course
 from graphcal.model import THETA_NOMINAL
 
 #: Window [s] over which the pose's and the wheels' turning are compared.
@@ -108,17 +108,40 @@ G_RATIO_TOLERANCE = 0.3
 #: Shortest chord of a window whose turn counts (the course of a slower one is noise), in
 #: wheel revolutions (nominal c_e: 10 m for the paper's car).
 TURN_MIN_CHORD_REVS = 5.0
+#: Half the chord [multiples of the fixes' own noise σ per axis] over which the track's
+#: course is taken for its turns, at least :data:`~graphcal.log.track.COURSE_HALF_REVS`
+#: wheel revolutions: a course error of √2σ / (2 · 25σ) = 0.03 rad at each end, whatever the
+#: fixes' rate (20 Hz fixes of 1 m noise 1 s apart turn by ±0.15 rad on their own).
+TRACK_HALF_CHORD_SIGMAS = 25.0
+#: A window's turn counts as a turn of the track only beyond this many of the standard
+#: errors its course's noise gives it (σ / half chord, or the robust scatter of the track's
+#: turns where the wheels turn less than :data:`STRAIGHT_WHEEL_YAW` [rad], if larger), and
+#: beyond :data:`TURN_MIN_YAW`; and the wheels (nominal θ) must turn the same way, by at
+#: least :data:`TURN_MIN_YAW` / :data:`WHEEL_TURN_SLACK`.
+TRACK_TURN_SIGMAS = 5.0
+STRAIGHT_WHEEL_YAW = 0.05
+WHEEL_TURN_SLACK = 4.0
 
 
 @dataclass(frozen=True)
 class TrackTurns:
-    """The GNSS track's clear turns in consecutive windows of the grid."""
+    """The GNSS track's clear turns in consecutive windows of the grid, each as long in
+    travel as the chord over which the course is taken (so that the courses at a window's
+    two ends share no fix)."""
 
-    window: int
     ends: np.ndarray  # first grid row of each window, and the last window's end
     track: np.ndarray  # the track's turn [rad] in each window (NaN where masked)
     chords: np.ndarray  # [m]
     turning: np.ndarray  # windows that turn clearly while moving
+    usable: np.ndarray  # grid rows not masked
+    wheels: np.ndarray  # the wheels' turn [rad] in each window (nominal θ)
+    wheel_ay: np.ndarray  # mean of the wheels' speed × yaw rate [m/s²] in each window
+
+    def turns_of(self, yaw: np.ndarray) -> np.ndarray:
+        """The turn [rad] of another signal's ``yaw`` in each window (its values at the
+        window's ends: a heading's noise is small beside a clear turn, an integrated yaw
+        rate has none), NaN where masked."""
+        return _window_turns(yaw, self.usable, self.ends)
 
     def scale(self, turns: np.ndarray) -> tuple[float, int] | None:
         """Median of |turns| / |the track's turns| over the clear turns, and the window of
@@ -130,21 +153,81 @@ class TrackTurns:
         return float(np.median(ratio)), sharpest
 
 
+def _window_turns(yaw: np.ndarray, usable: np.ndarray, ends: np.ndarray) -> np.ndarray:
+    """Signed change of ``yaw`` over the windows between ``ends``; NaN where one holds
+    masked samples."""
+    turns = np.diff(yaw[ends])
+    clean = np.add.reduceat((~usable).astype(int), ends[:-1]) == 0
+    return np.where(clean, turns, np.nan)
+
+
+def fix_noise(columns: dict[str, np.ndarray], fixed: np.ndarray | None = None) -> float:
+    """Robust σ [m] per axis of the fixes (rows ``fixed``; ``None``: every row) from their
+    second differences (``6σ²`` each for white noise; the motion's share is small between
+    fixes close together, and where they are far apart it only makes the estimate safe)."""
+    rows = np.arange(len(columns["px"])) if fixed is None else np.flatnonzero(fixed)
+    second = np.concatenate([np.diff(columns[k][rows], 2) for k in ("px", "py")])
+    second = second[np.isfinite(second)]
+    if not len(second):
+        return 0.0
+    return float(1.4826 * np.median(np.abs(second)) / np.sqrt(6.0))
+
+
 def track_turns(
-    columns: dict[str, np.ndarray], masked: np.ndarray, nominal=THETA_NOMINAL
+    columns: dict[str, np.ndarray],
+    masked: np.ndarray,
+    nominal=THETA_NOMINAL,
+    fixed: np.ndarray | None = None,
 ) -> TrackTurns:
     """The clear turns of the track of the grid's drive-log ``columns`` (``t`` [s], ``px``,
-    ``py`` [m]) in windows of :data:`TURN_WINDOW_S`, leaving out windows with ``masked``
-    samples; a chord must span :data:`TURN_MIN_CHORD_REVS` of the nominal c_e."""
+    ``py`` [m], ``n_rl``, ``n_rr`` [rev]; ``fixed``: the rows that hold a fix, ``None``:
+    all), leaving out windows with ``masked`` samples.
+
+    The course is the direction of a chord along the wheels' travel (nominal c_e) of
+    :data:`TRACK_HALF_CHORD_SIGMAS` times the fixes' noise (:func:`fix_noise`) on each side,
+    so that noise cannot turn it; the windows are as long in travel as a chord, and one is a
+    turn where the course turns by :data:`TRACK_TURN_SIGMAS` of its own noise and at least
+    :data:`TURN_MIN_YAW`, over a chord of :data:`TURN_MIN_CHORD_REVS` of the nominal c_e."""
     c = columns
     dt = float(c["t"][1] - c["t"][0])
-    window = max(1, round(TURN_WINDOW_S / dt))
-    ends = np.arange(0, len(c["t"]), window)
-    track = turn_directions(grid_course(c, dt, nominal), ~masked, window)
+    travelled = np.concatenate(
+        [[0.0], np.cumsum(np.abs(0.5 * (c["n_rl"] + c["n_rr"]))[:-1] * nominal[0])]
+    )
+    sigma = fix_noise(c, fixed)
+    half = max(COURSE_HALF_REVS * float(nominal[0]), TRACK_HALF_CHORD_SIGMAS * sigma)
+    n = len(travelled)
+    heading = course(
+        c["px"], c["py"], dt, travelled, min_distance=COURSE_MIN_REVS * float(nominal[0]),
+        half_distance=half,
+    )  # fmt: skip
+    ends = np.unique(np.searchsorted(travelled, np.arange(0.0, travelled[-1], 2.0 * half)))
+    ends = np.append(ends, n - 1) if ends[-1] < n - 1 else ends
+    usable = ~masked
+    track = _window_turns(heading, usable, ends)
     chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
     least = TURN_MIN_CHORD_REVS * nominal[0]
-    turning = np.isfinite(track) & (np.abs(track) > TURN_MIN_YAW) & (chords > least)
-    return TrackTurns(window, ends, track, chords, turning)
+    wheel_yaw = np.concatenate(
+        [[0.0], np.cumsum((c["n_rr"] - c["n_rl"])[:-1] * nominal[0] / nominal[2])]
+    )
+    wheels = _window_turns(wheel_yaw, usable, ends)
+    clear = max(TURN_MIN_YAW, TRACK_TURN_SIGMAS * sigma / half)
+    # Where the wheels roll straight on, the course's turns are its own noise, correlated
+    # noise included (which the fixes' second differences do not show).
+    straight = np.isfinite(track) & (np.abs(wheels) < STRAIGHT_WHEEL_YAW) & (chords > least)
+    if straight.sum() >= TURN_MIN_COUNT:
+        scatter = np.abs(track[straight] - np.median(track[straight]))
+        clear = max(clear, TRACK_TURN_SIGMAS * 1.4826 * float(np.median(scatter)))
+    # A turn of the track is one of the wheels too (same way, at a nominal t_r within a
+    # factor WHEEL_TURN_SLACK of the vehicle's).
+    with np.errstate(invalid="ignore"):
+        agree = (np.sign(wheels) == np.sign(track)) & (
+            np.abs(wheels) > TURN_MIN_YAW / WHEEL_TURN_SLACK
+        )
+        turning = np.isfinite(track) & (np.abs(track) > clear) & (chords > least) & agree
+    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
+    rate = (c["n_rr"] - c["n_rl"]) * nominal[0] / nominal[2] / dt
+    wheel_ay = np.add.reduceat(speed * rate, ends[:-1]) / np.diff(np.append(ends[:-1], n))
+    return TrackTurns(ends, track, chords, turning, usable, wheels, wheel_ay)
 
 
 def lateral_acceleration_scale(
@@ -153,11 +236,17 @@ def lateral_acceleration_scale(
     """How many times speed × yaw rate of the track a lateral acceleration ``ay`` [m/s² as
     logged, one per grid sample of ``dt`` s] is in the track's clear ``turns``: the median
     ratio of their magnitudes, the window of the sharpest turn and, there, the mean ``ay``
-    and the track's speed × yaw rate [m/s²]; ``None`` if there are too few turns."""
-    sums = np.add.reduceat(ay, turns.ends)[: len(turns.track)]
-    counts = np.diff(np.append(turns.ends, len(ay)))[: len(turns.track)]
-    seconds = turns.window * dt
-    expected = turns.chords / seconds * np.nan_to_num(turns.track) / seconds
+    and the track's speed × yaw rate [m/s²]; ``None`` if there are too few turns.
+
+    The track's speed × yaw rate in a window is the wheels' (nominal θ: speed at each
+    sample times yaw rate, averaged) scaled by the track's turn over the wheels': a window
+    as long as a chord many times the fixes' noise holds stops, spins and bends, whose
+    speeds and turns the window's totals alone would mix up."""
+    sums = np.add.reduceat(ay, turns.ends[:-1])
+    counts = np.diff(np.append(turns.ends[:-1], len(ay)))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        expected = turns.wheel_ay * np.nan_to_num(turns.track) / turns.wheels
+    expected = np.where(np.isfinite(expected), expected, 0.0)
     found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
     if found is None:
         return None

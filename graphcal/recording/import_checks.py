@@ -21,6 +21,7 @@ from graphcal.recording.imu.mounting import mounted_fix
 from graphcal.recording.resampling import Resampled
 from graphcal.recording.stream_grid import interval_means
 from graphcal.recording.streams import Provenance, Recording, StreamError, provenance_of
+from graphcal.recording.track_distance import wheel_track_ratio
 from graphcal.recording.vocabulary import SPEED_UNITS
 
 
@@ -37,7 +38,7 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     c = resampled.columns
     dt = float(c["t"][1] - c["t"][0])
     usable = ~resampled.masked
-    _check_wheel_scale(c, usable, dt, recording, nominal)
+    _check_wheel_scale(c, usable, resampled, recording, nominal)
     check_units(resampled, recording, nominal)
     check_turning(resampled, recording, nominal)
     warnings = []
@@ -71,20 +72,12 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     return warnings
 
 
-#: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's, and the
-#: distance the comparison needs, in wheel revolutions (nominal c_e: 50 m for the paper's
-#: car, 6.7 m for a robot's 0.27 m wheels), in windows of :data:`TURN_WINDOW_S` that each
-#: travel :data:`SCALE_WINDOW_REVS` (5 m for the car) on the wheels and the track (as the
-#: drive log's own check of positions against the wheels, which would otherwise speak of
-#: drive-log columns).
+#: Accepted range of the wheels' distance (nominal c_e) over the GNSS track's (as the drive
+#: log's own check of positions against the wheels, which would otherwise speak of drive-log
+#: columns), and the standard errors of the comparison by which a ratio must lie outside it
+#: to be refused (a short, noisy recording tells little).
 WHEEL_SCALE_RANGE = (0.8, 1.25)
-MIN_SCALE_REVS = 25.0
-SCALE_WINDOW_REVS = 2.5
-#: Where too few windows are long enough (a vehicle far smaller than the nominal one), the
-#: whole log's wheel distance over its track [m, at least this long] must lie in this range:
-#: wide, since stops and turns on the spot are in it too.
-COARSE_SCALE_RANGE = (0.5, 2.0)
-COARSE_SCALE_MIN_TRACK = 10.0
+WHEEL_SCALE_SIGMAS = 3.0
 #: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°).
 HEADING_OFFSET_WARNING = np.radians(3.0)
 HEADING_OFFSET_ERROR = np.radians(15.0)
@@ -96,22 +89,21 @@ MIN_OVERLAP_OF_LONGEST = 0.5
 HEADING_CHECK_REVS_PER_S = 1.5
 
 
-def _check_wheel_scale(c: dict, usable: np.ndarray, dt: float, recording, nominal) -> None:
-    window = max(1, round(TURN_WINDOW_S / dt))
-    wheel = np.concatenate([[0.0], np.cumsum(0.5 * (c["n_rl"] + c["n_rr"])[:-1] * nominal[0])])
-    ends = np.arange(0, len(wheel), window)
-    rolled = np.abs(np.diff(wheel[ends]))  # net: a robot reversing rolls as far backwards
-    chords = np.hypot(np.diff(c["px"][ends]), np.diff(c["py"][ends]))
-    clean = np.add.reduceat((~usable).astype(int), ends)[: len(rolled)] == 0
-    least = SCALE_WINDOW_REVS * nominal[0]
-    moving = clean & (rolled > least) & (chords > least)
-    low, high = WHEEL_SCALE_RANGE
-    if chords[moving].sum() < MIN_SCALE_REVS * nominal[0]:
-        if chords[clean].sum() < COARSE_SCALE_MIN_TRACK:
-            return
-        moving, (low, high) = clean, COARSE_SCALE_RANGE
-    ratio = rolled[moving].sum() / chords[moving].sum()
-    if not low <= ratio <= high:
+def _check_wheel_scale(
+    c: dict, usable: np.ndarray, resampled: Resampled, recording, nominal
+) -> None:
+    """One line if the wheels (nominal c_e) travel far more or less than the GNSS track, by
+    more than :data:`WHEEL_SCALE_SIGMAS` of the comparison's own uncertainty: straight
+    windows' chords against their wheel distance, the fixes' noise fitted out
+    (:func:`~graphcal.recording.track_distance.wheel_track_ratio`)."""
+    fixed = np.ones(len(c["t"]), bool) if resampled.measured is None else resampled.measured[:, 0]
+    found = wheel_track_ratio(c, fixed, usable, nominal)
+    if found is None:
+        return
+    ratio, sigma = found
+    low, high = np.log(WHEEL_SCALE_RANGE)
+    beyond = max(low - np.log(ratio), np.log(ratio) - high)
+    if beyond > WHEEL_SCALE_SIGMAS * sigma:
         wheels = provenance_of(recording.wheels)
         raise StreamError(
             f"{wheels.at(('rear_left', 'rear_right'))}: the wheels travel {ratio:.3g}x the "

@@ -11,7 +11,6 @@ from graphcal.log.turns import (
     lateral_acceleration_scale,
     looks_like_g,
     track_turns,
-    turn_directions,
 )
 from graphcal.model import THETA_NOMINAL
 from graphcal.recording.column_origins import sample_before
@@ -62,7 +61,8 @@ _ANGLE_UNIT_KEYS = {
 def _check_angle_scale(angle, quantity: str, stream, times, turns, usable, grid) -> None:
     """One line if ``angle`` [rad as declared: the heading, or the yaw rate's integral] turns
     far more or less than the GNSS track in its clear turns (a unit mistake)."""
-    found = turns.scale(turn_directions(angle, usable, turns.window))
+    turned = turns.turns_of(angle)
+    found = turns.scale(turned)
     if found is None or 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
         return
     ratio, k = found
@@ -75,7 +75,7 @@ def _check_angle_scale(angle, quantity: str, stream, times, turns, usable, grid)
     raise StreamError(
         f"{where.at((quantity,))}: the {quantity.replace('_', ' ')} turns {ratio:.3g}x as much "
         f"as the GNSS track in its turns (e.g. {_span(where, times, grid, turns, k)}: "
-        f"{_turn_of(angle, turns, k):.3g} rad as declared where the track turns "
+        f"{turned[k]:.3g} rad as declared where the track turns "
         f"{turns.track[k]:.3g} rad); {advice}"
     )
 
@@ -87,13 +87,14 @@ def check_units(
     unit than the manifest declares, in the stream's own terms (its file, column, manifest
     key and lines, and the key to change).
 
-    Each is compared with the GNSS track in its clear turns (2 s windows turning more than
-    0.1 rad over more than 5 wheel revolutions, 10 m for the paper's car; ``nominal``: the
-    vehicle's theta): the heading's turn and the yaw rate's integral with the
-    track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
+    Each is compared with the GNSS track in its clear turns
+    (:func:`~graphcal.log.turns.track_turns`: a course over chords long beside the fixes'
+    noise; ``nominal``: the vehicle's theta): the heading's turn and the yaw rate's integral
+    with the track's turn (degrees declared radians turn 57x as much), the lateral acceleration with
     speed × the track's yaw rate (an acceleration in g is 1/9.81 of it).
     """
-    turns = track_turns(resampled.columns, resampled.masked, nominal)
+    fixed = None if resampled.measured is None else resampled.measured[:, 0]
+    turns = track_turns(resampled.columns, resampled.masked, nominal, fixed)
     if turns.turning.sum() < TURN_MIN_COUNT:
         return
     c = resampled.columns
@@ -128,7 +129,3 @@ def check_units(
                 f"{_span(where, imu.t, grid, turns, k)}: {logged:.3g} m/s² where "
                 f"the track's is {expected:.3g} m/s²); {advice}"
             )
-
-
-def _turn_of(yaw: np.ndarray, turns: TrackTurns, k: int) -> float:
-    return float(yaw[turns.ends[k + 1]] - yaw[turns.ends[k]])

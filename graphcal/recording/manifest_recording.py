@@ -23,6 +23,7 @@ from graphcal.recording.imu.mounting import mounted_columns, mounted_imu
 from graphcal.recording.manifest.columns import read_columns
 from graphcal.recording.manifest.csv_streams import read_imu, read_pose, read_wheels
 from graphcal.recording.manifest.manifest import Manifest, load_manifest
+from graphcal.recording.manifest.time_spans import check_time_spans
 from graphcal.recording.nmea.read import read_nmea_pose
 from graphcal.recording.streams import ImuStream, PoseStream, Recording, WheelStream
 
@@ -44,7 +45,21 @@ def read_manifest(path: str | os.PathLike[str] | Manifest) -> Recording:
     can = read_can_sections(manifest.wheels, manifest.imu, notes) if _can(manifest) else {}
     wheels = can["wheels"] if "wheels" in can else read_wheels(manifest.wheels, notes)
     imu = None if manifest.imu is None else _imu(manifest, can, notes, (pose, wheels))
+    sections = (manifest.pose, manifest.wheels, manifest.imu)
+    streams = (pose, wheels, imu)
+    check_time_spans(
+        [
+            (section, stream.source, stream.t)
+            for section, stream in zip(sections, streams, strict=True)
+            if stream is not None and _csv_times(section, can)
+        ]
+    )
     return Recording(pose=pose, wheels=wheels, imu=imu, source=manifest.source, notes=tuple(notes))
+
+
+def _csv_times(section, can: dict) -> bool:
+    """Whether ``section``'s times came from a CSV column in a declared ``time_unit``."""
+    return section.get("time") is not None and "nmea" not in section and section.name not in can
 
 
 def _can(manifest: Manifest) -> bool:

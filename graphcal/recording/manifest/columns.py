@@ -10,9 +10,12 @@ from graphcal.recording.section import Section
 from graphcal.recording.streams import Field, Provenance, StreamError, check_time, unique_samples
 from graphcal.recording.vocabulary import TIME_UNITS
 
-#: The sample rates [Hz] of a plausible sensor stream (a 1 Hz GNSS to a 2 kHz IMU): a median
+#: The sample rates [Hz] of a plausible sensor stream (a 0.2 Hz GNSS to a 5 kHz IMU; bounds
+#: away from the common 1 Hz and 1 kHz, whose jittered intervals straddle them): a median
 #: sample interval that is not in the time unit declared but is in another is that unit's.
-PLAUSIBLE_STREAM_RATE_HZ = (1.0, 2000.0)
+#: Inside the range the interval cannot tell a 1 Hz stream in s from a 1 kHz one in ms; the
+#: streams' spans do (:mod:`graphcal.recording.manifest.time_spans`).
+PLAUSIBLE_STREAM_RATE_HZ = (0.2, 5000.0)
 
 
 def _interval_text(seconds: float) -> str:
