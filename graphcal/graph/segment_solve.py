@@ -99,7 +99,11 @@ def solve_segment_graph(
         if spec.estimate_theta:
             theta = np.asarray(partitioned.shared_values.atVector(keys.THETA))
             check_plausible(
-                theta, label, spec.theta, lambda: implausibility_causes(built, partitioned.values())
+                theta,
+                label,
+                spec.theta,
+                lambda: implausibility_causes(built, partitioned.values()),
+                spec.theta_prior_sigmas,
             )
             if covariance:
                 marginal, nuisance = partitioned_marginals(partitioned, built.spec, label)
@@ -132,7 +136,13 @@ def _solve_whole_graph(
     marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
-        check_plausible(theta, label, spec.theta, lambda: implausibility_causes(built, result))
+        check_plausible(
+            theta,
+            label,
+            spec.theta,
+            lambda: implausibility_causes(built, result),
+            spec.theta_prior_sigmas,
+        )
         if covariance:
             marginal, nuisance = whole_graph_marginals(built, result, label)
     return SolvedGraph(

@@ -29,7 +29,7 @@ import numpy as np
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph.estimates import ThetaEstimate
-from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
+from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec, shared_keys
 from graphcal.graph.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
@@ -42,7 +42,7 @@ from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.robust import solve_segment_graph_robust
 from graphcal.pipeline.slip_screen import SlipTest, with_slip_if_shown
 from graphcal.pipeline.warm_start import warm_start
-from graphcal.progress import Progress, reports_progress
+from graphcal.progress import Progress, reports_progress, say
 from graphcal.vehicle import HELD_SIGMA_SCALE
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
@@ -313,10 +313,13 @@ def solve_joint(
     settings: JointSettings | None = None,
     workers: int = 1,
     progress: Progress | None = None,
+    start: gtsam.Values | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
-    :mod:`graphcal.pipeline.joint_batches`).
+    :mod:`graphcal.pipeline.joint_batches`). ``start``: a solution of the same segments under
+    other settings (other noise levels, a shifted log) whose graph-wide variables the solve
+    starts from instead of a warm start's.
 
     The steps: the warm start (:mod:`graphcal.pipeline.warm_start`), the solve with robust
     fix weights (:mod:`graphcal.pipeline.robust`), the fixes' noise in its residuals, with
@@ -328,9 +331,13 @@ def solve_joint(
         settings.max_iterations, TOLERANCE, "joint solve", workers, report_iterations=True
     )
     spec = settings.graph_spec()
-    start = warm_start(data, spec, options)
+    if start is None:
+        shared = warm_start(data, spec, options)
+    else:
+        shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
+        say("  start: the previous solve's theta")
     solved, weights, residuals = solve_segment_graph_robust(
-        data, spec, options, settings.robust_threshold, covariance=not auto, shared_start=start
+        data, spec, options, settings.robust_threshold, covariance=not auto, shared_start=shared
     )
     del residuals
     noise = residual_noise(solved, data, weights)

@@ -176,7 +176,9 @@ def _estimate(
     if not (np.all(np.isfinite(theta)) and np.all(np.isfinite(covariance))):
         return None
     try:
-        check_plausible(theta, "joint batch", reference=reference)
+        check_plausible(
+            theta, "joint batch", reference=reference, prior_sigmas=settings.theta_prior_sigmas
+        )
     except CalibrationFailed:
         return None
     return BatchEstimate(theta, covariance, settings.observability(covariance))

@@ -17,7 +17,6 @@ from graphcal.pipeline.vehicle_settings import (
 )
 from graphcal.progress import say
 
-
 #: With fewer selected segments than this, the joint and whole methods use every segment of the
 #: log: so few carry little information, and the segments' agreement test needs this many
 #: groups (:data:`graphcal.pipeline.agreement.GROUPS`). A 373 m robot log kept 1 of 7 53 m

@@ -156,7 +156,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     if joint is not settings.joint or rederive:
         settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
         whole, values, data, offset = solve_with_time_offset(
-            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
+            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers, values
         )
     whole = judged_with_what_is_held(whole, settings.joint, held)
     estimated = _with_total_offset(
@@ -219,6 +219,7 @@ def solve_with_time_offset(
     flagged: np.ndarray | None,
     settings: JointSettings,
     workers: int = 1,
+    start: gtsam.Values | None = None,
 ) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
     the offset found so far, rounded to whole samples, and the solve repeated, so that the
@@ -232,8 +233,9 @@ def solve_with_time_offset(
 
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
     the last solve, its values, the segments it solved and the shift [s] of each run's
-    wheels."""
-    whole, values = _whole_log_solve(data, settings, workers)
+    wheels. Each solve after the first starts from the one before; the first from ``start``
+    (a solve of the same segments under other noise levels), if given."""
+    whole, values = _whole_log_solve(data, settings, workers, start)
     shift = np.zeros(log.runs)
     for _ in range(OFFSET_ROUNDS - 1):
         found = detected_offsets(
@@ -246,7 +248,7 @@ def solve_with_time_offset(
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
         say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole, values = _whole_log_solve(data, settings, workers)
+        whole, values = _whole_log_solve(data, settings, workers, values)
     return whole, values, data, shift
 
 
@@ -256,12 +258,13 @@ def _per_run(runs: int) -> str:
 
 
 def _whole_log_solve(
-    data: SegmentData, settings: JointSettings, workers: int
+    data: SegmentData, settings: JointSettings, workers: int, start: gtsam.Values | None = None
 ) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
-    processes), with the progress lines a user waits for, and the solution's values."""
+    processes; from the graph-wide variables of ``start``, if given), with the progress lines
+    a user waits for, and the solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
-    result, values = solve_joint(data, settings, workers)
+    result, values = solve_joint(data, settings, workers, start=start)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
