@@ -78,9 +78,15 @@ def build_parser() -> argparse.ArgumentParser:
 def entry() -> int:
     """The ``graphcal`` console script: :func:`main`, then Ctrl-C ignored while the
     interpreter exits (the run is over and its results written; an interrupt there ended
-    the process by the signal, exit -2, with a traceback from an exit handler)."""
+    the process by the signal, exit -2, with a traceback from an exit handler). An
+    interrupted run ends at once (``os._exit``) once it has said so: an exit handler that
+    joins a worker pool's threads hung for good under load (issue 44)."""
     status = main()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if status == EXIT_INTERRUPTED:  # said and cleaned up: no exit handler may wait on a worker
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
     return status
 
 

@@ -18,6 +18,9 @@ from graphcal.progress import say, silence
 
 R = TypeVar("R")
 
+#: Seconds a broken pool's workers get to end before their exit codes are read.
+WORKER_EXIT_WAIT = 5.0
+
 
 def default_workers() -> int:
     """One worker per available core."""
@@ -55,25 +58,48 @@ def map_tasks(
             report(len(results))
         return results
     chunk = max(1, total // (workers * 8))
-    with ProcessPoolExecutor(max_workers=workers, initializer=quiet_worker) as pool:
-        try:
-            for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
-                results.append(result)
-                report(len(results))
-        except BrokenProcessPool:
-            if _ended_by_ctrl_c(pool):  # the pool broke first, the parent's SIGINT comes next
-                raise KeyboardInterrupt from None
-            raise
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=quiet_worker)
+    try:
+        for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
+            results.append(result)
+            report(len(results))
+    except BrokenProcessPool:
+        if _ended_by_ctrl_c(pool):  # the pool broke first, the parent's SIGINT comes next
+            _abandon(pool)
+            raise KeyboardInterrupt from None
+        _abandon(pool)
+        raise
+    except BaseException:  # Ctrl-C in the parent: end the workers, do not wait on the pipe
+        _abandon(pool)
+        raise
+    pool.shutdown(wait=True)
     return results
+
+
+def _abandon(pool: ProcessPoolExecutor) -> None:
+    """End ``pool`` without waiting for its work: its workers killed, its queued tasks
+    cancelled, and the thread that feeds them into the pipe not joined at exit. Waiting, as
+    ``with`` does, hung for good on an interrupt under load: the feeder thread blocked
+    writing megabytes of tasks into a pipe no worker read any more, and the interpreter
+    waited for it at exit (issue 44)."""
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.kill()
+    call_queue = getattr(pool, "_call_queue", None)
+    if call_queue is not None:
+        call_queue.cancel_join_thread()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _ended_by_ctrl_c(pool: ProcessPoolExecutor) -> bool:
     """Whether a worker of the broken ``pool`` died of SIGINT (Ctrl-C reached it before the
     parent noticed its own: under load the pool's breakage can come first, and the run
-    must still end as an interrupt, exit 130, not a crash). Waits for the pool to have
-    reaped its workers: their exit codes are known only then."""
+    must still end as an interrupt, exit 130, not a crash). Waits up to a few seconds for
+    the workers to end: their exit codes are known only then."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
-    pool.shutdown(wait=True)
+    deadline = time.monotonic() + WORKER_EXIT_WAIT
+    for process in processes:
+        process.join(timeout=max(0.0, deadline - time.monotonic()))
     return any(process.exitcode == -signal.SIGINT for process in processes)
 
 
