@@ -109,11 +109,11 @@ def table(rows: list[tuple[Shape, Calibrated, list[str]]]) -> str:
     return "\n".join(lines)
 
 
-def run_shape(shape: Shape, directory: Path) -> tuple[Shape, Calibrated, list[str]]:
+def run_shape(shape: Shape, directory: Path, timeout: float) -> tuple[Shape, Calibrated, list[str]]:
     """Record, check the data path, calibrate: the shape, its calibration, what it broke."""
     manifest = write_recording(shape, directory)
     data_path = data_path_broken(shape, manifest)
-    result = calibrate(shape, manifest)
+    result = calibrate(shape, manifest, timeout=timeout)
     broken = list(dict.fromkeys([*data_path, *result.broken]))
     print(
         f"{shape.label()}: exit {result.exit_code} ({result.seconds:.0f} s)"
@@ -135,7 +135,10 @@ def main(argv: list[str] | None = None) -> int:
         "--car-km", type=float, nargs=2, default=(1.0, 3.0), help="car drive lengths [km]"
     )
     parser.add_argument(
-        "--robot-m", type=float, nargs=2, default=(150.0, 400.0), help="robot drives [m]"
+        "--robot-m", type=float, nargs=2, default=(100.0, 250.0), help="robot drives [m]"
+    )
+    parser.add_argument(
+        "--timeout", type=float, default=300.0, help="longest calibration [s] (300; broken after)"
     )
     parser.add_argument("--keep", type=Path, help="write the recordings and results here")
     args = parser.parse_args(argv)
@@ -146,7 +149,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with ThreadPoolExecutor(max_workers=args.jobs) as pool:
             rows = list(
-                pool.map(lambda ix: run_shape(ix[1], base / f"shape{ix[0]:03d}"), enumerate(drawn))
+                pool.map(
+                    lambda ix: run_shape(ix[1], base / f"shape{ix[0]:03d}", args.timeout),
+                    enumerate(drawn),
+                )
             )
     finally:
         if args.keep is None:

@@ -210,7 +210,7 @@ def test_found_shapes_keep_the_data_path_invariants(shape: Shape, tmp_path: Path
 
 @settings(
     derandomize=True,
-    max_examples=25,
+    max_examples=20,
     deadline=None,
     database=None,
     phases=[Phase.explicit, Phase.generate],  # no shrinking: the quick tier's time is bounded

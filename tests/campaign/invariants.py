@@ -163,11 +163,14 @@ class Calibrated:
     seconds: float = 0.0
 
 
-def calibrate(shape: Shape, manifest: Path, extra: tuple[str, ...] = ()) -> Calibrated:
+def calibrate(
+    shape: Shape, manifest: Path, extra: tuple[str, ...] = (), timeout: float | None = None
+) -> Calibrated:
     """Run ``graphcal calibrate`` on the recording (with its ``vehicle.toml``, one worker, no
     batch study, ``extra`` options) and check its invariants: exit 0 or a one-line exit 2
     naming a real cause, never a traceback; every calibrated parameter within 3σ of the
-    truth; a parameter not calibrated says why."""
+    truth; a parameter not calibrated says why. A run longer than ``timeout`` [s] is
+    stopped and counted as broken (its progress so far in ``calibrate.log``)."""
     import time
 
     out_dir = manifest.parent / "result"
@@ -177,20 +180,31 @@ def calibrate(shape: Shape, manifest: Path, extra: tuple[str, ...] = ()) -> Cali
         "--workers", "1", "--batches", "0", *extra,
     ]  # fmt: skip
     started = time.perf_counter()
-    proc = subprocess.run(command, capture_output=True, text=True)
-    out = Calibrated(proc.returncode, seconds=time.perf_counter() - started)
-    (manifest.parent / "calibrate.log").write_text(" ".join(command) + "\n" + proc.stderr)
-    if "Traceback" in proc.stderr:
-        tail = [ln for ln in proc.stderr.splitlines() if ln.strip()][-1]
+    log_path = manifest.parent / "calibrate.log"
+    with log_path.open("w") as log:
+        log.write(" ".join(command) + "\n")
+        log.flush()
+        try:
+            code = subprocess.run(command, stdout=subprocess.DEVNULL, stderr=log, timeout=timeout)
+            code = code.returncode
+        except subprocess.TimeoutExpired:
+            code = None
+    out = Calibrated(-1 if code is None else code, seconds=time.perf_counter() - started)
+    stderr = log_path.read_text()
+    if code is None:
+        out.broken.append(f"no result in {timeout:g} s")
+        return out
+    if "Traceback" in stderr:
+        tail = [ln for ln in stderr.splitlines() if ln.strip()][-1]
         out.broken.append(f"traceback: {tail[:400]}")
         return out
-    errors = [ln for ln in proc.stderr.splitlines() if ln.startswith("graphcal: error")]
+    errors = [ln for ln in stderr.splitlines() if ln.startswith("graphcal: error")]
     out.line = errors[-1] if errors else ""
-    if proc.returncode == 2:
+    if code == 2:
         out.broken += refusal_broken(out.line.removeprefix("graphcal: error: "))
         return out
-    if proc.returncode != 0:
-        out.broken.append(f"exit {proc.returncode}")
+    if code != 0:
+        out.broken.append(f"exit {code}")
     result = out_dir / "calibration.json"
     if not result.is_file():
         out.broken.append("no calibration.json")
