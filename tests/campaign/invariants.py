@@ -24,7 +24,13 @@ NAMES = ("c_e", "c_d", "t_r", "d")
 #: driving for a segment, or no turn to calibrate from.
 REAL_CAUSES = re.compile(r"too short|shorter than|no segment|not enough|no usable", re.I)
 #: How a parameter that is not calibrated says why.
-REASONS = ("not observable", "weakly determined", "fixed at nominal", "not trusted: ")
+REASONS = (
+    "not calibrated: ",
+    "not observable",
+    "weakly determined",
+    "fixed at nominal",
+    "not trusted: ",
+)
 #: Largest |error / σ| of a calibrated parameter.
 MAX_SIGMAS = 3.0
 
