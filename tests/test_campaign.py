@@ -229,12 +229,30 @@ def test_drawn_shapes_keep_the_data_path_invariants(shape: Shape, tmp_path: Path
     assert broken == [], shape.label()
 
 
-#: A few full calibrations: (shape, the verdicts it must reach).
+#: A few full calibrations (fixed shapes and seeds): a town car, three drives on one clock
+#: (issue 43's first row), a skid-steer robot with correlated fixes (found by the campaign).
 SLOW = [
-    pytest.param(_shape(length_m=1500.0, gnss_rate=5.0, heading=True, seed=3), id="car-town"),
+    pytest.param(_shape(length_m=1000.0, gnss_rate=5.0, heading=True, seed=3), id="car-town"),
     pytest.param(
-        _shape(drives=3, gap_s=30.0, park_s=5.0, gnss_rate=5.0, length_m=700.0, seed=4),
+        _shape(drives=3, gap_s=30.0, park_s=5.0, gnss_rate=5.0, length_m=500.0, seed=4),
         id="car-three-drives",
+    ),
+    pytest.param(
+        _shape(
+            vehicle="skid-steer",
+            route="yard",
+            length_m=156.0,
+            gnss_rate=50.0,
+            noise_sigma=1.53,
+            noise_tau_s=12.0,
+            heading=True,
+            imu=False,
+            park_s=1.0,
+            lever_arm=(-0.22, 0.0),
+            seed=197,
+        ),
+        marks=_xfail("exit 2: 'implausible theta (t_r = 1.089)': the true effective track 1.08 m"),
+        id="skid-steer-correlated-fixes",
     ),
 ]
 
