@@ -62,8 +62,9 @@ def draw_shapes(
 
 
 def _verdict(status: str) -> str:
-    """A verdict, short: "" calibrated, "given X", "n/o", "weak", "fixed", "NT" (not
-    trusted)."""
+    """A verdict, short: "" calibrated, "given X", "n/o" (not observable), "weak" (weakly
+    determined), "fixed", "NT" (not trusted)."""
+    status = status.removeprefix("not calibrated: ")
     if status.startswith("calibrated given"):
         return "given " + status.split("given", 1)[1].split("=")[0].strip()
     for prefix, short in (("calibrated", ""), ("not observable", "n/o"), ("weakly", "weak"),
