@@ -230,7 +230,8 @@ def test_drawn_shapes_keep_the_data_path_invariants(shape: Shape, tmp_path: Path
 
 
 #: A few full calibrations (fixed shapes and seeds): a town car, three drives on one clock
-#: (issue 43's first row), a skid-steer robot with correlated fixes (found by the campaign).
+#: (issue 43's first row); shapes the campaign found failing: a skid-steer robot with
+#: correlated fixes, a town car with 1.5 m fixes.
 SLOW = [
     pytest.param(_shape(length_m=1000.0, gnss_rate=5.0, heading=True, seed=3), id="car-town"),
     pytest.param(
@@ -253,6 +254,24 @@ SLOW = [
         ),
         marks=_xfail("exit 2: 'implausible theta (t_r = 1.089)': the true effective track 1.08 m"),
         id="skid-steer-correlated-fixes",
+    ),
+    pytest.param(
+        _shape(
+            length_m=1824.0,
+            gnss_rate=2.5,
+            noise_sigma=1.54,
+            noise_tau_s=5.0,
+            heading=True,
+            imu=False,
+            wheels="ticks",
+            ticks=244,
+            park_s=5.0,
+            time_offset_s=-0.05,
+            lever_arm=(0.0, -0.29),
+            seed=244,
+        ),
+        marks=_xfail("exit 3 on clean data: χ²/dof 19.7 with 1.5 m fixes (the profile's 0.2 m)"),
+        id="car-noisy-fixes-not-trusted",
     ),
 ]
 
