@@ -231,7 +231,7 @@ def test_drawn_shapes_keep_the_data_path_invariants(shape: Shape, tmp_path: Path
 
 #: A few full calibrations (fixed shapes and seeds): a town car, three drives on one clock
 #: (issue 43's first row); shapes the campaign found failing: a skid-steer robot with
-#: correlated fixes, a town car with 1.5 m fixes.
+#: correlated fixes, a town car with 1.5 m fixes, a straight road with correlated 1.8 m fixes.
 SLOW = [
     pytest.param(_shape(length_m=1000.0, gnss_rate=5.0, heading=True, seed=3), id="car-town"),
     pytest.param(
@@ -272,6 +272,22 @@ SLOW = [
         ),
         marks=_xfail("exit 3 on clean data: χ²/dof 19.7 with 1.5 m fixes (the profile's 0.2 m)"),
         id="car-noisy-fixes-not-trusted",
+    ),
+    pytest.param(
+        _shape(
+            route="straight",
+            length_m=1677.0,
+            gnss_rate=2.5,
+            noise_sigma=1.82,
+            noise_tau_s=53.0,
+            heading=True,
+            imu=False,
+            park_s=0.0,
+            lever_arm=(0.0, -0.5),
+            seed=35368,
+        ),
+        marks=_xfail("exit 0, c_e +5.2σ and d -6.5σ 'calibrated' (t_r not observable)"),
+        id="straight-correlated-fixes-confidently-wrong",
     ),
 ]
 
