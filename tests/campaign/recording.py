@@ -1,0 +1,230 @@
+"""The streams of a :class:`~campaign.shape.Shape`: the independent twin's vehicles
+(``scripts/independent_twin.py``: numpy and pandas, nothing of ``graphcal.simulate``) driven
+as the shape says, written as CSV streams with a manifest and a vehicle profile."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from campaign.shape import Shape
+
+ROOT = Path(__file__).resolve().parents[2]
+_TWIN_PATH = ROOT / "scripts" / "independent_twin.py"
+
+
+def _load_twin():
+    """``scripts/independent_twin.py`` as a module (``scripts/`` is not a package)."""
+    if "independent_twin" in sys.modules:
+        return sys.modules["independent_twin"]
+    spec = importlib.util.spec_from_file_location("independent_twin", _TWIN_PATH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["independent_twin"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+twin = _load_twin()
+
+#: The TRUE theta [c_e, c_d, t_r, d] (SI) of each vehicle: the twin's car and skid-steer
+#: robot, and a differential-drive robot (the delivery robot's datasheet 0.5 m / 0.2 m off
+#: by +0.6 % and +5 mm).
+THETA_TRUE = {
+    "car": twin.THETA_TRUE,
+    "skid-steer": twin.ROBOT_THETA_TRUE,
+    "differential": np.array([0.503, 0.0004, 0.205, 0.0]),
+}
+_PROFILES = {
+    "car": ROOT / "data" / "vehicles" / "car.toml",
+    "skid-steer": ROOT / "data" / "vehicles" / "skid_steer_robot.toml",
+    "differential": ROOT / "data" / "vehicles" / "delivery_robot.toml",
+}
+#: The ECU's circumference [m] a wheel speed [m/s] is reported at.
+ECU_CIRCUMFERENCE = {"car": 2.0, "skid-steer": 0.8, "differential": 0.5}
+WHEEL_RATE = 100.0  # Hz, wheels and IMU
+SPEED_NOISE = 0.02  # m/s of a wheel speed; angular speeds: the same over the radius
+HEADING_NOISE = 0.3  # deg, a fused heading
+IMU_NOISE = (0.05, 0.1 * math.pi / 180.0)  # m/s², rad/s
+LOG_RATE = 40.0  # Hz, the manifest's drive-log rate
+
+
+@dataclass
+class Motion:
+    """The reference point's motion on one clock [s] (several drives, gaps removed from
+    no array: ``drive`` is the drive index of each sample) and the wheels' cumulative
+    rotations [rev] and rates [rev/s]."""
+
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    yaw: np.ndarray
+    yaw_rate: np.ndarray
+    ay: np.ndarray
+    rev_l: np.ndarray
+    rev_r: np.ndarray
+    rate_l: np.ndarray
+    rate_r: np.ndarray
+    spans: list[tuple[float, float]]  # (start, end) [s] of each drive, parked ends included
+
+
+def _one_drive(shape: Shape, index: int) -> dict[str, np.ndarray]:
+    """Drive ``index`` of ``shape`` from the twin, from t = 0 and rotations 0."""
+    seed = shape.seed * 10 + index
+    if shape.vehicle == "car":
+        drive = twin.simulate_drive(
+            shape.length_m, seed, 0.004, route=shape.route,
+            max_curvature=twin.HIGHWAY_CURVATURE,
+        )  # fmt: skip
+        fields = ("t", "x", "y", "yaw", "yaw_rate", "ay", "rev_l", "rev_r", "rate_l", "rate_r")
+        return {name: np.asarray(getattr(drive, name), float) for name in fields}
+    robot = twin.simulate_robot(shape.length_m, seed, THETA_TRUE[shape.vehicle])
+    rate_l, rate_r = robot.omega_l / (2 * np.pi), robot.omega_r / (2 * np.pi)
+    return {
+        "t": robot.t, "x": robot.x, "y": robot.y, "yaw": robot.yaw,
+        "yaw_rate": robot.yaw_rate, "ay": robot.ay,
+        "rev_l": twin._cumtrapz(rate_l, twin.ROBOT_DT),
+        "rev_r": twin._cumtrapz(rate_r, twin.ROBOT_DT),
+        "rate_l": rate_l, "rate_r": rate_r,
+    }  # fmt: skip
+
+
+def _parked(drive: dict[str, np.ndarray], park: float) -> dict[str, np.ndarray]:
+    """``drive`` standing still ``park`` s before and after it (rates 0, state held)."""
+    if park <= 0:
+        return drive
+    eps = 1e-3
+    out = {}
+    for name, values in drive.items():
+        if name == "t":
+            end = values[-1] + park
+            out[name] = np.concatenate([[0.0, park - eps], values + park, [end + eps, end + park]])
+        elif name in ("yaw_rate", "ay", "rate_l", "rate_r"):
+            out[name] = np.concatenate([[0.0, 0.0], values, [0.0, 0.0]])
+        else:
+            out[name] = np.concatenate([values[:1], values[:1], values, values[-1:], values[-1:]])
+    return out
+
+
+def motion(shape: Shape) -> Motion:
+    """``shape``'s drives on one clock: each starts where the previous one was parked (its
+    route turned onto the previous end's heading), ``gap_s`` later, its counters going on."""
+    parts: list[dict[str, np.ndarray]] = []
+    spans = []
+    t0 = 0.0
+    for index in range(shape.drives):
+        drive = _parked(_one_drive(shape, index), shape.park_s)
+        if parts:
+            last = parts[-1]
+            turn = last["yaw"][-1] - drive["yaw"][0]
+            c, s = math.cos(turn), math.sin(turn)
+            dx, dy = drive["x"] - drive["x"][0], drive["y"] - drive["y"][0]
+            drive["x"] = last["x"][-1] + c * dx - s * dy
+            drive["y"] = last["y"][-1] + s * dx + c * dy
+            drive["yaw"] = drive["yaw"] + turn
+            drive["rev_l"] = drive["rev_l"] + last["rev_l"][-1]
+            drive["rev_r"] = drive["rev_r"] + last["rev_r"][-1]
+        drive["t"] = drive["t"] + t0
+        spans.append((float(drive["t"][0]), float(drive["t"][-1])))
+        t0 = drive["t"][-1] + shape.gap_s
+        parts.append(drive)
+    joined = {name: np.concatenate([p[name] for p in parts]) for name in parts[0]}
+    return Motion(**joined, spans=spans)
+
+
+def _clock(m: Motion, rate: float, rng: np.random.Generator, start_delay: float = 0.0):
+    """Sample instants at ``rate`` [Hz] within each drive (none in the gaps), each drive's
+    stream starting ``start_delay`` s after it."""
+    return np.concatenate([twin._clock(a + start_delay, b, rate, rng) for a, b in m.spans])
+
+
+def write_recording(shape: Shape, directory: Path) -> Path:
+    """Write gnss.csv, wheels.csv, imu.csv (if drawn), vehicle.toml and manifest.toml of
+    ``shape`` into ``directory``; the manifest's path."""
+    directory.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng([shape.seed, 43])
+    m = motion(shape)
+    epoch = 1.78e9 + rng.uniform(0.0, 86400.0)
+
+    def at(t: np.ndarray, values: np.ndarray) -> np.ndarray:
+        return np.interp(t, m.t, values)
+
+    # GNSS: re-acquires 0-3 s after each drive starts; epochs with ±2 ms jitter
+    tg = _clock(m, shape.gnss_rate, rng, rng.uniform(0.0, 3.0))
+    yaw = at(tg, m.yaw)
+    east, north = twin._antenna(at(tg, m.x), at(tg, m.y), yaw, shape.lever_arm)
+    tau = shape.noise_tau_s * shape.gnss_rate  # in fixes
+    east = east + twin.gnss_noise(len(tg), shape.noise_sigma, tau, rng)
+    north = north + twin.gnss_noise(len(tg), shape.noise_sigma, tau, rng)
+    lat, lon = twin.enu_to_geodetic(east, north)
+    gnss = {"t": epoch + tg + rng.uniform(-0.002, 0.002, len(tg)), "lat": lat, "lon": lon}
+    if shape.heading:
+        noisy = np.degrees(yaw) + HEADING_NOISE * rng.standard_normal(len(tg))
+        gnss["heading"] = np.mod(90.0 - noisy, 360.0)
+    pd.DataFrame(gnss).to_csv(directory / "gnss.csv", index=False, float_format="%.10f")
+
+    # Wheels: stamped time_offset_s late
+    tw = _clock(m, WHEEL_RATE, rng)
+    wheels = pd.DataFrame({"t": epoch + tw + shape.time_offset_s})
+    circumference = ECU_CIRCUMFERENCE[shape.vehicle]
+    for col, rev, rate in (("rl", m.rev_l, m.rate_l), ("rr", m.rev_r, m.rate_r)):
+        if shape.wheels == "ticks":
+            wheels[col] = np.floor(at(tw, rev) * shape.ticks + rng.uniform()).astype(np.int64)
+            continue
+        speed = at(tw, rate) * circumference + SPEED_NOISE * rng.standard_normal(len(tw))
+        scale = 1.0 if shape.wheels == "speed" else 2 * np.pi / circumference
+        wheels[col] = speed * scale
+    wheels.to_csv(directory / "wheels.csv", index=False, float_format="%.6f")
+
+    if shape.imu:
+        ti = _clock(m, WHEEL_RATE, rng)
+        imu = pd.DataFrame(
+            {
+                "t": epoch + ti,
+                "ay": at(ti, m.ay) + IMU_NOISE[0] * rng.standard_normal(len(ti)),
+                "wz": at(ti, m.yaw_rate) + IMU_NOISE[1] * rng.standard_normal(len(ti)),
+            }
+        )
+        imu.to_csv(directory / "imu.csv", index=False, float_format="%.6f")
+    (directory / "vehicle.toml").write_text(profile_text(shape))
+    path = directory / "manifest.toml"
+    path.write_text(manifest_text(shape))
+    return path
+
+
+def profile_text(shape: Shape) -> str:
+    """The vehicle profile a user of this vehicle passes with ``--vehicle``: the repository's,
+    without a ``ticks_per_revolution`` (the manifest says what the wheels are)."""
+    lines = _PROFILES[shape.vehicle].read_text().splitlines()
+    return "\n".join(ln for ln in lines if not ln.startswith("ticks_per_revolution")) + "\n"
+
+
+def manifest_text(shape: Shape) -> str:
+    """The streams manifest of ``write_recording``'s files."""
+    lines = [
+        "# Written by tests/campaign/recording.py: " + shape.label(),
+        f"rate = {LOG_RATE}",
+        "",
+        "[gnss]",
+        'file = "gnss.csv"',
+        'time = "t"',
+        'latitude = "lat"',
+        'longitude = "lon"',
+    ]
+    if shape.heading:
+        lines += ['heading = "heading"', 'heading_unit = "deg"', 'heading_convention = "compass"']
+    lines += ["", "[wheels]", 'file = "wheels.csv"', 'time = "t"']
+    lines += ['rear_left = "rl"', 'rear_right = "rr"', f'kind = "{shape.wheels}"']
+    if shape.wheels == "ticks":
+        lines += [f"ticks_per_revolution = {shape.ticks}"]
+    elif shape.wheels == "speed":
+        lines += ['speed_unit = "m/s"', f"circumference = {ECU_CIRCUMFERENCE[shape.vehicle]}"]
+    if shape.imu:
+        lines += ["", "[imu]", 'file = "imu.csv"', 'time = "t"']
+        lines += ['lateral_acceleration = "ay"', 'yaw_rate = "wz"', 'yaw_rate_unit = "rad/s"']
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,97 @@
+"""A recording's shape: what vehicle, road and sensors made it, drawn by ``hypothesis``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from hypothesis import strategies as st
+
+VEHICLES = ("car", "differential", "skid-steer")
+#: Wheel signals a shape draws: ``[wheels] kind`` of the manifest.
+WHEEL_KINDS = ("speed", "angular_speed", "ticks")
+
+
+@dataclass(frozen=True)
+class Shape:
+    """One recording shape (SI). ``length_m`` is each drive's; ``drives`` drives share one
+    clock, ``gap_s`` apart (every stream stops), each parked ``park_s`` at its start and end.
+    ``noise_tau_s`` 0 is white position noise, else a Gauss–Markov error with that
+    correlation time. ``time_offset_s`` > 0: the wheels are stamped late. ``lever_arm`` is
+    the antenna's (ahead, left) [m] of the wheels' reference point. ``ticks`` is the
+    counter's resolution [ticks/rev] when ``wheels == "ticks"`` (else 0)."""
+
+    vehicle: str
+    route: str
+    length_m: float
+    gnss_rate: float
+    noise_sigma: float
+    noise_tau_s: float
+    heading: bool
+    imu: bool
+    wheels: str
+    ticks: int
+    drives: int
+    gap_s: float
+    park_s: float
+    time_offset_s: float
+    lever_arm: tuple[float, float]
+    seed: int
+
+    def label(self) -> str:
+        """The shape in one short line."""
+        noise = f"{self.noise_sigma:.2g} m " + (
+            f"GM {self.noise_tau_s:.0f} s" if self.noise_tau_s else "white"
+        )
+        wheels = f"ticks {self.ticks}" if self.wheels == "ticks" else self.wheels
+        drives = f", {self.drives} drives gap {self.gap_s:.0f} s" if self.drives > 1 else ""
+        return (
+            f"{self.vehicle} {self.route} {self.length_m / 1e3:.2g} km, {self.gnss_rate:.3g} Hz "
+            f"{noise}, {'heading' if self.heading else 'no heading'}, "
+            f"{'IMU' if self.imu else 'no IMU'}, {wheels}{drives}, park {self.park_s:.0f} s, "
+            f"late {self.time_offset_s * 1e3:.0f} ms, arm ({self.lever_arm[0]:.2g}, "
+            f"{self.lever_arm[1]:.2g}) m, seed {self.seed}"
+        )
+
+
+def _rounded(low: float, high: float, digits: int) -> st.SearchStrategy[float]:
+    return st.floats(low, high).map(lambda x: round(x, digits))
+
+
+@st.composite
+def shapes(
+    draw: st.DrawFn,
+    car_length_m: tuple[float, float] = (1000.0, 3000.0),
+    robot_length_m: tuple[float, float] = (150.0, 400.0),
+    vehicles: tuple[str, ...] = VEHICLES,
+) -> Shape:
+    """A recording shape: every axis drawn (lengths per drive in ``car_length_m`` or
+    ``robot_length_m`` [m])."""
+    vehicle = draw(st.sampled_from(vehicles))
+    car = vehicle == "car"
+    route = draw(st.sampled_from(["town", "straight"])) if car else "yard"
+    lengths = car_length_m if car else robot_length_m
+    wheels = draw(st.sampled_from(WHEEL_KINDS))
+    ticks = draw(st.integers(16, 4096)) if wheels == "ticks" else 0
+    drives = draw(st.sampled_from([1, 1, 2, 3]))
+    tau = draw(st.sampled_from([0.0, 1.0])) * draw(_rounded(5.0, 60.0, 0))
+    arm = (draw(_rounded(-1.5, 1.5, 2)), draw(_rounded(-0.5, 0.5, 2))) if car else (
+        draw(_rounded(-0.3, 0.3, 2)), 0.0
+    )  # fmt: skip
+    return Shape(
+        vehicle=vehicle,
+        route=route,
+        length_m=draw(_rounded(*lengths, 0)),
+        gnss_rate=draw(st.sampled_from([0.5, 1.0, 2.0, 2.5, 5.0, 10.0, 20.0, 50.0])),
+        noise_sigma=draw(_rounded(0.2, 2.0, 2)),
+        noise_tau_s=tau,
+        heading=draw(st.booleans()),
+        imu=draw(st.booleans()),
+        wheels=wheels,
+        ticks=ticks,
+        drives=drives,
+        gap_s=draw(_rounded(20.0, 60.0, 0)) if drives > 1 else 0.0,
+        park_s=draw(_rounded(0.0, 8.0, 0)),
+        time_offset_s=draw(_rounded(-0.05, 0.05, 3)),
+        lever_arm=arm,
+        seed=draw(st.integers(0, 2**16)),
+    )
