@@ -48,12 +48,10 @@ EXAMPLES = [
     ),
     pytest.param(
         _shape(wheels="ticks", ticks=96, gnss_rate=1.0, heading=False, length_m=800.0),
-        marks=_xfail("1 Hz fixes (times in s) refused as ms"),
         id="1hz-fixes",
     ),
     pytest.param(
         _shape(gnss_rate=0.5, noise_sigma=0.2, seed=0),
-        marks=_xfail("0.5 Hz fixes (times in s) refused as ms"),
         id="0.5hz-fixes",
     ),
     pytest.param(
@@ -73,7 +71,6 @@ EXAMPLES = [
             seed=65536,
             imu=True,
         ),
-        marks=_xfail("2340-tick counts not found (counts steady through a cruise)"),
         id="ticks-2340-cruise",
     ),
     pytest.param(
@@ -90,7 +87,6 @@ EXAMPLES = [
             lever_arm=(0.43, 0.0),
             seed=2676,
         ),
-        marks=_xfail("a fused heading refused as rad: the course of noisy fixes read as turns"),
         id="heading-noisy-fixes",
     ),
     pytest.param(
@@ -107,7 +103,6 @@ EXAMPLES = [
             lever_arm=(0.0, 0.0),
             seed=1430,
         ),
-        marks=_xfail("lateral acceleration refused as g: the course of noisy fixes read as turns"),
         id="robot-ay-noisy-fixes",
     ),
     pytest.param(
@@ -124,7 +119,6 @@ EXAMPLES = [
             lever_arm=(0.0, -0.03),
             seed=418,
         ),
-        marks=_xfail("IMU yaw rate refused: the course of noisy fixes read as turns"),
         id="yaw-rate-noisy-fixes",
     ),
     pytest.param(
@@ -141,7 +135,6 @@ EXAMPLES = [
             lever_arm=(0.0, 0.0),
             seed=24897,
         ),
-        marks=_xfail("wheel-scale check: the wheels travel 0.62x the noisy fixes' chords"),
         id="wheel-scale-skid-steer",
     ),
     pytest.param(
@@ -178,7 +171,6 @@ EXAMPLES = [
             lever_arm=(0.0, 0.0),
             seed=16,
         ),
-        marks=_xfail("16-tick counts of a robot not found in the rotations"),
         id="ticks-16-robot",
     ),
     pytest.param(
@@ -197,7 +189,6 @@ EXAMPLES = [
             lever_arm=(0.0, 0.0),
             seed=128,
         ),
-        marks=_xfail("128-tick counts of a skid-steer robot not found in the rotations"),
         id="ticks-128-skid-steer",
     ),
 ]
@@ -252,7 +243,9 @@ SLOW = [
             lever_arm=(-0.22, 0.0),
             seed=197,
         ),
-        marks=_xfail("exit 2: 'implausible theta (t_r = 1.089)': the true effective track 1.08 m"),
+        marks=_xfail(
+            "exit 2: the wheels' time offset runs to +4.3 s (prior ±0.5 s) and c_e to 2.7 m"
+        ),
         id="skid-steer-correlated-fixes",
     ),
     pytest.param(
@@ -270,7 +263,6 @@ SLOW = [
             lever_arm=(0.0, -0.29),
             seed=244,
         ),
-        marks=_xfail("exit 3 on clean data: χ²/dof 19.7 with 1.5 m fixes (the profile's 0.2 m)"),
         id="car-noisy-fixes-not-trusted",
     ),
     pytest.param(

@@ -66,8 +66,8 @@ def test_weakly_determined_is_judged_on_the_reference_not_the_prior():
 def test_a_4_km_day_reports_what_it_does_not_determine_with_its_uncertainty():
     """A 4 km city day whose 2 selected segments did not calibrate t_r or d: held at t_r
     and d's prior (the rule before issue 43), c_d was nearly 6 of its conditional σ from its
-    truth and still "calibrated". Fewer than 8 segments pass the selection, so every segment
-    is used; what is not calibrated says why, and every value is within 3 of its σ."""
+    truth and still "calibrated". Fewer than 8 segments pass the selection, so every
+    segment is used; what is not calibrated says why, and every value is within 3σ."""
     drive = simulate_drive(length_km=4.0, seed=56)
     run = run_calibration(drive.measured, Settings(), "whole", workers=1)
     verdicts = run.verdicts()

@@ -20,7 +20,7 @@ With the joint and whole methods, every parameter is its posterior under the wea
 and those the data do not determine well (:mod:`graphcal.graph.observability`) are reported
 as not calibrated, with their estimate and σ. If fewer than
 :data:`~graphcal.pipeline.selection.MIN_SELECTED_SEGMENTS` segments pass the yaw-rate
-selection they use all segments: the observability check, not the selection, then decides
+selection they use every segment: the observability check, not the selection, then decides
 what the drive determines.
 
 Each method is one function (``_run_staged``, ``_run_joint``, ``_run_whole``):

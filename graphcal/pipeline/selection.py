@@ -17,8 +17,8 @@ from graphcal.pipeline.vehicle_settings import (
 )
 from graphcal.progress import say
 
-#: With fewer selected segments than this, the joint and whole methods use every segment of the
-#: log: so few carry little information, and the segments' agreement test needs this many
+#: With fewer selected segments than this, the joint and whole methods use every segment of
+#: the log: so few carry little information, and the segments' agreement test needs this many
 #: groups (:data:`graphcal.pipeline.agreement.GROUPS`). A 373 m robot log kept 1 of 7 53 m
 #: segments (mean |yaw rate| > 0.15 rad/s, a car's rule) and calibrated nothing from it.
 MIN_SELECTED_SEGMENTS = 8
@@ -36,7 +36,7 @@ def select(
 
     With ``fall_back_to_all`` (for methods that judge observability themselves), a log where
     fewer than :data:`MIN_SELECTED_SEGMENTS` segments pass the yaw-rate selection uses all
-    its segments instead (none passing is then no failure).
+    its segments (none passing is then no failure).
 
     Raises:
         NoUsableSegments: the log is too short, or no segment passes the selection.
