@@ -151,7 +151,6 @@ EXAMPLES = [
             lever_arm=(0.0, 0.0),
             seed=654,
         ),
-        marks=_xfail("a gap where every stream stops refused as positions disagreeing"),
         id="gap-longer-than-drives",
     ),
     pytest.param(

@@ -150,7 +150,7 @@ def test_clean_drives_are_not_masked():
 
 @pytest.mark.slow
 def test_a_short_drive_says_what_batches_it_used(tmp_path):
-    log = simulate_drive(length_km=2.0, seed=3).measured
+    log = simulate_drive(length_km=1.0, seed=3).measured
     run = run_calibration(log)
     count, size = run.batches.shape
     assert (count, size) == (1, len(run.selected)) and size < 9  # too few for batches of 9

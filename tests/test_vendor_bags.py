@@ -556,7 +556,7 @@ def test_bad_field_paths_get_one_line_naming_what_exists(custom, tmp_path, capsy
         ),
         (
             [*FIELDS, *SPEED[:4], "--circumference", "4"],
-            ["check --circumference (2.02", "--wheel-kind, --speed-unit"],
+            ["check --circumference (2.0", "--wheel-kind, --speed-unit"],
         ),
         (
             [*FIELDS, *SPEED, "--yaw-rate", "/car/dynamics:yaw_rate_dps"],
@@ -570,7 +570,7 @@ def test_bad_field_paths_get_one_line_naming_what_exists(custom, tmp_path, capsy
             [*FIELDS, *SPEED, "--heading", "/car/dynamics:azimuth_deg"],
             [
                 "field '/car/dynamics:azimuth_deg' (--heading, --heading-unit rad",
-                "it is apparently in deg: pass --heading-unit deg",
+                "apparently degrees; check --heading-unit (deg | rad)",
             ],
         ),
         (

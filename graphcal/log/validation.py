@@ -124,6 +124,8 @@ def _screened(
     """``log`` with its positions checked against the wheels (:func:`screen`): refused,
     masked or clean; refused too when more than :data:`MAX_MASKED_SHARE` is masked."""
     pair = _positions_against_wheels(origins)
+    gaps = np.zeros(len(log.t), bool) if log.masked is None else log.masked.copy()
+    gap_notes = len(log.mask_notes)
     try:
         # positions checked against the wheels: refused, masked or clean
         log = screen(log, nominal=nominal)
@@ -132,10 +134,15 @@ def _screened(
             raise DriveLogError(f"{source}: {exc}") from None
         what = str(exc).split("; ", 1)[0].removeprefix("line ").split(": ", 1)[-1]
         raise DriveLogError(f"{pair[0]}: {what}; {pair[1]}") from None
-    if log.masked is not None and log.masked.mean() > MAX_MASKED_SHARE:
+    # The share among the samples an import did not already mark as gaps: drives on one clock
+    # with long gaps between them (every stream stopped) are no disagreement.
+    disagreeing = np.zeros(len(log.t), bool) if log.masked is None else log.masked & ~gaps
+    share = disagreeing.sum() / max(1, np.count_nonzero(~gaps))
+    if share > MAX_MASKED_SHARE:
+        first = (log.mask_notes[gap_notes:] or log.mask_notes)[0]
         what = (
-            f"{log.masked.mean():.0%} of the samples have positions that disagree with the "
-            f"wheels (first: {log.mask_notes[0]})"
+            f"{share:.0%} of the samples have positions that disagree with the "
+            f"wheels (first: {first})"
         )
         if pair is not None:
             raise DriveLogError(f"{pair[0]}: {what}; {pair[1]}")

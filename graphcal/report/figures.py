@@ -56,10 +56,11 @@ def route_figure(run: CalibrationRun) -> Figure:
             f"Route: {len(run.selected)} of {len(run.segments)} calibration segments "
             f"of {s.length:g} m selected\n(those with {rule})"
         )
-    else:  # no segment passed: the method fell back to all of them
+    else:  # too few passed: the method fell back to all of them
+        few = "none has" if passing == 0 else f"only {passing} have"
         title = (
             f"Route: all {len(run.segments)} calibration segments of {s.length:g} m used\n"
-            f"(none has {rule})"
+            f"({few} {rule})"
         )
     ax.set_title(title)
     legend_below(fig, [ax], ncols=3, fontsize="medium")
