@@ -46,6 +46,18 @@ EXAMPLES = [
         _shape(drives=3, gap_s=30.0, park_s=5.0, gnss_rate=5.0, heading=False),
         id="three-drives-one-clock",
     ),
+    pytest.param(  # a highway cruise's speeds scattered about 1/3 rev per interval: "6 ticks"
+        _shape(
+            route="straight",
+            length_m=1000.0,
+            gnss_rate=1.0,
+            noise_sigma=1.0,
+            park_s=5.0,
+            lever_arm=(0.0, -0.49),
+            seed=7609,
+        ),
+        id="ticks-on-a-cruise-of-speeds",
+    ),
     pytest.param(
         _shape(wheels="ticks", ticks=96, gnss_rate=1.0, heading=False, length_m=800.0),
         id="1hz-fixes",

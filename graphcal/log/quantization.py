@@ -108,7 +108,10 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     Chance is judged on the distinct values at a resolution of ``ε/2``, not on samples: a
     continuous signal that dwells at one speed gives one value however long it dwells, and
     each of its values lands within ``ε`` of the grid with probability ``p = 2.5 ε`` (the
-    share of such values in a tick). ``k`` of ``K`` values on the grid have chance at most
+    share of such values in a tick). A dwell's noise scatters it over a few such values
+    about one level, so the grid levels occupied must be beyond chance too, ``p^L`` for
+    ``L`` levels (a 1 km highway cruise's speeds, 1/3 rev per interval ± 0.0006, made 6
+    ticks "found" from one level). ``k`` of ``K`` values on the grid have chance at most
     ``exp(−K D(k/K ‖ p))`` (Chernoff; ``p^K`` when all are), times ``tried``."""
     n = rotations.reshape(-1)
     ticked = n[np.isfinite(n) & (n > 0)] * ticks
@@ -118,7 +121,10 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     tolerance = max(float(np.quantile(off, 1.0 - MAX_OFF_GRID)), GRID_PRECISION_TICKS)
     values = np.unique(np.round(ticked / (0.5 * tolerance))) * (0.5 * tolerance)
     share = float(np.mean(np.abs(values - np.round(values)) <= tolerance))
+    levels = len(np.unique(np.round(ticked[off <= tolerance])))  # grid levels occupied
     chance = 2.5 * tolerance
+    if levels * math.log(chance) + math.log(tried) > math.log(MAX_CHANCE):
+        return False  # too few levels: a dwell's scatter about one level is one value
     if share <= chance or chance >= 1.0:
         return False
     divergence = share * math.log(share / chance)
