@@ -176,4 +176,3 @@ def test_a_continuous_signal_that_cruises_has_no_resolution(rate):
     assert ticks_per_revolution(narrow) is None
     narrow += np.random.default_rng(7).normal(0.0, 5e-4, narrow.shape)
     assert ticks_per_revolution(narrow) is None
-
