@@ -109,9 +109,11 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     continuous signal that dwells at one speed gives one value however long it dwells, and
     each of its values lands within ``ε`` of the grid with probability ``p = 2.5 ε`` (the
     share of such values in a tick). A dwell's noise scatters it over a few such values
-    about one level, so the grid levels occupied must be beyond chance too, ``p^L`` for
-    ``L`` levels (a 1 km highway cruise's speeds, 1/3 rev per interval ± 0.0006, made 6
-    ticks "found" from one level). ``k`` of ``K`` values on the grid have chance at most
+    about one level, so where the values scatter (``ε`` above its floor) the grid levels
+    occupied must be beyond chance too, ``p^L`` for ``L`` levels (a 1 km highway cruise's
+    speeds, 1/3 rev per interval ± 0.0006, made 6 ticks "found" from one level); exact
+    repeats of one count (a 16-tick counter on a slow robot: 0 or 1 tick per interval) are
+    a counter's. ``k`` of ``K`` values on the grid have chance at most
     ``exp(−K D(k/K ‖ p))`` (Chernoff; ``p^K`` when all are), times ``tried``."""
     n = rotations.reshape(-1)
     ticked = n[np.isfinite(n) & (n > 0)] * ticks
@@ -123,7 +125,8 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     share = float(np.mean(np.abs(values - np.round(values)) <= tolerance))
     levels = len(np.unique(np.round(ticked[off <= tolerance])))  # grid levels occupied
     chance = 2.5 * tolerance
-    if levels * math.log(chance) + math.log(tried) > math.log(MAX_CHANCE):
+    scattered = tolerance > GRID_PRECISION_TICKS  # exact repeats are a counter's, not a dwell's
+    if scattered and levels * math.log(chance) + math.log(tried) > math.log(MAX_CHANCE):
         return False  # too few levels: a dwell's scatter about one level is one value
     if share <= chance or chance >= 1.0:
         return False
