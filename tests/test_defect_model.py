@@ -113,7 +113,7 @@ def test_a_fused_heading_bias_is_absorbed_per_segment(clean):
     )
     assert np.all(np.abs(_errors_in_sigma(modelled, biased)) < 3)
     # Without the biases the heading's and the fixes' residuals show the misfit, and the
-    # pose is weighted by them (whole_log._with_noise_levels): theta's σ then covers its
+    # pose is weighted by them (noise_levels.with_noise_levels): theta's σ then covers its
     # error too (1.5σ at most on this drive).
     assert np.all(np.abs(_errors_in_sigma(plain, biased)) < 3)
 

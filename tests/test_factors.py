@@ -125,9 +125,10 @@ def test_chunk_factor_with_wheel_slip_scales(segment, with_corrections, rng):
 
 
 @pytest.mark.parametrize("tracked", [True, False])
-def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, tracked, rng):
+def test_chunk_factor_with_time_offset_lever_arm_heading_bias_and_fix_offset(segment, tracked, rng):
     poses, inputs = segment[0][:31], segment[1][:30]
     OFFSET, A, B = gtsam.symbol("o", 0), gtsam.symbol("a", 0), gtsam.symbol("b", 0)
+    E0, E1 = gtsam.symbol("e", 0), gtsam.symbol("e", 1)
     rates = rotation_rate_changes(inputs[:, :2], 0.025)
     chunk = OdometryChunk(inputs, poses if tracked else None, float(poses[0, 2]), rates)
     factor = ChunkOdometryFactor(
@@ -136,9 +137,9 @@ def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, track
         T,
         corrections=C(0),
         end=X1,
-        defects=DefectKeys(time_offset=OFFSET, lever_arm=A, heading_bias=B),
+        defects=DefectKeys(time_offset=OFFSET, lever_arm=A, heading_bias=B, fix_offset=(E0, E1)),
     ).factor()
-    assert list(factor.keys())[-3:] == [OFFSET, A, B]
+    assert list(factor.keys())[-5:] == [OFFSET, A, B, E0, E1]
     values = gtsam.Values()
     values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
     values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
@@ -147,7 +148,25 @@ def test_chunk_factor_with_time_offset_lever_arm_and_heading_bias(segment, track
     values.insert(OFFSET, np.array([0.04]))
     values.insert(A, np.array([1.2, -0.4]))
     values.insert(B, np.array([0.01]))
+    values.insert(E0, np.array([0.7, -1.1]))
+    values.insert(E1, np.array([0.9, -0.6]))
     assert_jacobians(factor, values)
+
+
+def test_a_fix_offset_is_the_error_the_fixes_share(segment):
+    # Fixes whose error drifts linearly through the chunk, from (1.5, -0.8) m at its start to
+    # (1.8, -0.2) m at its end, are fitted as the true fixes are when the chunk's fix errors
+    # are those two values.
+    poses, inputs = segment[0][:31], segment[1][:30]
+    along = np.arange(31)[:, None] / 30
+    error = (1 - along) * [1.5, -0.8] + along * [1.8, -0.2]
+    chunk = OdometryChunk(inputs, poses)
+    shifted = OdometryChunk(inputs, poses + np.c_[error, np.zeros(31)], float(poses[0, 2]))
+    start = poses[0] + [0.1, 0.2, 0.01]
+    plain = chunk.error(start, THETA, jacobians=False).error
+    offsets = DefectValues(fix_offset=np.array([[1.5, -0.8], [1.8, -0.2]]))
+    drifted = shifted.error(start, THETA, jacobians=False, defects=offsets).error
+    np.testing.assert_allclose(drifted, plain, atol=1e-9)
 
 
 def test_a_chunk_of_one_run_reads_its_element_of_the_runs_time_offsets(segment, rng):

@@ -14,11 +14,12 @@ measurement taken between two samples (a GNSS fix at its own time) is predicted 
 through its step (``fractions``: :func:`graphcal.model.partial_steps`), and a chunk whose
 samples do not all measure position and heading (``measured``) keeps only the rows of the
 components that were measured (:attr:`OdometryChunk.residual_rows`). The
-predicted measurement of the state ``x_k = [p_k, ψ_k]`` is ``[p_k + R(ψ_k) · arm, ψ_k + bias]``
-(zero arm and bias unless given), and a wheel time offset ``τ`` turns the measured rotation of
-step k into ``n_k + τ · ṅ_k`` (the rotation over ``[t_k + τ, t_k+1 + τ]`` to first order;
-``ṅ_k``, the chunk's ``rotation_rates``, from
-:func:`graphcal.log.timing.rotation_rate_changes`).
+predicted measurement of the state ``x_k = [p_k, ψ_k]`` is ``[p_k + R(ψ_k) · arm + e_k,
+ψ_k + bias]`` (zero arm, error and bias unless given; ``e_k`` is the fixes' slowly varying
+error, linear through the chunk from its value at the start to its value at the end), and
+a wheel time offset ``τ`` turns the measured rotation of step k into ``n_k + τ · ṅ_k`` (the
+rotation over ``[t_k + τ, t_k+1 + τ]`` to first order; ``ṅ_k``, the chunk's
+``rotation_rates``, from :func:`graphcal.log.timing.rotation_rate_changes`).
 """
 
 from __future__ import annotations
@@ -29,6 +30,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.factors.chunk_inputs import NO_DEFECTS, DefectValues, StackedChunks
+from graphcal.factors.chunk_terms import (
+    chunk_fractions,
+    fix_offset_jacobian,
+    fix_offsets,
+    heading_bias_jacobian,
+    lever_arm_jacobian,
+    tracking_residuals,
+)
 from graphcal.model import (
     N_RL,
     N_RR,
@@ -55,6 +64,8 @@ class ChunkError:
         slip: ``(dim, 2)`` or ``None`` (no slip given).
         time_offset, lever_arm, heading_bias: ``(dim, 1)``, ``(dim, 2)``, ``(dim, 1)`` or
             ``None`` (not given).
+        fix_offset: ``(dim, 4)``: by the fixes' error at the chunk's start then at its end,
+            or ``None`` (not given).
     """
 
     error: np.ndarray
@@ -66,6 +77,7 @@ class ChunkError:
     time_offset: np.ndarray | None = None
     lever_arm: np.ndarray | None = None
     heading_bias: np.ndarray | None = None
+    fix_offset: np.ndarray | None = None
 
 
 class OdometryChunk:
@@ -183,6 +195,7 @@ class OdometryChunk:
                 scalar(defects.time_offset),
                 one(defects.lever_arm),
                 scalar(defects.heading_bias),
+                one(defects.fix_offset),
             ),
         )
         fields = (getattr(batch, f.name) for f in dataclasses.fields(batch))
@@ -202,20 +215,24 @@ def chunk_errors(
     chunks: their measurements ``chunks`` (:class:`StackedChunks`), ``start (C, 3)``,
     ``theta (C, 4)``, ``corrections (C, L, 2)``, ``end (C, 3)`` and the ``defects``
     (:class:`DefectValues`: ``slip (C, 2)``, ``time_offset (C,)`` with the chunks'
-    rotation rates, ``lever_arm (C, 2)``, ``heading_bias (C,)``). Every field of the result
+    rotation rates, ``lever_arm (C, 2)``, ``heading_bias (C,)``, ``fix_offset (C, 2, 2)``).
+    Every field of the result
     has the leading chunk axis; the error has every tracking row (a chunk's
     :attr:`~OdometryChunk.residual_rows` picks its own)."""
     inputs, measured_poses = chunks.inputs, chunks.measured_poses
     rotation_rates, fractions = chunks.rotation_rates, chunks.fractions
     slip, time_offset = defects.slip, defects.time_offset
     lever_arm, heading_bias = defects.lever_arm, defects.heading_bias
+    fix_offset = defects.fix_offset
     count, n_steps = inputs.shape[:2]
     rotations = _wheel_rotations(inputs, corrections, slip, time_offset, rotation_rates)
     states, d_start, d_theta = integrate_with_jacobians(start, rotations, theta, jacobians)
     tracked = measured_poses is not None
     fixes = _predict_fixes(states, rotations, theta, fractions if tracked else None, jacobians)
+    along = None if fix_offset is None else chunk_fractions(count, n_steps, fractions)
+    offsets = None if fix_offset is None else fix_offsets(fix_offset, along)
     error, layout = _error_pieces(
-        (count, n_steps), states, fixes, measured_poses, end, lever_arm, heading_bias
+        (count, n_steps), states, fixes, measured_poses, end, lever_arm, heading_bias, offsets
     )
     if not jacobians:
         return ChunkError(error)
@@ -234,8 +251,9 @@ def chunk_errors(
             d_time = np.einsum("cdlw,clw->cd", d_rotations, rotation_rates)[..., None]
     d_arm = None
     if lever_arm is not None:
-        d_arm = _lever_arm_jacobian(fixes.states if tracked else None, count, dim, n_tracked)
-    d_bias = None if heading_bias is None else _heading_bias_jacobian(count, dim, n_tracked)
+        d_arm = lever_arm_jacobian(fixes.states if tracked else None, count, dim, n_tracked)
+    d_bias = None if heading_bias is None else heading_bias_jacobian(count, dim, n_tracked)
+    d_offset = None if fix_offset is None else fix_offset_jacobian(along, dim, n_tracked)
     return ChunkError(
         error,
         layout.stack(d_start),
@@ -246,6 +264,7 @@ def chunk_errors(
         d_time,
         d_arm,
         d_bias,
+        d_offset,
     )
 
 
@@ -318,14 +337,17 @@ def _error_pieces(
     end: np.ndarray | None,
     lever_arm: np.ndarray | None,
     heading_bias: np.ndarray | None,
+    fix_offset: np.ndarray | None = None,
 ) -> tuple[np.ndarray, _JacobianRows]:
-    """The error ``(C, dim)``: the tracking residuals (given measured poses) then the
-    continuity residual (given an end); and the rows of the Jacobians that go with it.
-    ``shape``: ``(C, L)``."""
+    """The error ``(C, dim)``: the tracking residuals (given measured poses; ``fix_offset
+    (C, L, 2)`` the fixes' error at each) then the continuity residual (given an end); and
+    the rows of the Jacobians that go with it. ``shape``: ``(C, L)``."""
     count, n_steps = shape
     parts, rows, turns = [], [], []
     if measured_poses is not None:
-        residual, turn = _tracking_residuals(fixes.states, measured_poses, lever_arm, heading_bias)
+        residual, turn = tracking_residuals(fixes.states, measured_poses, lever_arm, heading_bias)
+        if fix_offset is not None:  # the fixes' shared error: predicted fix = p + offset
+            residual[..., :2] += fix_offset
         parts.append(residual.reshape(count, -1))
         rows.append(slice(1, None))
         turns.append(turn)
@@ -338,29 +360,6 @@ def _error_pieces(
     if not parts:
         raise ValueError("a chunk needs measured poses to track or an end to reach")
     return np.concatenate(parts, axis=1), _JacobianRows(count, n_steps, fixes, rows, turns)
-
-
-def _tracking_residuals(
-    at_fix: np.ndarray,
-    measured_poses: np.ndarray,
-    lever_arm: np.ndarray | None,
-    heading_bias: np.ndarray | None,
-) -> tuple[np.ndarray, np.ndarray | None]:
-    """``measurement_k − measured_k`` of the poses ``k = 1..L`` ``(C, L, 3)``, the predicted
-    measurement ``[p_k + R(ψ_k) · arm, ψ_k + bias]``; and how its x and y move with the
-    heading beyond the state's own (the lever arm turning with it, ``(C, L, 2)``; ``None``
-    without a lever arm)."""
-    residual = at_fix - measured_poses[:, 1:]
-    turn = None
-    if lever_arm is not None:
-        cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
-        ahead, left = lever_arm[:, 0:1], lever_arm[:, 1:2]
-        residual[..., 0] += cos * ahead - sin * left
-        residual[..., 1] += sin * ahead + cos * left
-        turn = np.stack([-sin * ahead - cos * left, cos * ahead - sin * left], axis=-1)
-    if heading_bias is not None:
-        residual[..., 2] += heading_bias[:, None]
-    return residual, turn
 
 
 @dataclass(frozen=True)
@@ -418,23 +417,3 @@ def _end_jacobian(count: int, dim: int) -> np.ndarray:
     d_end = np.zeros((count, dim, 3))
     d_end[:, -3:] = -np.eye(3)
     return d_end
-
-
-def _lever_arm_jacobian(
-    at_fix: np.ndarray | None, count: int, dim: int, n_tracked: int
-) -> np.ndarray:
-    """d error / d lever arm ``(C, dim, 2)``: ``R(ψ_k)`` on the tracked x and y rows
-    (``at_fix`` ``None``: no tracked rows)."""
-    d_arm = np.zeros((count, dim, 2))
-    if at_fix is not None:
-        cos, sin = np.cos(at_fix[..., 2]), np.sin(at_fix[..., 2])
-        d_arm[:, 0:n_tracked:3] = np.stack([cos, -sin], axis=-1)
-        d_arm[:, 1:n_tracked:3] = np.stack([sin, cos], axis=-1)
-    return d_arm
-
-
-def _heading_bias_jacobian(count: int, dim: int, n_tracked: int) -> np.ndarray:
-    """d error / d heading bias ``(C, dim, 1)``: 1 on the tracked heading rows."""
-    d_bias = np.zeros((count, dim, 1))
-    d_bias[:, 2:n_tracked:3] = 1.0
-    return d_bias

@@ -56,6 +56,7 @@ class ChunkArguments:
     time_offset: np.ndarray | None
     lever_arm: np.ndarray | None
     heading_bias: np.ndarray | None
+    fix_offset: np.ndarray | None = None
 
 
 class BatchMember(Protocol):
@@ -152,6 +153,7 @@ class ChunkBatch:
                 stacked("time_offset"),
                 stacked("lever_arm"),
                 stacked("heading_bias"),
+                stacked("fix_offset"),
             ),
         )
         blocks = None

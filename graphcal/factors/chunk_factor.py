@@ -40,12 +40,16 @@ class DefectKeys:
             ``time_offset_slot[1]`` (default the one of one).
         lever_arm: key of the 2-vector antenna lever arm [m].
         heading_bias: key of the 1-vector heading bias [rad].
+        fix_offset: keys of the 2-vector world-frame error [m] of the fixes at the chunk's
+            start and at its end (a slowly varying GNSS error, linear between:
+            :mod:`graphcal.graph.gauss_markov`).
     """
 
     slip: int | None = None
     time_offset: int | None = None
     lever_arm: int | None = None
     heading_bias: int | None = None
+    fix_offset: tuple[int, int] | None = None
     time_offset_slot: tuple[int, int] = (0, 1)
 
 
@@ -85,7 +89,7 @@ class ChunkOdometryFactor:
             evaluated in, shared by the chunk factors of a graph (default: one of its own).
 
     Keys, in order: start, end, corrections, theta, slip, time_offset, lever_arm,
-    heading_bias — each only if it is a key.
+    heading_bias, the fixes' error at the start and at the end — each only if it is a key.
     """
 
     def __init__(
@@ -109,6 +113,7 @@ class ChunkOdometryFactor:
             raise ValueError(f"time offset element {slot} out of range")
         self.lever_arm_key = defects.lever_arm
         self.heading_bias_key = defects.heading_bias
+        self.fix_offset_keys = defects.fix_offset or (None, None)
         tracking_sigmas, continuity_sigmas = noise.tracking, noise.continuity
         fix_weights = noise.fix_weights
         self.start_key, self.start_state = _slot(start, 3, "start")
@@ -142,6 +147,8 @@ class ChunkOdometryFactor:
             ("time_offset", self.time_offset_key, self.time_offset_size),
             ("lever_arm", self.lever_arm_key, 2),
             ("heading_bias", self.heading_bias_key, 1),
+            ("fix_offset_start", self.fix_offset_keys[0], 2),
+            ("fix_offset_end", self.fix_offset_keys[1], 2),
         )
         self._vector_keys = [key for _, key, _ in self._vector_slots if key is not None]
         self.batch = ChunkBatch() if batch is None else batch
@@ -157,6 +164,7 @@ class ChunkOdometryFactor:
             self.time_offset_key,
             self.lever_arm_key,
             self.heading_bias_key,
+            *self.fix_offset_keys,
         )
 
     @property
@@ -211,6 +219,9 @@ class ChunkOdometryFactor:
             None if time_offset is None else time_offset[self.time_offset_slot],
             read.get("lever_arm"),
             None if bias is None else bias[0],
+            None
+            if "fix_offset_start" not in read
+            else np.stack([read["fix_offset_start"], read["fix_offset_end"]]),
         )
 
     def read(self, values: gtsam.Values) -> ChunkArguments:
@@ -257,6 +268,8 @@ class ChunkOdometryFactor:
         ):
             if key is not None:
                 blocks.append(block)
+        if self.fix_offset_keys[0] is not None:
+            blocks += [result.fix_offset[..., :2], result.fix_offset[..., 2:]]
         return blocks
 
     def __call__(

@@ -16,13 +16,16 @@ class DefectValues:
     no Jacobian). For one chunk: ``slip (2,)`` relative scales of the two wheels (the
     rotation of wheel w becomes ``n_w · (1 + slip_w)``), ``time_offset`` [s] of the wheels
     (positive: late against the pose), ``lever_arm (2,)`` [m] of the antenna (ahead, left of
-    the centre of gravity), ``heading_bias`` [rad] of the measured heading; for
-    :func:`chunk_errors` each with a leading chunk axis."""
+    the centre of gravity), ``heading_bias`` [rad] of the measured heading, ``fix_offset
+    (2, 2)`` [m] the fixes' world-frame error ``[east, north]`` at the chunk's start and at its
+    end (a slowly varying GNSS error, linear between: :mod:`graphcal.graph.gauss_markov`);
+    for :func:`chunk_errors` each with a leading chunk axis."""
 
     slip: np.ndarray | None = None
     time_offset: np.ndarray | float | None = None
     lever_arm: np.ndarray | None = None
     heading_bias: np.ndarray | float | None = None
+    fix_offset: np.ndarray | None = None
 
 
 #: No defect variables: the paper's chunk.

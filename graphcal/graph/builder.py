@@ -52,9 +52,13 @@ from graphcal.graph.built_graph import (
     insert_segment,
     with_heading,
 )
+from graphcal.graph.chunk_processes import (
+    add_fix_error_priors,
+    add_slip_priors,
+    fix_error_keys,
+)
 from graphcal.graph.chunking import chunk_bounds
 from graphcal.graph.graph_spec import SegmentGraphSpec
-from graphcal.graph.slip import slip_prior_factor, slip_step_factor
 from graphcal.log.segments import SegmentData
 from graphcal.log.timing import rotation_rate_changes
 from graphcal.model import aligned_trajectory, integrate
@@ -257,9 +261,9 @@ def _add_segment(
     ``slots``)."""
     s, bounds = segment.index, segment.bounds
     heading = with_heading(data, s)
-    insert_segment(values, s, bounds, segment.nominal, spec, heading)
+    insert_segment(values, s, bounds, segment.nominal, spec, heading, segment.tied_before)
     if spec.slip_sigma is not None:
-        _add_slip(graph, s, bounds, data.dt, spec)
+        add_slip_priors(graph, s, bounds, data.dt, spec)
     bias_key = None
     if spec.heading_bias_sigma is not None and heading:
         bias_key = keys.segment_heading_bias(s)
@@ -281,7 +285,11 @@ def _add_segment(
     rates = None
     if wide.time_offset_key is not None:
         rates = rotation_rate_changes(segment.inputs[:, :2], data.dt)
-    _add_chunks(graph, values, segment, spec, wide, bias_key, rates, slots)
+    errors = None
+    if spec.fix_error_sigma is not None:
+        errors = fix_error_keys(data, s, bounds, segment.tied_before, spec.chunk_steps)
+        add_fix_error_priors(graph, errors, bounds, data.dt, segment.tied_before, spec)
+    _add_chunks(graph, values, segment, spec, wide, (bias_key, errors), rates, slots)
 
 
 def _add_chunks(
@@ -290,14 +298,17 @@ def _add_chunks(
     segment: _Segment,
     spec: SegmentGraphSpec,
     wide: _GraphWide,
-    bias_key: int | None,
+    segment_keys: tuple[int | None, list[int] | None],
     rates: np.ndarray | None,
     slots: list[ChunkFactorSlot],
 ) -> None:
     """The chunk factors of ``segment`` (with their correction variables), evaluated together
-    (vectorized); ``rates``: the wheels' rotation rate changes (with a time offset). A
+    (vectorized); ``segment_keys``: its heading bias's key and its fixes' error's keys at the
+    chunk boundaries (each or ``None``); ``rates``: the wheels' rotation rate changes (with a
+    time offset). A
     segment tied to the next ends its last chunk at that one's start."""
     s, bounds, poses, inputs = segment.index, segment.bounds, segment.poses, segment.inputs
+    bias_key, errors = segment_keys  # the heading bias, the fixes' error at the boundaries
     weights, measured, fractions = segment.weights, segment.measured, segment.fractions
     theta = wide.fixed_theta if wide.theta_key is None else wide.theta_key
     next_start = keys.segment_pose(s + 1) if segment.tied_after else None
@@ -334,6 +345,7 @@ def _add_chunks(
                 time_offset=wide.time_offset_key,
                 lever_arm=wide.lever_arm_key,
                 heading_bias=bias_key,
+                fix_offset=None if spec.fix_error_sigma is None else (errors[j], errors[j + 1]),
                 time_offset_slot=(segment.run, spec.time_offset_runs),
             ),
             batch=batch,
@@ -354,11 +366,14 @@ def _add_start_prior(
 ) -> None:
     """The measured start pose of segment ``s`` on its free start (the paper's W): GTSAM's
     priors, or a :class:`~graphcal.factors.MeasuredPoseFactor` through the lever arm and the
-    heading bias when those are variables; the position sigma widened by a fix weight. Only
+    heading bias when those are variables; the position sigma widened by a fix weight (and
+    by the fixes' shared error when it is modelled). Only
     the measured ``components`` [position, heading] enter (a start without a measured
     heading stays free in heading: the fixes after it determine it)."""
     prior = np.asarray(spec.start_prior_sigmas, float).copy()
     prior[:2] /= np.sqrt(weight)
+    if spec.fix_error_sigma is not None:  # the start's fix shares its chunk's error too
+        prior[:2] = np.hypot(prior[:2], spec.fix_error_sigma)
     start_key = keys.segment_pose(s)
     position, heading = bool(components[0]), bool(components[1])
     if position and (lever_arm_key is not None or (bias_key is not None and heading)):
@@ -380,30 +395,6 @@ def _add_start_prior(
     if heading:  # (a heading without a position at the start: its bias is left out there)
         heading_noise = gtsam.noiseModel.Isotropic.Sigma(1, float(prior[2]))
         graph.add(gtsam.PoseRotationPrior2D(start_key, gtsam.Rot2(measured[2]), heading_noise))
-
-
-def _add_slip(
-    graph: gtsam.NonlinearFactorGraph,
-    s: int,
-    bounds: np.ndarray,
-    dt: float,
-    spec: SegmentGraphSpec,
-) -> None:
-    """Priors of segment ``s``'s slip scales, one 2-vector per chunk
-    (:mod:`graphcal.graph.slip`: stationary at the first chunk, Gauss–Markov steps after)."""
-    sigma = float(spec.slip_sigma)
-    graph.add(slip_prior_factor(keys.segment_slip(s, 0), sigma))
-    for j in range(1, len(bounds) - 1):
-        duration = float((bounds[j] - bounds[j - 1]) * dt)
-        graph.add(
-            slip_step_factor(
-                keys.segment_slip(s, j - 1),
-                keys.segment_slip(s, j),
-                duration,
-                sigma,
-                spec.slip_time,
-            )
-        )
 
 
 def _add_corrections(

@@ -131,8 +131,10 @@ class BuiltGraph:
         if self.spec.estimate_theta:
             values.insert(keys.THETA, np.asarray(theta, float))
         insert_nuisance(values, self.spec)
+        tied = self.spec.tied(self.data)
         for s, bounds in enumerate(self.bounds):
-            insert_segment(values, s, bounds, states[s], self.spec, with_heading(self.data, s))
+            heading = with_heading(self.data, s)
+            insert_segment(values, s, bounds, states[s], self.spec, heading, bool(tied[s]))
             if self.spec.corrections is not None and corrections is not None:
                 for j in range(len(bounds) - 1):
                     a, b = int(bounds[j]), int(bounds[j + 1])
@@ -153,12 +155,18 @@ def insert_segment(
     states: np.ndarray,
     spec: SegmentGraphSpec,
     with_heading: bool = True,
+    tied_before: bool = False,
 ) -> None:
     """Insert the Pose2 variables of segment ``s`` (free start, chunk boundaries) and its
-    slip scales (at zero) and heading bias (if it measures the heading)."""
+    slip scales and fixes' errors (at zero) and heading bias (if it measures the heading).
+    ``tied_before``: the segment starts at the end of the one before, whose last fixes'
+    error is its first."""
     if spec.slip_sigma is not None:
         for j in range(len(bounds) - 1):
             values.insert(keys.segment_slip(s, j), np.zeros(2))
+    if spec.fix_error_sigma is not None:  # at each chunk boundary (tied: the first is before)
+        for j in range(1 if tied_before else 0, len(bounds)):
+            values.insert(keys.segment_fix_offset(s, j), np.zeros(2))
     if spec.heading_bias_sigma is not None and with_heading:
         values.insert(keys.segment_heading_bias(s), np.zeros(1))
     if spec.start_prior_sigmas is not None:

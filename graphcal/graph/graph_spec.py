@@ -67,6 +67,11 @@ class SegmentGraphSpec:
             variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
             or ``None`` for none.
+        fix_error_sigma: stationary sigma [m] per axis of the error the fixes share over
+            a chunk (a GNSS receiver's slowly varying error: one ``[east, north]`` 2-vector
+            per chunk, a first-order Gauss–Markov process along each chain of tied segments,
+            :mod:`graphcal.graph.gauss_markov`), or ``None`` for white fix errors only.
+        fix_error_time: that process's correlation time [s].
         tie_segments: a segment that starts where the one before it ends, in one continuous
             stretch of the log (:meth:`~graphcal.log.segments.SegmentData.tied`), starts at
             that segment's end pose (a continuity residual) instead of a free start under
@@ -88,6 +93,8 @@ class SegmentGraphSpec:
     time_offset_runs: int = 1
     lever_arm_sigma: float | None = None
     heading_bias_sigma: float | None = None
+    fix_error_sigma: float | None = None
+    fix_error_time: float = 30.0
     tie_segments: bool = False
 
     def for_runs(self, runs: int) -> SegmentGraphSpec:

@@ -14,6 +14,7 @@ letter     variable            index
 ``o``      wheel time offset   0 (a 1-vector [s])
 ``a``      antenna lever arm   0 (a 2-vector [m]: ahead, left)
 ``h``      heading bias        segment (a 1-vector [rad])
+``e``      fixes' shared error segment, chunk (a 2-vector [m]: east, north)
 ``x``      keyframe Pose2      keyframe number (localization graphs)
 ``w``      wheel slip scales   span number (localization graphs; a 2-vector)
 ``g``      wheel slip scales   GNSS gap number (localization graphs; a 2-vector)
@@ -69,6 +70,12 @@ def segment_slip(segment: int, chunk: int = 0) -> int:
     """Key of the 2-vector of relative wheel-slip scales ``[s_rl, s_rr]`` of ``chunk`` of
     ``segment``."""
     return gtsam.symbol("s", _packed(segment, chunk))
+
+
+def segment_fix_offset(segment: int, chunk: int = 0) -> int:
+    """Key of the 2-vector world-frame error ``[east, north]`` [m] the fixes of ``chunk`` of
+    ``segment`` share (a slowly varying GNSS error)."""
+    return gtsam.symbol("e", _packed(segment, chunk))
 
 
 #: The wheels' time offset against the pose [s] (1-vector).

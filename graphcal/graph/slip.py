@@ -4,8 +4,8 @@ A rear wheel's slow slip (a tyre's load in a long bend, a wet patch) scales its 
 ``n_w (1 + s_w)``, for seconds. Per span of the drive (a chunk of a segment, or a few keyframe
 intervals of a localization graph) one 2-vector of scales has the stationary prior
 ``N(0, sigma²)`` at the first span and a first-order Gauss–Markov step between consecutive
-spans, ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−duration / slip_time)``,
-so that every span's scale has the stationary sigma. Both factors are linear in the scales.
+spans, ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−duration / slip_time)``
+(:mod:`graphcal.graph.gauss_markov`), so that every span's scale has the stationary sigma.
 
 Where the process is too fine to resolve, coarser forms stand in for it: across a GNSS gap
 one scale whose prior is the variance of the process's mean over the gap
@@ -19,10 +19,12 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
+from graphcal.graph.gauss_markov import gauss_markov_step, stationary_prior
+
 
 def slip_prior_factor(key: int, sigma: float) -> gtsam.PriorFactorVector:
     """The stationary prior ``N(0, sigma²)`` of the first span's scales (dimensionless)."""
-    return gtsam.PriorFactorVector(key, np.zeros(2), gtsam.noiseModel.Isotropic.Sigma(2, sigma))
+    return stationary_prior(key, 2, sigma)
 
 
 def slip_step_factor(
@@ -30,21 +32,7 @@ def slip_step_factor(
 ) -> gtsam.LinearContainerFactor:
     """The Gauss–Markov step from the span ``previous_key`` to the next one ``key``, which
     starts ``duration`` [s] later; ``sigma`` stationary, ``slip_time`` [s] correlation time."""
-    phi = float(np.exp(-duration / slip_time))
-    step_sigma = sigma * np.sqrt(max(1.0 - phi**2, 1e-12))
-    linear = gtsam.JacobianFactor(
-        previous_key,
-        -phi * np.eye(2),
-        key,
-        np.eye(2),
-        np.zeros(2),
-        gtsam.noiseModel.Isotropic.Sigma(2, float(step_sigma)),
-    )
-    zero = gtsam.Values()
-    zero.insert(previous_key, np.zeros(2))
-    zero.insert(key, np.zeros(2))
-    # Linear in the scales: linearized at zero, the container is exact everywhere.
-    return gtsam.LinearContainerFactor(linear, zero)
+    return gauss_markov_step(previous_key, key, 2, duration, sigma, slip_time)
 
 
 def slip_noise_covariance(duration: float, sigma: float, slip_time: float) -> np.ndarray:

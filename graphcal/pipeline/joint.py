@@ -50,6 +50,8 @@ from graphcal.vehicle import HELD_SIGMA_SCALE
 MAX_TIME_OFFSET_MEAN = 1.0
 #: ``JointSettings.slip``: model slow wheel slip when the log shows it, always, or never.
 SLIP_MODES = ("auto", "on", "off")
+#: How an error the fixes share is modelled (:attr:`JointSettings.fix_error`).
+FIX_ERROR_MODES = ("auto", "off")
 #: Relative error tolerance of the joint solves.
 TOLERANCE = 1e-7
 
@@ -89,6 +91,12 @@ class JointSettings:
             estimated with theta (0: not estimated).
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading
             (a fused heading's slow bias; 0: none).
+        fix_error: an error the fixes share, a first-order Gauss–Markov process (a GNSS
+            receiver's slowly varying error): ``"auto"`` models it when the residuals show
+            one (:mod:`graphcal.pipeline.noise_levels`) or with ``fix_error_sigma`` when that
+            is above 0, ``"off"`` never (white fix errors only).
+        fix_error_sigma: its stationary sigma [m] per axis when known (0: from the
+            residuals), and ``fix_error_time`` its correlation time [s].
         robust_threshold: fixes whose position residual exceeds this many times the
             residuals' scale are down-weighted (:mod:`graphcal.pipeline.robust`; 0: off).
         heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
@@ -129,6 +137,9 @@ class JointSettings:
     time_offset_mean: float = 0.0
     lever_arm_sigma: float = 2.0
     heading_bias_sigma: float = 0.02
+    fix_error: str = "auto"
+    fix_error_sigma: float = 0.0
+    fix_error_time: float = 30.0
     robust_threshold: float = 5.0
     heading_noise_from_log: bool = True
     fix_d: bool = False
@@ -174,6 +185,11 @@ class JointSettings:
             raise ValueError(
                 f"joint.slip must be one of {', '.join(SLIP_MODES)}, got {self.slip!r}"
             )
+        if self.fix_error not in FIX_ERROR_MODES:
+            raise ValueError(
+                f"joint.fix_error must be one of {', '.join(FIX_ERROR_MODES)}, "
+                f"got {self.fix_error!r}"
+            )
         if not 0.0 < self.slip_alpha < 1.0:  # NaN fails too
             raise ValueError(f"joint.slip_alpha must be in (0, 1), got {self.slip_alpha!r}")
         means = (self.time_offset_mean, *self.time_offset_means)
@@ -195,6 +211,7 @@ class JointSettings:
                 "position_sigma": self.position_sigma,
                 "wheel_noise": self.wheel_noise,
                 "slip_time": self.slip_time,
+                "fix_error_time": self.fix_error_time,
                 "slip_sigma": self.slip_sigma,
                 "slip_alpha": self.slip_alpha,
                 "max_sigma_ratio": self.max_sigma_ratio,
@@ -205,6 +222,7 @@ class JointSettings:
                 "time_offset_sigma": self.time_offset_sigma,
                 "lever_arm_sigma": self.lever_arm_sigma,
                 "heading_bias_sigma": self.heading_bias_sigma,
+                "fix_error_sigma": self.fix_error_sigma,
                 "robust_threshold": self.robust_threshold,
             },
             at_least_one={"chunk_steps": self.chunk_steps, "max_iterations": self.max_iterations},
@@ -236,13 +254,15 @@ class JointSettings:
             time_offset_mean=self.time_offset_means or self.time_offset_mean,
             lever_arm_sigma=_optional(self.lever_arm_sigma),
             heading_bias_sigma=_optional(self.heading_bias_sigma),
+            fix_error_sigma=_optional(self.fix_error_sigma) if self.fix_error != "off" else None,
+            fix_error_time=self.fix_error_time,
             tie_segments=self.tie_segments,
         )
 
 
 def without_defect_model(settings: JointSettings) -> JointSettings:
-    """``settings`` estimating theta alone: no time offset, lever arm, heading biases, slip
-    or robust weights (the model of a clean log)."""
+    """``settings`` estimating theta alone: no time offset, lever arm, heading biases, slip,
+    shared fix error or robust weights (the model of a clean log)."""
     return dataclasses.replace(
         settings,
         time_offset_sigma=0.0,
@@ -250,6 +270,7 @@ def without_defect_model(settings: JointSettings) -> JointSettings:
         heading_bias_sigma=0.0,
         robust_threshold=0.0,
         slip="off",
+        fix_error="off",
         heading_noise_from_log=False,
     )
 

@@ -83,6 +83,10 @@ Every section and key, with the defaults::
     time_offset_mean = 0.0      # s, its prior mean (the offset known to remain in the log)
     lever_arm_sigma = 2.0       # m, prior of the GNSS antenna's lever arm (estimated); 0 = off
     heading_bias_sigma = 0.02   # rad, prior of a per-segment heading bias; 0 = off
+    fix_error = "auto"          # the fixes' slowly varying shared error (Gauss–Markov):
+                                # auto (when the residuals show it) | off
+    fix_error_sigma = 0.0       # m per axis, when known; 0 = from the residuals
+    fix_error_time = 30.0       # s, its correlation time
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
     heading_noise_from_log = true  # heading weight from the log's own heading noise
     fix_d = false               # (v) d held at theta_initial (the vehicle's fix_d)

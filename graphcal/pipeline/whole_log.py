@@ -7,9 +7,11 @@ Top-down, :func:`solve_whole_log` runs:
    (:func:`~graphcal.pipeline.joint.solve_joint`: warm start, robust reweighting of the fixes,
    slip screen), repeated with the wheels shifted by whole samples while it finds a time
    offset;
-2. the noise the residuals show (:func:`_with_noise_levels`) and, for a log whose lateral
-   acceleration comes from the wheels (and whose d is estimated), that acceleration derived
-   again with the solved theta; the rounds again if either changed the graph;
+2. the noise the residuals show (:func:`~graphcal.pipeline.noise_levels.with_noise_levels`:
+   the fixes' white noise and the error they share, the heading's, the wheels') and, for a
+   log whose lateral acceleration comes from the wheels (and whose d is estimated), that
+   acceleration derived again with the solved theta; the rounds again if either changed the
+   graph;
 3. theta judged under the weak prior
    (:func:`~graphcal.pipeline.held_at_prior.judged_with_what_is_held`): every parameter its
    posterior with its marginal σ, what the settings held at its prior
@@ -29,7 +31,6 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.factors import pose_sigmas
 from graphcal.graph.plausibility import ImplausibleTheta
 from graphcal.graph.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
@@ -49,8 +50,8 @@ from graphcal.pipeline.held_at_prior import (
 )
 from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.pipeline.joint_batches import segment_systems
+from graphcal.pipeline.noise_levels import with_noise_levels
 from graphcal.pipeline.prepare import PreparedLog
-from graphcal.pipeline.residual_noise import honest_sigma
 from graphcal.pipeline.sensor_estimates import (
     DownWeightedFixes,
     SensorEstimate,
@@ -68,9 +69,6 @@ from graphcal.units import LengthUnit, length_unit
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
-#: The fixes' noise from the solve replaces the settings' when they differ by more than this
-#: share (a variance component; one more solve).
-POSITION_NOISE_TOLERANCE = 0.25
 #: Why a parameter that left its plausible range in the first solve is held at its prior.
 RUNAWAY_REASON = "it left its plausible range in a free solve; held at its prior"
 
@@ -143,7 +141,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
         settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
         whole, values, data, offset = _holding_a_runaway(prepared, settings.joint, runaway, workers)
         held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
-    joint = _with_noise_levels(whole, settings.joint, gathered.has_heading())
+    joint = with_noise_levels(whole, settings.joint, gathered.has_heading(), log.dt)
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
     rederive = log.ay_from_wheels and "d" not in settings.joint.held_at_prior
     if rederive:  # a_y derived with the nominal theta: again with the solved one
@@ -269,66 +267,6 @@ def _whole_log_solve(
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
     return result, values
-
-
-def _with_noise_levels(
-    whole: JointCalibration, settings: JointSettings, has_heading: bool
-) -> JointSettings:
-    """``settings`` with the noise the whole-log solve's residuals show
-    (:class:`~graphcal.pipeline.residual_noise.ResidualNoise`), else ``settings`` itself:
-
-    * the fixes' position sigma (their RMS, inflated when their errors are correlated:
-      :func:`~graphcal.pipeline.residual_noise.honest_sigma`) when it differs from the settings' by
-      more than :data:`POSITION_NOISE_TOLERANCE`;
-    * the heading's sigma (the RMS of its residuals, not inflated for their correlation: a
-      heading that drifts from the model's over seconds is a defect, the heading biases'
-      or the model check's, not noise to weigh away) and the wheel noise when the residuals
-      show them larger by more than that share — only larger: a heading's white noise
-      (from the log) and a profile's wheel noise are floors, and data that determine the
-      corrections only in part show a χ² below 1 however right the wheel noise is.
-
-    A real robot with motion capture (a profile's 0.0002 rev, the heading's 0.09° white
-    noise) showed corrections at χ² 4 per row and heading residuals of 0.2°: χ²/dof 5.
-    """
-    noise = whole.noise
-    x, y, _ = settings.pose_weights
-    sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
-    position, heading, wheel = float(sigmas[0]), float(sigmas[2]), settings.wheel_noise
-    found = honest_sigma(noise.position, noise.position_correlation)
-    if found is not None:
-        say(f"position noise {noise.position:#.3g} m per axis (the fixes' residuals)")
-        if found != noise.position:
-            say(
-                f"  the fixes' errors are alike from fix to fix (a mean of many varies "
-                f"{noise.position_correlation:.1f}× as much as white noise's): weighted as "
-                f"{found:#.3g} m"
-            )
-        if abs(found / position - 1.0) > POSITION_NOISE_TOLERANCE:
-            say(f"  not the {position:g} m the settings assume: solved again with it")
-            position = found
-    found = noise.heading  # white: a correlated misfit of the heading is a defect, not noise
-    if has_heading and found is not None and found > heading * (1 + POSITION_NOISE_TOLERANCE):
-        say(
-            f"heading residuals {np.degrees(found):.3g}° RMS, not the {np.degrees(heading):.3g}° "
-            "assumed: solved again with them"
-        )
-        heading = found
-    chi2 = noise.wheel_chi2
-    if chi2 is not None and np.sqrt(chi2) > 1 + POSITION_NOISE_TOLERANCE:
-        wheel = float(settings.wheel_noise * np.sqrt(chi2))
-        say(
-            f"wheel corrections at χ² {chi2:.2f} per row: wheel noise {wheel:.3g} rev per "
-            f"step, not the {settings.wheel_noise:g} assumed: solved again with it"
-        )
-    if (position, heading, wheel) == (float(sigmas[0]), float(sigmas[2]), settings.wheel_noise):
-        return settings
-    weight = float(f"{(position / heading) ** 2:.6g}")
-    return dataclasses.replace(
-        settings,
-        position_sigma=position * np.sqrt(x),
-        pose_weights=(x, y, weight),
-        wheel_noise=wheel,
-    )
 
 
 def _with_total_offset(
