@@ -154,6 +154,7 @@ _PUBLIC = {
     "GraphcalError": "graphcal.errors",
     "Progress": "graphcal.progress",  # the type of every progress callback
     "first_line": "graphcal.errors",  # an error message's first line
+    "remembering_interrupts": "graphcal.interrupt",  # Ctrl-C never dropped (the CLI's run)
 }
 
 __all__ = sorted(_PUBLIC)
