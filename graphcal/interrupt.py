@@ -9,12 +9,15 @@ KeyboardInterrupt``, and the run went on, wrote its results and exited 0 (issue 
 While :func:`remembering_interrupts` is active (the command line's run), a SIGINT sets a
 flag before it raises; :func:`raise_if_interrupted` raises it again at the run's next
 progress line, worker result and file it would write, so an interrupt dropped once still
-ends the run before anything is written. Outside it (graphcal as a library) nothing changes.
+ends the run before anything is written, and the dropped one's "Exception ignored" traceback
+is not printed (``sys.unraisablehook``): the user sees one line, ``graphcal: interrupted``.
+Outside it (graphcal as a library) nothing changes.
 """
 
 from __future__ import annotations
 
 import signal
+import sys
 import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -33,6 +36,17 @@ def _handle(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
+def _quiet_about_dropped_interrupts(previous):
+    """An unraisable-exception hook that says nothing of a dropped ``KeyboardInterrupt``
+    (remembered: it ends the run at the next check) and hands every other to ``previous``."""
+
+    def hook(unraisable) -> None:
+        if not (_requested and isinstance(unraisable.exc_value, KeyboardInterrupt)):
+            previous(unraisable)
+
+    return hook
+
+
 def interrupted() -> bool:
     """Whether Ctrl-C was pressed while :func:`remembering_interrupts` was active."""
     return _requested
@@ -47,15 +61,19 @@ def raise_if_interrupted() -> None:
 
 @contextmanager
 def remembering_interrupts() -> Iterator[None]:
-    """While inside (main thread only), SIGINT is remembered as well as raised; the flag
-    is cleared on entry and the previous handler restored on exit."""
+    """While inside (main thread only), SIGINT is remembered as well as raised, and one that
+    Python drops is not printed; the flag is cleared on entry, the previous handler and
+    unraisable hook restored on exit."""
     global _requested
     if not _main_thread():
         yield
         return
     _requested = False
     previous = signal.signal(signal.SIGINT, _handle)
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = _quiet_about_dropped_interrupts(previous_hook)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = previous_hook

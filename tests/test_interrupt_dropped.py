@@ -41,6 +41,7 @@ def test_ctrl_c_dropped_in_a_fork_callback_still_interrupts(tmp_path):
     )
     assert run.returncode == 130, run.stderr
     assert run.stderr.strip().splitlines()[-1] == "graphcal: interrupted", run.stderr
+    assert "Traceback" not in run.stderr and "Exception ignored" not in run.stderr, run.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == [], list(tmp_path.iterdir())
 
 
