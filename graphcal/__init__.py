@@ -64,6 +64,7 @@ _PUBLIC = {
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",
     "write_streams": "graphcal.simulate.streams",
+    "check_simulate_output": "graphcal.simulate.outputs",  # before simulating, not after
     "write_raw_logs": "graphcal.simulate.raw_logs",  # a recording as candump + DBC, NMEA
     "write_bag": "graphcal.simulate.bags",  # a recording as a ROS 1/2 bag or MCAP file
     "BagTopics": "graphcal.simulate.bags",  # the topics write_bag writes

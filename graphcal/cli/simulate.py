@@ -173,9 +173,10 @@ def _add_defects_option(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write a synthetic drive, its noise-free truth and a JSON sidecar."""
-    from graphcal import THETA_TRUE_DEFAULT, NoiseLevels
+    from graphcal import THETA_TRUE_DEFAULT, NoiseLevels, check_simulate_output
 
     _check_outputs(args)
+    check_simulate_output(args.out, args.streams, args.fleet)
     theta_true = _theta_true(args)
     if args.vehicle is not None:
         return simulate_robot_command(args, theta_true)
