@@ -218,7 +218,7 @@ def _batches(prepared: PreparedLog, method: Method, workers: int) -> np.ndarray:
     if size < b.size:
         say(f"only {len(selected)} segments: batches of {size} instead of {b.size}")
     batches = make_batches(len(selected), size, b.count, b.seed)
-    if len(batches) < b.count:  # every distinct batch drawn: a repeat adds no information
+    if len(batches) < b.count and size == b.size:  # all distinct ones: a repeat adds nothing
         say(
             f"only {len(batches)} distinct batches of {size} of the {len(selected)} selected "
             f"segments: {len(batches)} instead of {b.count}"
