@@ -41,7 +41,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="city: bends, turns and roundabouts (default); straight: a straight road, where "
         "t_r and d are not observable",
     )
-    p.add_argument("--out", type=Path, default=None, help="output CSV path")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="drive-log CSV to write (+ _truth.csv, .json); required unless --streams DIR "
+        "or --fleet DIR",
+    )
     _add_robot_options(p)
     _add_stream_options(p)
     p.add_argument(
