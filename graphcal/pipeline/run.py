@@ -113,6 +113,13 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
     prepared = prepare_log(log, settings, fall_back_to_all=True)
     solved, check = _solve_checked(prepared, workers)
     recommended = dataclasses.replace(_recommended(solved), model_check=check)
+    selected, size = len(solved.corrected.selected), settings.batches.size
+    if selected <= size:  # one batch, all segments: the whole-log solve again, no spread
+        say(
+            f"only {selected} selected segments, no more than one batch of {size}: no batch "
+            "study (the whole-log solve's σ and the segments' agreement stand)"
+        )
+        return validated_run("joint", solved.corrected, solved, recommended)
     batches = _batches(solved.corrected, "joint", workers)
     study = joint_batch_study(solved, batches, workers)
     result = dataclasses.replace(
