@@ -64,6 +64,7 @@ _PUBLIC = {
     "simulate_streams": "graphcal.simulate.streams",
     "StreamSettings": "graphcal.simulate.streams",
     "write_streams": "graphcal.simulate.streams",
+    "check_simulate_output": "graphcal.simulate.outputs",  # before simulating, not after
     "write_raw_logs": "graphcal.simulate.raw_logs",  # a recording as candump + DBC, NMEA
     "write_bag": "graphcal.simulate.bags",  # a recording as a ROS 1/2 bag or MCAP file
     "BagTopics": "graphcal.simulate.bags",  # the topics write_bag writes
@@ -154,6 +155,7 @@ _PUBLIC = {
     "GraphcalError": "graphcal.errors",
     "Progress": "graphcal.progress",  # the type of every progress callback
     "first_line": "graphcal.errors",  # an error message's first line
+    "remembering_interrupts": "graphcal.interrupt",  # Ctrl-C never dropped (the CLI's run)
 }
 
 __all__ = sorted(_PUBLIC)

@@ -14,6 +14,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import IO, Any
 
+from graphcal.interrupt import raise_if_interrupted
+
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
@@ -26,6 +28,7 @@ def _atomic(path: str | os.PathLike[str], write: Callable[[IO[Any]], None], mode
         with os.fdopen(fd, mode, **({"newline": ""} if "b" not in mode else {})) as handle:
             write(handle)
         os.chmod(tmp, 0o666 & ~_UMASK)  # mkstemp makes 0600; give result files normal modes
+        raise_if_interrupted()  # a Ctrl-C dropped while writing: nothing appears
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -20,6 +20,8 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import TypeVar
 
+from graphcal.interrupt import raise_if_interrupted
+
 F = TypeVar("F", bound=Callable)
 
 #: Receives one line of progress text (no newline).
@@ -35,7 +37,9 @@ _silenced = False  # this process is a worker (silence())
 
 
 def say(line: str) -> None:
-    """Report one line of progress (nothing while :func:`muted`)."""
+    """Report one line of progress (nothing while :func:`muted`); a Ctrl-C dropped earlier
+    ends the run here (:mod:`graphcal.interrupt`)."""
+    raise_if_interrupted()
     if not getattr(_state, "muted", 0):
         LOGGER.info(line)
 

@@ -127,10 +127,11 @@ def test_calibrate_reports_the_sensor_estimates(clean, tmp_path, capsys):
     assert main(["calibrate", str(path), "--method", "whole", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "time offset (wheels late) [ms]" in printed
-    assert "lever arm, ahead [m]" in printed
+    assert "lever arm, ahead of the centre of gravity [m]" in printed  # sideslip logged
     result = json.loads((out / "calibration.json").read_text())
     assert result["estimated"]["time_offset"]["value"] == pytest.approx(0.05, abs=0.01)
     assert result["estimated"]["lever_arm_longitudinal"]["value"] == pytest.approx(1.2, abs=0.2)
+    assert result["estimated"]["lever_arm_longitudinal"]["from"] == "centre of gravity"
     assert result["down_weighted_fixes"]["count"] == 0
 
 

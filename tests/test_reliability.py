@@ -149,12 +149,15 @@ def test_clean_drives_are_not_masked():
 
 
 @pytest.mark.slow
-def test_a_short_drive_says_what_batches_it_used(tmp_path):
+def test_a_short_drive_says_why_it_has_no_batch_study(tmp_path):
+    """Too few segments for batches of 9: the one batch would be the whole-log solve again,
+    so there is no batch study, said as progress, not a warning (issue 44, row 8)."""
     log = simulate_drive(length_km=1.0, seed=3).measured
-    run = run_calibration(log)
-    count, size = run.batches.shape
-    assert (count, size) == (1, len(run.selected)) and size < 9  # too few for batches of 9
-    assert any(f"1 batch of {size} instead of 9" in w for w in run.warnings), run.warnings
+    lines: list[str] = []
+    run = run_calibration(log, progress=lines.append)
+    assert run.batches is None and len(run.selected) < 9
+    assert any("no more than one batch of 9: no batch study" in line for line in lines), lines
+    assert not [w for w in run.warnings if "batch" in w], run.warnings
 
 
 @pytest.mark.slow

@@ -60,8 +60,8 @@ def test_progress_lines_name_the_pose_the_log_has():
     columns = ("px", "py", "psi", "n_rl", "n_rr", "beta", "ay")
     log = DriveLog.from_arrays(t=np.arange(3.0), **{c: np.zeros(3) for c in columns})
     lines = estimate_lines(ARM, log, MILLIMETRES)
-    assert "position source ahead of the centre of gravity: +0.4 ± 0.1 mm" in lines[1]
-    assert "position source left of the centre of gravity: not observable" in lines[2]
+    assert "position source ahead of the rear axle: +0.4 ± 0.1 mm" in lines[1]  # beta 0
+    assert "position source left of the rear axle: not observable" in lines[2]
     assert not [line for line in lines if "GNSS" in line]
     fixes = estimate_lines(ARM, dataclasses.replace(log, pose_source="GNSS"), METRES)
     assert "GNSS antenna ahead" in fixes[1]

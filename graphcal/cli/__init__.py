@@ -15,7 +15,7 @@ import sys
 from collections.abc import Sequence
 from types import ModuleType
 
-from graphcal import GraphcalError, __version__, first_line
+from graphcal import GraphcalError, __version__, first_line, remembering_interrupts
 
 EXIT_BAD_INPUT = 2
 #: Exit status after Ctrl-C.
@@ -91,10 +91,13 @@ def entry() -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``graphcal`` console script; returns the exit status."""
+    """Entry point of the ``graphcal`` console script; returns the exit status. A Ctrl-C is
+    remembered as well as raised (:func:`graphcal.remembering_interrupts`): one dropped
+    inside a fork's callback or a finalizer still ends the run before it writes."""
     try:
-        args = build_parser().parse_args(argv)
-        return args.func(args)
+        with remembering_interrupts():
+            args = build_parser().parse_args(argv)
+            return args.func(args)
     except GraphcalError as exc:
         print(f"graphcal: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -37,7 +37,12 @@ def run(args: argparse.Namespace) -> int:
     """Validate a drive log (or a manifest or bag, imported in memory) and summarize it."""
     check_recording_options(args, args.log)
     settings = settings_from_args(args)
-    log, imported = open_log(args.log, settings.vehicle, **recording_keywords(args))
+    log, imported = open_log(  # too short for one segment: refused as calibrate refuses it
+        args.log,
+        settings.vehicle,
+        min_distance=settings.segments.length,
+        **recording_keywords(args),
+    )
     summary = log_check_lines(log, settings)
     print(f"{args.log}: valid {'recording' if imported else 'drive log'}")
     if imported is not None:

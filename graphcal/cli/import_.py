@@ -50,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="streams manifest (.toml, or the directory holding manifest.toml), ROS 1 bag, "
         "ROS 2 bag, MCAP",
     )
-    p.add_argument("--out", type=Path, required=True, help="drive-log CSV to write (+ .json)")
+    p.add_argument("--out", type=str, required=True, help="drive-log CSV to write (+ .json)")
     p.add_argument(
         "--help-manifest",
         action=_PrintManifestKeys,
@@ -94,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         written = write_import(imported, out)
     except OSError as exc:
         raise GraphcalError(
-            f"cannot write {exc.filename or out}: {exc.strerror or exc}; nothing was written"
+            f"cannot write {out}: {exc.strerror or exc}; nothing was written"
         ) from exc
     say(f"wrote {', '.join(str(p) for p in written)}")
     return 0

@@ -41,7 +41,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="city: bends, turns and roundabouts (default); straight: a straight road, where "
         "t_r and d are not observable",
     )
-    p.add_argument("--out", type=Path, default=None, help="output CSV path")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="drive-log CSV to write (+ _truth.csv, .json); required unless --streams DIR "
+        "or --fleet DIR",
+    )
     _add_robot_options(p)
     _add_stream_options(p)
     p.add_argument(
@@ -173,9 +179,10 @@ def _add_defects_option(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Write a synthetic drive, its noise-free truth and a JSON sidecar."""
-    from graphcal import THETA_TRUE_DEFAULT, NoiseLevels
+    from graphcal import THETA_TRUE_DEFAULT, NoiseLevels, check_simulate_output
 
     _check_outputs(args)
+    check_simulate_output(args.out, args.streams, args.fleet)
     theta_true = _theta_true(args)
     if args.vehicle is not None:
         return simulate_robot_command(args, theta_true)

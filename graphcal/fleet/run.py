@@ -71,10 +71,12 @@ class FleetRun:
         results: per log (vehicle, day order), the task's result dict
             (:func:`graphcal.fleet.task.calibrate_fleet_log`).
         histories: per vehicle, its days, changes, current theta and flags.
-        computed, reused: logs calibrated in this run, and results kept from an earlier one.
+        computed, reused: logs tried in this run, and results kept from an earlier one
+            (whether they failed or not).
         failed: logs whose calibration failed (in this run or kept).
         seconds: wall time of the run.
         written: the report files.
+        failed_now: of ``failed``, those tried in this run.
     """
 
     results: list[dict[str, Any]]
@@ -84,12 +86,16 @@ class FleetRun:
     failed: int
     seconds: float
     written: list[Path]
+    failed_now: int = 0
 
     def summary(self) -> list[str]:
-        """The lines a fleet operator reads at the end."""
+        """The lines a fleet operator reads at the end: the logs calibrated now, kept and
+        failed, each log in one of the three (a failed log was counted as calibrated now)."""
+        failed_kept = self.failed - self.failed_now
         head = (
             f"{len(self.results)} logs of {len(self.histories)} vehicles: "
-            f"{self.computed} calibrated now, {self.reused} kept from an earlier run, "
+            f"{self.computed - self.failed_now} calibrated now, "
+            f"{self.reused - failed_kept} kept from an earlier run, "
             f"{self.failed} failed ({self.seconds:.0f} s)"
         )
         failed = [
@@ -187,9 +193,9 @@ def run_fleet(
         except OSError as exc:
             raise GraphcalError(f"cannot write the fleet report to {out}: {exc}") from exc
     failed = sum(r["status"] != "ok" for r in final)
-    return FleetRun(
-        final, histories, len(pending), reused, failed, time.perf_counter() - started, written
-    )
+    failed_now = sum(results[i] is not None and results[i]["status"] != "ok" for i in pending)
+    seconds = time.perf_counter() - started
+    return FleetRun(final, histories, len(pending), reused, failed, seconds, written, failed_now)
 
 
 def result_path(out: Path, log: FleetLog) -> Path:

@@ -222,7 +222,8 @@ def sampling_interval(
             row,
             f"non-uniform sampling: step {dt[row - 1]:.6g} s where the log's interval is "
             f"{dt_nominal:.6g} s",
-            "resample the log to a uniform rate (gaps must be cut into separate logs)",
+            "resample the log to a uniform rate; across a gap, add the missing rows at that "
+            "rate with masked = 1 (no segment spans them), or let `graphcal import` do it",
             origins=origins,
         )
     return dt_nominal
@@ -311,8 +312,8 @@ def check_inputs(
                 row,
                 f"implausible wheel rotation {n[row]:.6g} rev per {dt_nominal:.4g} s sample "
                 f"(over {MAX_PLAUSIBLE_SPEED:.0f} m/s)",
-                "give the rotation during each sample interval, not a cumulative count or angle "
-                "in degrees (take the difference between rows)",
+                "give the rotation in revolutions during each sample interval, not in radians "
+                "or degrees, not a cumulative count (take the difference between rows)",
                 imported=(
                     f"implausible QUANTITY: {abs(n[row]) * nominal[0] / dt_nominal:.4g} m/s with "
                     f"c_e = {nominal[0]:g} m (over {MAX_PLAUSIBLE_SPEED:.0f} m/s)"

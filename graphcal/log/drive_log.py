@@ -113,6 +113,14 @@ class DriveLog:
         GNSS fixes, else "position source" (motion capture, a fused pose, not known)."""
         return "GNSS antenna" if self.pose_source == "GNSS" else "position source"
 
+    def position_reference(self) -> str:
+        """The point of the vehicle the model's positions belong to, which a lever arm is
+        measured from: "centre of gravity" when the log has a sideslip (eq. 1 moves that
+        point at ``beta`` to the heading), else "rear axle" (with ``beta = 0`` the model's
+        point moves along the heading: a car's rear axle, or a point a little ahead of it
+        when its rear tyres slip; docs/defects.md)."""
+        return "centre of gravity" if np.any(self.beta != 0) else "rear axle"
+
     def run_of(self, rows: np.ndarray) -> np.ndarray:
         """The run of each of ``rows`` (all 0 for a log of one run)."""
         rows = np.asarray(rows)

@@ -200,7 +200,8 @@ def track_turns(
         c["px"], c["py"], dt, travelled, min_distance=COURSE_MIN_REVS * float(nominal[0]),
         half_distance=half,
     )  # fmt: skip
-    ends = np.unique(np.searchsorted(travelled, np.arange(0.0, travelled[-1], 2.0 * half)))
+    marks = np.arange(0.0, max(travelled[-1], 2.0 * half), 2.0 * half)  # [0] when parked
+    ends = np.unique(np.searchsorted(travelled, marks))
     ends = np.append(ends, n - 1) if ends[-1] < n - 1 else ends
     usable = ~masked
     track = _window_turns(heading, usable, ends)

@@ -14,6 +14,7 @@ from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, TypeVar
 
+from graphcal.interrupt import raise_if_interrupted
 from graphcal.progress import say, silence
 
 R = TypeVar("R")
@@ -61,6 +62,7 @@ def map_tasks(
     pool = ProcessPoolExecutor(max_workers=workers, initializer=quiet_worker)
     try:
         for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
+            raise_if_interrupted()  # a Ctrl-C dropped while the pool forked its workers
             results.append(result)
             report(len(results))
     except BrokenProcessPool:

@@ -202,6 +202,6 @@ def _with_heading_noise(log: DriveLog, settings: Settings) -> Settings:
         return settings
     x, y, _ = joint.pose_weights
     weight = float(f"{(joint.position_sigma / sigma) ** 2:.6g}")
-    say(f"heading noise {np.degrees(sigma):.2f}° (from the log): heading weight {weight:g}")
+    say(f"heading noise {np.degrees(sigma):.2f}° (from the log): heading weight {weight:.3g}")
     joint = dataclasses.replace(joint, pose_weights=(x, y, weight))
     return dataclasses.replace(settings, joint=joint)

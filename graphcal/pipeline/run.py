@@ -113,6 +113,13 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
     prepared = prepare_log(log, settings, fall_back_to_all=True)
     solved, check = _solve_checked(prepared, workers)
     recommended = dataclasses.replace(_recommended(solved), model_check=check)
+    selected, size = len(solved.corrected.selected), settings.batches.size
+    if selected <= size:  # one batch, all segments: the whole-log solve again, no spread
+        say(
+            f"only {selected} selected segments, no more than one batch of {size}: no batch "
+            "study (the whole-log solve's σ and the segments' agreement stand)"
+        )
+        return validated_run("joint", solved.corrected, solved, recommended)
     batches = _batches(solved.corrected, "joint", workers)
     study = joint_batch_study(solved, batches, workers)
     result = dataclasses.replace(
@@ -218,6 +225,11 @@ def _batches(prepared: PreparedLog, method: Method, workers: int) -> np.ndarray:
     if size < b.size:
         say(f"only {len(selected)} segments: batches of {size} instead of {b.size}")
     batches = make_batches(len(selected), size, b.count, b.seed)
+    if len(batches) < b.count and size == b.size:  # all distinct ones: a repeat adds nothing
+        say(
+            f"only {len(batches)} distinct batches of {size} of the {len(selected)} selected "
+            f"segments: {len(batches)} instead of {b.count}"
+        )
     say(
         f"{method}: {_plural(len(batches), 'batch', 'batches')} of {size} segments, "
         f"{_plural(workers, 'worker', 'workers')}"

@@ -13,6 +13,7 @@ drive cannot show (a lateral arm on straight roads) is reported not observable.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,9 @@ class SensorEstimate:
         value, sigma: the estimate and its standard deviation.
         prior_sigma: the sigma of its zero-mean prior.
         observable: the drive determined it.
+        reference_point: what a lever arm is measured from (the log's
+            :meth:`~graphcal.log.drive_log.DriveLog.position_reference`: "centre of gravity"
+            or "rear axle"); empty for a time offset.
     """
 
     name: str
@@ -53,6 +57,7 @@ class SensorEstimate:
     sigma: float
     prior_sigma: float
     observable: bool
+    reference_point: str = ""
 
     @property
     def detected(self) -> bool:
@@ -67,7 +72,8 @@ class SensorEstimate:
         return "consistent with 0" if self.observable else "not observable"
 
     def to_dict(self) -> dict:
-        """Plain data for ``calibration.json`` (``value`` is what the log was corrected by)."""
+        """Plain data for ``calibration.json`` (``value`` is what the log was corrected by;
+        a lever arm's ``from`` names its reference point)."""
         return {
             "value": self.value if self.detected else 0.0,
             "estimate": self.value,
@@ -75,7 +81,18 @@ class SensorEstimate:
             "observable": self.observable,
             "verdict": self.verdict,
             "prior_sigma": self.prior_sigma,
+            **({"from": self.reference_point} if self.reference_point else {}),
         }
+
+
+def measured_from(estimated: dict[str, SensorEstimate], point: str) -> dict[str, SensorEstimate]:
+    """``estimated`` with each lever-arm component's reference ``point`` named."""
+    return {
+        name: dataclasses.replace(e, reference_point=point)
+        if name in COMPONENTS["lever_arm"]
+        else e
+        for name, e in estimated.items()
+    }
 
 
 def component_names(variable: str, size: int) -> tuple[str, ...]:

@@ -95,6 +95,7 @@ Every section and key, with the defaults::
                                 # theta alone on held-apart segments; the better one is used
 
     [lever_arm]                 # GNSS antenna ahead of / left of the centre of gravity
+                                # (of the rear axle in a log without sideslip)
     longitudinal = 0.0          # m, when known; the positions are moved by it (the
     lateral = 0.0               # m   estimated arm is then what remains)
 
@@ -254,11 +255,12 @@ class StagedSettings:
 @dataclass(frozen=True)
 class LeverArmSettings:
     """The GNSS antenna's lever arm (:mod:`graphcal.log.antenna`), ahead of and left of the
-    centre of gravity [m].
+    centre of gravity [m] — of the rear axle in a log without sideslip
+    (:meth:`~graphcal.log.drive_log.DriveLog.position_reference`).
 
     Attributes:
         longitudinal, lateral: the arm, when known (from the vehicle's drawings); the
-            positions are moved to the centre of gravity by it before calibrating. The
+            positions are moved to that point by it before calibrating. The
             joint solve estimates what remains (``[joint] lever_arm_sigma``).
     """
 

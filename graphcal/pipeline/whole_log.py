@@ -59,6 +59,7 @@ from graphcal.pipeline.sensor_estimates import (
     correct_log,
     detected_offsets,
     log_weights,
+    measured_from,
     not_estimated,
     run_of,
     sensor_estimates,
@@ -161,6 +162,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
     )
     estimated.update(not_estimated(left_out))
+    estimated = measured_from(estimated, log.position_reference())
     down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
     lines = estimate_lines(estimated, log, length_unit(settings.vehicle.theta_nominal[2]))
     _report(whole, lines, down_weighted, settings.joint)
@@ -336,13 +338,14 @@ def estimate_lines(
     estimated: dict[str, SensorEstimate], log: DriveLog, unit: LengthUnit
 ) -> list[str]:
     """One progress line per sensor estimate: the time offset in ms, the lever arm of the
-    log's position sensor (:meth:`~graphcal.log.drive_log.DriveLog.position_sensor`) in the
+    log's position sensor (:meth:`~graphcal.log.drive_log.DriveLog.position_sensor`) from
+    its reference point (:meth:`~graphcal.log.drive_log.DriveLog.position_reference`) in the
     vehicle's length ``unit``."""
-    sensor = log.position_sensor()
+    sensor, point = log.position_sensor(), log.position_reference()
     labels = {
         "time_offset": "time offset: wheels late against the pose",
-        "lever_arm_longitudinal": f"{sensor} ahead of the centre of gravity",
-        "lever_arm_lateral": f"{sensor} left of the centre of gravity",
+        "lever_arm_longitudinal": f"{sensor} ahead of the {point}",
+        "lever_arm_lateral": f"{sensor} left of the {point}",
     }
     lines = []
     for name, e in estimated.items():

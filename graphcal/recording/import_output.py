@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import tempfile
 from pathlib import Path
 
 from graphcal.files import atomic_write_text, graphcal_json
@@ -46,11 +47,13 @@ def source_files(source: str | os.PathLike[str]) -> set[Path]:
 
 
 def check_import_output(source: str | os.PathLike[str], out: str | os.PathLike[str]) -> None:
-    """One line if ``out`` (or its sidecar) is a directory, a JSON name, or a file the
-    recording is read from; checked before the import."""
+    """One line if ``out`` (or its sidecar) is a directory (or named as one, ``newdir/``), a
+    JSON name, a file the recording is read from, or in a place that cannot be written;
+    checked before the import."""
+    text = os.fspath(out)
     out = Path(out)
-    if out.is_dir():
-        raise StreamError(f"--out {out}: is a directory; give the drive-log CSV's path")
+    if out.is_dir() or text.endswith(("/", os.sep)):
+        raise StreamError(f"--out {text}: names a directory; give the drive-log CSV's path")
     if out.suffix.lower() == ".json":
         raise StreamError(
             f"--out {out}: the drive log is a CSV and its sidecar is <name>.json; give a .csv path"
@@ -66,6 +69,22 @@ def check_import_output(source: str | os.PathLike[str], out: str | os.PathLike[s
             f"--out {out}: would overwrite a file graphcal did not write (a drive log graphcal "
             f"wrote has its {sidecar_of(out).name} beside it); choose another path or remove it"
         )
+    _check_writable(out)
+
+
+def _check_writable(out: Path) -> None:
+    """One line if no file can be made where ``out`` goes (its nearest existing directory):
+    before a long import, not after it."""
+    existing = next(p for p in (out.absolute().parent, *out.absolute().parents) if p.exists())
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".graphcal-probe-", dir=existing)
+    except OSError as exc:
+        raise StreamError(
+            f"--out {out}: cannot write in {existing} ({exc.strerror or exc}); "
+            "name a writable place"
+        ) from None
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _written_by_graphcal(csv_path: Path) -> bool:

@@ -224,7 +224,7 @@ def trajectory_figure(run: CalibrationRun, evaluation: Evaluation | None = None)
         + (
             "odometry integrated from the measured start pose"
             if one.start_measured().all()
-            else "odometry placed where it fits the fixes best (no pose measured at the start)"
+            else "odometry placed where it fits the fixes best (no fix at the start sample)"
         )
     )
     legend_below(fig, [ax], ncols=1)

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from graphcal.errors import GraphcalError
 from graphcal.files import staging_directory
+from graphcal.interrupt import raise_if_interrupted
 
 #: Every file name a result set can hold.
 RESULT_FILES = frozenset(
@@ -124,6 +125,7 @@ def replace_result_set(
     moved = False
     try:
         written = write(staging)
+        raise_if_interrupted()  # a Ctrl-C dropped while writing: the earlier set stays
         if out.exists():
             os.rename(out, retired)
             moved = True

@@ -121,7 +121,7 @@ def summary_text(run: CalibrationRun, evaluation: Evaluation | None = None) -> s
         )
     if run.staged is not None:
         parts.append(steps_table(run_statistics(run, evaluation), truth is not None))
-    elif run.method == "joint":
+    elif run.method == "joint" and run.batches is not None:  # a batch study was made
         parts.append(
             steps_table(
                 run_statistics(run, evaluation),

@@ -1,0 +1,65 @@
+"""A lever arm names the point it is measured from (issue 44, row 4).
+
+Without a logged sideslip the model's positions are those of the point that moves along the
+heading — the rear axle — not the centre of gravity: a bag of a drive whose antenna sits at
+the centre of gravity found it "+1.19 m ahead of the centre of gravity"."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+
+import graphcal
+from graphcal.log.drive_log import DriveLog
+from graphcal.pipeline.sensor_estimates import SensorEstimate, measured_from
+from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.whole_log import estimate_lines
+from graphcal.report.tables import estimates_table
+from graphcal.units import METRES
+
+ROOT = Path(__file__).resolve().parents[1]
+SAMPLE = ROOT / "data" / "sample_drive.csv"
+
+ARM = {
+    "time_offset": SensorEstimate("time_offset", 2e-3, 1e-3, 0.5, True),
+    "lever_arm_longitudinal": SensorEstimate("lever_arm_longitudinal", 1.19, 0.04, 2.0, True),
+    "lever_arm_lateral": SensorEstimate("lever_arm_lateral", 0.01, 0.01, 2.0, True),
+}
+
+
+def _log(beta: float) -> DriveLog:
+    columns = ("px", "py", "psi", "n_rl", "n_rr", "ay")
+    arrays = {c: np.zeros(3) for c in columns}
+    return DriveLog.from_arrays(t=np.arange(3.0), beta=np.full(3, beta), **arrays)
+
+
+def test_the_reference_point_follows_the_sideslip():
+    assert _log(0.0).position_reference() == "rear axle"
+    assert _log(0.01).position_reference() == "centre of gravity"
+
+
+def test_lines_tables_and_json_name_the_point():
+    log = dataclasses.replace(_log(0.0), pose_source="GNSS")
+    named = measured_from(ARM, log.position_reference())
+    lines = estimate_lines(named, log, METRES)
+    assert "GNSS antenna ahead of the rear axle: +1.190 ± 0.040 m" in lines[1], lines
+    assert "GNSS antenna left of the rear axle" in lines[2], lines
+    table = estimates_table(named, METRES)
+    assert "lever arm, ahead of the rear axle [m]" in table, table
+    assert named["lever_arm_longitudinal"].to_dict()["from"] == "rear axle"
+    assert "from" not in named["time_offset"].to_dict()  # a time has no point
+
+
+def test_a_log_without_sideslip_reports_its_arm_from_the_rear_axle(tmp_path):
+    log = graphcal.load_drive_log(SAMPLE)
+    settings = Settings(batches=BatchingSettings(count=0))
+    runs = {}
+    for name, beta in (("cg", log.beta), ("rear axle", np.zeros_like(log.beta))):
+        run = graphcal.run_calibration(dataclasses.replace(log, beta=beta), settings, workers=1)
+        graphcal.write_results(run, tmp_path / name)
+        runs[name] = json.loads((tmp_path / name / "calibration.json").read_text())
+    assert runs["cg"]["estimated"]["lever_arm_longitudinal"]["from"] == "centre of gravity"
+    assert runs["rear axle"]["estimated"]["lever_arm_lateral"]["from"] == "rear axle"
