@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DOCUMENTS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 MARKER = "<!-- runnable -->"
 LANGUAGES = {"python", "bash", "sh", "console"}
-TIMEOUT = 180.0  # s, per block (the fleet example: 110 s on the loaded 2-core machine)
+TIMEOUT = 180.0  # s, per block (the fleet example: 40 s on the loaded 2-core machine)
 
 FENCE = re.compile(r"^(?P<indent>\s*)(?P<fence>`{3,}|~{3,})\s*(?P<language>[\w+-]*)")
 
