@@ -15,6 +15,10 @@ if TYPE_CHECKING:
     from graphcal import FleetChange
 
 
+#: ``--change`` when not given: v3's c_e 3 mm lower from day 3 on.
+DEFAULT_CHANGE = "3:3:-3"
+
+
 def add_fleet_options(p: argparse.ArgumentParser) -> None:
     """``--fleet DIR`` with its ``--vehicles``, ``--days`` and ``--change``."""
     value_option(
@@ -29,9 +33,10 @@ def add_fleet_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--days", type=whole(1), default=3, help="with --fleet: days (3)")
     p.add_argument(
         "--change",
-        default="3:3:-3",
+        default=None,
         metavar="V:DAY:MM",
-        help="with --fleet: vehicle V's c_e changes by MM mm from day DAY on (3:3:-3), or none",
+        help=f"with --fleet: vehicle V's c_e changes by MM mm from day DAY on, or none "
+        f"(default {DEFAULT_CHANGE} where the fleet has that vehicle and day, else none)",
     )
 
 
@@ -45,7 +50,12 @@ def simulate_fleet_command(args: argparse.Namespace, say: Progress) -> int:
             f"--fleet writes a fleet of clean drives at the paper's noise; it does not take "
             f"{', '.join('--' + n for n in others)}"
         )
-    change = _change(args.change)
+    text = args.change
+    if text is None:  # the default change, where the fleet has its vehicle and day
+        vehicle, day, _ = (int(part) for part in DEFAULT_CHANGE.split(":"))
+        inside = vehicle <= args.vehicles and day <= args.days
+        text = DEFAULT_CHANGE if inside else "none"
+    change = _change(text)
     length_km = 4.0 if args.length_km is None else args.length_km
     try:
         truth = simulate_fleet(args.fleet, args.vehicles, args.days, length_km, args.seed, change)
@@ -56,7 +66,7 @@ def simulate_fleet_command(args: argparse.Namespace, say: Progress) -> int:
     what = (
         "no change"
         if change is None
-        else f"c_e {args.change.split(':')[2]} mm on v{change.vehicle} from day{change.day}"
+        else f"c_e {text.split(':')[2]} mm on v{change.vehicle} from day{change.day}"
     )
     say(
         f"wrote a fleet of {args.vehicles} vehicles × {args.days} days of {length_km:g} km "
