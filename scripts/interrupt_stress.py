@@ -114,7 +114,7 @@ def interrupt_once(command: list[str], out: Path, delay: float) -> list[str]:
     lines = [ln for ln in stderr.splitlines() if ln.strip() and not ln.startswith("[")]
     if "Traceback" in stderr or "Exception" in stderr:
         broken.append("traceback: " + stderr.strip().splitlines()[-1][:200])
-    if lines and lines[-1].strip() != "graphcal: interrupted":
+    if lines and not lines[-1].startswith("graphcal: interrupted"):
         broken.append(f"last line {lines[-1][:120]!r}")
     left = _half_written(out)
     if "fleet" in command:  # a fleet keeps the logs it finished (it resumes): no temp files

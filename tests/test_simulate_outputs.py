@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from graphcal.cli import main
 
 
@@ -48,3 +50,24 @@ def test_a_fleet_onto_a_users_directory_is_refused(tmp_path, capsys):
     args = ["simulate", "--fleet", str(fleet), "--vehicles", "1", "--days", "1"]
     assert main([*args, "--change", "none", "--length-km", "0.3"]) == 2
     _one_line(capsys.readouterr().err, "holds files graphcal did not write")
+
+
+def test_an_interrupted_synthetic_drive_leaves_no_file(tmp_path, monkeypatch):
+    # Ctrl-C after the drive's CSV but before its truth (the interrupt stress script hit it
+    # at 3 s into `simulate --length-km 30`): the CSV written alone is removed.
+    from graphcal.simulate import drive as drive_module
+
+    drive = drive_module.simulate_drive(0.3, seed=1)
+    calls = []
+
+    def write(log, path):
+        calls.append(path)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        original(log, path)
+
+    original = drive_module.write_drive_log
+    monkeypatch.setattr(drive_module, "write_drive_log", write)
+    with pytest.raises(KeyboardInterrupt):
+        drive_module.write_synthetic_drive(drive, tmp_path / "drive.csv")
+    assert list(tmp_path.iterdir()) == []

@@ -332,14 +332,27 @@ def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str
     """Write the measured CSV, the noise-free ``*_truth.csv`` and the ``*.json`` sidecar.
 
     The sidecar names a degraded drive's defects (``"defects"``: their names, settings in SI
-    units and seed). Each file is written atomically. Returns the three paths.
+    units and seed). Each file is written atomically, and the three as a set: an interrupt
+    or a failure part-way removes those already written (a drive without its truth is none).
+    Returns the three paths.
     """
+    csv_path = Path(csv_path)
+    paths = [csv_path, truth_path(csv_path), sidecar_path(csv_path)]
+    try:
+        write_drive_log(drive.measured, paths[0])
+        write_drive_log(drive.truth, paths[1])
+        atomic_write_text(paths[2], json.dumps(_sidecar(drive, paths[1]), indent=2) + "\n")
+    except BaseException:
+        for path in paths:
+            path.unlink(missing_ok=True)
+        raise
+    return paths
+
+
+def _sidecar(drive: SyntheticDrive, truth_csv: Path) -> dict:
+    """The JSON sidecar's content of ``drive`` (its truth in ``truth_csv``)."""
     from graphcal import __version__
 
-    csv_path = Path(csv_path)
-    truth_csv, sidecar = truth_path(csv_path), sidecar_path(csv_path)
-    write_drive_log(drive.measured, csv_path)
-    write_drive_log(drive.truth, truth_csv)
     meta = {
         "generator": f"graphcal {__version__} simulate",
         "seed": drive.seed,
@@ -368,8 +381,7 @@ def write_synthetic_drive(drive: SyntheticDrive, csv_path: str | os.PathLike[str
         }
     if drive.defects is not None:
         meta["defects"] = {"seed": drive.defect_seed, **drive.defects.to_dict()}
-    atomic_write_text(sidecar, json.dumps(meta, indent=2) + "\n")
-    return [csv_path, truth_csv, sidecar]
+    return meta
 
 
 def read_sidecar(csv_path: str | os.PathLike[str], n_samples: int | None = None) -> dict | None:
