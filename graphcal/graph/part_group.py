@@ -17,6 +17,7 @@ from graphcal.graph.linear_systems import (
     vector_values,
 )
 from graphcal.graph.partition import GraphPart
+from graphcal.graph.rollout import chunk_links, rolled_out
 from graphcal.graph.values import Portable, portable
 
 
@@ -47,6 +48,7 @@ class PartGroup:
         self._eliminated: list[_Eliminated] = []
         self._deltas: list[gtsam.VectorValues] = []
         self._candidates: list[gtsam.Values] = []
+        self._links = [chunk_links(part.graph) for part in parts]
 
     def errors(self) -> list[float]:
         """Each part's error at its values."""
@@ -105,12 +107,16 @@ class PartGroup:
         return out
 
     def try_step(self, evaluate: bool = True) -> list[float]:
-        """Each part's error after the last :meth:`step` (with ``evaluate``; else 0); the
-        candidate values are kept for :meth:`accept`."""
+        """Each part's error after the last :meth:`step` (with ``evaluate``; else 0), its
+        chunk-boundary poses rolled out onto the odometry of the step's values
+        (:func:`~graphcal.graph.rollout.rolled_out`; not for a step taken unevaluated, too
+        small to leave a gap); the candidate values are kept for :meth:`accept`."""
         out = []
         self._candidates = []
-        for part, delta in zip(self.parts, self._deltas, strict=True):
+        for part, delta, links in zip(self.parts, self._deltas, self._links, strict=True):
             candidate = part.values.retract(delta)
+            if evaluate:
+                candidate = rolled_out(part.graph, candidate, links)
             out.append(float(part.graph.error(candidate)) if evaluate else 0.0)
             self._candidates.append(candidate)
         return out

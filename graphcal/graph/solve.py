@@ -17,6 +17,7 @@ from graphcal.graph.levenberg_marquardt import (
     raised_scale,
 )
 from graphcal.graph.linear_systems import add_damping, hessian_diagonal_by_column
+from graphcal.graph.rollout import chunk_links, rolled_out
 from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
 
 #: Who drives the Levenberg–Marquardt iterations (:func:`solve_lm`).
@@ -79,6 +80,7 @@ def _levenberg_marquardt(
     dims = np.array([len(zero.at(key)) for key in keys])
     first_column = np.concatenate([[0], np.cumsum(dims)])
     dim_of = {key: int(dim) for key, dim in zip(keys, dims, strict=True)}
+    links = chunk_links(graph)
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
     damping = Damping()
@@ -105,7 +107,7 @@ def _levenberg_marquardt(
                 damping.increase()
                 continue
             predicted = linear_at_zero - float(linear.error(step))
-            candidate = values.retract(step)
+            candidate = rolled_out(graph, values.retract(step), links)
             new_error = float(graph.error(candidate))
             judgement = judge_step(error, new_error, predicted, damping, relative_error_tol)
             if judgement.verdict is Verdict.ACCEPT:
