@@ -17,7 +17,7 @@ from graphcal.graph.linear_systems import (
     vector_values,
 )
 from graphcal.graph.partition import GraphPart
-from graphcal.graph.rollout import chunk_links, rolled_out
+from graphcal.graph.rollout import LinearGap, chunk_links, linear_gaps, rolled_out
 from graphcal.graph.values import Portable, portable
 
 
@@ -28,6 +28,7 @@ class _Eliminated:
     bayes_net: gtsam.GaussianBayesNet
     gradient: gtsam.VectorValues
     root: dict[int, np.ndarray]
+    gaps: list[LinearGap]
 
 
 class PartGroup:
@@ -62,16 +63,17 @@ class PartGroup:
         out = []
         self._eliminated = []
         n = sum(self.dims[k] for k in self.shared)
-        for part in self.parts:
+        for part, links in zip(self.parts, self._links, strict=True):
             linear = part.graph.linearize(part.values)
             shared_diagonal, root = np.zeros(n), {}
             if lam is not None:
                 shared_diagonal, root = self._damping(part, linear, Damping(lam))
             gradient = linear.gradientAtZero()
+            gaps = linear_gaps(part.graph, linear, links, self.dims)
             add_damping(linear, self.dims, root)  # the linear system is not kept: damp it
             bayes_net, reduced = linear.eliminatePartialSequential(gtsam.KeyVector(part.local))
             out.append((augmented_hessian(reduced, self.shared, self.dims), shared_diagonal))
-            self._eliminated.append(_Eliminated(bayes_net, gradient, root))
+            self._eliminated.append(_Eliminated(bayes_net, gradient, root, gaps))
         return out
 
     def _damping(
@@ -113,10 +115,12 @@ class PartGroup:
         small to leave a gap); the candidate values are kept for :meth:`accept`."""
         out = []
         self._candidates = []
-        for part, delta, links in zip(self.parts, self._deltas, self._links, strict=True):
+        parts = zip(self.parts, self._deltas, self._links, self._eliminated, strict=True)
+        for part, delta, links, done in parts:
             candidate = part.values.retract(delta)
             if evaluate:
-                candidate = rolled_out(part.graph, candidate, links)
+                gaps = [gap.at(delta) for gap in done.gaps]
+                candidate = rolled_out(part.graph, candidate, links, gaps)
             out.append(float(part.graph.error(candidate)) if evaluate else 0.0)
             self._candidates.append(candidate)
         return out

@@ -12,13 +12,15 @@ undamped step (τ −0.34 s, weakly determined) predicted the error to fall by 3
 continuity residuals raised it from 258 to 57,500; damped until its continuity held, each
 step moved τ by about 1 ms, and the solve crept to its iteration limit.
 
-:func:`rolled_out` closes the gaps after the step, as a shooting method's forward pass
-does: each chunk's odometry from its (new) start is a rigid motion of that start (eq. 1 is
-the same in any frame), so the chain is re-composed from its head, ``end_j ← start_j ∘ Δ_j``
-with ``Δ_j`` the chunk's predicted motion at the step's values. The step's other variables
-(theta, corrections, time offset, the chain's head) stay as stepped; the error is then the
-one the odometry of those values really has (the same skid-steer step: 255.3, gain ratio
-0.67).
+:func:`rolled_out` re-composes each chain after the step, as a shooting method's forward
+pass does: a chunk's odometry from its (new) start is a rigid motion of that start (eq. 1
+is the same in any frame), so from the chain's head ``end_j ← start_j ∘ Δ_j ⊖ g_j``, with
+``Δ_j`` the chunk's predicted motion at the step's values and ``g_j`` the gap the step's
+linearization predicts (:class:`LinearGap`): the gaps the linear model means to leave (the
+continuity is near-hard, not hard: on a misfit log the optimum keeps gaps) stay, their
+second-order part goes. The step's other variables (theta, corrections, time offset, the
+chain's head) stay as stepped. The same skid-steer step then raises nothing: 258 → 255.3,
+gain ratio 0.67.
 """
 
 from __future__ import annotations
@@ -69,15 +71,60 @@ def chunk_links(graph: gtsam.NonlinearFactorGraph) -> list[ChunkLink]:
     return ordered
 
 
+@dataclass(frozen=True)
+class LinearGap:
+    """A link's continuity rows of a linearization: the whitened Jacobian ``a (3, n)`` on
+    ``keys`` (their dimensions ``dims``), ``b (3,)`` (minus the whitened residual) and the
+    rows' ``sigmas (3,)`` [m, m, rad]."""
+
+    keys: tuple[int, ...]
+    dims: tuple[int, ...]
+    a: np.ndarray
+    b: np.ndarray
+    sigmas: np.ndarray
+
+    def at(self, step: gtsam.VectorValues) -> np.ndarray:
+        """The gap ``predicted − end`` [m, m, rad] the linearization predicts after ``step``
+        (keys ``step`` lacks do not move)."""
+        parts = [
+            step.at(key) if step.exists(key) else np.zeros(dim)
+            for key, dim in zip(self.keys, self.dims, strict=True)
+        ]
+        return self.sigmas * (self.a @ np.concatenate(parts) - self.b)
+
+
+def linear_gaps(
+    graph: gtsam.NonlinearFactorGraph,
+    linear: gtsam.GaussianFactorGraph,
+    links: list[ChunkLink],
+    dims: dict[int, int],
+) -> list[LinearGap]:
+    """Each link's :class:`LinearGap` of ``linear``, the linearization of ``graph`` (factor
+    for factor, in its order); ``dims``: the dimension of every key."""
+    out = []
+    for link in links:
+        factor = linear.at(link.factor)
+        a, b = factor.jacobian()
+        factor_keys = tuple(factor.keys())
+        sigmas = np.asarray(graph.at(link.factor).noiseModel().sigmas())[-3:]
+        key_dims = tuple(dims[key] for key in factor_keys)
+        out.append(LinearGap(factor_keys, key_dims, a[-3:], b[-3:], sigmas))
+    return out
+
+
 def rolled_out(
-    graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, links: list[ChunkLink]
+    graph: gtsam.NonlinearFactorGraph,
+    values: gtsam.Values,
+    links: list[ChunkLink],
+    gaps: list[np.ndarray] | None = None,
 ) -> gtsam.Values:
-    """``values`` with each link's end pose where its chunk's odometry from its start ends
-    (``links`` in chain order: :func:`chunk_links`); ``values`` itself when there are none.
+    """``values`` with each link's end pose where its chunk's odometry from its start ends,
+    less the link's gap in ``gaps`` (``predicted − end`` [m, m, rad]; ``None``: none), with
+    ``links`` in chain order (:func:`chunk_links`); ``values`` itself when there are none.
 
     The chunks' predicted motions ``Δ_j`` are read at ``values`` (one pass over the chunk
-    factors: the end plus the continuity residual ``predicted − end`` [m, m, rad] is the
-    predicted end), then composed along each chain from its head."""
+    factors: the end plus the continuity residual is the predicted end), then composed along
+    each chain from its head."""
     if not links:
         return values
     motions = []
@@ -87,6 +134,9 @@ def rolled_out(
         predicted = gtsam.Pose2(end.x() + gap[0], end.y() + gap[1], end.theta() + gap[2])
         motions.append(start.between(predicted))
     out = gtsam.Values(values)
-    for link, motion in zip(links, motions, strict=True):
-        out.update(link.end, out.atPose2(link.start).compose(motion))
+    targets = gaps if gaps is not None else [np.zeros(3)] * len(links)
+    for link, motion, target in zip(links, motions, targets, strict=True):
+        end = out.atPose2(link.start).compose(motion)
+        x, y, heading = end.x() - target[0], end.y() - target[1], end.theta() - target[2]
+        out.update(link.end, gtsam.Pose2(x, y, heading))
     return out

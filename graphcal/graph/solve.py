@@ -17,7 +17,7 @@ from graphcal.graph.levenberg_marquardt import (
     raised_scale,
 )
 from graphcal.graph.linear_systems import add_damping, hessian_diagonal_by_column
-from graphcal.graph.rollout import chunk_links, rolled_out
+from graphcal.graph.rollout import chunk_links, linear_gaps, rolled_out
 from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
 
 #: Who drives the Levenberg–Marquardt iterations (:func:`solve_lm`).
@@ -94,6 +94,7 @@ def _levenberg_marquardt(
         # The linearization's own error at zero: with robust noise models it differs from the
         # nonlinear error (it weights with the square root). Constant over the λ trials.
         linear_at_zero = float(linear.error(zero))
+        gaps = linear_gaps(graph, linear, links, dim_of)
         while True:
             damped = linear.clone()
             root = damping.roots(damping_scale)
@@ -107,7 +108,8 @@ def _levenberg_marquardt(
                 damping.increase()
                 continue
             predicted = linear_at_zero - float(linear.error(step))
-            candidate = rolled_out(graph, values.retract(step), links)
+            predicted_gaps = [gap.at(step) for gap in gaps]
+            candidate = rolled_out(graph, values.retract(step), links, predicted_gaps)
             new_error = float(graph.error(candidate))
             judgement = judge_step(error, new_error, predicted, damping, relative_error_tol)
             if judgement.verdict is Verdict.ACCEPT:
