@@ -17,6 +17,7 @@ from graphcal.graph.linear_systems import (
     vector_values,
 )
 from graphcal.graph.partition import GraphPart
+from graphcal.graph.rollout import LinearGap, chunk_links, linear_gaps, rolled_out
 from graphcal.graph.values import Portable, portable
 
 
@@ -27,6 +28,7 @@ class _Eliminated:
     bayes_net: gtsam.GaussianBayesNet
     gradient: gtsam.VectorValues
     root: dict[int, np.ndarray]
+    gaps: list[LinearGap]
 
 
 class PartGroup:
@@ -47,6 +49,7 @@ class PartGroup:
         self._eliminated: list[_Eliminated] = []
         self._deltas: list[gtsam.VectorValues] = []
         self._candidates: list[gtsam.Values] = []
+        self._links = [chunk_links(part.graph) for part in parts]
 
     def errors(self) -> list[float]:
         """Each part's error at its values."""
@@ -60,16 +63,17 @@ class PartGroup:
         out = []
         self._eliminated = []
         n = sum(self.dims[k] for k in self.shared)
-        for part in self.parts:
+        for part, links in zip(self.parts, self._links, strict=True):
             linear = part.graph.linearize(part.values)
             shared_diagonal, root = np.zeros(n), {}
             if lam is not None:
                 shared_diagonal, root = self._damping(part, linear, Damping(lam))
             gradient = linear.gradientAtZero()
+            gaps = linear_gaps(part.graph, linear, links, self.dims)
             add_damping(linear, self.dims, root)  # the linear system is not kept: damp it
             bayes_net, reduced = linear.eliminatePartialSequential(gtsam.KeyVector(part.local))
             out.append((augmented_hessian(reduced, self.shared, self.dims), shared_diagonal))
-            self._eliminated.append(_Eliminated(bayes_net, gradient, root))
+            self._eliminated.append(_Eliminated(bayes_net, gradient, root, gaps))
         return out
 
     def _damping(
@@ -105,12 +109,18 @@ class PartGroup:
         return out
 
     def try_step(self, evaluate: bool = True) -> list[float]:
-        """Each part's error after the last :meth:`step` (with ``evaluate``; else 0); the
-        candidate values are kept for :meth:`accept`."""
+        """Each part's error after the last :meth:`step` (with ``evaluate``; else 0), its
+        chunk-boundary poses rolled out onto the odometry of the step's values
+        (:func:`~graphcal.graph.rollout.rolled_out`; not for a step taken unevaluated, too
+        small to leave a gap); the candidate values are kept for :meth:`accept`."""
         out = []
         self._candidates = []
-        for part, delta in zip(self.parts, self._deltas, strict=True):
+        parts = zip(self.parts, self._deltas, self._links, self._eliminated, strict=True)
+        for part, delta, links, done in parts:
             candidate = part.values.retract(delta)
+            if evaluate:
+                gaps = [gap.at(delta) for gap in done.gaps]
+                candidate = rolled_out(part.graph, candidate, links, gaps)
             out.append(float(part.graph.error(candidate)) if evaluate else 0.0)
             self._candidates.append(candidate)
         return out

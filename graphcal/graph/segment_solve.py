@@ -3,7 +3,9 @@ plausibility and compute its covariance (:mod:`graphcal.graph.covariance`).
 
 A graph that splits into segments is solved part by part
 (:class:`~graphcal.graph.partitioned.PartitionedGraph`); one that does not (theta alone, or
-one segment with theta fixed) under GTSAM's optimizer and marginals.
+one segment, or one chain of tied segments) as one graph: Levenberg–Marquardt driven from
+Python (:func:`graphcal.graph.solve.solve_lm`, with the rollout of
+:mod:`graphcal.graph.rollout`) and GTSAM's marginals.
 """
 
 from __future__ import annotations
@@ -87,7 +89,7 @@ def solve_segment_graph(
         built = build_segment_graph(data, spec, start.shared)
         values, gauss_newton_first = built.values, start.gauss_newton_first
     partitioned = PartitionedGraph(built.graph, values, shared_keys(spec))
-    if len(partitioned.parts) < 2:  # nothing to split: one graph under GTSAM's optimizer
+    if len(partitioned.parts) < 2:  # nothing to split: one graph, one solve
         return _solve_whole_graph(built, values, options, covariance)
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
@@ -128,10 +130,13 @@ def _solve_whole_graph(
 ) -> SolvedGraph:
     """:func:`solve_segment_graph` for a graph that does not split into segments (theta
     alone, as in the batch solve of Step 1, or one segment with theta fixed, as in input
-    estimation): GTSAM's optimizer and marginals, cheaper than the split machinery there."""
+    estimation; one chain of tied segments): Levenberg–Marquardt on the whole graph and
+    GTSAM's marginals, cheaper than the split machinery there."""
     spec, label = built.spec, options.label
     initial_error = float(built.graph.error(start))
-    result, outcome = solve_lm(built.graph, start, options, CalibrationFailed)
+    # Python-driven: its steps roll the chunk-boundary poses out (graphcal.graph.rollout),
+    # which GTSAM's optimizer cannot.
+    result, outcome = solve_lm(built.graph, start, options, CalibrationFailed, driver="python")
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}
     if spec.estimate_theta:

@@ -17,6 +17,7 @@ from graphcal.graph.levenberg_marquardt import (
     raised_scale,
 )
 from graphcal.graph.linear_systems import add_damping, hessian_diagonal_by_column
+from graphcal.graph.rollout import chunk_links, linear_gaps, rolled_out
 from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
 
 #: Who drives the Levenberg–Marquardt iterations (:func:`solve_lm`).
@@ -79,6 +80,7 @@ def _levenberg_marquardt(
     dims = np.array([len(zero.at(key)) for key in keys])
     first_column = np.concatenate([[0], np.cumsum(dims)])
     dim_of = {key: int(dim) for key, dim in zip(keys, dims, strict=True)}
+    links = chunk_links(graph)
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
     damping = Damping()
@@ -92,6 +94,7 @@ def _levenberg_marquardt(
         # The linearization's own error at zero: with robust noise models it differs from the
         # nonlinear error (it weights with the square root). Constant over the λ trials.
         linear_at_zero = float(linear.error(zero))
+        gaps = linear_gaps(graph, linear, links, dim_of)
         while True:
             damped = linear.clone()
             root = damping.roots(damping_scale)
@@ -105,7 +108,8 @@ def _levenberg_marquardt(
                 damping.increase()
                 continue
             predicted = linear_at_zero - float(linear.error(step))
-            candidate = values.retract(step)
+            predicted_gaps = [gap.at(step) for gap in gaps]
+            candidate = rolled_out(graph, values.retract(step), links, predicted_gaps)
             new_error = float(graph.error(candidate))
             judgement = judge_step(error, new_error, predicted, damping, relative_error_tol)
             if judgement.verdict is Verdict.ACCEPT:
