@@ -124,3 +124,17 @@ def test_fixes_wandering_together_give_honest_sigmas(caplog):
     errors = (run.theta - drive.theta_true) / sigma
     assert np.all(np.abs(errors) < 3.0), errors
     assert run.observability.calibrated.all()
+
+
+def test_a_declared_shared_error_leaves_the_white_part_uninflated():
+    # With the receiver's shared error given, the residuals are those of the fixes less it:
+    # their RMS is the white part, not to be inflated for a correlation the graph models.
+    from types import SimpleNamespace
+
+    from graphcal.pipeline.noise_levels import with_noise_levels
+
+    declared = JointSettings(fix_error_sigma=1.0, position_sigma=0.05)
+    whole = SimpleNamespace(noise=_noise(position=0.3, position_correlation=20.0))
+    out = with_noise_levels(whole, declared, has_heading=False, dt=DT)
+    assert out.position_sigma == pytest.approx(0.3)
+    assert out.fix_error_sigma == 1.0

@@ -51,6 +51,8 @@ def with_noise_levels(
     found = honest_sigma(noise.position, noise.position_correlation)
     if drift is not None:
         found = drift[0]
+    elif settings.fix_error != "off" and settings.fix_error_sigma > 0:
+        found = noise.position  # the shared error is the settings' and in the graph: white
     if found is not None:
         say(f"position noise {noise.position:#.3g} m per axis (the fixes' residuals)")
         if drift is not None:
@@ -58,7 +60,7 @@ def with_noise_levels(
                 f"  the fixes' errors are alike from fix to fix (a mean of many varies "
                 f"{noise.position_correlation:.1f}× as much as white noise's): "
                 f"{drift[1]:#.2g} m of it modelled as an error they share, correlated over "
-                f"{drift[2]:#.2g} s, {found:#.2g} m white"
+                f"{drift[2]:.0f} s, {found:#.2g} m white"
             )
         elif found != noise.position:
             say(
