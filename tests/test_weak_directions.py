@@ -25,19 +25,19 @@ def _plain_receiver(directory) -> str:
 
 @pytest.mark.slow
 def test_a_2_km_straight_road_from_plain_fixes_calibrates_what_it_determines(tmp_path, capsys):
-    """Its first solve drives t_r out of any plausible range (0.49 m, prior 1.55 ± 0.2 m):
-    held at the prior and solved again, c_e and c_d come out within 3σ and t_r not
-    observable, exit 0 (it was exit 2, "check the units", on 3 of 3 seeds)."""
+    """c_e and c_d within 3σ, t_r not observable near its prior (1.55 ± 0.2 m), exit 0. It was
+    exit 2, "check the units", on 3 of 3 seeds (the first solve drove t_r to 0.49 m); then
+    held at the prior when it ran out of range; since the rollout of each step
+    (graphcal.graph.rollout) it no longer runs away (1.586 m, σ 189 mm)."""
     write_streams(simulate_streams(2.0, 0, route="straight"), tmp_path)
     out = tmp_path / "out"
     assert main(["calibrate", _plain_receiver(tmp_path), "--out", str(out)]) == 0
     captured = capsys.readouterr()
-    printed = captured.out + captured.err
-    assert "t_r left the plausible range in the first solve" in printed
+    assert "check the units" not in captured.out + captured.err
     result = json.loads((out / "calibration.json").read_text())
     parameters = result["parameters"]
     assert parameters["t_r"]["status"].startswith("not calibrated: not observable")
-    assert parameters["t_r"]["value"] == pytest.approx(1.55, abs=1e-6)  # held at its prior
+    assert parameters["t_r"]["value"] == pytest.approx(1.55, abs=0.2)  # where its prior has it
     for index, name in enumerate(("c_e", "c_d")):
         assert parameters[name]["status"].startswith("calibrated"), parameters[name]
         error = parameters[name]["value"] - THETA_TRUE_DEFAULT[index]
