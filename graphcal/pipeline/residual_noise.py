@@ -91,7 +91,8 @@ def residual_noise(
             out[name] = float(np.sqrt(np.mean(part[rows] ** 2)))
             out[f"{name}_correlation"] = error_correlation(part, rows)
     if "position" in out and data.sample_index is not None:
-        lags, gamma, pairs = error_variogram(residuals[..., :2], used, data)
+        tied = solved.built.spec.tied(data)  # the graph's trajectories
+        lags, gamma, pairs = error_variogram(residuals[..., :2], used, data, tied)
         fitted = drift_fit(lags, gamma, pairs)
         if fitted is not None:
             out["position_white"], out["position_drift"], out["fix_interval"] = fitted
@@ -149,18 +150,18 @@ def honest_sigma(rms: float | None, correlation: float | None) -> float | None:
 
 
 def error_variogram(
-    residuals: np.ndarray, used: np.ndarray, data: SegmentData
+    residuals: np.ndarray, used: np.ndarray, data: SegmentData, tied: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The residuals' variogram ``γ(L) = ½ E[(r(t + L) − r(t))²]`` per component, pooled
     over the C components of ``residuals (S, K+1, C)`` at the ``used (S, K+1)`` samples,
-    along each chain of tied segments (one trajectory; :meth:`SegmentData.tied`) on the log's
-    sample grid, for lags ``L`` of 1 sample to :data:`MAX_VARIOGRAM_LAG`: ``(lags [s],
-    γ [m²], pairs)``, lags without a pair left out.
+    along each chain of ``tied (S,)`` segments (one trajectory; default
+    :meth:`SegmentData.tied`) on the log's sample grid, for lags ``L`` of 1 sample to
+    :data:`MAX_VARIOGRAM_LAG`: ``(lags [s], γ [m²], pairs)``, lags without a pair left out.
 
     A fit absorbs an error's slow part into the trajectory (its start, heading, scale), so
     the residuals' variance and autocorrelation show less of it than there is; their
     differences over short lags are what the fit leaves alone (:func:`drift_fit`)."""
-    heads = np.flatnonzero(~data.tied())
+    heads = np.flatnonzero(~(data.tied() if tied is None else np.asarray(tied, bool)))
     stops = [*heads[1:], len(data)]
     index = data.sample_index
     starts = index[heads, 0]
@@ -182,17 +183,19 @@ def error_variogram(
         return np.zeros(0), np.zeros(0), np.zeros(0)
     size = 1 << int(np.ceil(np.log2(longest + max_lag + 1)))
 
-    def correlate(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """``Σ_t a(t) b(t + L)`` for L = 0..max_lag, summed over chains (and components)."""
-        fa = np.fft.rfft(a, n=size, axis=1)
-        fb = np.fft.rfft(b, n=size, axis=1)
+    def spectrum(a: np.ndarray) -> np.ndarray:
+        return np.fft.rfft(a, n=size, axis=1)
+
+    def correlate(fa: np.ndarray, fb: np.ndarray) -> np.ndarray:
+        """``Σ_t a(t) b(t + L)`` for L = 0..max_lag from the spectra of a and b, summed
+        over chains (and components)."""
         out = np.fft.irfft(np.conj(fa) * fb, n=size, axis=1)[:, : max_lag + 1]
         return out.sum(axis=tuple(i for i in range(out.ndim) if i != 1))
 
-    squares = (grid**2).sum(axis=2)
-    pairs = np.rint(correlate(mask, mask))
-    cross = sum(correlate(grid[..., c], grid[..., c]) for c in range(width))
-    total = correlate(squares, mask) + correlate(mask, squares) - 2.0 * cross
+    f_mask, f_squares, f_grid = spectrum(mask), spectrum((grid**2).sum(axis=2)), spectrum(grid)
+    pairs = np.rint(correlate(f_mask, f_mask))
+    cross = correlate(f_grid, f_grid)  # summed over the components
+    total = correlate(f_squares, f_mask) + correlate(f_mask, f_squares) - 2.0 * cross
     lags = np.arange(max_lag + 1)
     keep = (lags > 0) & (pairs > 0)
     gamma = total[keep] / (2.0 * width * pairs[keep])
