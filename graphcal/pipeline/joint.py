@@ -335,12 +335,14 @@ def solve_joint(
     workers: int = 1,
     progress: Progress | None = None,
     start: gtsam.Values | None = None,
+    start_weights: np.ndarray | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
     :mod:`graphcal.pipeline.joint_batches`). ``start``: a solution of the same segments under
     other settings (other noise levels, a shifted log) whose graph-wide variables the solve
-    starts from instead of a warm start's.
+    starts from instead of a warm start's; ``start_weights``: that solution's fix weights,
+    where the robust rounds start (:func:`~graphcal.pipeline.robust.solve_robust`).
 
     The steps: the warm start (:mod:`graphcal.pipeline.warm_start`), the solve with robust
     fix weights (:mod:`graphcal.pipeline.robust`), the fixes' noise in its residuals, with
@@ -358,7 +360,13 @@ def solve_joint(
         shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
         say("  start: the previous solve's theta")
     solved, weights, residuals = solve_segment_graph_robust(
-        data, spec, options, settings.robust_threshold, covariance=not auto, shared_start=shared
+        data,
+        spec,
+        options,
+        settings.robust_threshold,
+        covariance=not auto,
+        shared_start=shared,
+        start_weights=start_weights,
     )
     del residuals
     noise = residual_noise(solved, data, weights)

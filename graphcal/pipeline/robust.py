@@ -65,6 +65,7 @@ def solve_robust(
     solve: Callable[..., SolvedGraph],
     threshold: float,
     rounds: int = 5,
+    start_weights: np.ndarray | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """Solve ``spec`` over ``data`` with robust fix weights.
 
@@ -75,6 +76,9 @@ def solve_robust(
             ``None`` or the last solution's values).
         threshold: ``k``: fixes within ``k σ̂`` keep weight 1.
         rounds: most solves.
+        start_weights: ``(S, K+1)`` weights the first solve uses (each at most the given
+            one): those a solve of the same segments found (a shifted log, other noise
+            levels), so that the rounds go on from where it stopped, not from weight 1.
 
     Returns:
         The last solution, the weights ``(S, K+1)`` it used (``None``: every fix kept
@@ -84,8 +88,11 @@ def solve_robust(
     """
     floor = float(spec.tracking_sigmas[0])
     given = np.ones(data.valid.shape) if data.fix_weights is None else data.fix_weights
-    solution = solve(data, None)
     weights = data.fix_weights
+    if start_weights is not None:
+        weights = np.minimum(given, start_weights)
+        data = dataclasses.replace(data, fix_weights=weights)
+    solution = solve(data, None)
     residuals = None
     for _ in range(rounds - 1):
         residuals = solution.built.fix_residuals(solution.result, solution.partitioned)
@@ -109,11 +116,13 @@ def solve_segment_graph_robust(
     *,
     covariance: bool = True,
     shared_start: dict[int, np.ndarray] | None = None,
+    start_weights: np.ndarray | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """:func:`~graphcal.graph.segment_solve.solve_segment_graph` (each solve as ``options``
     say) with robust fix weights (:func:`solve_robust`, whose three results it returns);
     ``threshold`` 0 solves once without them. ``shared_start``: where the first solve starts
-    the graph-wide variables (e.g. :func:`~graphcal.pipeline.warm_start.warm_start`)."""
+    the graph-wide variables (e.g. :func:`~graphcal.pipeline.warm_start.warm_start`);
+    ``start_weights``: the fix weights the rounds start from (:func:`solve_robust`)."""
 
     def solve(segments: SegmentData, initial) -> SolvedGraph:
         return solve_segment_graph(
@@ -127,7 +136,9 @@ def solve_segment_graph_robust(
     if threshold <= 0:
         solution, weights, residuals = solve(data, None), data.fix_weights, None
     else:
-        solution, weights, residuals = solve_robust(data, spec, solve, threshold)
+        solution, weights, residuals = solve_robust(
+            data, spec, solve, threshold, start_weights=start_weights
+        )
     if covariance:
         solution = with_covariance(solution, options.label, options.workers)
     return solution, weights, residuals

@@ -70,8 +70,28 @@ from graphcal.units import LengthUnit, length_unit
 
 #: Whole-log solves at most, each after shifting the wheels by the offset found so far.
 OFFSET_ROUNDS = 4
+#: A run's wheels are shifted again only when the offset its solve finds beyond their shift
+#: exceeds this fraction of a sample interval: the graph's first-order shift covers less. A
+#: rest near half a sample otherwise rounds up and down from round to round (the real robot's
+#: run at +74.5 ms with 50 ms samples went 50 → 100 → 50 → 100 ms, four solves for one).
+SHIFT_AGAIN_SAMPLES = 0.75
 #: Why a parameter that left its plausible range in the first solve is held at its prior.
 RUNAWAY_REASON = "it left its plausible range in a free solve; held at its prior"
+
+
+@dataclass(frozen=True)
+class StoppedAt:
+    """Where a whole-log solve stopped, for a solve of the same segments to go on from.
+
+    Attributes:
+        values: its solution (the graph-wide variables are taken), or ``None``.
+        shift: ``(runs,)`` whole-sample shift [s] of each run's wheels.
+        fix_weights: ``(S, K+1)`` its robust fix weights, or ``None``.
+    """
+
+    values: gtsam.Values | None
+    shift: np.ndarray
+    fix_weights: np.ndarray | None
 
 
 @dataclass(frozen=True)
@@ -155,7 +175,13 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     if joint is not settings.joint or rederive:
         settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
         whole, values, data, offset = solve_with_time_offset(
-            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers, values
+            log,
+            gathered,
+            prepared.selected,
+            prepared.fix_weights,
+            settings.joint,
+            workers,
+            StoppedAt(values, offset, whole.fix_weights),
         )
     whole = judged_with_what_is_held(whole, settings.joint, held)
     estimated = _with_total_offset(
@@ -219,7 +245,7 @@ def solve_with_time_offset(
     flagged: np.ndarray | None,
     settings: JointSettings,
     workers: int = 1,
-    start: gtsam.Values | None = None,
+    start: StoppedAt | None = None,
 ) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
     the offset found so far, rounded to whole samples, and the solve repeated, so that the
@@ -233,22 +259,28 @@ def solve_with_time_offset(
 
     ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
     the last solve, its values, the segments it solved and the shift [s] of each run's
-    wheels. Each solve after the first starts from the one before; the first from ``start``
-    (a solve of the same segments under other noise levels), if given."""
-    whole, values = _whole_log_solve(data, settings, workers, start)
-    shift = np.zeros(log.runs)
+    wheels. Each solve after the first starts from the one before (its values and fix
+    weights); the first from ``start`` (where a solve of the same segments under other noise
+    levels stopped), if given. A run is shifted again only while its solve finds more than
+    :data:`SHIFT_AGAIN_SAMPLES` of a sample beyond its shift."""
+    start = start or StoppedAt(None, np.zeros(log.runs), None)
+    shift = start.shift
+    if shift.any():
+        data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
+    whole, values = _whole_log_solve(data, settings, workers, start.values, start.fix_weights)
     for _ in range(OFFSET_ROUNDS - 1):
         found = detected_offsets(
             sensor_estimates(whole.nuisance, settings.max_sigma_ratio), log.runs
         )
-        rounded = np.array([whole_samples(s, log.dt) for s in shift + found])
-        if not found.any() or np.array_equal(rounded, shift):
+        again = np.abs(found) > SHIFT_AGAIN_SAMPLES * log.dt
+        rounded = np.where(again, [whole_samples(s, log.dt) for s in shift + found], shift)
+        if np.array_equal(rounded, shift):
             break  # what is left is less than a sample: the graph's first order covers it
         shift = rounded
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
         say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole, values = _whole_log_solve(data, settings, workers, values)
+        whole, values = _whole_log_solve(data, settings, workers, values, whole.fix_weights)
     return whole, values, data, shift
 
 
@@ -258,13 +290,18 @@ def _per_run(runs: int) -> str:
 
 
 def _whole_log_solve(
-    data: SegmentData, settings: JointSettings, workers: int, start: gtsam.Values | None = None
+    data: SegmentData,
+    settings: JointSettings,
+    workers: int,
+    start: gtsam.Values | None = None,
+    start_weights: np.ndarray | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
-    processes; from the graph-wide variables of ``start``, if given), with the progress lines
-    a user waits for, and the solution's values."""
+    processes; from the graph-wide variables of ``start`` and the fix weights
+    ``start_weights``, if given), with the progress lines a user waits for, and the
+    solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
-    result, values = solve_joint(data, settings, workers, start=start)
+    result, values = solve_joint(data, settings, workers, start=start, start_weights=start_weights)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")
