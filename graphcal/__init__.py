@@ -73,39 +73,42 @@ _PUBLIC = {
     "PARAMETER_NAMES": "graphcal.model",
     "integrate": "graphcal.model",
     # Calibration of a drive log.
-    "Settings": "graphcal.pipeline.settings",
-    "load_settings": "graphcal.pipeline.settings_file",
+    "Settings": "graphcal.pipeline.configuration.settings",
+    "load_settings": "graphcal.pipeline.configuration.settings_file",
     "VehicleProfile": "graphcal.vehicle",
-    "load_vehicle": "graphcal.pipeline.settings_file",
-    "apply_vehicle": "graphcal.pipeline.vehicle_settings",
-    "vehicle_settings_in": "graphcal.pipeline.settings_file",  # what a settings file keeps
-    "configure_settings": "graphcal.pipeline.configure",  # defaults, file, vehicle, options
-    "calibrate_file": "graphcal.pipeline.calibrate_file",  # open a log and calibrate it
-    "METHODS": "graphcal.pipeline.run",
-    "default_workers": "graphcal.pipeline.parallel",
-    "EXIT_UNTRUSTED": "graphcal.pipeline.trust",  # the exit status of an untrusted result
+    "load_vehicle": "graphcal.pipeline.configuration.settings_file",
+    "apply_vehicle": "graphcal.pipeline.configuration.vehicle_settings",
+    # what a settings file keeps
+    "vehicle_settings_in": "graphcal.pipeline.configuration.settings_file",
+    # defaults, file, vehicle, options
+    "configure_settings": "graphcal.pipeline.configuration.configure",
+    "calibrate_file": "graphcal.pipeline.end_to_end.calibrate_file",  # open a log and calibrate it
+    "METHODS": "graphcal.pipeline.end_to_end.run",
+    "default_workers": "graphcal.pipeline.solvers.parallel",
+    # the exit status of an untrusted result
+    "EXIT_UNTRUSTED": "graphcal.pipeline.end_to_end.trust",
     "check_output_directory": "graphcal.report.result_set",  # before a run, not after
     "summary_text": "graphcal.report.results",
-    "run_calibration": "graphcal.pipeline.run",
-    "CalibrationRun": "graphcal.pipeline.calibration_run",
-    "wheel_model": "graphcal.pipeline.localization_inputs",
-    "prepare_localization": "graphcal.pipeline.localization_inputs",
+    "run_calibration": "graphcal.pipeline.end_to_end.run",
+    "CalibrationRun": "graphcal.pipeline.end_to_end.calibration_run",
+    "wheel_model": "graphcal.pipeline.end_to_end.localization_inputs",
+    "prepare_localization": "graphcal.pipeline.end_to_end.localization_inputs",
     "write_results": "graphcal.report.results",
-    "calibrate_joint": "graphcal.pipeline.joint",
-    "solve_joint": "graphcal.pipeline.joint",
+    "calibrate_joint": "graphcal.pipeline.solvers.joint",
+    "solve_joint": "graphcal.pipeline.solvers.joint",
     "SolveOptions": "graphcal.graph.solve_options",  # iterations, tolerance, workers, progress
     "SolveOutcome": "graphcal.graph.solve_options",  # how a solve ended: status, iterations
     "SolveStatus": "graphcal.graph.solve_options",
-    "solve_joint_batches": "graphcal.pipeline.joint_batches",
-    "JointSettings": "graphcal.pipeline.joint",
+    "solve_joint_batches": "graphcal.pipeline.methods.joint_batches",
+    "JointSettings": "graphcal.pipeline.solvers.joint",
     "assess_observability": "graphcal.graph.observability",
     "Observability": "graphcal.graph.observability",
     # Validation on data the calibration did not see: another log, or held-apart windows.
-    "validation_errors": "graphcal.pipeline.held_apart",
-    "HeldApartErrors": "graphcal.pipeline.held_apart",
-    "time_windows": "graphcal.pipeline.held_apart",
-    "holding_apart": "graphcal.pipeline.held_apart",
-    "time_window": "graphcal.pipeline.held_apart",
+    "validation_errors": "graphcal.pipeline.end_to_end.held_apart",
+    "HeldApartErrors": "graphcal.pipeline.end_to_end.held_apart",
+    "time_windows": "graphcal.pipeline.end_to_end.held_apart",
+    "holding_apart": "graphcal.pipeline.end_to_end.held_apart",
+    "time_window": "graphcal.pipeline.end_to_end.held_apart",
     # Fleets: many vehicles' daily logs on Dask (the ``fleet`` extra).
     "run_fleet": "graphcal.fleet.run",
     "FleetOptions": "graphcal.fleet.run",

@@ -1,6 +1,6 @@
 """Evaluation of a calibration against a known truth (synthetic drives), apart from calibration.
 
-:func:`graphcal.pipeline.run.run_calibration` never sees the truth. Given a run and the
+:func:`graphcal.pipeline.end_to_end.run.run_calibration` never sees the truth. Given a run and the
 :class:`Truth` of its drive — the true theta and, optionally, the noise-free signals —
 :func:`evaluate` computes what a researcher checks an estimator by:
 
@@ -36,9 +36,9 @@ from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import SegmentData, gather_segments
-from graphcal.pipeline.calibration_run import CalibrationRun
-from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.validation import position_errors
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
+from graphcal.pipeline.methods.validation import position_errors
+from graphcal.pipeline.solvers.joint import JointSettings
 from graphcal.progress import Progress, reports_progress, say
 from graphcal.recording.importer import ImportedLog
 from graphcal.simulate.drive import read_sidecar, truth_path

@@ -7,11 +7,11 @@ defaults are the paper's car (§3.3, §4.4): c_e = 2 m, t_r = 1.55 m, 0.2 m posi
 pose weights W = [1, 1, 50], 0.0005 rev wheel noise.
 
 The profile is the ``[vehicle]`` section of a settings file (``graphcal calibrate --config``)
-or a file of its own (:func:`graphcal.pipeline.settings_file.load_vehicle`); it supplies the
-defaults of the settings that depend on the vehicle
-(:func:`graphcal.pipeline.vehicle_settings.apply_vehicle`) and the nominal theta the data layer
-checks logs against. A delivery robot with 0.5 m wheel circumference and 0.2 m track, for example
-(``data/vehicles/delivery_robot.toml`` has every key with its unit)::
+or a file of its own (:func:`graphcal.pipeline.configuration.settings_file.load_vehicle`); it
+supplies the defaults of the settings that depend on the vehicle
+(:func:`graphcal.pipeline.configuration.vehicle_settings.apply_vehicle`) and the nominal theta
+the data layer checks logs against. A delivery robot with 0.5 m wheel circumference and
+0.2 m track, for example (``data/vehicles/delivery_robot.toml`` has every key with its unit)::
 
     name = "delivery robot"
     theta_nominal = [0.5, 0.0, 0.2, 0.0]                 # c_e m, c_d m, t_r m, d s²
@@ -146,7 +146,7 @@ class VehicleProfile:
     def size_scale(self) -> float:
         """The vehicle's size relative to the paper's car: nominal track / 1.55 m (1 for the
         car). Segment lengths scale with it
-        (:func:`graphcal.pipeline.vehicle_settings.apply_vehicle`)."""
+        (:func:`graphcal.pipeline.configuration.vehicle_settings.apply_vehicle`)."""
         return float(self.theta_nominal[T_R] / THETA_NOMINAL[T_R])
 
     def pose_weights(self) -> tuple[float, float, float]:

@@ -18,8 +18,8 @@ import numpy as np
 
 from graphcal.evaluation import Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.report.document import run_statistics, uncertainty_summary
 from graphcal.simulate.drive import simulate_drive
 from graphcal.units import DEVIATION_SCALE

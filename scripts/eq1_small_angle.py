@@ -17,7 +17,7 @@ import numpy as np
 
 import graphcal.model as model
 from graphcal.evaluation import Truth, evaluate
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.simulate.drive import simulate_drive
 
 

@@ -29,8 +29,8 @@ from graphcal.localization.dead_reckoning import (
 )
 from graphcal.log.tum import write_tum
 from graphcal.model import THETA_NOMINAL, integrate
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.simulate.drive import simulate_drive
 
 COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}

@@ -23,8 +23,8 @@ import numpy as np
 
 from graphcal.evaluation import Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.recording.importer import import_recording
 from graphcal.simulate.drive import simulate_drive
 from graphcal.simulate.streams import simulate_streams, write_streams

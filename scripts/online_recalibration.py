@@ -31,7 +31,7 @@ from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.localization.online import OnlineResult, OnlineSettings, run_online
 from graphcal.log.validation import validate_frame
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.localization_inputs import prepare_localization
+from graphcal.pipeline.end_to_end.localization_inputs import prepare_localization
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import THETA_TRUE_DEFAULT, ThetaStep, simulate_drive
 from graphcal.units import DEVIATION_SCALE, DEVIATION_UNITS

@@ -21,8 +21,8 @@ import numpy as np
 from graphcal.evaluation import Truth, evaluate
 from graphcal.files import atomic_save_figure
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.report.document import run_statistics, uncertainty_summary
 from graphcal.report.results import write_results
 from graphcal.report.tables import PAPER_IQR_REDUCTION, iqr_reduction

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from graphcal import open_log
-from graphcal.pipeline.configure import configure_settings
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.configuration.configure import configure_settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
 REAL = ROOT / "data" / "real"

@@ -131,7 +131,7 @@ from graphcal.cli import build_parser
 from graphcal.cli.options import recording_keywords, settings_from_args
 from graphcal.errors import first_line
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.parallel import default_workers
+from graphcal.pipeline.solvers.parallel import default_workers
 from graphcal.recording.manifest.manifest import load_manifest
 from graphcal.simulate.drive import VehicleMotion, simulate_drive, write_synthetic_drive
 from graphcal.simulate.streams import StreamSettings, simulate_streams, write_streams

@@ -14,7 +14,8 @@ robust GNSS factors (``--lever-arm-sigma`` makes the antenna's lever arm a varia
 lever arm that graphcal's whole-log calibration estimates (as a localization system would
 use its offline calibration), and the graph takes over the calibration's findings about the
 wheels: the tick rounding of counted rotations and, if it found slow slip, slip scales, and
-starts from its theta (:func:`graphcal.pipeline.localization_inputs.prepare_localization`).
+starts from its theta
+(:func:`graphcal.pipeline.end_to_end.localization_inputs.prepare_localization`).
 Writes the smoothed, GNSS and (synthetic) true trajectories as TUM files for evo.
 """
 
@@ -32,7 +33,7 @@ from graphcal.log.load import load_drive_log
 from graphcal.log.tum import write_tum
 from graphcal.log.validation import validate_frame
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.localization_inputs import prepare_localization
+from graphcal.pipeline.end_to_end.localization_inputs import prepare_localization
 from graphcal.report.tables import Z95
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive

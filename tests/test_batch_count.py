@@ -8,8 +8,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from graphcal.pipeline.run import _batches
-from graphcal.pipeline.settings import BatchingSettings
+from graphcal.pipeline.configuration.settings import BatchingSettings
+from graphcal.pipeline.end_to_end.run import _batches
 from graphcal.progress import reporting_to
 
 

@@ -7,8 +7,8 @@ import pytest
 
 from graphcal.bench.naive import build_naive_graph, solve_naive
 from graphcal.log.segments import gather_segments, select_segments, split_segments
-from graphcal.pipeline.batch_calibration import calibrate_batch
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.solvers.batch_calibration import calibrate_batch
 from graphcal.simulate.drive import NoiseLevels, simulate_drive
 
 

@@ -15,10 +15,10 @@ from graphcal.log.segments import (
     select_segments,
     split_segments,
 )
-from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.selection import NoUsableSegments
-from graphcal.pipeline.settings import SegmentSettings, Settings
+from graphcal.pipeline.configuration.settings import SegmentSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.methods.selection import NoUsableSegments
+from graphcal.pipeline.solvers.batch_calibration import BatchSettings, calibrate_batch
 from graphcal.simulate.drive import write_synthetic_drive
 
 
@@ -102,7 +102,7 @@ def test_cli_calibrate_writes_complete_deterministic_results(drive, tmp_path, ca
 
 @pytest.mark.slow
 def test_joint_solve_recovers_theta_on_noise_free_data(clean_drive):
-    from graphcal.pipeline.joint import calibrate_joint
+    from graphcal.pipeline.solvers.joint import calibrate_joint
 
     log = clean_drive.measured
     data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
@@ -162,7 +162,7 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
 
     from graphcal.graph.builder import build_segment_graph
     from graphcal.graph.keys import THETA as THETA_KEY
-    from graphcal.pipeline.joint import JointSettings, calibrate_joint
+    from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
 
     log = drive.measured
     selected = gather_segments(log, select_segments(log, split_segments(log, 150.0)))

@@ -17,7 +17,7 @@ from cantools.database.can import Message, Signal  # noqa: E402
 from cantools.database.conversion import BaseConversion  # noqa: E402
 
 from graphcal.cli import main  # noqa: E402
-from graphcal.pipeline.run import run_calibration  # noqa: E402
+from graphcal.pipeline.end_to_end.run import run_calibration  # noqa: E402
 from graphcal.recording.can.decode import decode_signals  # noqa: E402
 from graphcal.recording.can.frames import EXTENDED_FLAG  # noqa: E402
 from graphcal.recording.can.reader import read_frames  # noqa: E402

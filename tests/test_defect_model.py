@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.pipeline.joint import without_defect_model
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.solvers.joint import without_defect_model
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 
@@ -155,7 +155,7 @@ def test_a_time_offset_between_samples_leaves_the_wheel_counts_whole(clean):
     import re
 
     from graphcal.log.quantization import ticks_per_revolution
-    from graphcal.pipeline.sensor_estimates import correct_log
+    from graphcal.pipeline.methods.sensor_estimates import correct_log
 
     late = degrade(clean, parse_defects("latency=0.0625,ticks"), 1)
     lines: list[str] = []
@@ -199,8 +199,8 @@ def test_an_estimate_without_information_is_not_observable_and_no_nan_goes_on():
     import dataclasses
 
     from graphcal.graph.estimates import NuisanceEstimate
-    from graphcal.pipeline.joint import JointSettings
-    from graphcal.pipeline.sensor_estimates import sensor_estimates
+    from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
+    from graphcal.pipeline.solvers.joint import JointSettings
 
     singular = NuisanceEstimate(np.array([np.nan]), np.array([[np.nan]]), 0.5)
     (estimate,) = sensor_estimates({"time_offset": singular}, 0.1).values()

@@ -14,9 +14,9 @@ from matplotlib.legend import Legend
 from matplotlib.lines import Line2D
 
 from graphcal.evaluation import Evaluation, Truth, evaluate
-from graphcal.pipeline.calibration_run import CalibrationRun
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.report.figures import (
     figures,
     route_figure,
@@ -239,7 +239,7 @@ def test_route_title_does_not_claim_a_selection_that_did_not_happen(joint):
 def test_trajectory_of_sparse_fixes_shows_the_fixes_and_the_compared_paths():
     """1 Hz fixes: the figure marks the fixes, not the track between them, and draws the
     paths the validation compares (placed where they fit the fixes: no pose at the start)."""
-    from graphcal.pipeline.validation import odometry_paths
+    from graphcal.pipeline.methods.validation import odometry_paths
     from graphcal.simulate.defects import degrade, parse_defects
 
     drive = degrade(simulate_drive(3.0, seed=2), parse_defects("gnss10hz=1"), seed=3)

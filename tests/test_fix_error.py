@@ -1,5 +1,5 @@
 """The error GNSS fixes share over tens of seconds (issue 43): measured from the residuals'
-variogram (graphcal.pipeline.residual_noise), modelled as a Gauss–Markov state at each
+variogram (graphcal.pipeline.solvers.residual_noise), modelled as a Gauss–Markov state at each
 chunk boundary (graphcal.graph.chunk_processes), and the σ it gives judged against the
 truth."""
 
@@ -13,11 +13,11 @@ import pytest
 from graphcal.graph.builder import build_segment_graph
 from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.log.segments import gather_segments, split_segments
-from graphcal.pipeline.joint import JointSettings, without_defect_model
-from graphcal.pipeline.noise_levels import slow_fix_error
-from graphcal.pipeline.residual_noise import ResidualNoise, drift_fit, error_variogram
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.methods.noise_levels import slow_fix_error
+from graphcal.pipeline.solvers.joint import JointSettings, without_defect_model
+from graphcal.pipeline.solvers.residual_noise import ResidualNoise, drift_fit, error_variogram
 from graphcal.simulate.defect_effects import gauss_markov
 from graphcal.simulate.drive import simulate_drive
 
@@ -131,7 +131,7 @@ def test_a_declared_shared_error_leaves_the_white_part_uninflated():
     # their RMS is the white part, not to be inflated for a correlation the graph models.
     from types import SimpleNamespace
 
-    from graphcal.pipeline.noise_levels import with_noise_levels
+    from graphcal.pipeline.methods.noise_levels import with_noise_levels
 
     declared = JointSettings(fix_error_sigma=1.0, position_sigma=0.05)
     whole = SimpleNamespace(noise=_noise(position=0.3, position_correlation=20.0))

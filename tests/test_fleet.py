@@ -272,7 +272,7 @@ def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
 
 def test_a_vehicle_profile_in_the_tree_sets_that_vehicles_settings(tmp_path):
     from graphcal.fleet.run import _settings_per_log
-    from graphcal.pipeline.settings import Settings
+    from graphcal.pipeline.configuration.settings import Settings
 
     robot = Path(__file__).resolve().parents[1] / "data" / "vehicles" / "delivery_robot.toml"
     for vehicle in ("car", "robot"):
@@ -288,7 +288,7 @@ def test_a_vehicle_profile_in_the_tree_sets_that_vehicles_settings(tmp_path):
 def test_a_log_the_worker_cannot_see_is_retried_not_kept(tmp_path):
     from graphcal.fleet.sources import FleetLog
     from graphcal.fleet.task import calibrate_fleet_log
-    from graphcal.pipeline.settings import Settings
+    from graphcal.pipeline.configuration.settings import Settings
 
     result = calibrate_fleet_log(FleetLog("v", "d", tmp_path / "gone.csv"), Settings(), "k")
     assert result["status"] == "failed" and result["retry"] is True
@@ -400,7 +400,7 @@ def test_fleet_csv_gives_each_day_its_verdicts_and_honest_sigmas(tmp_path):
     from graphcal.fleet.report import write_fleet_report
     from graphcal.fleet.sources import FleetLog
     from graphcal.fleet.task import calibrate_fleet_log
-    from graphcal.pipeline.settings import Settings
+    from graphcal.pipeline.configuration.settings import Settings
     from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 
     drive = simulate_drive(length_km=4.0, seed=20)

@@ -13,7 +13,7 @@ import pytest
 from graphcal.cli import main
 from graphcal.evaluation import Truth, evaluate
 from graphcal.log.segments import split_segments
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.recording.importer import import_recording
 from graphcal.recording.stream_grid import interval_means, wheel_rotations
 from graphcal.recording.streams import Recording, WheelStream

@@ -12,7 +12,7 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.evaluation import Truth, evaluate
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.recording.importer import import_recording
 from graphcal.recording.imu.estimate import estimate_mounting
 from graphcal.recording.imu.frame import angles, rotation, to_sensor, to_vehicle

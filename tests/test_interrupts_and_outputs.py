@@ -111,7 +111,7 @@ def _ctrl_c_in_the_worker(k: int) -> int:
 def test_a_pool_broken_by_ctrl_c_ends_the_run_as_an_interrupt():
     """Under load the workers can die of Ctrl-C before the parent sees its own SIGINT: the
     pool breaks first. That is still an interrupt (exit 130, one line), not a crash."""
-    from graphcal.pipeline.parallel import map_tasks
+    from graphcal.pipeline.solvers.parallel import map_tasks
 
     with pytest.raises(KeyboardInterrupt):
         map_tasks(_ctrl_c_in_the_worker, [(k,) for k in range(8)], workers=2)

@@ -14,9 +14,9 @@ import numpy as np
 
 import graphcal
 from graphcal.log.drive_log import DriveLog
-from graphcal.pipeline.sensor_estimates import SensorEstimate, measured_from
-from graphcal.pipeline.settings import BatchingSettings, Settings
-from graphcal.pipeline.whole_log import estimate_lines
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.methods.sensor_estimates import SensorEstimate, measured_from
+from graphcal.pipeline.methods.whole_log import estimate_lines
 from graphcal.report.tables import estimates_table
 from graphcal.units import METRES
 

@@ -12,7 +12,7 @@ import pytest
 from graphcal.cli import main
 from graphcal.evaluation import Truth, evaluate
 from graphcal.files import atomic_write_csv
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.recording.importer import import_recording
 from graphcal.recording.manifest_recording import read_manifest
 from graphcal.recording.nmea.fixes import read_nmea

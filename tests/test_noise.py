@@ -69,7 +69,7 @@ def test_position_noise_is_read_from_the_solve_and_used():
     """Fixes noisier than the settings assume (0.6 m against 0.2 m): the whole-log solve's
     residuals give the fixes' own noise, the log is solved again with it, and the σ is
     honest (χ²/dof about 1, the truth within 3σ)."""
-    from graphcal.pipeline.run import run_calibration
+    from graphcal.pipeline.end_to_end.run import run_calibration
     from graphcal.simulate.drive import NoiseLevels
 
     drive = simulate_drive(6.0, seed=4, noise=NoiseLevels(position=0.6))

@@ -11,10 +11,10 @@ from matplotlib.figure import Figure
 
 from graphcal.evaluation import Evaluation, Truth, evaluate
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.calibration_run import CalibrationRun
-from graphcal.pipeline.joint import without_defect_model
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.solvers.joint import without_defect_model
 from graphcal.report.figures import figures
 from graphcal.report.results import summary_text
 from graphcal.simulate.defects import degrade, parse_defects

@@ -12,10 +12,10 @@ from graphcal.evaluation import cramer_rao_bound
 from graphcal.graph.observability import WEAK_VERDICT, assess_observability
 from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
-from graphcal.pipeline.joint import JointSettings, calibrate_joint
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.selection import MIN_SELECTED_SEGMENTS
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.methods.selection import MIN_SELECTED_SEGMENTS
+from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
 from graphcal.simulate.drive import simulate_drive
 
 PRIOR = np.array([0.1, 0.01, 0.2, 0.01])

@@ -19,9 +19,14 @@ import pytest
 
 from graphcal import open_log
 from graphcal.cli import main
-from graphcal.pipeline.configure import configure_settings
-from graphcal.pipeline.held_apart import holding_apart, time_window, time_windows, validation_errors
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.configuration.configure import configure_settings
+from graphcal.pipeline.end_to_end.held_apart import (
+    holding_apart,
+    time_window,
+    time_windows,
+    validation_errors,
+)
+from graphcal.pipeline.end_to_end.run import run_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
 CAR = ROOT / "data" / "real" / "comma2k19"

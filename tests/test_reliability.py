@@ -16,8 +16,8 @@ from graphcal.evaluation import Truth, evaluate
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.load import load_drive_log
 from graphcal.log.validation import validate_frame
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, SegmentSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, SegmentSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.simulate.drive import simulate_drive
 
 
@@ -162,7 +162,7 @@ def test_a_short_drive_says_why_it_has_no_batch_study(tmp_path):
 
 @pytest.mark.slow
 def test_failed_step1_baseline_solves_of_the_joint_method_are_reported(drive, monkeypatch):
-    import graphcal.pipeline.staged as staged_module
+    import graphcal.pipeline.methods.staged as staged_module
     from graphcal.errors import CalibrationFailed
 
     def fail(*args, **kwargs):

@@ -6,11 +6,11 @@ import json
 
 import pytest
 
-import graphcal.pipeline.run
+import graphcal.pipeline.end_to_end.run
 import graphcal.report.results
 from graphcal.cli import main
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
 
 
 @pytest.fixture()
@@ -20,7 +20,7 @@ def no_calibration(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the calibration ran before the output place was checked")
 
-    monkeypatch.setattr(graphcal.pipeline.run, "run_calibration", refuse)
+    monkeypatch.setattr(graphcal.pipeline.end_to_end.run, "run_calibration", refuse)
 
 
 def _bad_out(drive_csv, out, capsys) -> str:

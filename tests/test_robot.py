@@ -13,9 +13,9 @@ import pytest
 from graphcal.cli import main
 from graphcal.graph.observability import HELD_VERDICT, assess_observability
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.settings_file import load_vehicle
-from graphcal.pipeline.vehicle_settings import apply_vehicle
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.configuration.settings_file import load_vehicle
+from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
 
 ROOT = Path(__file__).resolve().parents[1]
 ROBOT = str(ROOT / "data" / "vehicles" / "mocap_robot.toml")

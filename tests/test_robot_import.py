@@ -15,7 +15,7 @@ import pytest
 from graphcal.log.drive_log import DriveLogError
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import split_segments
-from graphcal.pipeline.settings_file import load_vehicle
+from graphcal.pipeline.configuration.settings_file import load_vehicle
 from graphcal.recording.import_output import write_import
 from graphcal.recording.importer import import_recording, read_recording
 from graphcal.recording.stream_grid import fixes_on_grid, grid_rate

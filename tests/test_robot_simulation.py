@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from graphcal.model import PARAMETER_NAMES, integrate
-from graphcal.pipeline.settings_file import load_vehicle
+from graphcal.pipeline.configuration.settings_file import load_vehicle
 from graphcal.recording.importer import read_recording
 from graphcal.simulate.robot import ROBOT_THETA_TRUE, RobotSettings, simulate_robot
 from graphcal.simulate.robot_manoeuvres import FINE_DT

@@ -13,13 +13,13 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.log.drive_log import DriveLog
-from graphcal.pipeline.calibration_run import CalibrationRun
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.sensor_estimates import SensorEstimate
-from graphcal.pipeline.settings import BatchingSettings, Settings
-from graphcal.pipeline.settings_file import load_vehicle
-from graphcal.pipeline.vehicle_settings import apply_vehicle
-from graphcal.pipeline.whole_log import estimate_lines
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings_file import load_vehicle
+from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.methods.sensor_estimates import SensorEstimate
+from graphcal.pipeline.methods.whole_log import estimate_lines
 from graphcal.recording.importer import import_recording
 from graphcal.report.figures import trajectory_figure, validation_figure
 from graphcal.report.results import summary_text

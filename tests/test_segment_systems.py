@@ -15,8 +15,8 @@ from graphcal.graph.graph_spec import shared_keys
 from graphcal.graph.partitioned import PartitionedGraph
 from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
-from graphcal.pipeline.joint import JointSettings, solve_joint
-from graphcal.pipeline.joint_batches import solve_joint_batches
+from graphcal.pipeline.methods.joint_batches import solve_joint_batches
+from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
 
 
 @pytest.fixture(scope="module")
@@ -121,7 +121,7 @@ def test_a_batch_that_determines_nothing_is_not_solved():
 
 
 def test_unknown_joint_solve_is_refused():
-    from graphcal.pipeline.settings import BatchingSettings
+    from graphcal.pipeline.configuration.settings import BatchingSettings
 
     with pytest.raises(ValueError, match="joint_solve"):
         BatchingSettings(joint_solve="approximate")

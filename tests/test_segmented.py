@@ -21,7 +21,7 @@ from graphcal.graph.solve_options import SolveOptions
 from graphcal.graph.values import portable, restore
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments
-from graphcal.pipeline.joint import JointSettings
+from graphcal.pipeline.solvers.joint import JointSettings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
 

@@ -13,18 +13,18 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.errors import GraphcalError
-from graphcal.pipeline import settings as settings_module
-from graphcal.pipeline.batch_calibration import BatchSettings
-from graphcal.pipeline.input_estimation import InputEstimationSettings
-from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.settings import (
+from graphcal.pipeline.configuration import settings as settings_module
+from graphcal.pipeline.configuration.settings import (
     BatchingSettings,
     SegmentSettings,
     Settings,
     StagedSettings,
     settings_to_dict,
 )
-from graphcal.pipeline.settings_file import load_settings, settings_from_dict
+from graphcal.pipeline.configuration.settings_file import load_settings, settings_from_dict
+from graphcal.pipeline.solvers.batch_calibration import BatchSettings
+from graphcal.pipeline.solvers.input_estimation import InputEstimationSettings
+from graphcal.pipeline.solvers.joint import JointSettings
 
 
 def to_toml(data: dict[str, Any], prefix: str = "") -> str:
@@ -224,8 +224,9 @@ def test_missing_and_invalid_files(tmp_path):
 @pytest.mark.slow
 def test_solver_modules_do_not_import_the_settings():
     code = (
-        "import sys, graphcal.pipeline.batch_calibration, graphcal.pipeline.input_estimation, "
-        "graphcal.pipeline.joint; print('graphcal.pipeline.settings' in sys.modules)"
+        "import sys, graphcal.pipeline.solvers.batch_calibration, "
+        "graphcal.pipeline.solvers.input_estimation, graphcal.pipeline.solvers.joint; "
+        "print('graphcal.pipeline.configuration.settings' in sys.modules)"
     )
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr

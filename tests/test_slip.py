@@ -8,9 +8,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.pipeline.localization_inputs import wheel_model
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.localization_inputs import wheel_model
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 
@@ -56,7 +56,7 @@ def test_slip_screened_on_a_spread_sample_decides_as_the_whole_log(slipping, mon
     """A long log screens slip on segments spread over it; the sample's statistic is the
     whole log's to within its sampling noise, and the solve with slip that follows covers
     every segment."""
-    import graphcal.pipeline.slip_screen as slip_screen
+    import graphcal.pipeline.solvers.slip_screen as slip_screen
 
     whole = _run(slipping, "auto")
     monkeypatch.setattr(slip_screen, "SLIP_SCREEN_SEGMENTS", 5)

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from graphcal.cli import main
-from graphcal.pipeline.prepare import _with_heading_noise
+from graphcal.pipeline.methods.prepare import _with_heading_noise
 from graphcal.progress import reporting_to
 
 ROOT = Path(__file__).resolve().parents[1]

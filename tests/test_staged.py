@@ -10,10 +10,10 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
-from graphcal.pipeline import staged as staged_module
-from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.staged import apply_heading_correction, run_staged, trimmed_mean
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.methods import staged as staged_module
+from graphcal.pipeline.methods.staged import apply_heading_correction, run_staged, trimmed_mean
+from graphcal.pipeline.solvers.input_estimation import InputEstimationSettings, estimate_inputs
 from graphcal.simulate.drive import write_synthetic_drive
 
 
@@ -181,8 +181,8 @@ def test_staged_cli_end_to_end_is_deterministic_across_workers(drive, tmp_path, 
 @pytest.mark.slow
 def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monkeypatch):
     from graphcal.errors import CalibrationFailed
-    from graphcal.pipeline.run import run_calibration
-    from graphcal.pipeline.settings import BatchingSettings, SegmentSettings
+    from graphcal.pipeline.configuration.settings import BatchingSettings, SegmentSettings
+    from graphcal.pipeline.end_to_end.run import run_calibration
     from graphcal.report.results import write_results
 
     real = staged_module.calibrate_batch
@@ -209,8 +209,8 @@ def test_every_step1_failure_still_gives_a_complete_report(drive, tmp_path, monk
 
 @pytest.mark.slow
 def test_too_little_data_is_flagged(drive):
-    from graphcal.pipeline.run import run_calibration
-    from graphcal.pipeline.settings import BatchingSettings, SegmentSettings
+    from graphcal.pipeline.configuration.settings import BatchingSettings, SegmentSettings
+    from graphcal.pipeline.end_to_end.run import run_calibration
 
     settings = Settings(
         segments=SegmentSettings(min_yaw_rate=0.15), batches=BatchingSettings(count=5)
@@ -233,7 +233,7 @@ def test_exactly_as_many_segments_as_a_batch_is_warned_of():
     report said "1 batch of 9" with IQR 0.000 and no warning)."""
     from types import SimpleNamespace
 
-    from graphcal.pipeline.run import _few_segments_warning
+    from graphcal.pipeline.end_to_end.run import _few_segments_warning
 
     prepared = SimpleNamespace(selected=list(range(9)), settings=Settings())
     (warning,) = _few_segments_warning(make_batches(9, 9, 100, 0), prepared)

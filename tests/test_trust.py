@@ -12,14 +12,14 @@ from graphcal.cli import main
 from graphcal.graph.solve_options import SolveOutcome, SolveStatus
 from graphcal.log.drive_log import write_drive_log
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.agreement import Agreement, segment_agreement
-from graphcal.pipeline.trust import (
+from graphcal.pipeline.end_to_end.trust import (
     EXIT_UNTRUSTED,
     MAX_CHI2_PER_DOF,
     NORMAL_IQR,
     assess_trust,
     spread_ratio,
 )
+from graphcal.pipeline.methods.agreement import Agreement, segment_agreement
 from graphcal.statistics import chi2_survival
 
 CLEAN = dict(

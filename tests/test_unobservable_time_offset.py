@@ -9,9 +9,9 @@ import dataclasses
 import numpy as np
 
 from graphcal.graph.estimates import NuisanceEstimate
-from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.sensor_estimates import sensor_estimates
-from graphcal.pipeline.whole_log import _batch_time_offset
+from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
+from graphcal.pipeline.methods.whole_log import _batch_time_offset
+from graphcal.pipeline.solvers.joint import JointSettings
 
 
 def test_a_time_offset_without_information_gives_the_batches_a_valid_prior():

@@ -17,12 +17,16 @@ from graphcal.log.drive_log import DriveLogError
 from graphcal.log.load import load_drive_log
 from graphcal.log.validation import validate_frame
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
-from graphcal.pipeline.batch_calibration import BatchSettings
-from graphcal.pipeline.joint import JointSettings
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import SegmentSettings, Settings, settings_to_dict
-from graphcal.pipeline.settings_file import load_settings, load_vehicle, settings_from_dict
-from graphcal.pipeline.vehicle_settings import apply_vehicle
+from graphcal.pipeline.configuration.settings import SegmentSettings, Settings, settings_to_dict
+from graphcal.pipeline.configuration.settings_file import (
+    load_settings,
+    load_vehicle,
+    settings_from_dict,
+)
+from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.solvers.batch_calibration import BatchSettings
+from graphcal.pipeline.solvers.joint import JointSettings
 from graphcal.report.document import results_document
 from graphcal.report.results import summary_text
 from graphcal.simulate.drive import NoiseLevels, VehicleMotion, simulate_drive

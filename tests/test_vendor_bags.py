@@ -15,7 +15,7 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.evaluation import Truth, evaluate
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.recording.bag import reader as bag_reader
 from graphcal.recording.bag.layout import decode_fields
 from graphcal.recording.bag.read import read_bag

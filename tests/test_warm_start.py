@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import graphcal.pipeline.warm_start as warm
+import graphcal.pipeline.solvers.warm_start as warm
 from graphcal.graph import keys
 from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.load import load_drive_log
@@ -20,7 +20,7 @@ from graphcal.log.segments import (
     spread,
 )
 from graphcal.model import integrate
-from graphcal.pipeline.joint import JointSettings, solve_joint
+from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
 

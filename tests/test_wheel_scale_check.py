@@ -15,7 +15,7 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
-from graphcal.pipeline.configure import configure_settings
+from graphcal.pipeline.configuration.configure import configure_settings
 from graphcal.recording.manifest_recording import read_manifest
 from graphcal.recording.resampling import resample
 from graphcal.recording.track_distance import wheel_track_ratio

@@ -21,11 +21,11 @@ from graphcal.bench.recording import BenchRun, timed
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.model import integrate, integrate_with_jacobians
-from graphcal.pipeline.batch_calibration import calibrate_batch
-from graphcal.pipeline.input_estimation import estimate_inputs
-from graphcal.pipeline.joint import calibrate_joint
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import BatchingSettings, Settings
+from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.solvers.batch_calibration import calibrate_batch
+from graphcal.pipeline.solvers.input_estimation import estimate_inputs
+from graphcal.pipeline.solvers.joint import calibrate_joint
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 
 

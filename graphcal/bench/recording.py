@@ -17,7 +17,7 @@ from typing import Any
 
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
 from graphcal.progress import Progress
 from graphcal.simulate.drive import SyntheticDrive
 

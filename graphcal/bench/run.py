@@ -31,7 +31,7 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
 * (k) the whole-log calibration of drives of several lengths (``--scaling-km``) in child
   processes, and the exponent of its time's growth (:mod:`graphcal.bench.scaling`);
 * (l) a joint batch of the batch study solved on its own and from the segments' systems at
-  the whole-log solution (:mod:`graphcal.pipeline.joint_batches`), per batch;
+  the whole-log solution (:mod:`graphcal.pipeline.methods.joint_batches`), per batch;
 * (m) fleet throughput on Dask with 1 and 2 workers and Dask's overhead per log
   (:mod:`graphcal.bench.fleet`).
 

@@ -21,8 +21,8 @@ import numpy as np
 
 _CHILD = """
 import json, resource, sys, time
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.configuration.settings import Settings
 from graphcal.simulate.drive import simulate_drive
 length, seed, workers = float(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 log = simulate_drive(length, seed=seed).measured

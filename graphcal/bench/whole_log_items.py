@@ -25,10 +25,10 @@ from graphcal.graph.solve import solve_lm
 from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, make_batches
-from graphcal.pipeline.joint import JointSettings, solve_joint, without_defect_model
-from graphcal.pipeline.joint_batches import solve_joint_batches
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.methods.joint_batches import solve_joint_batches
+from graphcal.pipeline.solvers.joint import JointSettings, solve_joint, without_defect_model
 
 
 def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int) -> dict[str, Any]:

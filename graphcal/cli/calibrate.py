@@ -95,7 +95,7 @@ def _add_run_options(p: argparse.ArgumentParser) -> None:
         "--config",
         Path,
         "FILE",
-        "TOML settings file (see graphcal/pipeline/settings.py); options override it",
+        "TOML settings file (see graphcal/pipeline/configuration/settings.py); options override it",
     )
     value_option(
         p,

@@ -54,7 +54,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--config",
         Path,
         "FILE",
-        "TOML settings file for every log (see graphcal/pipeline/settings.py)",
+        "TOML settings file for every log (see graphcal/pipeline/configuration/settings.py)",
     )
     p.add_argument("--no-progress-bar", action="store_true", help="progress lines instead of a bar")
     add_segment_options(p)

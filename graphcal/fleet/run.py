@@ -52,9 +52,9 @@ from graphcal.fleet.interrupt import (
 from graphcal.fleet.report import summary_lines, write_fleet_report
 from graphcal.fleet.sources import FleetLog, discover_fleet
 from graphcal.fleet.task import calibrate_fleet_log, content_hash, failed_result, result_key
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.settings_file import load_vehicle
-from graphcal.pipeline.vehicle_settings import apply_vehicle
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.configuration.settings_file import load_vehicle
+from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
 from graphcal.progress import Progress, reports_progress, say
 
 #: How often [s] a run waiting for results checks for Ctrl-C.

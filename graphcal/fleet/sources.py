@@ -4,7 +4,7 @@
   ``SOURCE/VEHICLE/DAY.csv`` (a recording — a streams manifest directory or a bag — may stand
   in for a CSV). ``DAY_truth.csv`` files next to ``DAY.csv`` (the noise-free signals of a
   synthetic drive) are not logs. ``SOURCE/VEHICLE/vehicle.toml``, if present, is that
-  vehicle's profile (:func:`graphcal.pipeline.settings_file.load_vehicle`).
+  vehicle's profile (:func:`graphcal.pipeline.configuration.settings_file.load_vehicle`).
 * A CSV manifest with the columns ``vehicle, day, path`` and optionally ``profile`` (a
   vehicle profile file); relative paths are relative to the manifest.
 

@@ -23,7 +23,7 @@ import numpy as np
 from graphcal import __version__
 from graphcal.errors import GraphcalError, exception_reason, first_line
 from graphcal.fleet.sources import FleetLog
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
 
 #: Bytes read at a time while hashing a log.
 CHUNK_BYTES = 1 << 20
@@ -120,7 +120,7 @@ def calibrate_fleet_log(log: FleetLog, settings: Settings, key: str) -> dict[str
 
 
 def _calibrate(log: FleetLog, settings: Settings) -> dict[str, Any]:
-    from graphcal.pipeline.run import run_calibration
+    from graphcal.pipeline.end_to_end.run import run_calibration
     from graphcal.recording.open_log import open_log
 
     nominal = settings.vehicle.theta_nominal

@@ -63,7 +63,7 @@ class OnlineSettings:
         gnss_huber: Huber threshold [in σ] of the GNSS factors (0: Gaussian). Keyframes at
             masked or flagged samples get no GNSS factor. Correct a time offset or lever arm
             beforehand with the calibration's estimates
-            (:func:`graphcal.pipeline.sensor_estimates.correct_log`).
+            (:func:`graphcal.pipeline.methods.sensor_estimates.correct_log`).
         tick_quantization: rounding sigma [rev] of the wheels' cumulative tick counts, or 0.
         slip_sigma, slip_time: slow wheel slip (stationary relative sigma, correlation time
             [s]), or ``slip_sigma`` 0 for none. Online it is noise of each interval with the

@@ -13,7 +13,7 @@ the antenna's lever arm can be a variable (``lever_arm_sigma``; the GNSS factors
 (``tick_quantization``) and slow wheel slip its scales (``slip_sigma``: one 2-vector per
 ``slip_span_s`` under a Gauss–Markov prior, :mod:`graphcal.graph.slip`, and one per GNSS
 gap). A wheel time offset is best corrected beforehand with the calibration's estimate
-(:func:`graphcal.pipeline.sensor_estimates.correct_log`), and the calibration's findings
+(:func:`graphcal.pipeline.methods.sensor_estimates.correct_log`), and the calibration's findings
 about ticks and slip carried over (``scripts/smoothing_example.py
 --sensors-from-calibration`` shows both).
 """

@@ -14,7 +14,7 @@ from graphcal import __version__
 from graphcal.evaluation import Evaluation
 from graphcal.factors import pose_sigmas
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.report.tables import (
     PAPER_IQR_REDUCTION,
     Z95,

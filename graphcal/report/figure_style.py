@@ -13,7 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure, SubFigure
 
 from graphcal.evaluation import Evaluation
-from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.units import LengthUnit, length_unit
 
 COLOURS = {"nominal": "tab:red", "calibrated": "tab:blue", "true": "tab:green"}
@@ -25,11 +25,11 @@ STEP_LABELS = {
     "whole": "whole log",
 }
 THETA_NAMES = {"nominal": "nominal θ", "calibrated": "recommended θ", "true": "true θ"}
-#: The run's theta when a check of :mod:`graphcal.pipeline.trust` failed (exit status 3):
+#: The run's theta when a check of :mod:`graphcal.pipeline.end_to_end.trust` failed (exit status 3):
 #: an estimate, never called recommended.
 NOT_TRUSTED_THETA = "estimated θ (not trusted)"
 #: What each step or method of a batch study is, for the captions of the figures showing it
-#: (docs/method.md, graphcal/pipeline/staged.py).
+#: (docs/method.md, graphcal/pipeline/methods/staged.py).
 STEP_NOTES = {
     "step1": "Step 1 = the paper's first step, the uncompensated baseline: θ of each batch "
     "from the measured wheel rotations and heading, every segment starting from its "
@@ -66,8 +66,8 @@ def vehicle_length_unit(run: CalibrationRun) -> LengthUnit:
 
 
 def trusted(run: CalibrationRun) -> bool:
-    """False if a check of :mod:`graphcal.pipeline.trust` failed: the run's theta is then an
-    estimate, shown as not trusted, never as calibrated or recommended."""
+    """False if a check of :mod:`graphcal.pipeline.end_to_end.trust` failed: the run's theta
+    is then an estimate, shown as not trusted, never as calibrated or recommended."""
     return run.trust is None or run.trust.trusted
 
 

@@ -10,8 +10,8 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from graphcal.evaluation import Evaluation
-from graphcal.pipeline.calibration_run import CalibrationRun
-from graphcal.pipeline.validation import odometry_paths
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
+from graphcal.pipeline.methods.validation import odometry_paths
 from graphcal.report.figure_style import (
     COLOURS,
     EDGE_PAD,

@@ -7,7 +7,7 @@ from graphcal.log.consistency import runs
 from graphcal.log.drive_log import DriveLog, measurement_line
 from graphcal.log.excitation import drive_excitation
 from graphcal.log.segments import split_segments, yaw_rate_statistic
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
 from graphcal.vehicle import VehicleProfile
 
 

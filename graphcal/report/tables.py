@@ -173,11 +173,11 @@ def interval_table(
 
 
 def estimates_table(estimated: dict, unit: LengthUnit = METRES) -> str:
-    """The sensor quantities estimated with theta (:mod:`graphcal.pipeline.sensor_estimates`)
-    with 1σ and the verdict (detected ones are corrected in the log): the time offset in ms,
-    the lever arm in the vehicle's length ``unit``; ``-`` for one not estimated (not
-    observable, or left out of the graph), never a prior's 0 ± its σ; a lever arm names
-    the point it is measured from."""
+    """The sensor quantities estimated with theta
+    (:mod:`graphcal.pipeline.methods.sensor_estimates`) with 1σ and the verdict (detected
+    ones are corrected in the log): the time offset in ms, the lever arm in the vehicle's
+    length ``unit``; ``-`` for one not estimated (not observable, or left out of the graph),
+    never a prior's 0 ± its σ; a lever arm names the point it is measured from."""
     labels = {
         "time_offset": "time offset (wheels late)",
         "lever_arm_longitudinal": "lever arm, ahead",

@@ -14,7 +14,7 @@ from matplotlib.ticker import MaxNLocator
 
 from graphcal.evaluation import Evaluation
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.report.figure_style import (
     NOT_TRUSTED_THETA,
     PRIOR_KEPT,

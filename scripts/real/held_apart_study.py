@@ -9,8 +9,8 @@ see — the measurement behind ``docs/real.md``.
   Each is cut into :data:`CAR_FOLDS` equal time windows; each window in turn is held apart
   (masked: no segment spans it), the rest calibrated, and the window validated: its
   validation segments dead-reckoned with the nominal and the calibrated theta
-  (:func:`graphcal.pipeline.held_apart.validation_errors`). The error is the mean over the
-  windows.
+  (:func:`graphcal.pipeline.end_to_end.held_apart.validation_errors`). The error is the mean
+  over the windows.
 * **The robot** (OptiOdom): calibrated from its free runs, validated on its circular and
   square runs (another day, other paths), each run one validation segment.
 
@@ -33,9 +33,14 @@ import numpy as np
 
 from graphcal import open_log
 from graphcal.errors import GraphcalError
-from graphcal.pipeline.configure import configure_settings
-from graphcal.pipeline.held_apart import holding_apart, time_window, time_windows, validation_errors
-from graphcal.pipeline.run import run_calibration
+from graphcal.pipeline.configuration.configure import configure_settings
+from graphcal.pipeline.end_to_end.held_apart import (
+    holding_apart,
+    time_window,
+    time_windows,
+    validation_errors,
+)
+from graphcal.pipeline.end_to_end.run import run_calibration
 
 ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT / "data" / "real"

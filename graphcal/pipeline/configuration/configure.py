@@ -8,10 +8,14 @@ import os
 from collections.abc import Mapping
 
 from graphcal.errors import GraphcalError
-from graphcal.pipeline.joint import without_defect_model
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.settings_file import load_settings, load_vehicle, vehicle_settings_in
-from graphcal.pipeline.vehicle_settings import apply_vehicle
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.configuration.settings_file import (
+    load_settings,
+    load_vehicle,
+    vehicle_settings_in,
+)
+from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
+from graphcal.pipeline.solvers.joint import without_defect_model
 
 
 def configure_settings(

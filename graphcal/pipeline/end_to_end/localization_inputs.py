@@ -6,10 +6,10 @@ from __future__ import annotations
 from typing import Any
 
 from graphcal.log.drive_log import DriveLog
-from graphcal.pipeline.calibration_run import CalibrationRun
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.sensor_estimates import correct_log
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
+from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.methods.sensor_estimates import correct_log
 from graphcal.progress import muted
 
 

@@ -37,22 +37,22 @@ from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.model import wheel_lateral_acceleration
-from graphcal.pipeline.agreement import (
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.methods.agreement import (
     Agreement,
     agreement_line,
     segment_agreement,
     with_agreement,
 )
-from graphcal.pipeline.held_at_prior import (
+from graphcal.pipeline.methods.held_at_prior import (
     data_determine,
     judged_with_what_is_held,
     without_an_unseen_lever_arm,
 )
-from graphcal.pipeline.joint import JointCalibration, JointSettings, solve_joint
-from graphcal.pipeline.joint_batches import segment_systems
-from graphcal.pipeline.noise_levels import with_noise_levels
-from graphcal.pipeline.prepare import PreparedLog
-from graphcal.pipeline.sensor_estimates import (
+from graphcal.pipeline.methods.joint_batches import segment_systems
+from graphcal.pipeline.methods.noise_levels import with_noise_levels
+from graphcal.pipeline.methods.prepare import PreparedLog
+from graphcal.pipeline.methods.sensor_estimates import (
     DownWeightedFixes,
     SensorEstimate,
     component_names,
@@ -64,7 +64,7 @@ from graphcal.pipeline.sensor_estimates import (
     run_of,
     sensor_estimates,
 )
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings, solve_joint
 from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
 

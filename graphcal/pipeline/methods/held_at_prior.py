@@ -11,8 +11,8 @@ import numpy as np
 
 from graphcal.graph.observability import with_prior_sigmas
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.joint import JointCalibration, JointSettings
-from graphcal.pipeline.prepare import PreparedLog
+from graphcal.pipeline.methods.prepare import PreparedLog
+from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
 from graphcal.progress import say
 
 

@@ -9,8 +9,8 @@ import numpy as np
 from graphcal.errors import GraphcalError
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import Segments, split_segments, yaw_rate_statistic
-from graphcal.pipeline.settings import SegmentSettings, Settings
-from graphcal.pipeline.vehicle_settings import (
+from graphcal.pipeline.configuration.settings import SegmentSettings, Settings
+from graphcal.pipeline.configuration.vehicle_settings import (
     CAR_SEGMENT_LENGTH,
     CAR_VALIDATION_LENGTH,
     segment_lengths,

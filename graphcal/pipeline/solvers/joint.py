@@ -38,10 +38,10 @@ from graphcal.graph.observability import (
 from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
-from graphcal.pipeline.residual_noise import ResidualNoise, residual_noise
-from graphcal.pipeline.robust import solve_segment_graph_robust
-from graphcal.pipeline.slip_screen import SlipTest, with_slip_if_shown
-from graphcal.pipeline.warm_start import warm_start
+from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
+from graphcal.pipeline.solvers.robust import solve_segment_graph_robust
+from graphcal.pipeline.solvers.slip_screen import SlipTest, with_slip_if_shown
+from graphcal.pipeline.solvers.warm_start import warm_start
 from graphcal.progress import Progress, reports_progress, say
 from graphcal.vehicle import HELD_SIGMA_SCALE
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
 from graphcal.vehicle import VehicleProfile
 
 

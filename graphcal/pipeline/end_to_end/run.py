@@ -45,13 +45,18 @@ import numpy as np
 from graphcal.errors import GraphcalError
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import make_batches
-from graphcal.pipeline.batch_study import joint_batch_study
-from graphcal.pipeline.calibration_run import CalibrationRun, Method, MethodResult, validated_run
-from graphcal.pipeline.model_check import ModelCheck, check_model, theta_alone
-from graphcal.pipeline.prepare import PreparedLog, prepare_log
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.staged import run_staged
-from graphcal.pipeline.whole_log import WholeLog, models_sensors, solve_whole_log
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.calibration_run import (
+    CalibrationRun,
+    Method,
+    MethodResult,
+    validated_run,
+)
+from graphcal.pipeline.methods.batch_study import joint_batch_study
+from graphcal.pipeline.methods.model_check import ModelCheck, check_model, theta_alone
+from graphcal.pipeline.methods.prepare import PreparedLog, prepare_log
+from graphcal.pipeline.methods.staged import run_staged
+from graphcal.pipeline.methods.whole_log import WholeLog, models_sensors, solve_whole_log
 from graphcal.progress import Progress, reports_progress, say
 
 METHODS = ("staged", "joint", "whole")

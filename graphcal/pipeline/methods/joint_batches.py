@@ -32,8 +32,8 @@ from graphcal.graph.plausibility import check_plausible
 from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.graph.values import copy_value
 from graphcal.log.segments import SegmentData
-from graphcal.pipeline.joint import JointSettings, calibrate_joint
-from graphcal.pipeline.parallel import map_tasks
+from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.solvers.parallel import map_tasks
 from graphcal.progress import Progress, muted, reports_progress, say
 
 #: ``[batches] joint_solve``: how the joint method solves its batches.

@@ -12,15 +12,15 @@ from graphcal.graph.observability import Observability
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.joint import JointCalibration
-from graphcal.pipeline.model_check import ModelCheck
-from graphcal.pipeline.prepare import PreparedLog
-from graphcal.pipeline.sensor_estimates import DownWeightedFixes, SensorEstimate
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.staged import StagedResult
-from graphcal.pipeline.trust import TrustAssessment, assess_trust, circumference_warning
-from graphcal.pipeline.validation import position_errors
-from graphcal.pipeline.whole_log import WholeLog
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.trust import TrustAssessment, assess_trust, circumference_warning
+from graphcal.pipeline.methods.model_check import ModelCheck
+from graphcal.pipeline.methods.prepare import PreparedLog
+from graphcal.pipeline.methods.sensor_estimates import DownWeightedFixes, SensorEstimate
+from graphcal.pipeline.methods.staged import StagedResult
+from graphcal.pipeline.methods.validation import position_errors
+from graphcal.pipeline.methods.whole_log import WholeLog
+from graphcal.pipeline.solvers.joint import JointCalibration
 from graphcal.progress import say
 
 Method = Literal["staged", "joint", "whole"]

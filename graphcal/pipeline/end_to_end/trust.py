@@ -33,7 +33,7 @@ import numpy as np
 
 from graphcal.graph.solve_options import SolveOutcome
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.agreement import Agreement
+from graphcal.pipeline.methods.agreement import Agreement
 
 #: χ² per degree of freedom above which the residuals do not fit the noise model: the σ
 #: would be understated by more than sqrt(1.5) = 1.22 (statistical noise on the whole-log

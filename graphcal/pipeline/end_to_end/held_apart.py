@@ -20,8 +20,8 @@ import numpy as np
 from graphcal.errors import GraphcalError
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import Segments, gather_segments, split_segments
-from graphcal.pipeline.settings import Settings
-from graphcal.pipeline.validation import position_errors
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.methods.validation import position_errors
 
 
 @dataclass(frozen=True)

@@ -17,8 +17,8 @@ from graphcal.log.noise import heading_noise
 from graphcal.log.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.model import step_increments
-from graphcal.pipeline.selection import select
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.methods.selection import select
 from graphcal.progress import say
 from graphcal.units import length_unit
 

@@ -24,10 +24,10 @@ import numpy as np
 from graphcal.errors import GraphcalError
 from graphcal.log.segments import SegmentData
 from graphcal.model import integrate
-from graphcal.pipeline.batch_calibration import BatchSettings, calibrate_batch
-from graphcal.pipeline.input_estimation import InputEstimationSettings, estimate_inputs
-from graphcal.pipeline.parallel import map_tasks
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.solvers.batch_calibration import BatchSettings, calibrate_batch
+from graphcal.pipeline.solvers.input_estimation import InputEstimationSettings, estimate_inputs
+from graphcal.pipeline.solvers.parallel import map_tasks
 
 
 @dataclass(frozen=True)

@@ -7,9 +7,9 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from graphcal.pipeline.calibration_run import CalibrationRun, Method
-from graphcal.pipeline.run import run_calibration
-from graphcal.pipeline.settings import Settings
+from graphcal.pipeline.configuration.settings import Settings
+from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun, Method
+from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.progress import Progress, reports_progress, say
 from graphcal.recording.importer import BagOptions, ImportedLog
 from graphcal.recording.open_log import open_log

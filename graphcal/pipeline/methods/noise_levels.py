@@ -10,8 +10,8 @@ import dataclasses
 import numpy as np
 
 from graphcal.factors import pose_sigmas
-from graphcal.pipeline.joint import JointCalibration, JointSettings
-from graphcal.pipeline.residual_noise import CORRELATED_ERRORS, ResidualNoise, honest_sigma
+from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
+from graphcal.pipeline.solvers.residual_noise import CORRELATED_ERRORS, ResidualNoise, honest_sigma
 from graphcal.progress import say
 
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this

@@ -13,13 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.pipeline.joint_batches import (
+from graphcal.pipeline.methods.joint_batches import (
     BatchEstimate,
     linearized_batches,
     solve_joint_batches,
 )
-from graphcal.pipeline.staged import step1_thetas
-from graphcal.pipeline.whole_log import WholeLog
+from graphcal.pipeline.methods.staged import step1_thetas
+from graphcal.pipeline.methods.whole_log import WholeLog
 
 
 @dataclass(frozen=True)

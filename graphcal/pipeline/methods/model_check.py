@@ -34,11 +34,11 @@ from graphcal.errors import CalibrationFailed
 from graphcal.graph.keys import LEVER_ARM
 from graphcal.log.segments import SegmentData, gather_segments, spread
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
-from graphcal.pipeline.joint import JointSettings, solve_joint
-from graphcal.pipeline.prepare import PreparedLog
-from graphcal.pipeline.sensor_estimates import detected_offsets, time_offsets
-from graphcal.pipeline.validation import position_errors
-from graphcal.pipeline.whole_log import WholeLog
+from graphcal.pipeline.methods.prepare import PreparedLog
+from graphcal.pipeline.methods.sensor_estimates import detected_offsets, time_offsets
+from graphcal.pipeline.methods.validation import position_errors
+from graphcal.pipeline.methods.whole_log import WholeLog
+from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
 from graphcal.progress import muted, say
 
 #: Groups of consecutive segments, alternately in the two folds.

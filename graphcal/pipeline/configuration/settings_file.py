@@ -15,8 +15,8 @@ from typing import Any, Literal
 import numpy as np
 
 from graphcal.errors import GraphcalError, is_number
-from graphcal.pipeline.settings import Settings, setting_fields
-from graphcal.pipeline.vehicle_settings import DERIVED_SECTIONS, follow_vehicle
+from graphcal.pipeline.configuration.settings import Settings, setting_fields
+from graphcal.pipeline.configuration.vehicle_settings import DERIVED_SECTIONS, follow_vehicle
 from graphcal.vehicle import VehicleProfile
 
 #: Keys of older settings files, with where they went; loading one is a one-line error.
