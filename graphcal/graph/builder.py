@@ -17,7 +17,7 @@ Every calibration graph of graphcal is an instance of this shape, chosen by a
   bias of the measured heading per segment; with a lever arm or heading bias, the free
   start poses are measured through them (:class:`~graphcal.factors.MeasuredPoseFactor`);
 * optionally per-fix weights (``SegmentData.fix_weights``) that widen the sigmas of outlying
-  fixes (robust estimation by iterative reweighting, :mod:`graphcal.pipeline.robust`).
+  fixes (robust estimation by iterative reweighting, :mod:`graphcal.pipeline.solvers.robust`).
 
 Users: the batch solve (one chunk per segment, no corrections), input estimation (one
 segment, theta fixed, corrections), the joint solve (start poses, corrections and theta)

@@ -129,7 +129,7 @@ class _RemoteGroup:
 
 def _serve(connection, group: PartGroup) -> None:
     """A worker's loop: answer requests until :class:`Stop`. Ctrl-C ends the worker without
-    a word (:func:`~graphcal.pipeline.parallel.quiet_worker`'s reason), and the worker
+    a word (:func:`~graphcal.pipeline.solvers.parallel.quiet_worker`'s reason), and the worker
     reports no progress: its parent does."""
     silence()
     signal.signal(signal.SIGINT, signal.SIG_DFL)

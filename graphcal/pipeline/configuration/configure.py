@@ -30,11 +30,13 @@ def configure_settings(
     """Settings: the paper's defaults, then ``config``, then explicit options.
 
     Args:
-        config: a TOML settings file (:func:`~graphcal.pipeline.settings.load_settings`).
+        config: a TOML settings file
+            (:func:`~graphcal.pipeline.configuration.settings.load_settings`).
         vehicle: a vehicle profile (TOML); it sets what ``config`` does not
-            (:func:`~graphcal.pipeline.settings.apply_vehicle`).
-        segments, batches: fields of :class:`~graphcal.pipeline.settings.SegmentSettings`
-            and :class:`~graphcal.pipeline.settings.BatchingSettings` to override (SI; a
+            (:func:`~graphcal.pipeline.configuration.settings.apply_vehicle`).
+        segments, batches: fields of
+            :class:`~graphcal.pipeline.configuration.settings.SegmentSettings` and
+            :class:`~graphcal.pipeline.configuration.settings.BatchingSettings` to override (SI; a
             ``None`` value is not given).
         defect_model: False estimates theta alone (no wheel time offset, lever arm, heading
             biases or outlier weights).

@@ -1,20 +1,21 @@
 """All settings of a calibration run, with the paper's values as defaults (§4.4, §5.1).
 
 One schema: TOML sections and keys are the dataclass field names, recursively. Load a file
-with :func:`~graphcal.pipeline.settings_file.load_settings`; :func:`settings_to_dict` (or
-:meth:`Settings.to_dict`) gives the plain-data view written into ``calibration.json``. A file
+with :func:`~graphcal.pipeline.configuration.settings_file.load_settings`; :func:`settings_to_dict`
+(or :meth:`Settings.to_dict`) gives the plain-data view written into ``calibration.json``. A file
 may set any subset; a missing key keeps the default of the enclosing setting.
 
 The ``[vehicle]`` section (:class:`graphcal.vehicle.VehicleProfile`; also a file of its own,
-:func:`~graphcal.pipeline.settings_file.load_vehicle`) describes the vehicle: its nominal theta,
-the poses' and wheels' noise. It supplies the defaults of the settings that depend on the
-vehicle — ``theta_initial``, ``theta_prior_sigmas``, ``pose_weights`` and ``position_sigma`` of
+:func:`~graphcal.pipeline.configuration.settings_file.load_vehicle`) describes the vehicle: its
+nominal theta, the poses' and wheels' noise. It supplies the defaults of the settings that depend on
+the vehicle — ``theta_initial``, ``theta_prior_sigmas``, ``pose_weights`` and ``position_sigma`` of
 ``[calibration]`` and ``[joint]``, ``[joint] wheel_noise``, and the segment lengths of
 ``[segments]``: the car's 150 m and 300 m scaled by the vehicle's track over the car's 1.55 m
 (19.4 m and 38.7 m for a 0.2 m robot)
-(:func:`~graphcal.pipeline.vehicle_settings.apply_vehicle`); a key given in ``[calibration]``,
-``[joint]`` or ``[segments]`` of the same file overrides it. Without ``[vehicle]`` the vehicle
-is the paper's car. The yaw-rate threshold (0.15 rad/s) stays: a robot turns faster than a car.
+(:func:`~graphcal.pipeline.configuration.vehicle_settings.apply_vehicle`); a key given in
+``[calibration]``, ``[joint]`` or ``[segments]`` of the same file overrides it. Without
+``[vehicle]`` the vehicle is the paper's car. The yaw-rate threshold (0.15 rad/s) stays: a robot
+turns faster than a car.
 
 Every section and key, with the defaults::
 
@@ -139,9 +140,9 @@ class SegmentSettings:
 
     The defaults are the paper's car (150 m calibration and 300 m validation segments, a mean
     yaw rate above 0.15 rad/s). With a vehicle profile the lengths follow its size
-    (:func:`~graphcal.pipeline.vehicle_settings.apply_vehicle`: scaled by its track over the
-    car's), unless set; a segment should hold a few bends and last some tens of seconds. The
-    yaw-rate threshold stays, since a small vehicle turns tighter than a car. A length must be
+    (:func:`~graphcal.pipeline.configuration.vehicle_settings.apply_vehicle`: scaled by its track
+    over the car's), unless set; a segment should hold a few bends and last some tens of seconds.
+    The yaw-rate threshold stays, since a small vehicle turns tighter than a car. A length must be
     at least :data:`MIN_SEGMENT_TRACKS` tracks of the vehicle (checked by :class:`Settings`).
     """
 
@@ -180,8 +181,8 @@ class BatchingSettings:
     whole-log solve and does not depend on the count.
 
     ``joint_solve`` is how the joint method solves its batches
-    (:mod:`graphcal.pipeline.joint_batches`): ``"linearized"`` (every segment's system at the
-    whole-log solution, summed per batch: the study costs about one whole-log iteration) or
+    (:mod:`graphcal.pipeline.methods.joint_batches`): ``"linearized"`` (every segment's system at
+    the whole-log solution, summed per batch: the study costs about one whole-log iteration) or
     ``"exact"`` (one Levenberg–Marquardt solve per batch, 1–2 s each).
     """
 
@@ -286,8 +287,8 @@ class Settings:
     joint: JointSettings = field(default_factory=JointSettings)
     #: The vehicle: nominal theta for the log's checks, segment distances and the report.
     #: Changing it alone leaves the other sections as they are;
-    #: :func:`~graphcal.pipeline.vehicle_settings.apply_vehicle` makes the settings that
-    #: depend on it follow.
+    #: :func:`~graphcal.pipeline.configuration.vehicle_settings.apply_vehicle` makes the settings
+    #: that depend on it follow.
     vehicle: VehicleProfile = field(default_factory=VehicleProfile)
     lever_arm: LeverArmSettings = field(default_factory=LeverArmSettings)
 

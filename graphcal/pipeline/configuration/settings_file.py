@@ -1,6 +1,7 @@
-"""Settings and vehicle files: TOML read into :class:`~graphcal.pipeline.settings.Settings`
-and :class:`~graphcal.vehicle.VehicleProfile`, key by key and type by type, with one-line
-errors naming the file and the key (the schema: :mod:`graphcal.pipeline.settings`)."""
+"""Settings and vehicle files: TOML read into
+:class:`~graphcal.pipeline.configuration.settings.Settings` and
+:class:`~graphcal.vehicle.VehicleProfile`, key by key and type by type, with one-line errors naming
+the file and the key (the schema: :mod:`graphcal.pipeline.configuration.settings`)."""
 
 from __future__ import annotations
 
@@ -54,7 +55,8 @@ def settings_from_dict(data: dict[str, Any], source: str = "<settings>") -> Sett
     """Build :class:`Settings` from a nested dict like a TOML file's (unknown keys rejected).
 
     With a ``vehicle`` table, the settings that depend on the vehicle follow it
-    (:func:`~graphcal.pipeline.vehicle_settings.apply_vehicle`) except those the dict gives itself.
+    (:func:`~graphcal.pipeline.configuration.vehicle_settings.apply_vehicle`) except those the dict
+    gives itself.
     """
     settings = _load(Settings(), data, "", source)
     if "vehicle" not in data:
@@ -95,8 +97,8 @@ def load_vehicle(path: str | os.PathLike[str]) -> VehicleProfile:
 def vehicle_settings_in(path: str | os.PathLike[str]) -> set[str]:
     """The settings a TOML settings file sets that a vehicle profile would otherwise set
     (``"joint.wheel_noise"``, ...): what
-    :func:`~graphcal.pipeline.vehicle_settings.apply_vehicle` must ``keep`` when a vehicle is
-    given on top of the file."""
+    :func:`~graphcal.pipeline.configuration.vehicle_settings.apply_vehicle` must ``keep`` when a
+    vehicle is given on top of the file."""
     data = _read_toml(path, "settings")
     return {
         f"{section}.{key}"

@@ -52,16 +52,16 @@ class CalibrationRun:
         batch_errors: per step, E_p [m] of each batch's theta, ``(B,)``; NaN where the batch
             failed (never written to a file).
         warnings: what a user must know before trusting the result.
-        trust: the checks that need no truth (:mod:`graphcal.pipeline.trust`).
+        trust: the checks that need no truth (:mod:`graphcal.pipeline.end_to_end.trust`).
         estimated: sensor quantities the whole-log solve estimated with theta
             (``"time_offset"`` [s], ``"lever_arm_longitudinal"``, ``"lever_arm_lateral"``
-            [m]; :mod:`graphcal.pipeline.sensor_estimates`); observable ones are corrected
+            [m]; :mod:`graphcal.pipeline.methods.sensor_estimates`); observable ones are corrected
             in ``log`` for the batches and the validation.
         down_weighted: the fixes the robust whole-log solve down-weighted as outliers.
         whole: the whole-log joint solve (joint and whole methods, and staged when it
             estimates sensor quantities or outliers), ``None`` otherwise.
         model_check: the defect model against theta alone on held-apart segments
-            (:mod:`graphcal.pipeline.model_check`), ``None`` when not run.
+            (:mod:`graphcal.pipeline.methods.model_check`), ``None`` when not run.
     """
 
     log: DriveLog
@@ -92,7 +92,7 @@ class CalibrationRun:
 
     def verdicts(self) -> dict[str, str]:
         """Per parameter: the observability verdict, or why it is not to be trusted
-        (:mod:`graphcal.pipeline.trust`)."""
+        (:mod:`graphcal.pipeline.end_to_end.trust`)."""
         out = self.observability.verdicts() if self.observability is not None else {}
         doubts = self.trust.parameter_doubts if self.trust is not None else {}
         for name in PARAMETER_NAMES:
@@ -149,8 +149,8 @@ def validated_run(
     result: MethodResult,
 ) -> CalibrationRun:
     """The run: ``result`` validated on the validation segments of ``corrected`` (the log
-    the method calibrated from), judged (:mod:`graphcal.pipeline.trust`), with every warning
-    said."""
+    the method calibrated from), judged (:mod:`graphcal.pipeline.end_to_end.trust`), with every
+    warning said."""
     validation, settings = corrected.validation, corrected.settings
     segment_errors = {
         "nominal": position_errors(validation, settings.vehicle.theta_nominal),
@@ -217,7 +217,7 @@ def _trust(
     validation: SegmentData,
     theta_nominal: np.ndarray,
 ) -> TrustAssessment:
-    """The trust checks (:func:`~graphcal.pipeline.trust.assess_trust`) of the whole-log
+    """The trust checks (:func:`~graphcal.pipeline.end_to_end.trust.assess_trust`) of the whole-log
     solve (if any), the joint batches (if any) and the validation. The validation check
     judges what is called calibrated: the parameters that are not keep their nominal in it
     (a weakly determined c_d of a 100 m log, −4.3 ± 5.6 mm, moves the prediction by noise,

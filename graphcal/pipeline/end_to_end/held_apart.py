@@ -4,7 +4,7 @@ log held apart from the calibration.
 A calibration's own validation (eq. 16 on the log it calibrated from) shows how well theta
 fits that log; a user judges a calibration by how well it predicts driving it never saw.
 :func:`validation_errors` dead-reckons the validation segments of any log with a theta (the
-same segments and errors as a run's validation, :mod:`graphcal.pipeline.validation`).
+same segments and errors as a run's validation, :mod:`graphcal.pipeline.methods.validation`).
 :func:`time_windows`, :func:`holding_apart` and :func:`time_window` cut one log into a part to
 calibrate from (the windows masked: no segment spans them, so none of their measurements is
 used) and the windows to validate on.

@@ -2,32 +2,32 @@
 
 Methods:
 
-* ``"staged"`` — the paper's five steps over batches (:mod:`graphcal.pipeline.staged`); the
+* ``"staged"`` — the paper's five steps over batches (:mod:`graphcal.pipeline.methods.staged`); the
   recommended theta is the median of Step 5 over the batches. When the joint settings model
   the sensors (a time offset, a lever arm, outlying fixes: the defaults do), the joint
   whole-log solve runs first and the steps calibrate from the log it corrected.
-* ``"joint"`` — one joint graph per batch (:mod:`graphcal.pipeline.joint`): start poses,
+* ``"joint"`` — one joint graph per batch (:mod:`graphcal.pipeline.solvers.joint`): start poses,
   wheel-rotation corrections and theta solved together, each with its marginal covariance and
   observability verdict; the recommended theta is the joint solve over *all* selected
   segments at once (the maximum-likelihood estimate from all the data, with its covariance).
   The batches show the spread and check the covariance; batches where a parameter is not
   observable are left out of the batch statistics, with the reason. By default the batches
   are solved from each segment's system at the whole-log solution
-  (:mod:`graphcal.pipeline.joint_batches`), at the cost of one whole-log iteration.
+  (:mod:`graphcal.pipeline.methods.joint_batches`), at the cost of one whole-log iteration.
 * ``"whole"`` — only the joint solve over all selected segments: quick, no batches.
 
 With the joint and whole methods, every parameter is its posterior under the weak prior,
 and those the data do not determine well (:mod:`graphcal.graph.observability`) are reported
 as not calibrated, with their estimate and σ. If fewer than
-:data:`~graphcal.pipeline.selection.MIN_SELECTED_SEGMENTS` segments pass the yaw-rate
+:data:`~graphcal.pipeline.methods.selection.MIN_SELECTED_SEGMENTS` segments pass the yaw-rate
 selection they use every segment: the observability check, not the selection, then decides
 what the drive determines.
 
 Each method is one function (``_run_staged``, ``_run_joint``, ``_run_whole``):
-:func:`~graphcal.pipeline.prepare.prepare_log` (selection, the settings the log completes,
-fix weights), the whole-log solve (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), the
-method's batches, then validation and the trust checks
-(:func:`~graphcal.pipeline.calibration_run.validated_run`).
+:func:`~graphcal.pipeline.methods.prepare.prepare_log` (selection, the settings the log completes,
+fix weights), the whole-log solve (:func:`~graphcal.pipeline.methods.whole_log.solve_whole_log`),
+the method's batches, then validation and the trust checks
+(:func:`~graphcal.pipeline.end_to_end.calibration_run.validated_run`).
 
 Validation (§5.2): every theta is judged by its position error E_p (eq. 16 / K, averaged over
 the 300 m validation segments), next to the nominal theta of ``settings.vehicle``, whose c_e
@@ -77,7 +77,8 @@ def run_calibration(
         log: a validated drive log.
         settings: run settings (the paper's by default); ``settings.vehicle`` gives the
             nominal theta for cutting segments and for the "nominal" validation errors
-            (apply a vehicle with :func:`graphcal.pipeline.vehicle_settings.apply_vehicle`).
+            (apply a vehicle with
+            :func:`graphcal.pipeline.configuration.vehicle_settings.apply_vehicle`).
         method: ``"staged"`` (the paper's five steps over batches), ``"joint"`` (one joint
             graph per batch, then one over all selected segments) or ``"whole"`` (only the
             joint solve over all selected segments; also what ``"joint"`` does with
@@ -114,7 +115,7 @@ def _run_whole(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
 def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
     """The joint solve over all selected segments (the recommended theta), checked by the
     segments' agreement, then the batch study from its solution
-    (:mod:`graphcal.pipeline.batch_study`)."""
+    (:mod:`graphcal.pipeline.methods.batch_study`)."""
     prepared = prepare_log(log, settings, fall_back_to_all=True)
     solved, check = _solve_checked(prepared, workers)
     recommended = dataclasses.replace(_recommended(solved), model_check=check)
@@ -143,7 +144,7 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
 
 
 def _run_staged(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
-    """The paper's five steps over batches (:mod:`graphcal.pipeline.staged`) on the log the
+    """The paper's five steps over batches (:mod:`graphcal.pipeline.methods.staged`) on the log the
     whole-log solve corrected, if the settings model the sensors; the recommended theta is
     the median of Step 5."""
     prepared = prepare_log(log, settings, fall_back_to_all=False)
@@ -184,9 +185,9 @@ def _whole_log_corrections(
 
 
 def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, ModelCheck | None]:
-    """The whole-log solve (:func:`~graphcal.pipeline.whole_log.solve_whole_log`), then, if
+    """The whole-log solve (:func:`~graphcal.pipeline.methods.whole_log.solve_whole_log`), then, if
     the settings ask for it and its defect model found something, the model check
-    (:mod:`graphcal.pipeline.model_check`): when theta alone predicts held-apart segments at
+    (:mod:`graphcal.pipeline.methods.model_check`): when theta alone predicts held-apart segments at
     least as well, the whole-log solve again without the defect model's sensor terms."""
     solved = solve_whole_log(prepared, workers)
     if not prepared.settings.joint.model_check:

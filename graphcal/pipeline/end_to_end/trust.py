@@ -11,7 +11,7 @@ its noise levels. Four checks need nothing but the run itself:
   heading noisier than assumed, outliers);
 * **agreement** (joint and whole methods): groups of consecutive segments each give theta,
   and a χ² test tells whether they differ from the whole log's by more than their σ allow
-  (:mod:`graphcal.pipeline.agreement`); where they do, the σ was already scaled by their
+  (:mod:`graphcal.pipeline.methods.agreement`); where they do, the σ was already scaled by their
   scatter before the verdicts, so it is reported, not judged here. (The joint method's
   batch spread, the interquartile range of the batch estimates over the median per-batch
   σ, about 1.35 for honest σ and independent batches, is reported as ``spread_ratio``);

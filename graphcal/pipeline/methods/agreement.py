@@ -2,8 +2,8 @@
 
 The selected segments are cut into :data:`GROUPS` groups of consecutive segments, and each
 group's theta is solved from the segments' systems at the whole-log solution
-(:func:`~graphcal.pipeline.joint_batches.segment_systems`: one Gauss–Newton step on the sum of
-its members', as the linearized batches are). When the model and its noise levels are right,
+(:func:`~graphcal.pipeline.methods.joint_batches.segment_systems`: one Gauss–Newton step on the sum
+of its members', as the linearized batches are). When the model and its noise levels are right,
 each group's estimate differs from the whole log's by its own noise alone: for parameter i,
 
     T_i = Σ_k (θ_k,i − θ_i)² / Σ_k,ii  ~  χ² with K − 1 degrees of freedom

@@ -1,10 +1,11 @@
 """The joint method's batch study: each batch's Step 1 baseline and joint estimate (with its
 covariance and verdict), and which batches the statistics leave out and why.
 
-The batches solve the log the whole-log solve corrected (:mod:`graphcal.pipeline.whole_log`),
-with its fix weights and slip verdict, from its solution: Step 1 (no time-offset or lever-arm
-variable) the exactly corrected segments, the joint batches the wheels shifted by whole
-samples with the rest of the offset as their prior, the lever arm a variable.
+The batches solve the log the whole-log solve corrected
+(:mod:`graphcal.pipeline.methods.whole_log`), with its fix weights and slip verdict, from its
+solution: Step 1 (no time-offset or lever-arm variable) the exactly corrected segments, the joint
+batches the wheels shifted by whole samples with the rest of the offset as their prior, the lever
+arm a variable.
 """
 
 from __future__ import annotations
@@ -45,7 +46,7 @@ class BatchStudy:
 def joint_batch_study(solved: WholeLog, batches: np.ndarray, workers: int) -> BatchStudy:
     """Step 1 and the joint solve of each of the ``batches`` ``(B, N)`` of the selected
     segments of ``solved``, the linearized ones from its segments' systems at its solution
-    (:attr:`~graphcal.pipeline.whole_log.WholeLog.systems`)."""
+    (:attr:`~graphcal.pipeline.methods.whole_log.WholeLog.systems`)."""
     corrected = solved.corrected
     settings = corrected.settings
     step1 = step1_thetas(corrected.data, batches, settings, workers)

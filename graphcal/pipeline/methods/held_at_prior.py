@@ -67,7 +67,7 @@ def without_an_unseen_lever_arm(
 ) -> tuple[JointSettings, dict[str, float]]:
     """``settings`` without the lever arm, and the variables left out of the graph, when
     ``whole`` found neither of the arm's components observable (else ``settings`` and
-    ``prepared.left_out``). Kept by :func:`~graphcal.pipeline.prepare.prepare_log` because
+    ``prepared.left_out``). Kept by :func:`~graphcal.pipeline.methods.prepare.prepare_log` because
     its segments could show the arm at best, it is, on a drive that does not, a constant
     offset every segment's start position takes as well: a 6 km straight road from plain
     fixes took 24–46 iterations to converge with it and 4 without, and 24 km did not

@@ -124,7 +124,7 @@ def segment_systems(
     """Every segment of ``data`` eliminated down to the shared variables of the joint graph
     of ``settings``, linearized at ``start`` (the whole-log solution; ``None``: the builder's
     initial values): what the linearized batch solves and the segments' agreement
-    (:mod:`graphcal.pipeline.agreement`) are read from.
+    (:mod:`graphcal.pipeline.methods.agreement`) are read from.
 
     Raises:
         CalibrationFailed: if a segment's own variables are indeterminate.

@@ -3,7 +3,7 @@ alone — judged by how well each predicts segments it did not see.
 
 The joint solve estimates, with theta, what real recordings get wrong: the wheels' time
 offset, the GNSS antenna's lever arm, a fused heading's bias per segment and slow wheel slip
-(:mod:`graphcal.pipeline.joint`). Each is a direction the solve may also use for something
+(:mod:`graphcal.pipeline.solvers.joint`). Each is a direction the solve may also use for something
 else — the model's own misfit, a skid-steer robot's scrubbing, noise of the fixes — and then
 takes what belongs to theta.
 
@@ -11,7 +11,7 @@ So when the whole-log solve found one of them (a time offset or lever arm detect
 modelled), :func:`check_model` cross-validates: the selected segments, in time order, are
 cut into :data:`GROUPS` groups, alternately in two folds; each model calibrates from one
 fold and dead-reckons the other's segments (eq. 16 / K), each path fitted to its fixes
-rigidly (:func:`~graphcal.pipeline.validation.position_errors` with ``aligned``: the shape
+rigidly (:func:`~graphcal.pipeline.methods.validation.position_errors` with ``aligned``: the shape
 of the path is judged, not a start heading whose noise alone is metres over a segment), with
 theta and the lever arm the fold found (the antenna is a point of the car wherever it
 drives: a real 1.2 m arm left out of the prediction favoured the theta that had absorbed

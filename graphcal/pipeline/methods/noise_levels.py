@@ -1,7 +1,7 @@
 """The noise a whole-log solve's residuals show, made the settings of the next solve: the
 fixes' white sigma and, when their errors wander together, the error they share (a
 Gauss–Markov state, :mod:`graphcal.graph.gauss_markov`); the heading's sigma; the wheels'
-noise (:mod:`graphcal.pipeline.residual_noise` measures them)."""
+noise (:mod:`graphcal.pipeline.solvers.residual_noise` measures them)."""
 
 from __future__ import annotations
 
@@ -26,11 +26,11 @@ def with_noise_levels(
     whole: JointCalibration, settings: JointSettings, has_heading: bool, dt: float
 ) -> JointSettings:
     """``settings`` with the noise the whole-log solve's residuals show
-    (:class:`~graphcal.pipeline.residual_noise.ResidualNoise`; ``dt`` the log's sample
+    (:class:`~graphcal.pipeline.solvers.residual_noise.ResidualNoise`; ``dt`` the log's sample
     interval [s]), else ``settings`` itself:
 
     * the fixes' position sigma (their RMS, inflated when their errors are correlated:
-      :func:`~graphcal.pipeline.residual_noise.honest_sigma`) when it differs from the
+      :func:`~graphcal.pipeline.solvers.residual_noise.honest_sigma`) when it differs from the
       settings' by more than :data:`POSITION_NOISE_TOLERANCE` — or, when their errors wander
       together, the white part of it and the error they share (:func:`slow_fix_error`);
     * the heading's sigma (the RMS of its residuals, not inflated for their correlation: a
@@ -108,13 +108,13 @@ def slow_fix_error(
 ) -> tuple[float, float, float] | None:
     """``(white, shared, time)``: the fixes' white sigma [m], and the stationary sigma [m]
     and correlation time [s] of the error they share, when their errors are alike from fix
-    to fix (:data:`~graphcal.pipeline.residual_noise.CORRELATED_ERRORS`) and the settings
+    to fix (:data:`~graphcal.pipeline.solvers.residual_noise.CORRELATED_ERRORS`) and the settings
     leave it to the residuals (``fix_error`` auto, ``fix_error_sigma`` 0); else ``None``. ``dt``:
     the log's sample interval [s].
 
     A fit's residuals show a slow error only over short lags (its trajectory bends with the
     rest): their variogram's slope there is the error's drift rate ``q² / τ``
-    (:func:`~graphcal.pipeline.residual_noise.drift_fit`), and τ is the settings'
+    (:func:`~graphcal.pipeline.solvers.residual_noise.drift_fit`), and τ is the settings'
     ``fix_error_time`` (consumer GNSS errors wander over tens of seconds), so that
     ``q = √(rate · τ)``. Weighted as white noise of an inflated sigma instead, fixes whose
     errors wander together over a minute left c_e 5.2σ off "calibrated" on a straight road

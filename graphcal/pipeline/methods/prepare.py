@@ -60,7 +60,7 @@ class PreparedLog:
 
 
 def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> PreparedLog:
-    """``log`` cut, selected (:func:`~graphcal.pipeline.selection.select`, with
+    """``log`` cut, selected (:func:`~graphcal.pipeline.methods.selection.select`, with
     ``fall_back_to_all``) and gathered, with the settings it completes.
 
     Raises:

@@ -19,7 +19,7 @@ from graphcal.progress import say
 
 #: With fewer selected segments than this, the joint and whole methods use every segment of
 #: the log: so few carry little information, and the segments' agreement test needs this many
-#: groups (:data:`graphcal.pipeline.agreement.GROUPS`). A 373 m robot log kept 1 of 7 53 m
+#: groups (:data:`graphcal.pipeline.methods.agreement.GROUPS`). A 373 m robot log kept 1 of 7 53 m
 #: segments (mean |yaw rate| > 0.15 rad/s, a car's rule) and calibrated nothing from it.
 MIN_SELECTED_SEGMENTS = 8
 

@@ -4,20 +4,20 @@ the sensors, corrected in the log for everything after it.
 Top-down, :func:`solve_whole_log` runs:
 
 1. time-offset rounds (:func:`solve_with_time_offset`): the joint solve
-   (:func:`~graphcal.pipeline.joint.solve_joint`: warm start, robust reweighting of the fixes,
-   slip screen), repeated with the wheels shifted by whole samples while it finds a time
+   (:func:`~graphcal.pipeline.solvers.joint.solve_joint`: warm start, robust reweighting of the
+   fixes, slip screen), repeated with the wheels shifted by whole samples while it finds a time
    offset;
-2. the noise the residuals show (:func:`~graphcal.pipeline.noise_levels.with_noise_levels`:
+2. the noise the residuals show (:func:`~graphcal.pipeline.methods.noise_levels.with_noise_levels`:
    the fixes' white noise and the error they share, the heading's, the wheels') and, for a
    log whose lateral acceleration comes from the wheels (and whose d is estimated), that
    acceleration derived again with the solved theta; the rounds again if either changed the
    graph;
 3. theta judged under the weak prior
-   (:func:`~graphcal.pipeline.held_at_prior.judged_with_what_is_held`): every parameter its
+   (:func:`~graphcal.pipeline.methods.held_at_prior.judged_with_what_is_held`): every parameter its
    posterior with its marginal σ, what the settings held at its prior
    (the vehicle's, the preparation's or a runaway's) not calibrated, its uncertainty in the
    others' σ;
-4. the sensor estimates (time offset, lever arm; :mod:`graphcal.pipeline.sensor_estimates`),
+4. the sensor estimates (time offset, lever arm; :mod:`graphcal.pipeline.methods.sensor_estimates`),
    the down-weighted fixes and the slip verdict, reported;
 5. the log corrected by the estimates, and its segments gathered again with the solve's fix
    weights: what validation and the batches work on.
@@ -112,7 +112,7 @@ class WholeLog:
             the batches' settings (:meth:`batch_data`, :meth:`batch_settings`): what the
             linearized batches and the agreement test are solved from.
         agreement: whether groups of the segments agree within their σ
-            (:mod:`graphcal.pipeline.agreement`); theta's σ are scaled by it.
+            (:mod:`graphcal.pipeline.methods.agreement`); theta's σ are scaled by it.
     """
 
     whole: JointCalibration

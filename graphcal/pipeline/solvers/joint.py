@@ -81,7 +81,7 @@ class JointSettings:
             per chunk (slow, coloured slip; 0.0015 = 0.15 %).
         slip_time: correlation time [s] of the slip scales from chunk to chunk.
         slip_alpha: with ``slip = "auto"``, the false-alarm rate of the slip screen's test
-            (:mod:`graphcal.pipeline.slip_screen`): slip is modelled when adding it lowers
+            (:mod:`graphcal.pipeline.solvers.slip_screen`): slip is modelled when adding it lowers
             χ² by more than the data's own noise would at this rate.
         time_offset_sigma: prior sigma [s] of the wheels' time offset against the pose,
             estimated with theta (0: not estimated).
@@ -93,12 +93,12 @@ class JointSettings:
             (a fused heading's slow bias; 0: none).
         fix_error: an error the fixes share, a first-order Gauss–Markov process (a GNSS
             receiver's slowly varying error): ``"auto"`` models it when the residuals show
-            one (:mod:`graphcal.pipeline.noise_levels`) or with ``fix_error_sigma`` when that
-            is above 0, ``"off"`` never (white fix errors only).
+            one (:mod:`graphcal.pipeline.methods.noise_levels`) or with ``fix_error_sigma`` when
+            that is above 0, ``"off"`` never (white fix errors only).
         fix_error_sigma: its stationary sigma [m] per axis when known (0: from the
             residuals), and ``fix_error_time`` its correlation time [s].
         robust_threshold: fixes whose position residual exceeds this many times the
-            residuals' scale are down-weighted (:mod:`graphcal.pipeline.robust`; 0: off).
+            residuals' scale are down-weighted (:mod:`graphcal.pipeline.solvers.robust`; 0: off).
         heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
             white noise measured in the log (:mod:`graphcal.log.noise`) instead of the
             vehicle's ``heading_sigma``.
@@ -109,7 +109,7 @@ class JointSettings:
             ``False``: every segment has a free start under its measured pose.
         model_check: when the defect model finds a time offset, a lever arm or slip, check
             it against theta alone on held-apart segments and calibrate with the one that
-            predicts them better (:mod:`graphcal.pipeline.model_check`).
+            predicts them better (:mod:`graphcal.pipeline.methods.model_check`).
         time_offset_means: the time offset prior's mean per run of the log [s] (the rest
             each run's shift left, for the batches and the model check), overriding
             ``time_offset_mean``; empty: ``time_offset_mean`` for every run. Not a setting.
@@ -291,7 +291,7 @@ class JointCalibration(ThetaEstimate):
             ``None`` if every fix kept weight 1.
         slip_modelled: the solve has slip scales.
         slip_test: with ``slip = "auto"``, the slip screen's test on the screened segments
-            (all, or :data:`~graphcal.pipeline.slip_screen.SLIP_SCREEN_SEGMENTS` spread over
+            (all, or :data:`~graphcal.pipeline.solvers.slip_screen.SLIP_SCREEN_SEGMENTS` spread over
             a longer log; ``None`` otherwise).
         noise: the noise the residuals show (:class:`ResidualNoise`), before slip was
             modelled: variance components of the solve. The fixes' RMS is the true σ within
@@ -339,14 +339,14 @@ def solve_joint(
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
-    :mod:`graphcal.pipeline.joint_batches`). ``start``: a solution of the same segments under
-    other settings (other noise levels, a shifted log) whose graph-wide variables the solve
-    starts from instead of a warm start's; ``start_weights``: that solution's fix weights,
-    where the robust rounds start (:func:`~graphcal.pipeline.robust.solve_robust`).
+    :mod:`graphcal.pipeline.methods.joint_batches`). ``start``: a solution of the same segments
+    under other settings (other noise levels, a shifted log) whose graph-wide variables the
+    solve starts from instead of a warm start's; ``start_weights``: that solution's fix
+    weights, where the robust rounds start (:func:`~graphcal.pipeline.solvers.robust.solve_robust`).
 
-    The steps: the warm start (:mod:`graphcal.pipeline.warm_start`), the solve with robust
-    fix weights (:mod:`graphcal.pipeline.robust`), the fixes' noise in its residuals, with
-    ``slip = "auto"`` the slip screen (:mod:`graphcal.pipeline.slip_screen`), and theta's
+    The steps: the warm start (:mod:`graphcal.pipeline.solvers.warm_start`), the solve with robust
+    fix weights (:mod:`graphcal.pipeline.solvers.robust`), the fixes' noise in its residuals, with
+    ``slip = "auto"`` the slip screen (:mod:`graphcal.pipeline.solvers.slip_screen`), and theta's
     observability."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"

@@ -2,7 +2,7 @@
 
 A real recording's noise is rarely what a profile says, and rarely white: a u-blox
 receiver's fixes at 10 Hz err alike for about a second, a fused pose's for many. After the
-whole-log solve (:mod:`graphcal.pipeline.whole_log`) the fixes' position residuals, the
+whole-log solve (:mod:`graphcal.pipeline.methods.whole_log`) the fixes' position residuals, the
 headings' and the wheel corrections' priors say how noisy each kind of measurement was
 (:func:`residual_noise`); the fixes are then weighted by :func:`honest_sigma`, their RMS
 inflated by how much their errors are alike (:func:`error_correlation`): n fixes whose

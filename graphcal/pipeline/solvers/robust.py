@@ -121,7 +121,7 @@ def solve_segment_graph_robust(
     """:func:`~graphcal.graph.segment_solve.solve_segment_graph` (each solve as ``options``
     say) with robust fix weights (:func:`solve_robust`, whose three results it returns);
     ``threshold`` 0 solves once without them. ``shared_start``: where the first solve starts
-    the graph-wide variables (e.g. :func:`~graphcal.pipeline.warm_start.warm_start`);
+    the graph-wide variables (e.g. :func:`~graphcal.pipeline.solvers.warm_start.warm_start`);
     ``start_weights``: the fix weights the rounds start from (:func:`solve_robust`)."""
 
     def solve(segments: SegmentData, initial) -> SolvedGraph:

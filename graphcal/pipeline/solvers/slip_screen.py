@@ -52,7 +52,8 @@ from graphcal.statistics import scaled_chi2_deviate
 SLIP_LETTER = chr(gtsam.Symbol(keys.segment_slip(0)).chr())
 
 #: Slip is screened on this many segments spread over the log (all of a shorter log; the
-#: warm start's sample, :mod:`graphcal.pipeline.warm_start`): about 380 chunks in 32 segments.
+#: warm start's sample, :mod:`graphcal.pipeline.solvers.warm_start`): about 380 chunks in 32
+#: segments.
 SLIP_SCREEN_SEGMENTS = 32
 
 
