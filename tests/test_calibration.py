@@ -18,7 +18,11 @@ from graphcal.log.segments import (
 from graphcal.pipeline.configuration.settings import SegmentSettings, Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.methods.selection import NoUsableSegments
-from graphcal.pipeline.solvers.batch_calibration import BatchSettings, calibrate_batch
+from graphcal.pipeline.solvers.batch_calibration import (
+    BatchSettings,
+    calibrate_batch,
+    held_start_batches,
+)
 from graphcal.simulate.drive import write_synthetic_drive
 
 
@@ -204,3 +208,19 @@ def test_whole_log_request_with_the_staged_method_is_a_one_line_error(drive_csv,
     err = capsys.readouterr().err
     assert "--batches 0 (one solve over the whole log) needs --method joint or whole" in err
     assert err.count("\n") == 1 and not out.exists()
+
+
+def test_held_start_batches_equal_their_own_solves(drive):
+    """Step 1's batches from one solve and two Gauss–Newton steps each are each batch's own
+    Levenberg–Marquardt solve, well within the batches' spread (the study's figure)."""
+    log = drive.measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0, stride=25.0)))
+    rng = np.random.default_rng(0)
+    batches = np.array([rng.choice(len(data), 6, replace=False) for _ in range(8)])
+    settings = BatchSettings(estimate_start_poses=False)
+    shared = held_start_batches(data, batches, settings)
+    own = np.array([calibrate_batch(data.take(b), settings).theta for b in batches])
+    spread = own.std(axis=0)
+    assert np.all(np.abs(shared - own) <= 0.01 * spread)
+    with pytest.raises(ValueError, match="hold the start poses"):
+        held_start_batches(data, batches, BatchSettings(estimate_start_poses=True))

@@ -25,7 +25,11 @@ from graphcal.errors import GraphcalError
 from graphcal.log.segments import SegmentData
 from graphcal.model import integrate
 from graphcal.pipeline.configuration.settings import Settings
-from graphcal.pipeline.solvers.batch_calibration import BatchSettings, calibrate_batch
+from graphcal.pipeline.solvers.batch_calibration import (
+    BatchSettings,
+    calibrate_batch,
+    held_start_batches,
+)
 from graphcal.pipeline.solvers.input_estimation import InputEstimationSettings, estimate_inputs
 from graphcal.pipeline.solvers.parallel import map_tasks
 
@@ -82,6 +86,11 @@ def step1_thetas(
     """Step 1 alone: theta ``(B, 4)`` of each batch from the measured signals with the start
     poses held at their measurement; NaN rows for failed solves. The uncompensated baseline
     that the joint method is shown against."""
+    if not settings.calibration.estimate_start_poses:
+        try:
+            return held_start_batches(data, batches, settings.calibration, workers)
+        except GraphcalError:
+            pass  # the solve over all segments failed: each batch its own, as they did
     tasks = [(data.take(batch), settings.calibration) for batch in batches]
     results = map_tasks(_batch_task, tasks, workers, "step1 batch solves")
     return np.array([np.full(4, np.nan) if r is None else r[0] for r in results])
