@@ -96,13 +96,15 @@ _PUBLIC = {
     "write_results": "graphcal.report.results",
     "calibrate_joint": "graphcal.pipeline.solvers.joint",
     "solve_joint": "graphcal.pipeline.solvers.joint",
-    "SolveOptions": "graphcal.graph.solve_options",  # iterations, tolerance, workers, progress
-    "SolveOutcome": "graphcal.graph.solve_options",  # how a solve ended: status, iterations
-    "SolveStatus": "graphcal.graph.solve_options",
+    # iterations, tolerance, workers, progress
+    "SolveOptions": "graphcal.graph.optimization.solve_options",
+    # how a solve ended: status, iterations
+    "SolveOutcome": "graphcal.graph.optimization.solve_options",
+    "SolveStatus": "graphcal.graph.optimization.solve_options",
     "solve_joint_batches": "graphcal.pipeline.methods.joint_batches",
     "JointSettings": "graphcal.pipeline.solvers.joint",
-    "assess_observability": "graphcal.graph.observability",
-    "Observability": "graphcal.graph.observability",
+    "assess_observability": "graphcal.graph.solution.observability",
+    "Observability": "graphcal.graph.solution.observability",
     # Validation on data the calibration did not see: another log, or held-apart windows.
     "validation_errors": "graphcal.pipeline.end_to_end.held_apart",
     "HeldApartErrors": "graphcal.pipeline.end_to_end.held_apart",
@@ -135,8 +137,8 @@ _PUBLIC = {
     "segment_odometry_factor": "graphcal.factors",
     "pose_measurement_factor": "graphcal.factors",
     "theta_prior_factor": "graphcal.factors",
-    "slip_prior_factor": "graphcal.graph.slip",
-    "slip_step_factor": "graphcal.graph.slip",
+    "slip_prior_factor": "graphcal.graph.construction.slip",
+    "slip_step_factor": "graphcal.graph.construction.slip",
     "insert_theta": "graphcal.localization.values",
     "theta_from_values": "graphcal.localization.values",
     "insert_states": "graphcal.localization.values",

@@ -29,10 +29,10 @@ from pathlib import Path
 import numpy as np
 
 from graphcal.errors import GraphcalError, exception_reason
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.solution.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import SegmentData, gather_segments
@@ -137,7 +137,7 @@ def cramer_rao_systems(
     tied: bool = False,
 ) -> ReducedSystems:
     """The measurements' information of every segment of ``data`` at the truth, reduced to
-    the shared variables (:mod:`graphcal.graph.reduced_systems`): the joint graph without
+    the shared variables (:mod:`graphcal.graph.solution.reduced_systems`): the joint graph without
     the prior on theta linearized as :func:`cramer_rao_bound` does, each segment eliminated
     once (in ``workers`` processes). A batch's bound is the theta block of the inverse of
     its members' summed information: exactly the bound of the batch's own graph. With

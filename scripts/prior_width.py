@@ -1,6 +1,6 @@
 """Verdicts against the prior's width: each recording calibrated (``--method whole``) with
 the documented prior sigmas, and with them doubled and halved. The verdicts must not move
-(``graphcal.graph.observability`` judges against fixed reference sigmas, not the prior).
+(``graphcal.graph.solution.observability`` judges against fixed reference sigmas, not the prior).
 
     python scripts/prior_width.py       # the sample drive, the car's four forms, the robot
     python scripts/prior_width.py LOG [--vehicle FILE]

@@ -164,8 +164,8 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
     import gtsam
     from numerical import retract_jacobian
 
-    from graphcal.graph.builder import build_segment_graph
-    from graphcal.graph.keys import THETA as THETA_KEY
+    from graphcal.graph.construction.builder import build_segment_graph
+    from graphcal.graph.construction.keys import THETA as THETA_KEY
     from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
 
     log = drive.measured

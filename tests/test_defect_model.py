@@ -198,7 +198,7 @@ def test_an_estimate_without_information_is_not_observable_and_no_nan_goes_on():
     traceback naming the wrong value)."""
     import dataclasses
 
-    from graphcal.graph.estimates import NuisanceEstimate
+    from graphcal.graph.solution.estimates import NuisanceEstimate
     from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
     from graphcal.pipeline.solvers.joint import JointSettings
 

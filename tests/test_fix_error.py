@@ -1,6 +1,6 @@
 """The error GNSS fixes share over tens of seconds (issue 43): measured from the residuals'
 variogram (graphcal.pipeline.solvers.residual_noise), modelled as a Gauss–Markov state at each
-chunk boundary (graphcal.graph.chunk_processes), and the σ it gives judged against the
+chunk boundary (graphcal.graph.construction.chunk_processes), and the σ it gives judged against the
 truth."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraphSpec
 from graphcal.log.segments import gather_segments, split_segments
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration

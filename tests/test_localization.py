@@ -11,7 +11,7 @@ from numerical import retract_jacobian
 
 import graphcal
 from graphcal.errors import GraphcalError
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.localization.dead_reckoning import OutageSettings, outage_errors, outage_table
 from graphcal.localization.keyframe_odometry import (
     keyframe_odometry_factor,
@@ -159,8 +159,8 @@ def test_prepare_localization_hands_over_the_calibrations_findings():
 
 @pytest.mark.slow
 def test_python_driven_lm_matches_gtsams_optimizer(short_drive):
-    from graphcal.graph.keys import THETA
-    from graphcal.graph.solve import solve_lm
+    from graphcal.graph.construction.keys import THETA
+    from graphcal.graph.optimization.solve import solve_lm
     from graphcal.localization.smoothing import build_smoothing_graph
 
     graph, values, _ = build_smoothing_graph(short_drive.measured, SmoothingSettings())
@@ -248,7 +248,7 @@ def test_smoothing_a_log_with_sparse_fixes_uses_each_fix_at_its_own_time(short_d
     factor per fix at its own time (the distance driven since, behind the pose), no heading
     prior. theta within 3σ; ignoring the fixes' times would put the smoothed track a
     lag's travel behind the truth."""
-    from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
+    from graphcal.graph.construction.keyframes import fix_offsets, gnss_keyframes
     from graphcal.simulate.defects import degrade, parse_defects
 
     log = degrade(short_drive, parse_defects("gnss10hz"), 2).measured

@@ -9,7 +9,7 @@ import pytest
 
 from graphcal.cli import main
 from graphcal.evaluation import cramer_rao_bound
-from graphcal.graph.observability import WEAK_VERDICT, assess_observability
+from graphcal.graph.solution.observability import WEAK_VERDICT, assess_observability
 from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.configuration.settings import BatchingSettings, Settings

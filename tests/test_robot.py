@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.graph.observability import HELD_VERDICT, assess_observability
+from graphcal.graph.solution.observability import HELD_VERDICT, assess_observability
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.configuration.settings_file import load_vehicle

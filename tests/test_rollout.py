@@ -1,5 +1,5 @@
 """Steps that turn the path: the chunk-boundary poses rolled out onto the odometry after each
-Levenberg–Marquardt step (:mod:`graphcal.graph.rollout`).
+Levenberg–Marquardt step (:mod:`graphcal.graph.optimization.rollout`).
 
 graphcal's own skid-steer robot thinned to 2 Hz positions without heading (issue 43's
 table, issue 45 row 1): the wheels' time offset turns the path by ``τ · ψ̇``, and before the

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from graphcal.evaluation import cramer_rao_bounds
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.covariance import marginal_covariance
-from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.solution.covariance import marginal_covariance
+from graphcal.graph.solution.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.pipeline.methods.joint_batches import solve_joint_batches
 from graphcal.pipeline.solvers.joint import JointSettings, solve_joint

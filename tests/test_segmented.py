@@ -8,17 +8,17 @@ import gtsam
 import numpy as np
 import pytest
 
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.covariance import marginal_covariance
-from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.part_group import PartGroup
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.partitioned_lm import optimize
-from graphcal.graph.segment_solve import solve_segment_graph
-from graphcal.graph.solve import solve_lm
-from graphcal.graph.solve_options import SolveOptions
-from graphcal.graph.values import portable, restore
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.part_group import PartGroup
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.partitioned_lm import optimize
+from graphcal.graph.optimization.solve import solve_lm
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.values import portable, restore
+from graphcal.graph.solution.covariance import marginal_covariance
+from graphcal.graph.solution.segment_solve import solve_segment_graph
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.pipeline.solvers.joint import JointSettings

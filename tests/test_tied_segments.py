@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.model import integrate

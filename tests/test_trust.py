@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from graphcal.cli import main
-from graphcal.graph.solve_options import SolveOutcome, SolveStatus
+from graphcal.graph.optimization.solve_options import SolveOutcome, SolveStatus
 from graphcal.log.drive_log import write_drive_log
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.end_to_end.trust import (
@@ -96,7 +96,7 @@ def test_an_unmodelled_latency_is_never_confidently_wrong_with_the_whole_method(
 def test_honest_groups_agree(rng):
     """Groups of segments whose estimates scatter as their σ say: the χ² statistic follows
     its null distribution, and a false alarm is as rare as the test's rate."""
-    from graphcal.graph.reduced_systems import ReducedSystems
+    from graphcal.graph.solution.reduced_systems import ReducedSystems
 
     n, segments, trials = 4, 16, 400
     alarms = 0
@@ -151,7 +151,7 @@ def test_an_implausible_theta_names_its_likely_cause_before_units():
     """Issue 25: a straight road or slow fixes drove solves to "implausible theta ... check
     the units" when no unit was wrong. What drove it is named; units only when nothing is."""
     from graphcal.errors import CalibrationFailed
-    from graphcal.graph.plausibility import check_plausible
+    from graphcal.graph.solution.plausibility import check_plausible
 
     absurd = np.array([2.0, 0.0, 0.2, 0.0])  # t_r = 0.2 m on a car
     with pytest.raises(CalibrationFailed) as named:
@@ -168,7 +168,7 @@ def test_an_implausible_theta_names_its_likely_cause_before_units():
 def test_d_from_wheels_on_a_straight_road_is_not_calibrated():
     """A lateral acceleration taken from the wheels and a drive without bends: d · a_y can
     only fit the wheels' own noise, so d is said not observable, with the reason."""
-    from graphcal.graph.observability import assess_observability
+    from graphcal.graph.solution.observability import assess_observability
 
     observability = assess_observability(np.diag([1e-8, 1e-8, 0.04, 1e-8]), np.array(
         [0.1, 0.01, 0.2, 0.01]))  # fmt: skip

@@ -8,7 +8,7 @@ import dataclasses
 
 import numpy as np
 
-from graphcal.graph.estimates import NuisanceEstimate
+from graphcal.graph.solution.estimates import NuisanceEstimate
 from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
 from graphcal.pipeline.methods.whole_log import _batch_time_offset
 from graphcal.pipeline.solvers.joint import JointSettings

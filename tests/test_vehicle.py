@@ -12,7 +12,7 @@ import pytest
 
 import graphcal
 from graphcal.errors import GraphcalError
-from graphcal.graph.plausibility import PLAUSIBLE_THETA, plausible_ranges
+from graphcal.graph.solution.plausibility import PLAUSIBLE_THETA, plausible_ranges
 from graphcal.log.drive_log import DriveLogError
 from graphcal.log.load import load_drive_log
 from graphcal.log.validation import validate_frame

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import graphcal.pipeline.solvers.warm_start as warm
-from graphcal.graph import keys
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction import keys
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import (
     SegmentData,

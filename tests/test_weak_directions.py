@@ -28,7 +28,7 @@ def test_a_2_km_straight_road_from_plain_fixes_calibrates_what_it_determines(tmp
     """c_e and c_d within 3σ, t_r not observable near its prior (1.55 ± 0.2 m), exit 0. It was
     exit 2, "check the units", on 3 of 3 seeds (the first solve drove t_r to 0.49 m); then
     held at the prior when it ran out of range; since the rollout of each step
-    (graphcal.graph.rollout) it no longer runs away (1.586 m, σ 189 mm)."""
+    (graphcal.graph.optimization.rollout) it no longer runs away (1.586 m, σ 189 mm)."""
     write_streams(simulate_streams(2.0, 0, route="straight"), tmp_path)
     out = tmp_path / "out"
     assert main(["calibrate", _plain_receiver(tmp_path), "--out", str(out)]) == 0

@@ -13,7 +13,7 @@ as N². The items solve the same GNSS + wheel-odometry smoothing graph (5 Hz key
 
 Each solve runs under GTSAM's own Levenberg–Marquardt optimizer (``driver="gtsam"``, where the
 ``Values`` copies show) or driven from Python (``driver="python"``, what graphcal's smoothing
-uses; :func:`graphcal.graph.solve.solve_lm`).
+uses; :func:`graphcal.graph.optimization.solve.solve_lm`).
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ import numpy as np
 
 from graphcal.factors import ChunkOdometryFactor, OdometryChunk, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_FLOOR_SIGMAS
-from graphcal.graph.keyframes import gnss_keyframes
-from graphcal.graph.keys import THETA, keyframe
-from graphcal.graph.solve import Driver, solve_lm
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction.keyframes import gnss_keyframes
+from graphcal.graph.construction.keys import THETA, keyframe
+from graphcal.graph.optimization.solve import Driver, solve_lm
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors, odometry_covariance
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.log.drive_log import DriveLog

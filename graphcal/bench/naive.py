@@ -4,7 +4,7 @@ The same least-squares problem as
 :func:`graphcal.pipeline.solvers.batch_calibration.calibrate_batch` with held start poses
 (the paper's Step 1), written the way one would first write it in GTSAM: a Pose2 variable
 per sample and one Python odometry factor per step — the segment graph
-(:mod:`graphcal.graph.builder`) with chunks of one step, the model equation as a tight
+(:mod:`graphcal.graph.construction.builder`) with chunks of one step, the model equation as a tight
 continuity constraint. It reproduces the segment formulation's theta as the continuity
 sigma goes to zero, and is slow because each of its thousands of Python factors costs
 ~50 µs plus a copy of the optimizer's values per call (``docs/performance.md``).
@@ -17,9 +17,9 @@ import dataclasses
 import gtsam
 import numpy as np
 
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.built_graph import BuiltGraph
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.built_graph import BuiltGraph
 from graphcal.log.segments import SegmentData
 from graphcal.pipeline.solvers.batch_calibration import BatchSettings
 

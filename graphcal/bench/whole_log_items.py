@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 
 from graphcal.bench.recording import timed
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.covariance import marginal_covariance
-from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.segment_solve import solve_segment_graph
-from graphcal.graph.solve import solve_lm
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.solve import solve_lm
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.covariance import marginal_covariance
+from graphcal.graph.solution.segment_solve import solve_segment_graph
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, make_batches
 from graphcal.pipeline.configuration.settings import Settings
@@ -35,8 +35,8 @@ def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int
     """(j) The joint solve of all selected segments with its covariance (the defaults' graph:
     theta, time offset, lever arm, heading biases), as one graph under GTSAM's
     Levenberg–Marquardt optimizer with GTSAM's marginals (the formulation before issue 14),
-    and segment by segment (:mod:`graphcal.graph.partitioned`) in one and two processes, one
-    after the other; returns the ratios and the largest relative theta and covariance
+    and segment by segment (:mod:`graphcal.graph.optimization.partitioned`) in one and two
+    processes, one after the other; returns the ratios and the largest relative theta and covariance
     differences to the single graph."""
     spec = JointSettings().graph_spec()
     shared = shared_keys(spec)

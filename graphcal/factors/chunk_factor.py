@@ -42,7 +42,7 @@ class DefectKeys:
         heading_bias: key of the 1-vector heading bias [rad].
         fix_offset: keys of the 2-vector world-frame error [m] of the fixes at the chunk's
             start and at its end (a slowly varying GNSS error, linear between:
-            :mod:`graphcal.graph.gauss_markov`).
+            :mod:`graphcal.graph.construction.gauss_markov`).
     """
 
     slip: int | None = None

@@ -18,8 +18,9 @@ class DefectValues:
     (positive: late against the pose), ``lever_arm (2,)`` [m] of the antenna (ahead, left of
     the centre of gravity), ``heading_bias`` [rad] of the measured heading, ``fix_offset
     (2, 2)`` [m] the fixes' world-frame error ``[east, north]`` at the chunk's start and at its
-    end (a slowly varying GNSS error, linear between: :mod:`graphcal.graph.gauss_markov`);
-    for :func:`chunk_errors` each with a leading chunk axis."""
+    end (a slowly varying GNSS error, linear between:
+    :mod:`graphcal.graph.construction.gauss_markov`); for :func:`chunk_errors` each with a leading
+    chunk axis."""
 
     slip: np.ndarray | None = None
     time_offset: np.ndarray | float | None = None

@@ -6,7 +6,7 @@ Columns are SI, as in ``batches.csv``: ``c_e``, ``c_d``, ``t_r`` [m], ``d`` [s²
 is determined); empty where a log failed. ``fleet.csv`` also
 has a ``verdict_*`` per parameter (after ``not_calibrated``; older files lack them):
 ``calibrated``, ``weakly determined`` or ``not observable``
-(:mod:`graphcal.graph.observability`).
+(:mod:`graphcal.graph.solution.observability`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import pandas as pd
 
 from graphcal.files import atomic_save_figure, atomic_write_csv
 from graphcal.fleet.history import VehicleHistory
-from graphcal.graph.observability import DEFAULT_MAX_SIGMA_RATIO as MAX_SIGMA_RATIO
+from graphcal.graph.solution.observability import DEFAULT_MAX_SIGMA_RATIO as MAX_SIGMA_RATIO
 from graphcal.model import PARAMETER_NAMES
 from graphcal.units import DISPLAY_SCALE, DISPLAY_UNITS
 

@@ -19,10 +19,10 @@ import pandas as pd
 
 from graphcal.errors import GraphcalError
 from graphcal.factors.measured_pose import MeasuredPoseFactor
-from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
-from graphcal.graph.keys import keyframe
-from graphcal.graph.solve import solve_lm
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction.keyframes import fix_offsets, gnss_keyframes
+from graphcal.graph.construction.keys import keyframe
+from graphcal.graph.optimization.solve import solve_lm
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.localization.keyframe_odometry import keyframe_odometry_factors
 from graphcal.localization.values import insert_states, states_from_values
 from graphcal.log.drive_log import DriveLog

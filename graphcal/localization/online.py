@@ -29,10 +29,10 @@ from graphcal.errors import GraphcalError
 from graphcal.factors import pose2_from_state, state_from_pose2, theta_prior_factor
 from graphcal.factors.measured_pose import MeasuredPoseFactor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
-from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
-from graphcal.graph.keys import keyframe as _pose_key
-from graphcal.graph.keys import theta as _theta_key
-from graphcal.graph.slip import slip_noise_covariance
+from graphcal.graph.construction.keyframes import fix_offsets, gnss_keyframes
+from graphcal.graph.construction.keys import keyframe as _pose_key
+from graphcal.graph.construction.keys import theta as _theta_key
+from graphcal.graph.construction.slip import slip_noise_covariance
 from graphcal.localization.keyframe_odometry import OdometryNoise, keyframe_odometry_factor
 from graphcal.localization.smoothing import gnss_noise, gnss_usable
 from graphcal.log.drive_log import DriveLog
@@ -67,10 +67,11 @@ class OnlineSettings:
         tick_quantization: rounding sigma [rev] of the wheels' cumulative tick counts, or 0.
         slip_sigma, slip_time: slow wheel slip (stationary relative sigma, correlation time
             [s]), or ``slip_sigma`` 0 for none. Online it is noise of each interval with the
-            slip's long-run variance (:func:`graphcal.graph.slip.slip_noise_covariance`), not
-            scale variables: on a 4 km drive with 0.15 % slip and 96-tick counts that kept
-            every theta slice within 3σ at 1.1× the update cost of the plain smoother, where
-            scale variables (one per second) cost about 2×.
+            slip's long-run variance
+            (:func:`graphcal.graph.construction.slip.slip_noise_covariance`), not scale variables:
+            on a 4 km drive with 0.15 % slip and 96-tick counts that kept every theta slice within
+            3σ at 1.1× the update cost of the plain smoother, where scale variables (one per second)
+            cost about 2×.
     """
 
     gnss_rate_hz: float = 5.0

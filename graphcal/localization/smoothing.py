@@ -11,8 +11,8 @@ the loader masked (frozen fixes, jumps) or flagged (isolated spikes) get no GNSS
 the antenna's lever arm can be a variable (``lever_arm_sigma``; the GNSS factors then are
 :class:`~graphcal.factors.MeasuredPoseFactor`), tick counts get their rounding covariance
 (``tick_quantization``) and slow wheel slip its scales (``slip_sigma``: one 2-vector per
-``slip_span_s`` under a Gauss–Markov prior, :mod:`graphcal.graph.slip`, and one per GNSS
-gap). A wheel time offset is best corrected beforehand with the calibration's estimate
+``slip_span_s`` under a Gauss–Markov prior, :mod:`graphcal.graph.construction.slip`, and one per
+GNSS gap). A wheel time offset is best corrected beforehand with the calibration's estimate
 (:func:`graphcal.pipeline.methods.sensor_estimates.correct_log`), and the calibration's findings
 about ticks and slip carried over (``scripts/smoothing_example.py
 --sensors-from-calibration`` shows both).
@@ -28,13 +28,13 @@ import numpy as np
 from graphcal.errors import GraphcalError
 from graphcal.factors import MeasuredPoseFactor, theta_prior_factor
 from graphcal.factors.preintegration import DEFAULT_WHEEL_NOISE
-from graphcal.graph.covariance import marginal_covariance
-from graphcal.graph.keyframes import fix_offsets, gnss_keyframes
-from graphcal.graph.keys import LEVER_ARM, THETA, gap_slip, keyframe, keyframe_slip
-from graphcal.graph.observability import Observability, assess_observability
-from graphcal.graph.slip import slip_mean_sigma, slip_prior_factor, slip_step_factor
-from graphcal.graph.solve import solve_lm
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction.keyframes import fix_offsets, gnss_keyframes
+from graphcal.graph.construction.keys import LEVER_ARM, THETA, gap_slip, keyframe, keyframe_slip
+from graphcal.graph.construction.slip import slip_mean_sigma, slip_prior_factor, slip_step_factor
+from graphcal.graph.optimization.solve import solve_lm
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.covariance import marginal_covariance
+from graphcal.graph.solution.observability import Observability, assess_observability
 from graphcal.localization.keyframe_odometry import OdometryNoise, keyframe_odometry_factors
 from graphcal.localization.values import insert_states, insert_theta, states_from_values
 from graphcal.log.drive_log import DriveLog
@@ -219,11 +219,11 @@ def _slip_model(
     """The slip-scale key of each keyframe interval: spans of ``slip_span_s``
     (:func:`add_slip_spans`) where a usable fix ends both sides of the interval; across a
     GNSS gap (a run of intervals without), one scale for the whole gap under the prior of
-    the Gauss–Markov process's mean over it (:func:`graphcal.graph.slip.slip_mean_sigma`).
-    Nothing but odometry holds the poses of a gap, and a chain of them with a scale per
-    second (or noise of the slip's long-run variance per interval) was so loose that
-    Levenberg–Marquardt crawled: 20 iterations instead of 8 on a 12 km all-defects drive
-    (seed 3), with theta within 2.5σ either way."""
+    the Gauss–Markov process's mean over it
+    (:func:`graphcal.graph.construction.slip.slip_mean_sigma`). Nothing but odometry holds the poses
+    of a gap, and a chain of them with a scale per second (or noise of the slip's long-run variance
+    per interval) was so loose that Levenberg–Marquardt crawled: 20 iterations instead of 8 on a
+    12 km all-defects drive (seed 3), with theta within 2.5σ either way."""
     observed = usable[:-1] & usable[1:]
     keys: list[int] = [0] * (len(keyframes) - 1)
     modelled = np.flatnonzero(observed)
@@ -257,7 +257,8 @@ def add_slip_spans(
 ) -> list[int]:
     """Slip scales for keyframe intervals starting at ``start_times`` [s]: one 2-vector per
     ``span_s`` of drive time that holds an interval, under the Gauss–Markov prior of
-    :mod:`graphcal.graph.slip` (added to ``graph``). Returns each interval's slip key."""
+    :mod:`graphcal.graph.construction.slip` (added to ``graph``). Returns each interval's slip
+    key."""
     span = np.floor((start_times - start_times[0]) / span_s).astype(int)
     spans, index = np.unique(span, return_inverse=True)
     span_keys = [keyframe_slip(i) for i in range(len(spans))]

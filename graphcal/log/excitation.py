@@ -4,7 +4,7 @@ c_e needs distance with positions; c_d needs the yaw the wheels' difference adds
 drive long enough shows it, relative to t_r); t_r needs turning; d needs lateral
 acceleration in those turns (docs/method.md, observability). This is the expectation from
 the drive's motion; ``calibrate`` reports what the data actually determined from theta's
-marginal covariance (:mod:`graphcal.graph.observability`).
+marginal covariance (:mod:`graphcal.graph.solution.observability`).
 """
 
 from __future__ import annotations

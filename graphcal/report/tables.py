@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.graph.observability import HELD_VERDICT
+from graphcal.graph.solution.observability import HELD_VERDICT
 from graphcal.model import PARAMETER_NAMES
 from graphcal.units import (
     DEVIATION_SCALE,

@@ -8,7 +8,7 @@ from typing import Literal
 
 import numpy as np
 
-from graphcal.graph.observability import Observability
+from graphcal.graph.solution.observability import Observability
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments
 from graphcal.model import PARAMETER_NAMES

@@ -17,7 +17,7 @@ Methods:
 * ``"whole"`` — only the joint solve over all selected segments: quick, no batches.
 
 With the joint and whole methods, every parameter is its posterior under the weak prior,
-and those the data do not determine well (:mod:`graphcal.graph.observability`) are reported
+and those the data do not determine well (:mod:`graphcal.graph.solution.observability`) are reported
 as not calibrated, with their estimate and σ. If fewer than
 :data:`~graphcal.pipeline.methods.selection.MIN_SELECTED_SEGMENTS` segments pass the yaw-rate
 selection they use every segment: the observability check, not the selection, then decides

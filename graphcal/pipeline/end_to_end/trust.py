@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.graph.solve_options import SolveOutcome
+from graphcal.graph.optimization.solve_options import SolveOutcome
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.methods.agreement import Agreement
 

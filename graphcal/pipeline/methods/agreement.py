@@ -34,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.graph.reduced_systems import ReducedSystems
+from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
 from graphcal.progress import say

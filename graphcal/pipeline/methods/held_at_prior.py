@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 
-from graphcal.graph.observability import with_prior_sigmas
+from graphcal.graph.solution.observability import with_prior_sigmas
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
@@ -20,7 +20,7 @@ def weak_prior_covariance(whole: JointCalibration, settings: JointSettings) -> n
     """``(4, 4)`` theta's covariance of ``whole`` (solved under ``settings``, which may hold
     parameters at their prior by a tight one) under the weak prior ``theta_prior_sigmas``:
     the tight prior's information taken out
-    (:func:`~graphcal.graph.observability.with_prior_sigmas`)."""
+    (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`)."""
     return with_prior_sigmas(
         whole.covariance, settings.solve_prior_sigmas(), settings.theta_prior_sigmas
     )

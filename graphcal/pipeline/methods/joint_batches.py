@@ -4,8 +4,8 @@ Two ways to solve the batches (``[batches] joint_solve``):
 
 * ``"linearized"`` (the default): the joint graph over all selected segments, with the
   batches' settings, is linearized once at the whole-log solution and every segment is
-  eliminated down to the shared variables (:mod:`graphcal.graph.reduced_systems`); each batch
-  is then one Gauss–Newton step on the sum of its members' systems. One elimination of the
+  eliminated down to the shared variables (:mod:`graphcal.graph.solution.reduced_systems`); each
+  batch is then one Gauss–Newton step on the sum of its members' systems. One elimination of the
   log serves all batches, so the study costs about one whole-log iteration whatever the
   number of batches. The whole-log solution has every segment's variables at their optimum
   for its theta, and a batch's theta lies within a few of its σ of it, where the model is
@@ -23,14 +23,14 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.graph_spec import shared_keys
-from graphcal.graph.observability import Observability
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.plausibility import check_plausible
-from graphcal.graph.reduced_systems import ReducedSystems, reduced_systems
-from graphcal.graph.values import copy_value
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.values import copy_value
+from graphcal.graph.solution.observability import Observability
+from graphcal.graph.solution.plausibility import check_plausible
+from graphcal.graph.solution.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.segments import SegmentData
 from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
 from graphcal.pipeline.solvers.parallel import map_tasks

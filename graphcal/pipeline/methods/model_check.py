@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.errors import CalibrationFailed
-from graphcal.graph.keys import LEVER_ARM
+from graphcal.graph.construction.keys import LEVER_ARM
 from graphcal.log.segments import SegmentData, gather_segments, spread
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.methods.prepare import PreparedLog

@@ -1,7 +1,7 @@
 """The noise a whole-log solve's residuals show, made the settings of the next solve: the
 fixes' white sigma and, when their errors wander together, the error they share (a
-Gauss–Markov state, :mod:`graphcal.graph.gauss_markov`); the heading's sigma; the wheels'
-noise (:mod:`graphcal.pipeline.solvers.residual_noise` measures them)."""
+Gauss–Markov state, :mod:`graphcal.graph.construction.gauss_markov`); the heading's sigma; the
+wheels' noise (:mod:`graphcal.pipeline.solvers.residual_noise` measures them)."""
 
 from __future__ import annotations
 

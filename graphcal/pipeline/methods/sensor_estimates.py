@@ -2,9 +2,9 @@
 antenna's lever arm, and the fixes it down-weighted as outliers.
 
 The joint graph estimates the time offset and the lever arm with theta
-(:mod:`graphcal.graph.builder`), each under a wide zero-mean prior; a component counts
+(:mod:`graphcal.graph.construction.builder`), each under a wide zero-mean prior; a component counts
 as observable when the drive shrinks that prior's sigma to at most the same fraction that
-theta's parameters need (:mod:`graphcal.graph.observability`), and as detected when it is
+theta's parameters need (:mod:`graphcal.graph.solution.observability`), and as detected when it is
 observable and more than :data:`DETECTION_SIGMAS` σ from zero. Detected quantities are
 corrected in the log (:func:`correct_log`) for the batch solves and the validation (an
 estimate within noise of zero would only add its noise to every batch); a component the
@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.graph.estimates import NuisanceEstimate
+from graphcal.graph.solution.estimates import NuisanceEstimate
 from graphcal.log.antenna import move_to_centre
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData

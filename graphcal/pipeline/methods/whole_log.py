@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.plausibility import ImplausibleTheta
-from graphcal.graph.reduced_systems import ReducedSystems
+from graphcal.graph.solution.plausibility import ImplausibleTheta
+from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
@@ -224,7 +224,8 @@ def _holding_a_runaway(
     way under a weak prior: a 2 km straight road from 10 Hz fixes without heading drove t_r
     to 0.49 m (its prior 1.5 ± 0.2 m) in 50 iterations, and "check the units" ended a valid
     recording. Whether a direction is determined is read from the held solve's covariance
-    with the weak prior put back (:func:`~graphcal.graph.observability.with_prior_sigmas`)."""
+    with the weak prior put back
+    (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`)."""
     them = "it" if len(runaway.names) == 1 else "them"
     say(
         f"{', '.join(runaway.names)} left the plausible range in the first solve: solved again "

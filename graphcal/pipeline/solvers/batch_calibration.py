@@ -1,6 +1,6 @@
 """Batch calibration (paper §4.1, eqs. 10–11): theta from a batch of measured segments.
 
-The segment graph (:mod:`graphcal.graph.builder`) with one chunk per segment and no
+The segment graph (:mod:`graphcal.graph.construction.builder`) with one chunk per segment and no
 correction variables: the shared theta under a weak prior at the nominal values (it keeps
 elimination well posed when a batch does not excite every parameter, e.g. d needs lateral
 acceleration) and, when start poses are estimated, a Pose2 per segment under its measurement.
@@ -16,14 +16,14 @@ import numpy as np
 
 from graphcal.errors import CalibrationFailed, check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.estimates import ThetaEstimate
-from graphcal.graph.graph_spec import SegmentGraphSpec
-from graphcal.graph.plausibility import check_plausible
-from graphcal.graph.reduced_systems import ReducedSystems
-from graphcal.graph.segment_solve import solve_segment_graph
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.estimates import ThetaEstimate
+from graphcal.graph.solution.plausibility import check_plausible
+from graphcal.graph.solution.reduced_systems import ReducedSystems
+from graphcal.graph.solution.segment_solve import solve_segment_graph
 from graphcal.log.segments import SegmentData
 from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS
 

@@ -3,7 +3,7 @@
 The paper's optimal-control problem — find wheel rotations that make the model, started from
 the measured first pose with theta fixed, track the measured poses (weight Q) with smooth
 inputs (weight R on Δu) inside ±5 % of the measurement — is the segment graph
-(:mod:`graphcal.graph.builder`) with the start held, theta fixed and a correction
+(:mod:`graphcal.graph.construction.builder`) with the start held, theta fixed and a correction
 vector per chunk under the smoothness prior (R) and a size prior (the ±5 % bound, softened).
 Levenberg–Marquardt starts from zero corrections (the measured inputs), as the paper's QP
 solver does.
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.errors import CalibrationFailed, check_settings
-from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec
-from graphcal.graph.segment_solve import solve_segment_graph
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraphSpec
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.segment_solve import solve_segment_graph
 from graphcal.log.segments import SegmentData
 from graphcal.model import integrate
 

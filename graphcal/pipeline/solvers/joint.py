@@ -28,14 +28,14 @@ import numpy as np
 
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
-from graphcal.graph.estimates import ThetaEstimate
-from graphcal.graph.graph_spec import CorrectionPrior, SegmentGraphSpec, shared_keys
-from graphcal.graph.observability import (
+from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraphSpec, shared_keys
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.estimates import ThetaEstimate
+from graphcal.graph.solution.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
-from graphcal.graph.solve_options import SolveOptions
 from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
@@ -74,7 +74,7 @@ class JointSettings:
         continuity_sigmas: chunk-boundary continuity [m, m, rad].
         max_iterations: Levenberg–Marquardt iteration limit.
         max_sigma_ratio: a parameter counts as calibrated when the data shrink its prior
-            sigma to at most this fraction (:mod:`graphcal.graph.observability`).
+            sigma to at most this fraction (:mod:`graphcal.graph.solution.observability`).
         slip: ``"auto"`` (model slow wheel slip when the log shows it: see
             :func:`calibrate_joint`), ``"on"`` or ``"off"``.
         slip_sigma: stationary sigma of the modelled relative slip scale of each rear wheel
@@ -105,7 +105,7 @@ class JointSettings:
         fix_d: d is held at its ``theta_initial`` (the vehicle's ``fix_d``; its prior sigma in
             ``theta_prior_sigmas`` is then the vehicle's tight one): reported as fixed.
         tie_segments: consecutive segments of a continuous stretch are one trajectory (each
-            starts at the end pose of the one before, :mod:`graphcal.graph.builder`);
+            starts at the end pose of the one before, :mod:`graphcal.graph.construction.builder`);
             ``False``: every segment has a free start under its measured pose.
         model_check: when the defect model finds a time offset, a lever arm or slip, check
             it against theta alone on held-apart segments and calibrate with the one that
@@ -171,7 +171,7 @@ class JointSettings:
     def observability(self, covariance: np.ndarray) -> Observability:
         """What a solve's theta ``covariance`` (under this prior) says the data determined,
         judged against the reference sigmas of a vehicle of nominal ``theta_initial``
-        (:func:`graphcal.graph.observability.assess_observability`), not the prior's."""
+        (:func:`graphcal.graph.solution.observability.assess_observability`), not the prior's."""
         return assess_observability(
             covariance,
             self.solve_prior_sigmas(),

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graphcal.graph.estimates import SolvedGraph
+from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.log.segments import SegmentData
 
 #: Fixes a position-noise estimate needs at least.

@@ -28,11 +28,11 @@ from collections.abc import Callable
 
 import numpy as np
 
-from graphcal.graph.covariance import with_covariance
-from graphcal.graph.estimates import SolvedGraph
-from graphcal.graph.graph_spec import SegmentGraphSpec
-from graphcal.graph.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.covariance import with_covariance
+from graphcal.graph.solution.estimates import SolvedGraph
+from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
 from graphcal.log.segments import SegmentData
 
 #: Median of the norm of a 2-D standard Gaussian, sqrt(2 ln 2).
@@ -72,7 +72,7 @@ def solve_robust(
     Args:
         data, spec: the segments and the graph's shape.
         solve: ``solve(data, initial) -> SolvedGraph`` without covariance (e.g. a bound
-            :func:`~graphcal.graph.segment_solve.solve_segment_graph`; ``initial`` is
+            :func:`~graphcal.graph.solution.segment_solve.solve_segment_graph`; ``initial`` is
             ``None`` or the last solution's values).
         threshold: ``k``: fixes within ``k σ̂`` keep weight 1.
         rounds: most solves.
@@ -118,7 +118,7 @@ def solve_segment_graph_robust(
     shared_start: dict[int, np.ndarray] | None = None,
     start_weights: np.ndarray | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
-    """:func:`~graphcal.graph.segment_solve.solve_segment_graph` (each solve as ``options``
+    """:func:`~graphcal.graph.solution.segment_solve.solve_segment_graph` (each solve as ``options``
     say) with robust fix weights (:func:`solve_robust`, whose three results it returns);
     ``threshold`` 0 solves once without them. ``shared_start``: where the first solve starts
     the graph-wide variables (e.g. :func:`~graphcal.pipeline.solvers.warm_start.warm_start`);

@@ -35,20 +35,20 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed, exception_reason
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.built_graph import BuiltGraph
-from graphcal.graph.covariance import with_covariance
-from graphcal.graph.estimates import SolvedGraph
-from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.segment_solve import ValuesStart, solve_segment_graph
-from graphcal.graph.solve_options import SolveOptions
-from graphcal.graph.values import copy_value
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.built_graph import BuiltGraph
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.values import copy_value
+from graphcal.graph.solution.covariance import with_covariance
+from graphcal.graph.solution.estimates import SolvedGraph
+from graphcal.graph.solution.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.log.segments import SegmentData, spread
 from graphcal.statistics import scaled_chi2_deviate
 
-#: The key letter of the slip scales (:func:`graphcal.graph.keys.segment_slip`).
+#: The key letter of the slip scales (:func:`graphcal.graph.construction.keys.segment_slip`).
 SLIP_LETTER = chr(gtsam.Symbol(keys.segment_slip(0)).chr())
 
 #: Slip is screened on this many segments spread over the log (all of a shorter log; the

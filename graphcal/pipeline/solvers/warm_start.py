@@ -20,10 +20,10 @@ import dataclasses
 import numpy as np
 
 from graphcal.errors import GraphcalError
-from graphcal.graph import keys
-from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
-from graphcal.graph.segment_solve import BuilderStart, solve_segment_graph
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.segment_solve import BuilderStart, solve_segment_graph
 from graphcal.log.segments import SegmentData, spread
 from graphcal.model import integrate
 from graphcal.progress import say

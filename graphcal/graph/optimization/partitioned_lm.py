@@ -1,10 +1,10 @@
-"""Levenberg–Marquardt on a :class:`~graphcal.graph.partitioned.PartitionedGraph`, part by
-part.
+"""Levenberg–Marquardt on a :class:`~graphcal.graph.optimization.partitioned.PartitionedGraph`, part
+by part.
 
 Each step solves the damped system reduced to the shared variables, back-substitutes every
-part and judges the step by the rules of :mod:`graphcal.graph.levenberg_marquardt` (those of
-:func:`graphcal.graph.solve.solve_lm`'s Python driver on the whole graph; the damping's
-scale: the largest Hessian diagonal seen at a damped linearization). Once a step at the
+part and judges the step by the rules of :mod:`graphcal.graph.optimization.levenberg_marquardt`
+(those of :func:`graphcal.graph.optimization.solve.solve_lm`'s Python driver on the whole graph; the
+damping's scale: the largest Hessian diagonal seen at a damped linearization). Once a step at the
 first damping matched its prediction, the steps are undamped (Gauss–Newton), and the last
 one, predicted to lower the error by at most the tolerance, leaves its linearization for the
 covariance. The optimum is the same.
@@ -21,7 +21,7 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import GraphcalError, exception_reason
-from graphcal.graph.levenberg_marquardt import (
+from graphcal.graph.optimization.levenberg_marquardt import (
     LAMBDA_INITIAL,
     Damping,
     Verdict,
@@ -30,12 +30,12 @@ from graphcal.graph.levenberg_marquardt import (
     judge_step,
     raised_scale,
 )
-from graphcal.graph.linear_systems import predicted_decrease, vector_values
-from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
+from graphcal.graph.optimization.linear_systems import predicted_decrease, vector_values
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveOutcome, SolveStatus
 from graphcal.progress import say
 
 if TYPE_CHECKING:
-    from graphcal.graph.partitioned import PartitionedGraph
+    from graphcal.graph.optimization.partitioned import PartitionedGraph
 
 #: Seconds after which :func:`optimize` reports each iteration.
 PROGRESS_AFTER_S = 2.0
@@ -197,9 +197,10 @@ def optimize(
     would lower the error by at most ``options.relative_error_tol`` of it. That step is taken
     without evaluating the error (the error after it is the one predicted, exact to
     far below the tolerance), and its undamped linearization, a step this small from
-    the solution, gives :meth:`~graphcal.graph.partitioned.PartitionedGraph.shared_information`
-    without linearizing again (at the sample drive's tolerance, within 5e-5 of the
-    covariance at the solution itself).
+    the solution, gives
+    :meth:`~graphcal.graph.optimization.partitioned.PartitionedGraph.shared_information` without
+    linearizing again (at the sample drive's tolerance, within 5e-5 of the covariance at the
+    solution itself).
 
     ``gauss_newton_first``: the first step is already undamped (values near the optimum,
     such as a warm start's: no damping to compute).

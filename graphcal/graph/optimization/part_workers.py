@@ -2,8 +2,8 @@
 
 The optimizer asks every part the same thing at once through :class:`PartWorkers`' typed
 methods; each becomes a request (a small picklable dataclass that knows which
-:class:`~graphcal.graph.part_group.PartGroup` method answers it), sent to every worker and
-answered by this process's own group meanwhile. The per-part answers are combined in part
+:class:`~graphcal.graph.optimization.part_group.PartGroup` method answers it), sent to every worker
+and answered by this process's own group meanwhile. The per-part answers are combined in part
 order, so the results do not depend on the number of workers.
 """
 
@@ -20,8 +20,8 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import exception_reason
-from graphcal.graph.part_group import PartGroup
-from graphcal.graph.values import Portable, copy_value, restore
+from graphcal.graph.optimization.part_group import PartGroup
+from graphcal.graph.optimization.values import Portable, copy_value, restore
 from graphcal.progress import silence
 
 

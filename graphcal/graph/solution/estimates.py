@@ -8,9 +8,9 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
-from graphcal.graph.built_graph import BuiltGraph
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.solve_options import SolveOutcome
+from graphcal.graph.construction.built_graph import BuiltGraph
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.solve_options import SolveOutcome
 
 
 @dataclass(frozen=True)
@@ -34,7 +34,7 @@ class NuisanceEstimate:
 
     def observable(self, max_sigma_ratio: float) -> np.ndarray:
         """Per component: the data shrank the prior sigma to at most ``max_sigma_ratio`` of
-        it (the rule theta's parameters follow, :mod:`graphcal.graph.observability`)."""
+        it (the rule theta's parameters follow, :mod:`graphcal.graph.solution.observability`)."""
         return self.sigma <= max_sigma_ratio * self.prior_sigma
 
 
@@ -46,11 +46,12 @@ class ThetaEstimate:
         theta: ``[c_e, c_d, t_r, d]`` (the fixed one if theta was not a variable).
         covariance: 4×4 marginal covariance of theta (every other variable marginalized),
             from the graph's information at the solution (or at the linearization of the
-            solve's last Gauss–Newton step, :func:`graphcal.graph.partitioned_lm.optimize`);
-            ``None`` if not computed.
+            solve's last Gauss–Newton step,
+            :func:`graphcal.graph.optimization.partitioned_lm.optimize`); ``None`` if not computed.
         start_states: ``(S, 3)`` estimated (or held) start states.
-        outcome: how the solve ended (:class:`~graphcal.graph.solve_options.SolveOutcome`:
-            status, iterations).
+        outcome: how the solve ended
+            (:class:`~graphcal.graph.optimization.solve_options.SolveOutcome`: status,
+            iterations).
         initial_error, final_error: of the solve (graph error is half the whitened squared
             residual; after a last Gauss–Newton step, the error it predicted, within far
             less than the solve's tolerance).
@@ -91,7 +92,7 @@ class ThetaEstimate:
 class SolvedGraph(ThetaEstimate):
     """A solved segment graph: the estimate with the solution's values (``result``), the
     graph that was solved (``built``) and its split into segments at the solution
-    (``partitioned``, :class:`~graphcal.graph.partitioned.PartitionedGraph`)."""
+    (``partitioned``, :class:`~graphcal.graph.optimization.partitioned.PartitionedGraph`)."""
 
     result: gtsam.Values
     built: BuiltGraph

@@ -1,11 +1,11 @@
 """Solving a segment graph: build (or take) it, optimize it from a chosen start, check theta's
-plausibility and compute its covariance (:mod:`graphcal.graph.covariance`).
+plausibility and compute its covariance (:mod:`graphcal.graph.solution.covariance`).
 
 A graph that splits into segments is solved part by part
-(:class:`~graphcal.graph.partitioned.PartitionedGraph`); one that does not (theta alone, or
-one segment, or one chain of tied segments) as one graph: Levenberg–Marquardt driven from
-Python (:func:`graphcal.graph.solve.solve_lm`, with the rollout of
-:mod:`graphcal.graph.rollout`) and GTSAM's marginals.
+(:class:`~graphcal.graph.optimization.partitioned.PartitionedGraph`); one that does not (theta
+alone, or one segment, or one chain of tied segments) as one graph: Levenberg–Marquardt driven from
+Python (:func:`graphcal.graph.optimization.solve.solve_lm`, with the rollout of
+:mod:`graphcal.graph.optimization.rollout`) and GTSAM's marginals.
 """
 
 from __future__ import annotations
@@ -16,24 +16,25 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed
-from graphcal.graph import keys
-from graphcal.graph.builder import build_segment_graph
-from graphcal.graph.built_graph import BuiltGraph
-from graphcal.graph.covariance import partitioned_marginals, whole_graph_marginals
-from graphcal.graph.estimates import SolvedGraph
-from graphcal.graph.graph_spec import SegmentGraphSpec, shared_keys
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.partitioned_lm import optimize_partitioned
-from graphcal.graph.plausibility import check_plausible
-from graphcal.graph.solve import solve_lm
-from graphcal.graph.solve_options import SolveOptions
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.built_graph import BuiltGraph
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.partitioned_lm import optimize_partitioned
+from graphcal.graph.optimization.solve import solve_lm
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
+from graphcal.graph.solution.estimates import SolvedGraph
+from graphcal.graph.solution.plausibility import check_plausible
 from graphcal.log.segments import SegmentData
 
 
 @dataclass(frozen=True)
 class BuilderStart:
-    """Start at the builder's initial values (:func:`~graphcal.graph.builder.build_segment_graph`),
-    with ``shared``'s values of graph-wide variables (by key: theta, time offset, lever arm).
+    """Start at the builder's initial values
+    (:func:`~graphcal.graph.construction.builder.build_segment_graph`), with ``shared``'s values of
+    graph-wide variables (by key: theta, time offset, lever arm).
 
     Attributes:
         shared: those values (none: the builder's own).
@@ -70,8 +71,8 @@ def solve_segment_graph(
 ) -> SolvedGraph:
     """Build the graph of ``spec`` over ``data`` (or take the ``start``'s) and solve it with
     Levenberg–Marquardt from ``start`` (default: the builder's initial values), segment by
-    segment (:class:`~graphcal.graph.partitioned.PartitionedGraph`), as ``options`` say: the
-    iteration limit and tolerance, ``label`` in errors, the segments shared out among
+    segment (:class:`~graphcal.graph.optimization.partitioned.PartitionedGraph`), as ``options``
+    say: the iteration limit and tolerance, ``label`` in errors, the segments shared out among
     ``workers`` processes (the result does not depend on it), with ``report_iterations`` a
     progress line per iteration of a long solve (:func:`graphcal.progress.say`).
 
@@ -134,8 +135,8 @@ def _solve_whole_graph(
     GTSAM's marginals, cheaper than the split machinery there."""
     spec, label = built.spec, options.label
     initial_error = float(built.graph.error(start))
-    # Python-driven: its steps roll the chunk-boundary poses out (graphcal.graph.rollout),
-    # which GTSAM's optimizer cannot.
+    # Python-driven: its steps roll the chunk-boundary poses out
+    # (graphcal.graph.optimization.rollout), which GTSAM's optimizer cannot.
     result, outcome = solve_lm(built.graph, start, options, CalibrationFailed, driver="python")
     theta = np.asarray(spec.theta, float)
     marginal, nuisance = None, {}

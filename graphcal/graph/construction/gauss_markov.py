@@ -1,8 +1,8 @@
 """First-order Gauss–Markov priors of a vector that varies slowly from span to span.
 
 A quantity that drifts over seconds to minutes — a rear wheel's slow slip
-(:mod:`graphcal.graph.slip`), a GNSS receiver's position error — is one vector per span of
-the drive (a chunk of a segment) with the stationary prior ``N(0, sigma²)`` at the first span
+(:mod:`graphcal.graph.construction.slip`), a GNSS receiver's position error — is one vector per span
+of the drive (a chunk of a segment) with the stationary prior ``N(0, sigma²)`` at the first span
 of a chain and a Gauss–Markov step between consecutive spans,
 ``v_j − φ v_(j−1) ~ N(0, sigma² (1 − φ²))``, ``φ = exp(−duration / correlation_time)``, so
 that every span's vector has the stationary sigma. Both factors are linear in the vectors.

@@ -9,9 +9,9 @@ import gtsam
 import numpy as np
 
 from graphcal.factors import pose2_from_state, state_from_pose2
-from graphcal.graph import keys
-from graphcal.graph.graph_spec import SegmentGraphSpec
-from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec
+from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.log.segments import SegmentData
 from graphcal.model import lever_offset
 

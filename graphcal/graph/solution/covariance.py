@@ -5,7 +5,7 @@ Two routes:
 
 * :func:`covariance_from_information`: from an information matrix (or a stack of them):
   the shared variables of a part-by-part solve, every batch of
-  :mod:`graphcal.graph.reduced_systems`;
+  :mod:`graphcal.graph.solution.reduced_systems`;
 * :func:`marginal_covariance`: from a graph and its values, by GTSAM's ``Marginals`` (the
   whole-graph solves, where no information matrix is formed in Python).
 """
@@ -18,12 +18,12 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
-from graphcal.graph import keys
-from graphcal.graph.built_graph import BuiltGraph
-from graphcal.graph.estimates import NuisanceEstimate, SolvedGraph
-from graphcal.graph.graph_spec import SegmentGraphSpec
-from graphcal.graph.partitioned import PartitionedGraph
-from graphcal.graph.solve import Driver
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.built_graph import BuiltGraph
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.solve import Driver
+from graphcal.graph.solution.estimates import NuisanceEstimate, SolvedGraph
 
 #: A batch's information counts as singular when its smallest eigenvalue is below this
 #: fraction of its largest (a parameter the batch does not determine at all).

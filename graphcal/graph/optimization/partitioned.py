@@ -2,7 +2,7 @@
 
 Given theta (and the other graph-wide variables: time offset, lever arm), the segments of a
 calibration graph are independent. :class:`PartitionedGraph` splits a graph into those parts
-(:mod:`graphcal.graph.partition`) and solves it the way a Schur complement does:
+(:mod:`graphcal.graph.optimization.partition`) and solves it the way a Schur complement does:
 
 * each part is linearized on a ``Values`` of its own variables and the shared ones. GTSAM
   hands every Python factor a copy of the ``Values`` it is evaluated on, so on one graph-wide
@@ -16,8 +16,8 @@ calibration graph are independent. :class:`PartitionedGraph` splits a graph into
 * the shared variables' marginal covariance is the inverse of the summed reduced information
   at the solution.
 
-The Levenberg–Marquardt iterations are :mod:`graphcal.graph.partitioned_lm`'s; the parts
-may be shared out among worker processes (:mod:`graphcal.graph.part_workers`).
+The Levenberg–Marquardt iterations are :mod:`graphcal.graph.optimization.partitioned_lm`'s; the
+parts may be shared out among worker processes (:mod:`graphcal.graph.optimization.part_workers`).
 """
 
 from __future__ import annotations
@@ -29,17 +29,17 @@ from collections.abc import Iterator
 import gtsam
 import numpy as np
 
-from graphcal.graph.linear_systems import (
+from graphcal.graph.optimization.linear_systems import (
     augmented_hessian,
     hessian_diagonal_by_key,
     predicted_decrease,
     split_by_key,
     vector_values,
 )
-from graphcal.graph.part_group import PartGroup
-from graphcal.graph.part_workers import PartWorkers
-from graphcal.graph.partition import GraphPart, partition
-from graphcal.graph.values import copy_value, tangent_dims
+from graphcal.graph.optimization.part_group import PartGroup
+from graphcal.graph.optimization.part_workers import PartWorkers
+from graphcal.graph.optimization.partition import GraphPart, partition
+from graphcal.graph.optimization.values import copy_value, tangent_dims
 
 
 class PartitionedGraph:
@@ -152,8 +152,8 @@ class PartitionedGraph:
     def shared_information(self) -> np.ndarray:
         """The shared variables' information matrix at the current values (every part's
         variables marginalized), in the order of :attr:`shared`. After
-        :func:`graphcal.graph.partitioned_lm.optimize` stopped on a final Gauss–Newton step,
-        that of its last linearization (one step, of at most the solve's tolerance, before the
+        :func:`graphcal.graph.optimization.partitioned_lm.optimize` stopped on a final Gauss–Newton
+        step, that of its last linearization (one step, of at most the solve's tolerance, before the
         current values); else computed at them."""
         if self._information is None:
             total, _, _ = self.system(None)
@@ -170,7 +170,7 @@ class PartitionedGraph:
         """At the current values, undamped: each part's linearized system eliminated down to
         the shared keys, as an augmented Hessian ``(n+1, n+1)`` in part order, and the shared
         factors' own augmented Hessian. The system of any subset of parts is the sum of its
-        members' and the shared one (:mod:`graphcal.graph.reduced_systems`)."""
+        members' and the shared one (:mod:`graphcal.graph.solution.reduced_systems`)."""
         reduced = self.workers.eliminate(None)
         self.workers.release()
         shared_linear = self.shared_graph.linearize(self.shared_values)

@@ -1,5 +1,5 @@
 """The shape of a segment graph: which variables, priors and weights it has
-(:func:`graphcal.graph.builder.build_segment_graph` builds it)."""
+(:func:`graphcal.graph.construction.builder.build_segment_graph` builds it)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graphcal.factors import CONTINUITY_SIGMAS
-from graphcal.graph import keys
+from graphcal.graph.construction import keys
 from graphcal.log.segments import SegmentData
 
 
@@ -43,7 +43,7 @@ class SegmentGraphSpec:
 
     Attributes:
         theta: theta's initial value, or its fixed value when ``estimate_theta`` is false.
-        estimate_theta: theta is a variable (key :data:`~graphcal.graph.keys.THETA`).
+        estimate_theta: theta is a variable (key :data:`~graphcal.graph.construction.keys.THETA`).
         theta_prior_sigmas: sigmas of a prior on theta at ``theta``, or ``None``.
         tracking_sigmas: ``[m, m, rad]`` of the tracking residuals.
         start_prior_sigmas: ``[m, m, rad]`` of the priors on free start poses (x and y
@@ -57,20 +57,20 @@ class SegmentGraphSpec:
             correlation time ``slip_time`` [s] from chunk to chunk.
         slip_time: that correlation time [s].
         time_offset_sigma: prior sigma [s] of the wheels' time offset (a variable,
-            :data:`~graphcal.graph.keys.TIME_OFFSET`, one element per run of the log), or
-            ``None`` for none.
+            :data:`~graphcal.graph.construction.keys.TIME_OFFSET`, one element per run of the log),
+            or ``None`` for none.
         time_offset_mean: that prior's mean [s] (and the variable's initial value): one for
             every run, or one per run.
         time_offset_runs: the runs the time offset has an element for (the log's; the
             builder sets it from the data, :meth:`for_runs`).
         lever_arm_sigma: prior sigma [m] of each component of the antenna's lever arm (a
-            variable, :data:`~graphcal.graph.keys.LEVER_ARM`), or ``None`` for none.
+            variable, :data:`~graphcal.graph.construction.keys.LEVER_ARM`), or ``None`` for none.
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
             or ``None`` for none.
         fix_error_sigma: stationary sigma [m] per axis of the error the fixes share over
             a chunk (a GNSS receiver's slowly varying error: one ``[east, north]`` 2-vector
             per chunk, a first-order Gauss–Markov process along each chain of tied segments,
-            :mod:`graphcal.graph.gauss_markov`), or ``None`` for white fix errors only.
+            :mod:`graphcal.graph.construction.gauss_markov`), or ``None`` for white fix errors only.
         fix_error_time: that process's correlation time [s].
         tie_segments: a segment that starts where the one before it ends, in one continuous
             stretch of the log (:meth:`~graphcal.log.segments.SegmentData.tied`), starts at

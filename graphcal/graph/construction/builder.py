@@ -1,11 +1,11 @@
 """The one graph builder for segments of a drive: multiple shooting over chunks.
 
 Every calibration graph of graphcal is an instance of this shape, chosen by a
-:class:`~graphcal.graph.graph_spec.SegmentGraphSpec`:
+:class:`~graphcal.graph.construction.graph_spec.SegmentGraphSpec`:
 
 * per segment, its start: held at the measured pose, or a Pose2 variable under world-frame
   position and heading priors at the measured pose (the paper's W);
-* the segment cut into chunks (:func:`~graphcal.graph.chunking.chunk_bounds`); one
+* the segment cut into chunks (:func:`~graphcal.graph.construction.chunking.chunk_bounds`); one
   :class:`~graphcal.factors.ChunkOdometryFactor` per chunk integrates eq. (1) from the chunk's
   start and tracks the measured poses; Pose2 variables at the chunk boundaries, initialized
   on the nominal odometry, carry a near-hard continuity residual;
@@ -44,21 +44,21 @@ from graphcal.factors import (
     chunk_correction_prior,
     theta_prior_factor,
 )
-from graphcal.graph import keys
-from graphcal.graph.built_graph import (
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.built_graph import (
     BuiltGraph,
     ChunkFactorSlot,
     insert_nuisance,
     insert_segment,
     with_heading,
 )
-from graphcal.graph.chunk_processes import (
+from graphcal.graph.construction.chunk_processes import (
     add_fix_error_priors,
     add_slip_priors,
     fix_error_keys,
 )
-from graphcal.graph.chunking import chunk_bounds
-from graphcal.graph.graph_spec import SegmentGraphSpec
+from graphcal.graph.construction.chunking import chunk_bounds
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec
 from graphcal.log.segments import SegmentData
 from graphcal.log.timing import rotation_rate_changes
 from graphcal.model import aligned_trajectory, integrate

@@ -5,7 +5,8 @@ A rear wheel's slow slip (a tyre's load in a long bend, a wet patch) scales its 
 intervals of a localization graph) one 2-vector of scales has the stationary prior
 ``N(0, sigma²)`` at the first span and a first-order Gauss–Markov step between consecutive
 spans, ``s_j − φ s_(j−1) ~ N(0, sigma² (1 − φ²))`` with ``φ = exp(−duration / slip_time)``
-(:mod:`graphcal.graph.gauss_markov`), so that every span's scale has the stationary sigma.
+(:mod:`graphcal.graph.construction.gauss_markov`), so that every span's scale has the stationary
+sigma.
 
 Where the process is too fine to resolve, coarser forms stand in for it: across a GNSS gap
 one scale whose prior is the variance of the process's mean over the gap
@@ -19,7 +20,7 @@ from __future__ import annotations
 import gtsam
 import numpy as np
 
-from graphcal.graph.gauss_markov import gauss_markov_step, stationary_prior
+from graphcal.graph.construction.gauss_markov import gauss_markov_step, stationary_prior
 
 
 def slip_prior_factor(key: int, sigma: float) -> gtsam.PriorFactorVector:

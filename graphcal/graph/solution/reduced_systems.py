@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.graph import keys
-from graphcal.graph.covariance import covariance_from_information
-from graphcal.graph.partitioned import PartitionedGraph
+from graphcal.graph.construction import keys
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.solution.covariance import covariance_from_information
 
 
 @dataclass(frozen=True)
@@ -108,7 +108,7 @@ class ReducedSystems:
 def reduced_systems(
     partitioned: PartitionedGraph, segment_count: int, joined: bool = False
 ) -> ReducedSystems:
-    """The :class:`ReducedSystems` of a segment graph (:mod:`graphcal.graph.builder`)
+    """The :class:`ReducedSystems` of a segment graph (:mod:`graphcal.graph.construction.builder`)
     split by ``partitioned``, at its current values; ``segment_count`` segments (indexed as the
     graph's keys index them). Eliminates every part once (in the workers of
     :meth:`PartitionedGraph.parallel` if entered). With ``joined``, a part may hold tied

@@ -1,17 +1,17 @@
 """The slowly varying quantities of a segment graph, one value per chunk (or chunk
-boundary) under a Gauss–Markov chain (:mod:`graphcal.graph.gauss_markov`): the rear wheels'
-slip scales and the error the fixes share."""
+boundary) under a Gauss–Markov chain (:mod:`graphcal.graph.construction.gauss_markov`): the rear
+wheels' slip scales and the error the fixes share."""
 
 from __future__ import annotations
 
 import gtsam
 import numpy as np
 
-from graphcal.graph import keys
-from graphcal.graph.chunking import chunk_bounds
-from graphcal.graph.gauss_markov import gauss_markov_step, stationary_prior
-from graphcal.graph.graph_spec import SegmentGraphSpec
-from graphcal.graph.slip import slip_prior_factor, slip_step_factor
+from graphcal.graph.construction import keys
+from graphcal.graph.construction.chunking import chunk_bounds
+from graphcal.graph.construction.gauss_markov import gauss_markov_step, stationary_prior
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec
+from graphcal.graph.construction.slip import slip_prior_factor, slip_step_factor
 from graphcal.log.segments import SegmentData
 
 
@@ -23,7 +23,7 @@ def add_slip_priors(
     spec: SegmentGraphSpec,
 ) -> None:
     """Priors of segment ``s``'s slip scales, one 2-vector per chunk of ``bounds`` (steps
-    ``dt`` [s]; :mod:`graphcal.graph.slip`: stationary at the first chunk, Gauss–Markov
+    ``dt`` [s]; :mod:`graphcal.graph.construction.slip`: stationary at the first chunk, Gauss–Markov
     steps after)."""
     sigma = float(spec.slip_sigma)
     graph.add(slip_prior_factor(keys.segment_slip(s, 0), sigma))

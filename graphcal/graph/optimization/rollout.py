@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-#: The letter of the segment Pose2 keys (:func:`graphcal.graph.keys.segment_pose`).
+#: The letter of the segment Pose2 keys (:func:`graphcal.graph.construction.keys.segment_pose`).
 POSE_LETTER = ord("p")
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.values import copy_value
+from graphcal.graph.optimization.values import copy_value
 
 
 @dataclass

@@ -9,16 +9,16 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import GraphcalError, exception_reason
-from graphcal.graph.levenberg_marquardt import (
+from graphcal.graph.optimization.levenberg_marquardt import (
     Damping,
     Verdict,
     converged,
     judge_step,
     raised_scale,
 )
-from graphcal.graph.linear_systems import add_damping, hessian_diagonal_by_column
-from graphcal.graph.rollout import chunk_links, linear_gaps, rolled_out
-from graphcal.graph.solve_options import SolveOptions, SolveOutcome, SolveStatus
+from graphcal.graph.optimization.linear_systems import add_damping, hessian_diagonal_by_column
+from graphcal.graph.optimization.rollout import chunk_links, linear_gaps, rolled_out
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveOutcome, SolveStatus
 
 #: Who drives the Levenberg–Marquardt iterations (:func:`solve_lm`).
 Driver = Literal["gtsam", "python"]

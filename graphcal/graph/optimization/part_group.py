@@ -8,17 +8,17 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.levenberg_marquardt import Damping, raised_scale
-from graphcal.graph.linear_systems import (
+from graphcal.graph.optimization.levenberg_marquardt import Damping, raised_scale
+from graphcal.graph.optimization.linear_systems import (
     add_damping,
     augmented_hessian,
     hessian_diagonal_by_key,
     predicted_decrease,
     vector_values,
 )
-from graphcal.graph.partition import GraphPart
-from graphcal.graph.rollout import LinearGap, chunk_links, linear_gaps, rolled_out
-from graphcal.graph.values import Portable, portable
+from graphcal.graph.optimization.partition import GraphPart
+from graphcal.graph.optimization.rollout import LinearGap, chunk_links, linear_gaps, rolled_out
+from graphcal.graph.optimization.values import Portable, portable
 
 
 @dataclass
@@ -32,9 +32,9 @@ class _Eliminated:
 
 
 class PartGroup:
-    """Parts of a :class:`~graphcal.graph.partitioned.PartitionedGraph` and the requests the
-    optimizer sends them; every answer is small (shared-size arrays and floats), so a group
-    can live in another process (:mod:`graphcal.graph.part_workers`).
+    """Parts of a :class:`~graphcal.graph.optimization.partitioned.PartitionedGraph` and the
+    requests the optimizer sends them; every answer is small (shared-size arrays and floats), so a
+    group can live in another process (:mod:`graphcal.graph.optimization.part_workers`).
 
     Between :meth:`eliminate` and :meth:`step` a group keeps each part's Bayes net (its
     conditionals given the shared keys), not its linear system: a rejected step
@@ -111,8 +111,8 @@ class PartGroup:
     def try_step(self, evaluate: bool = True) -> list[float]:
         """Each part's error after the last :meth:`step` (with ``evaluate``; else 0), its
         chunk-boundary poses rolled out onto the odometry of the step's values
-        (:func:`~graphcal.graph.rollout.rolled_out`; not for a step taken unevaluated, too
-        small to leave a gap); the candidate values are kept for :meth:`accept`."""
+        (:func:`~graphcal.graph.optimization.rollout.rolled_out`; not for a step taken unevaluated,
+        too small to leave a gap); the candidate values are kept for :meth:`accept`."""
         out = []
         self._candidates = []
         parts = zip(self.parts, self._deltas, self._links, self._eliminated, strict=True)
@@ -136,5 +136,6 @@ class PartGroup:
         self._eliminated, self._deltas, self._candidates = [], [], []
 
     def local_values(self) -> list[dict[int, Portable]]:
-        """Each part's local variables, picklable (:func:`~graphcal.graph.values.portable`)."""
+        """Each part's local variables, picklable
+        (:func:`~graphcal.graph.optimization.values.portable`)."""
         return [{key: portable(part.values, key) for key in part.local} for part in self.parts]
