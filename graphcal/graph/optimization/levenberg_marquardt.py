@@ -3,8 +3,8 @@
 One place for the damping λ and its update, the judgement of a trial step (gain ratio,
 accept or damp more or stop) and the convergence test, with GTSAM's
 ``LevenbergMarquardtParams`` defaults: the whole-graph solve
-(:func:`graphcal.graph.solve.solve_lm`'s Python driver) and the part-by-part solve
-(:mod:`graphcal.graph.partitioned_lm`) both use them.
+(:func:`graphcal.graph.optimization.solve.solve_lm`'s Python driver) and the part-by-part
+solve (:mod:`graphcal.graph.optimization.partitioned_lm`) both use them.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Levenberg–Marquardt on one whole graph: GTSAM's optimizer, or the same steps driven from
-Python by the rules of :mod:`graphcal.graph.levenberg_marquardt`."""
+Python by the rules of :mod:`graphcal.graph.optimization.levenberg_marquardt`."""
 
 from __future__ import annotations
 
