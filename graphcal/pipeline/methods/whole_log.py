@@ -65,6 +65,7 @@ from graphcal.pipeline.methods.sensor_estimates import (
     sensor_estimates,
 )
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings, solve_joint
+from graphcal.pipeline.solvers.robust import RoundsStart
 from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
 
@@ -86,12 +87,18 @@ class StoppedAt:
     Attributes:
         values: its solution (the graph-wide variables are taken), or ``None``.
         shift: ``(runs,)`` whole-sample shift [s] of each run's wheels.
-        fix_weights: ``(S, K+1)`` its robust fix weights, or ``None``.
+        rounds: where its robust rounds stopped, or ``None``.
     """
 
     values: gtsam.Values | None
     shift: np.ndarray
-    fix_weights: np.ndarray | None
+    rounds: RoundsStart | None
+
+
+def _rounds_start(whole: JointCalibration) -> RoundsStart:
+    """Where ``whole``'s robust rounds stopped: its fix weights and theta's σ."""
+    sigma = None if whole.covariance is None else whole.theta_sigma
+    return RoundsStart(whole.fix_weights, sigma)
 
 
 @dataclass(frozen=True)
@@ -181,7 +188,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
             prepared.fix_weights,
             settings.joint,
             workers,
-            StoppedAt(values, offset, whole.fix_weights),
+            StoppedAt(values, offset, _rounds_start(whole)),
         )
     whole = judged_with_what_is_held(whole, settings.joint, held)
     estimated = _with_total_offset(
@@ -268,7 +275,7 @@ def solve_with_time_offset(
     shift = start.shift
     if shift.any():
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-    whole, values = _whole_log_solve(data, settings, workers, start.values, start.fix_weights)
+    whole, values = _whole_log_solve(data, settings, workers, start.values, start.rounds)
     for _ in range(OFFSET_ROUNDS - 1):
         found = detected_offsets(
             sensor_estimates(whole.nuisance, settings.max_sigma_ratio), log.runs
@@ -281,7 +288,7 @@ def solve_with_time_offset(
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
         say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole, values = _whole_log_solve(data, settings, workers, values, whole.fix_weights)
+        whole, values = _whole_log_solve(data, settings, workers, values, _rounds_start(whole))
     return whole, values, data, shift
 
 
@@ -295,14 +302,14 @@ def _whole_log_solve(
     settings: JointSettings,
     workers: int,
     start: gtsam.Values | None = None,
-    start_weights: np.ndarray | None = None,
+    rounds_start: RoundsStart | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
-    processes; from the graph-wide variables of ``start`` and the fix weights
-    ``start_weights``, if given), with the progress lines a user waits for, and the
+    processes; from the graph-wide variables of ``start`` and the robust rounds from
+    ``rounds_start``, if given), with the progress lines a user waits for, and the
     solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
-    result, values = solve_joint(data, settings, workers, start=start, start_weights=start_weights)
+    result, values = solve_joint(data, settings, workers, start=start, rounds_start=rounds_start)
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")

@@ -39,7 +39,7 @@ from graphcal.graph.solution.observability import (
 from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
-from graphcal.pipeline.solvers.robust import solve_segment_graph_robust
+from graphcal.pipeline.solvers.robust import RoundsStart, solve_segment_graph_robust
 from graphcal.pipeline.solvers.slip_screen import SlipTest, with_slip_if_shown
 from graphcal.pipeline.solvers.warm_start import warm_start
 from graphcal.progress import Progress, reports_progress, say
@@ -335,14 +335,15 @@ def solve_joint(
     workers: int = 1,
     progress: Progress | None = None,
     start: gtsam.Values | None = None,
-    start_weights: np.ndarray | None = None,
+    rounds_start: RoundsStart | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
     :mod:`graphcal.pipeline.methods.joint_batches`). ``start``: a solution of the same segments
     under other settings (other noise levels, a shifted log) whose graph-wide variables the
-    solve starts from instead of a warm start's; ``start_weights``: that solution's fix
-    weights, where the robust rounds start (:func:`~graphcal.pipeline.solvers.robust.solve_robust`).
+    solve starts from instead of a warm start's; ``rounds_start``: that solution's fix
+    weights and theta's σ, where the robust rounds start
+    (:func:`~graphcal.pipeline.solvers.robust.solve_robust`).
 
     The steps: the warm start (:mod:`graphcal.pipeline.solvers.warm_start`), the solve with robust
     fix weights (:mod:`graphcal.pipeline.solvers.robust`), the fixes' noise in its residuals, with
@@ -366,7 +367,7 @@ def solve_joint(
         settings.robust_threshold,
         covariance=not auto,
         shared_start=shared,
-        start_weights=start_weights,
+        rounds_start=rounds_start,
     )
     del residuals
     noise = residual_noise(solved, data, weights)

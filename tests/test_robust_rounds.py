@@ -1,0 +1,76 @@
+"""The robust reweighting of the fixes (graphcal.pipeline.solvers.robust): its rounds go on
+from where an earlier solve of the same segments stopped, and stop once theta has settled."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.solution.segment_solve import ValuesStart, solve_segment_graph
+from graphcal.log.segments import gather_segments, select_segments, split_segments
+from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.robust import RoundsStart, solve_robust
+from graphcal.simulate.defects import degrade, parse_defects
+from graphcal.simulate.drive import simulate_drive
+
+
+@pytest.fixture(scope="module")
+def outlying():
+    """A 2 km drive with 0.5 % of its fixes 10–50 m off, its segments and joint graph."""
+    log = degrade(simulate_drive(2.0, seed=4), parse_defects("outliers"), seed=3).measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+    return data, JointSettings(slip="off", tie_segments=False).graph_spec()
+
+
+def _counted_solve(data, spec, calls):
+    options = SolveOptions(50, 1e-7, "robust test")
+
+    def solve(segments, initial):
+        calls.append(1)
+        start = None if initial is None else ValuesStart(initial)
+        return solve_segment_graph(segments, spec, options, start=start, covariance=False)
+
+    return solve
+
+
+def test_rounds_from_an_earlier_solve_stop_once_theta_settles(outlying):
+    data, spec = outlying
+    first_calls: list[int] = []
+    first, weights, _ = solve_robust(data, spec, _counted_solve(data, spec, first_calls), 3.0)
+    assert weights is not None and (weights < 0.5).sum() >= 3  # the outliers found
+    weighted = dataclasses.replace(data, fix_weights=weights)
+    covariance = solve_segment_graph(weighted, spec, SolveOptions(50, 1e-7)).covariance
+    sigma = np.sqrt(np.diag(covariance))
+    again_calls: list[int] = []
+    again, _, _ = solve_robust(
+        data,
+        spec,
+        _counted_solve(data, spec, again_calls),
+        3.0,
+        start=RoundsStart(weights, sigma),
+    )
+    assert len(again_calls) < len(first_calls)
+    assert np.all(np.abs(again.theta - first.theta) <= 0.1 * sigma)
+
+
+def test_rounds_whose_weights_keep_trading_stop_when_theta_has_settled(outlying, monkeypatch):
+    """Fixes in a spike trade weight from round to round (here: any change counts); with an
+    earlier solve's σ the rounds stop once one moves theta by less than 0.05σ."""
+    import graphcal.pipeline.solvers.robust as robust
+
+    monkeypatch.setattr(robust, "WEIGHT_TOLERANCE", 0.0)
+    data, spec = outlying
+    calls: list[int] = []
+    full, weights, _ = solve_robust(data, spec, _counted_solve(data, spec, calls), 3.0)
+    assert len(calls) == 5  # the limit: the weights never stop changing by "0"
+    weighted = dataclasses.replace(data, fix_weights=weights)
+    sigma = np.sqrt(np.diag(solve_segment_graph(weighted, spec, SolveOptions(50, 1e-7)).covariance))
+    settled: list[int] = []
+    early, _, _ = solve_robust(
+        data, spec, _counted_solve(data, spec, settled), 3.0, start=RoundsStart(None, sigma)
+    )
+    assert len(settled) < 5
+    assert np.all(np.abs(early.theta - full.theta) <= 0.1 * sigma)
