@@ -67,3 +67,26 @@ def test_scaling_item_fits_the_growth_exponent():
     assert run["length_km"] == 3.0 and run["seconds"] > 0 and run["iterations"] >= 1
     assert run["samples"] > 1000 and run["peak_mb"] > 0
     assert report["exponent"] is None  # one length: nothing to fit
+
+
+def test_the_recordings_item_reads_each_whole_log_solve_from_the_progress_lines():
+    from graphcal.bench.recordings import solve_iterations
+
+    lines = [
+        "[   0.2 s] joint solve over all 44 selected segments",
+        "[   5.8 s]   iteration 3: χ²/dof 0.9931, Gauss–Newton (2 s)",
+        "[   7.5 s]   3 iterations, χ²/dof 0.99",
+        "[   7.6 s] wheels shifted by -75.0 ms; solved again from the shifted log",
+        "[  12.0 s]   12 iterations, χ²/dof 1.43",
+        "[  12.1 s] joint batches: 100 solved from the segments' systems",
+    ]
+    assert solve_iterations(lines) == [3, 12]
+
+
+@pytest.mark.slow
+def test_the_sample_drive_calibrates_in_a_few_iterations_per_solve():
+    from graphcal.bench.recordings import calibrate_recording
+
+    run = calibrate_recording(("sample_drive.csv",), workers=1)
+    assert run["returncode"] == 0
+    assert 1 <= run["solves"] <= 3 and max(run["iterations"]) < 10

@@ -33,7 +33,10 @@ Items (median wall time over ``repeats``; peak memory of the process after each 
 * (l) a joint batch of the batch study solved on its own and from the segments' systems at
   the whole-log solution (:mod:`graphcal.pipeline.methods.joint_batches`), per batch;
 * (m) fleet throughput on Dask with 1 and 2 workers and Dask's overhead per log
-  (:mod:`graphcal.bench.fleet`).
+  (:mod:`graphcal.bench.fleet`);
+* (n) ``graphcal calibrate`` with defaults on each recording the suite holds (the real car's
+  four forms, the real robot, the sample drive), end to end: wall time, peak memory, the
+  whole-log solves and their iterations (:mod:`graphcal.bench.recordings`).
 
 Ratios are taken within one run, never against figures from another machine. :data:`ITEMS`
 holds the items in the order they run; :func:`run_benchmarks` runs them.
@@ -62,6 +65,7 @@ from graphcal.bench.importing import import_item
 from graphcal.bench.localization_items import localization_items
 from graphcal.bench.options import BenchSizes, resolve_bench_options
 from graphcal.bench.recording import BenchRun, Recorder
+from graphcal.bench.recordings import recording_items
 from graphcal.bench.scaling import scaling_item
 from graphcal.bench.whole_log_items import batch_study_items, segmented_items, whole_log_items
 from graphcal.progress import Progress, muted
@@ -78,6 +82,7 @@ REPORT_ENTRIES = (
     "import",
     "import_can",
     "agreement",
+    "recordings",
 )
 
 
@@ -192,6 +197,11 @@ def scaling_items(bench: BenchRun) -> dict[str, Any]:
     return {"scaling": scaling}
 
 
+def real_recording_items(bench: BenchRun) -> dict[str, Any]:
+    """(n) :func:`~graphcal.bench.recordings.recording_items`."""
+    return {"recordings": recording_items(bench.record, bench.workers)}
+
+
 def fleet_items(bench: BenchRun) -> dict[str, Any]:
     """(m) Fleet throughput on Dask with 1 and 2 workers (none with no vehicles)."""
     if bench.fleet_vehicles <= 0:
@@ -229,6 +239,7 @@ ITEMS: tuple[Callable[[BenchRun], dict[str, Any]], ...] = (
     import_items,
     scaling_items,
     fleet_items,
+    real_recording_items,
 )
 
 

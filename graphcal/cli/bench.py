@@ -30,7 +30,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--repeats", type=whole(1), default=None, help="repeats per item (median; 3)"
     )
     parser.add_argument(
-        "--workers", type=whole(1), default=2, help="workers for the pipeline item (2)"
+        "--workers",
+        type=whole(1),
+        default=2,
+        help="worker processes of the items that use them (2, not one per core as calibrate: "
+        "the benchmark's figures are for a fixed count, to compare across machines)",
     )
     parser.add_argument(
         "--naive-iterations",
