@@ -27,6 +27,9 @@ MIN_DIAGONAL, MAX_DIAGONAL = 1e-6, 1e32
 ABSOLUTE_ERROR_TOL = 1e-12
 #: A predicted decrease at most this small counts as a perfect prediction (gain ratio 1).
 NEGLIGIBLE_PREDICTION = 1e-20
+#: After a step whose error decrease is within this fraction of its linearization's
+#: prediction, the drivers take undamped (Gauss–Newton) steps (:func:`gauss_newton_next`).
+GAUSS_NEWTON_FIDELITY = 0.1
 
 
 @dataclass
@@ -99,6 +102,14 @@ def judge_step(
     if abs(change) < error_tolerance(error, relative_error_tol) or not damping.can_increase():
         return Judgement(Verdict.AT_MINIMUM, ratio)
     return Judgement(Verdict.DAMP_MORE, ratio)
+
+
+def gauss_newton_next(undamped: bool, lam: float, gain_ratio: float) -> bool:
+    """An accepted step leads to undamped (Gauss–Newton) steps: it was one, or needed no more
+    damping ``lam`` than the first, and its linearization predicted its decrease within
+    :data:`GAUSS_NEWTON_FIDELITY` (the part-by-part driver's rule,
+    :mod:`graphcal.graph.optimization.partitioned_lm`)."""
+    return (undamped or lam <= LAMBDA_INITIAL) and abs(gain_ratio - 1.0) <= GAUSS_NEWTON_FIDELITY
 
 
 def converged(decrease: float, error: float, relative_error_tol: float) -> bool:

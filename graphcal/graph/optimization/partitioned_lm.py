@@ -22,11 +22,11 @@ import numpy as np
 
 from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.optimization.levenberg_marquardt import (
-    LAMBDA_INITIAL,
     Damping,
     Verdict,
     converged,
     error_tolerance,
+    gauss_newton_next,
     judge_step,
     raised_scale,
 )
@@ -39,9 +39,6 @@ if TYPE_CHECKING:
 
 #: Seconds after which :func:`optimize` reports each iteration.
 PROGRESS_AFTER_S = 2.0
-#: After a step whose error decrease is within this fraction of its linearization's
-#: prediction, :func:`optimize` takes undamped (Gauss–Newton) steps.
-GAUSS_NEWTON_FIDELITY = 0.1
 
 
 @dataclass(frozen=True)
@@ -174,10 +171,10 @@ class _Solve:
         how = "Gauss–Newton" if self.undamped else f"λ {self.damping.lam:.0e}"
         # Gauss–Newton next if this step was (or needed no more damping than the first) and
         # its linearization predicted its decrease well.
-        mild = self.undamped or self.damping.lam <= LAMBDA_INITIAL
+        next_undamped = gauss_newton_next(self.undamped, self.damping.lam, ratio)
         if not self.undamped:
             self.damping.decrease()
-        self.undamped = self.gauss_newton and mild and abs(ratio - 1.0) <= GAUSS_NEWTON_FIDELITY
+        self.undamped = self.gauss_newton and next_undamped
         return _Iteration(new_error, None, how)
 
 
