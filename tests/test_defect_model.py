@@ -77,7 +77,7 @@ def test_the_lever_arm_is_recovered(clean):
 
 @pytest.mark.slow
 def test_a_straight_drive_cannot_show_the_lever_arm():
-    drive = degrade(simulate_drive(4.0, 1, route="straight"), parse_defects("lever_arm"), 1)
+    drive = degrade(simulate_drive(2.0, 1, route="straight"), parse_defects("lever_arm"), 1)
     run = _whole(drive)
     found = run.estimated["lever_arm_longitudinal"]
     assert not found.observable

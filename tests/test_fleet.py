@@ -200,14 +200,16 @@ def test_fleet_interrupted_and_resumed_finds_the_change(fleet_dir, tmp_path):
 
 @pytest.mark.slow
 def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
-    """The same fleet through `dask scheduler` and two `dask worker` processes started by
-    hand, reached by address, from a CSV manifest that also names a broken log: it fails
-    alone, with its one-line reason, and the change is found as on the local cluster."""
+    """The changed vehicle's days through `dask scheduler` and two `dask worker` processes
+    started by hand, reached by address, from a CSV manifest that also names a broken log: it
+    fails alone, with its one-line reason, and the change is found as on the local cluster.
+    (v3 alone: the unchanged vehicles' days are the local cluster's test; 9 logs took 51 s.)"""
     broken = tmp_path / "broken.csv"
     broken.write_text("t,px\n0,1\n")
     manifest = tmp_path / "fleet.csv"
     rows = ["vehicle,day,path"]
-    rows += [f"{log.vehicle},{log.day},{log.path}" for log in discover_fleet(fleet_dir)]
+    logs = [log for log in discover_fleet(fleet_dir) if log.vehicle == "v3"]
+    rows += [f"{log.vehicle},{log.day},{log.path}" for log in logs]
     rows.append(f"v9,day1,{broken}")
     manifest.write_text("\n".join(rows) + "\n")
     dask = shutil.which("dask", path=str(Path(sys.executable).parent)) or shutil.which("dask")
@@ -263,7 +265,7 @@ def test_fleet_on_a_separately_started_scheduler(fleet_dir, tmp_path):
     assert [r["vehicle"] for r in failed] == ["v9"]
     assert (tmp_path / "out" / "logs" / "v9" / "day1.json").exists()  # the log's own failure
     assert failed[0]["reason"] and "\n" not in failed[0]["reason"]
-    assert run.computed == VEHICLES * DAYS + 1
+    assert run.computed == DAYS + 1
     changes = [(h.vehicle, c.day, c.parameter) for h in run.histories for c in h.changes]
     assert changes == [("v3", "day3", "c_e")]
     flagged = {h.vehicle for h in run.histories if h.flags}
