@@ -24,11 +24,12 @@ from graphcal.simulate.drive import simulate_drive
 @pytest.fixture(scope="module")
 def untrusted() -> tuple[CalibrationRun, Evaluation]:
     """The GNSS antenna 1.2 m ahead of the centre of gravity with the defect model off, and
-    the solves stopped after 3 iterations: not converged, so the run is not trusted (from the
-    nominal theta, fewer leave a parameter not determined)."""
+    the solves stopped after 1 iteration: not converged, so the run is not trusted (3 were
+    enough to converge once the steps roll the boundary poses out,
+    graphcal.graph.optimization.rollout)."""
     drive = degrade(simulate_drive(3.0, seed=11), parse_defects("lever_arm=1.2"), seed=1)
     settings = Settings(batches=BatchingSettings(count=2, size=4))
-    joint = dataclasses.replace(without_defect_model(settings.joint), max_iterations=3)
+    joint = dataclasses.replace(without_defect_model(settings.joint), max_iterations=1)
     settings = dataclasses.replace(settings, joint=joint)
     run = run_calibration(drive.measured, settings, "joint", workers=1)
     assert not run.trust.trusted and run.observability.calibrated.all()

@@ -50,15 +50,10 @@ def warm_start(
 ) -> dict[int, np.ndarray] | None:
     """The graph-wide variables (theta, time offset, lever arm, by key) solved on
     :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, each on its own
-    (untied), for the whole-log solve to start from. A shorter log of positions only whose
-    segments the whole solve ties into chains gets its theta from all of them untied: a chain
-    integrated with the nominal theta drifts metres from its fixes, one with a solved theta
-    is moved onto them as one body. With a measured heading the chains start from the
-    nominal theta: since each step's rotation is rolled out
-    (:mod:`graphcal.graph.optimization.rollout`) their solve no longer creeps (the sample
-    drive's took 11 iterations from χ²/dof 7087 before; now 5, where the untied solve first
-    cost 4 and the tied one 3 more: 0.65 s against 0.83 s, the 24 km drive's 1.9 s against
-    2.6 s, the same result).
+    (untied), for the whole-log solve to start from. A shorter log whose segments the whole
+    solve ties into chains gets its theta from all of them untied: a chain integrated with
+    the nominal theta drifts metres from its fixes (the sample drive's first solve took 11
+    iterations from χ²/dof 7087), one with a solved theta is moved onto them as one body.
     ``None`` for a shorter log without ties, a graph without theta, or a sample that cannot
     be solved (the whole log starts from ``spec`` then); a shorter log of positions only
     starts from the nominal theta with each segment's odometry moved onto its fixes (a
@@ -77,7 +72,7 @@ def warm_start(
         )
     if len(data) >= WARM_START_MIN_SEGMENTS:
         say(f"  start: theta from {len(sample)} segments spread over the log")
-    elif spec.tied(data).any() and not data.has_heading():
+    elif spec.tied(data).any():
         sample = np.arange(len(data))
         say("  start: theta from the segments each on its own")
     elif coarse is not None:
