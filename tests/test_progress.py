@@ -40,8 +40,9 @@ def test_no_listener_no_output(capsys):
 
 
 def _untimed(lines: list[str]) -> list[str]:
-    """``lines`` without the elapsed seconds an iteration line ends in (``(3 s)``)."""
-    return [re.sub(r" \(\d+ s\)$", "", line) for line in lines]
+    """``lines`` without the iteration lines of a long solve (whether an iteration is long
+    depends on the machine's load)."""
+    return [line for line in lines if not re.match(r"\s*iteration \d+:", line)]
 
 
 def test_a_programs_logging_hears_a_real_calibration_that_has_no_progress(caplog):
@@ -55,6 +56,6 @@ def test_a_programs_logging_hears_a_real_calibration_that_has_no_progress(caplog
     with caplog.at_level(logging.INFO, logger="graphcal.progress"):
         calibrate_file("data/sample_drive.csv", Settings(), "whole", progress=heard.append)
     # The same lines, once: to progress=, not also to logging (a long solve's iteration lines
-    # end in their elapsed seconds, which differ from run to run on a loaded machine).
+    # are said only when an iteration takes long, which differs from run to run).
     assert _untimed(heard) == _untimed(logged)
     assert not [r for r in caplog.records if r.name == "graphcal.progress"]
