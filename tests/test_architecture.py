@@ -187,86 +187,61 @@ def test_files_and_functions_are_short(path):
     assert _long_functions(path) == []
 
 
-#: The pipeline's packages, lowest first: each imports only those before it and itself.
-#: The solvers' settings are composed by the configuration's ``Settings``, and the methods and
-#: the end-to-end run take that ``Settings``: a solve never sees a run's settings.
-PIPELINE_LAYERS = ("solvers", "configuration", "methods", "end_to_end")
+#: Each layered package's subpackages, lowest first: each imports only those before it and
+#: itself (imports inside functions and for type checking count).
+#:
+#: * pipeline: the solvers' settings are composed by the configuration's ``Settings``, and the
+#:   methods and the end-to-end run take that ``Settings``: a solve never sees a run's
+#:   settings, a method never a run.
+#: * graph: the optimizers know no key or segment; construction builds graphs the optimizers
+#:   solve (a built graph is read off a part-by-part solve); a segment graph's solve builds,
+#:   optimizes and reads its solution.
+LAYERS = {
+    "pipeline": ("solvers", "configuration", "methods", "end_to_end"),
+    "graph": ("optimization", "construction", "solution"),
+}
 
 
-def _pipeline_package(module: str) -> str | None:
-    """The pipeline package of a graphcal module (``graphcal.pipeline.methods.staged`` →
-    ``methods``), ``None`` outside them (``graphcal.pipeline`` itself included)."""
+def _subpackage(module: str, parent: str) -> str | None:
+    """The subpackage of ``graphcal.<parent>`` a graphcal module is in
+    (``graphcal.pipeline.methods.staged`` → ``methods``), ``None`` outside them
+    (``graphcal.<parent>`` itself included)."""
     parts = module.split(".")
-    return parts[2] if parts[:2] == ["graphcal", "pipeline"] and len(parts) > 2 else None
+    return parts[2] if parts[:2] == ["graphcal", parent] and len(parts) > 2 else None
 
 
-PIPELINE_MODULES = [m for m in MODULES if _pipeline_package(m)]
+LAYERED_MODULES = [(parent, m) for parent in LAYERS for m in MODULES if _subpackage(m, parent)]
 
 
-def test_every_pipeline_module_sits_in_a_layer():
-    """No module loose in ``pipeline/`` and no package the layering does not name."""
-    loose = [m for m in MODULES if m.startswith("graphcal.pipeline.") and not _pipeline_package(m)]
+@pytest.mark.parametrize("parent", LAYERS)
+def test_every_module_of_a_layered_package_sits_in_a_layer(parent):
+    """No module loose in ``pipeline/`` or ``graph/`` and no package the layering does not
+    name."""
+    prefix = f"graphcal.{parent}."
+    loose = [m for m in MODULES if m.startswith(prefix) and not _subpackage(m, parent)]
     assert loose == []
-    assert {_pipeline_package(m) for m in PIPELINE_MODULES} == set(PIPELINE_LAYERS)
+    found = {_subpackage(m, parent) for m in MODULES} - {None}
+    assert found == set(LAYERS[parent])
 
 
-@pytest.mark.parametrize("module", PIPELINE_MODULES)
-def test_a_pipeline_package_imports_only_those_below_it(module):
-    """``solvers < configuration < methods < end_to_end`` (imports inside functions and for
-    type checking count): a solve never reads a run's settings, a method never a run."""
-    allowed = PIPELINE_LAYERS[: PIPELINE_LAYERS.index(_pipeline_package(module)) + 1]
-    imported = {_pipeline_package(name) for name in MODULES[module]} - {None}
+@pytest.mark.parametrize(("parent", "module"), LAYERED_MODULES, ids=lambda x: x)
+def test_a_layered_package_imports_only_those_below_it(parent, module):
+    """``solvers < configuration < methods < end_to_end``; ``optimization < construction <
+    solution``."""
+    layers = LAYERS[parent]
+    allowed = layers[: layers.index(_subpackage(module, parent)) + 1]
+    imported = {_subpackage(name, parent) for name in MODULES[module]} - {None}
     assert imported <= set(allowed), sorted(imported - set(allowed))
-    assert "graphcal.pipeline" not in MODULES[module], "import the module, not the package"
+    assert f"graphcal.{parent}" not in MODULES[module], "import the module, not the package"
 
 
-def test_no_import_cycle_between_pipeline_packages():
-    edges: dict[str, set[str]] = {package: set() for package in PIPELINE_LAYERS}
-    for module in PIPELINE_MODULES:
-        package = _pipeline_package(module)
-        edges[package] |= {_pipeline_package(n) for n in MODULES[module]} - {None, package}
-    assert _strongly_connected(edges) == []
-
-
-#: The graph layer's packages, lowest first: each imports only those before it and itself.
-#: The optimizers know no key or segment; construction builds graphs the optimizers solve
-#: (a built graph is read off a part-by-part solve); a segment graph's solve builds,
-#: optimizes and reads its solution.
-GRAPH_LAYERS = ("optimization", "construction", "solution")
-
-
-def _graph_package(module: str) -> str | None:
-    """The graph package of a graphcal module (``graphcal.graph.construction.keys`` →
-    ``construction``), ``None`` outside them (``graphcal.graph`` itself included)."""
-    parts = module.split(".")
-    return parts[2] if parts[:2] == ["graphcal", "graph"] and len(parts) > 2 else None
-
-
-GRAPH_MODULES = [m for m in MODULES if _graph_package(m)]
-
-
-def test_every_graph_module_sits_in_a_layer():
-    """No module loose in ``graph/`` and no package the layering does not name."""
-    loose = [m for m in MODULES if m.startswith("graphcal.graph.") and not _graph_package(m)]
-    assert loose == []
-    assert {_graph_package(m) for m in GRAPH_MODULES} == set(GRAPH_LAYERS)
-
-
-@pytest.mark.parametrize("module", GRAPH_MODULES)
-def test_a_graph_package_imports_only_those_below_it(module):
-    """``optimization < construction < solution`` (imports inside functions and for type
-    checking count): an optimizer never sees a key, a builder never a solution's reading."""
-    allowed = GRAPH_LAYERS[: GRAPH_LAYERS.index(_graph_package(module)) + 1]
-    imported = {_graph_package(name) for name in MODULES[module]} - {None}
-    assert imported <= set(allowed), sorted(imported - set(allowed))
-    assert "graphcal.graph" not in MODULES[module], "import the module, not the package"
-
-
-def test_no_import_cycle_between_graph_packages():
-    edges: dict[str, set[str]] = {package: set() for package in GRAPH_LAYERS}
-    for module in GRAPH_MODULES:
-        package = _graph_package(module)
-        edges[package] |= {_graph_package(n) for n in MODULES[module]} - {None, package}
+@pytest.mark.parametrize("parent", LAYERS)
+def test_no_import_cycle_between_the_subpackages(parent):
+    edges: dict[str, set[str]] = {package: set() for package in LAYERS[parent]}
+    for module in MODULES:
+        package = _subpackage(module, parent)
+        if package is not None:
+            edges[package] |= {_subpackage(n, parent) for n in MODULES[module]} - {None, package}
     assert _strongly_connected(edges) == []
 
 
