@@ -168,6 +168,8 @@ def test_failed_step1_baseline_solves_of_the_joint_method_are_reported(drive, mo
     def fail(*args, **kwargs):
         raise CalibrationFailed("batch solve failed: test")
 
+    # The solve over all segments fails, then each batch's own (what it falls back to).
+    monkeypatch.setattr(staged_module, "held_start_batches", fail)
     monkeypatch.setattr(staged_module, "calibrate_batch", fail)
     settings = Settings(segments=SegmentSettings(stride=25.0), batches=BatchingSettings(count=3))
     run = run_calibration(drive.measured, settings)
