@@ -278,6 +278,26 @@ SLOW = [
     ),
     pytest.param(
         _shape(
+            vehicle="differential",
+            route="yard",
+            length_m=213.0,
+            gnss_rate=50.0,
+            noise_sigma=0.33,
+            noise_tau_s=24.0,
+            heading=True,
+            imu=False,
+            drives=2,
+            gap_s=33.0,
+            park_s=5.0,
+            time_offset_s=0.001,
+            lever_arm=(0.0, 0.0),
+            seed=120,
+        ),
+        id="differential-noisy-wheel-speeds",  # seed 11's shape 2: t_r +3.8σ at the profile's
+        # wheel noise (its speeds 26 % noisier per step), the spare noise found as "slip"
+    ),
+    pytest.param(
+        _shape(
             route="straight",
             length_m=1677.0,
             gnss_rate=2.5,

@@ -1,5 +1,6 @@
 """The heading's white noise read from the log (graphcal.log.noise), on uniform and on
-sparse logs: what sets the heading's weight, so an overstated noise biases t_r and d."""
+sparse logs: what sets the heading's weight, so an overstated noise biases t_r and d; the
+wheel rates' white noise, what the wheel-rotation corrections are weighted by."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.log.noise import heading_noise
+from graphcal.log.noise import heading_noise, rate_wheel_noise
 from graphcal.log.quantization import quantization_sigma
 from graphcal.model import THETA_NOMINAL
 from graphcal.simulate.defects import degrade, parse_defects
@@ -84,3 +85,70 @@ def test_position_noise_is_read_from_the_solve_and_used():
     noise = results_document(run)["noise"]  # reported with the result
     assert noise["position_sigma_m"] == pytest.approx(0.6, rel=0.1)
     assert noise["heading_sigma_deg"] == pytest.approx(1.5, rel=0.15)  # the drive's heading
+
+
+def _wheel_rates(rate_hz: float, sigma: float, seed: int = 0):
+    """Two wheels' rates [rev/s] at ``rate_hz`` over 200 s: a drive of accelerations,
+    cruises and two stops (rates exactly 0) plus white noise of ``sigma`` [rev/s] while
+    moving."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, 200.0, 1.0 / rate_hz)
+    true = 2.0 + 1.5 * np.sin(0.2 * t) + 0.3 * np.sin(1.3 * t)
+    true[(t > 50) & (t < 60)] = 0.0
+    true[(t > 150) & (t < 155)] = 0.0
+    moving = true != 0.0
+    left = np.where(moving, true + sigma * rng.standard_normal(len(t)), 0.0)
+    right = np.where(moving, 1.01 * true + sigma * rng.standard_normal(len(t)), 0.0)
+    return t, left, right
+
+
+@pytest.mark.parametrize("rate_hz, step", [(100.0, 0.025), (50.0, 0.025), (20.0, 0.05)])
+def test_wheel_rates_white_noise_is_the_random_walk_per_log_step(rate_hz, step):
+    """White rate noise σ [rev/s] at Δt: a log step's rotation errs by σ √(Δt · step), the
+    rate at which the summed rotations' error grows, whatever the two rates."""
+    sigma = 0.04
+    t, left, right = _wheel_rates(rate_hz, sigma)
+    expected = sigma * np.sqrt(step / rate_hz)
+    assert rate_wheel_noise(t, left, right, step) == pytest.approx(expected, rel=0.05)
+
+
+def test_wheel_rates_from_a_slower_signal_are_not_measured():
+    """Rates interpolated from a 10 Hz signal onto 100 Hz are not white per sample: no
+    estimate (the profile's wheel noise stays), rather than a far too small one."""
+    t, left, right = _wheel_rates(10.0, 0.04)
+    fine = np.arange(t[0], t[-1], 0.01)
+    interpolated = [np.interp(fine, t, x) for x in (left, right)]
+    assert rate_wheel_noise(fine, *interpolated, 0.025) is None
+    assert rate_wheel_noise(t[:50], left[:50], right[:50], 0.025) is None  # too few samples
+
+
+def test_an_imported_recordings_wheel_noise_raises_the_profiles(tmp_path):
+    """A delivery robot's 0.02 m/s wheel speeds at 100 Hz (0.00063 rev per 25 ms step; its
+    profile says 0.0005): the imported log carries their noise and the prepared settings
+    weight the corrections by it; with ``wheel_noise_from_log`` off, by the profile's."""
+    from campaign.recording import write_recording
+    from campaign.shape import Shape
+
+    from graphcal.pipeline.configuration.settings import Settings
+    from graphcal.pipeline.configuration.settings_file import load_vehicle
+    from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
+    from graphcal.pipeline.methods.prepare import prepare_log
+    from graphcal.recording.open_log import open_log
+
+    shape = Shape(
+        vehicle="differential", route="yard", length_m=120.0, gnss_rate=10.0,
+        noise_sigma=0.05, noise_tau_s=0.0, heading=True, imu=False, wheels="speed", ticks=0,
+        drives=1, gap_s=0.0, park_s=2.0, time_offset_s=0.0, lever_arm=(0.0, 0.0), seed=5,
+    )  # fmt: skip
+    manifest = write_recording(shape, tmp_path)
+    vehicle = load_vehicle(tmp_path / "vehicle.toml")
+    log, _ = open_log(manifest, vehicle)
+    assert log.wheel_noise == pytest.approx(0.02 / 0.5 * np.sqrt(0.01 * 0.025), rel=0.1)
+    settings = apply_vehicle(Settings(), vehicle)
+    assert settings.joint.wheel_noise == 0.0005
+    prepared = prepare_log(log, settings, fall_back_to_all=True)
+    assert prepared.settings.joint.wheel_noise == log.wheel_noise
+    off = dataclasses.replace(
+        settings, joint=dataclasses.replace(settings.joint, wheel_noise_from_log=False)
+    )
+    assert prepare_log(log, off, fall_back_to_all=True).settings.joint.wheel_noise == 0.0005

@@ -70,7 +70,9 @@ class DriveLog:
     one. ``pose_source`` is what measured the pose when the recording says so: ``"GNSS"``
     for geodetic fixes (a manifest's latitude and longitude, a bag's NavSatFix); ``None``
     when not known (a drive-log CSV, a local x/y pose: motion capture, a fused pose),
-    which reports call the "position source" (:meth:`position_sensor`).
+    which reports call the "position source" (:meth:`position_sensor`). ``wheel_noise``
+    [rev per step] is the white noise the recording's own wheel rates show
+    (:func:`graphcal.log.noise.rate_wheel_noise`; ``None``: not measured).
     """
 
     t: np.ndarray
@@ -91,6 +93,7 @@ class DriveLog:
     ay_from_wheels: bool = field(default=False, compare=False)
     run: np.ndarray | None = field(default=None, compare=False)
     pose_source: str | None = field(default=None, compare=False)
+    wheel_noise: float | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         lengths = {name: np.shape(getattr(self, name)) for name in COLUMNS}

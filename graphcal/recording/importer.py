@@ -23,6 +23,7 @@ import numpy as np
 
 from graphcal.files import graphcal_json
 from graphcal.log.drive_log import DriveLog
+from graphcal.log.noise import rate_wheel_noise
 from graphcal.log.validation import validate_frame
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.recording.bag.request import BagRequest
@@ -208,6 +209,10 @@ def import_recording(
     )
     if recording.wheels.resolution is not None:  # counts interpolated onto the grid
         log = dataclasses.replace(log, tick_resolution=recording.wheels.resolution)
+    if not recording.wheels.cumulative:  # rates at their own times: their white noise
+        wheels = recording.wheels
+        noise = rate_wheel_noise(wheels.t, wheels.left, wheels.right, log.dt)
+        log = dataclasses.replace(log, wheel_noise=noise)
     if resampled.ay_from_wheels:
         log = dataclasses.replace(log, ay_from_wheels=True)
     if recording.pose.origin is not None:  # geodetic fixes: a GNSS receiver's

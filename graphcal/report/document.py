@@ -305,6 +305,7 @@ def _findings_sections(run: CalibrationRun) -> dict:
             "wheel_noise_rev": float(joint.wheel_noise),
             "wheel_correction_chi2_per_row": run.whole.noise.wheel_chi2,
             "heading_from_log": bool(joint.heading_noise_from_log),
+            "wheel_noise_from_log_rev": run.log.wheel_noise,
         }
     if run.whole is not None and run.whole.slip_test is not None:
         out["wheel_slip"] = {

@@ -90,6 +90,7 @@ Every section and key, with the defaults::
     fix_error_time = 30.0       # s, its correlation time
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
     heading_noise_from_log = true  # heading weight from the log's own heading noise
+    wheel_noise_from_log = true    # wheel_noise raised to the recording's wheel rates' noise
     fix_d = false               # (v) d held at theta_initial (the vehicle's fix_d)
     tie_segments = true         # consecutive segments of a continuous stretch: one trajectory
     model_check = true          # a time offset, lever arm or slip found: checked against

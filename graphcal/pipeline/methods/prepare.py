@@ -68,6 +68,7 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
     """
     segments, yaw, selected, validation_segments = select(log, settings, fall_back_to_all)
     settings = _with_detected_ticks(log, settings)
+    settings = _with_wheel_noise(log, settings)
     settings = _with_heading_noise(log, settings)
     arm = settings.lever_arm
     log = move_to_centre(log, (arm.longitudinal, arm.lateral))  # a known arm
@@ -187,6 +188,22 @@ def _with_detected_ticks(log: DriveLog, settings: Settings) -> Settings:
     )
     joint = dataclasses.replace(settings.joint, tick_quantization=quantization_sigma(ticks))
     return dataclasses.replace(settings, joint=joint)
+
+
+def _with_wheel_noise(log: DriveLog, settings: Settings) -> Settings:
+    """``settings`` whose ``wheel_noise`` is the white noise the recording's own wheel rates
+    show (``DriveLog.wheel_noise``: :func:`graphcal.log.noise.rate_wheel_noise`) where that
+    is larger than the profile's, if ``wheel_noise_from_log``: the profile's is a floor (its
+    slip and timing jitter the rates do not show)."""
+    joint = settings.joint
+    found = log.wheel_noise
+    if not joint.wheel_noise_from_log or found is None or not found > joint.wheel_noise:
+        return settings
+    say(
+        f"wheel noise {found:.2g} rev per step (the wheel rates' own noise), not the "
+        f"{joint.wheel_noise:g} of the settings"
+    )
+    return dataclasses.replace(settings, joint=dataclasses.replace(joint, wheel_noise=found))
 
 
 def _with_heading_noise(log: DriveLog, settings: Settings) -> Settings:

@@ -102,6 +102,8 @@ class JointSettings:
         heading_noise_from_log: the heading weight of ``pose_weights`` follows the heading's
             white noise measured in the log (:mod:`graphcal.log.noise`) instead of the
             vehicle's ``heading_sigma``.
+        wheel_noise_from_log: ``wheel_noise`` is raised to the white noise the recording's
+            own wheel rates show (``DriveLog.wheel_noise``) where that is larger.
         fix_d: d is held at its ``theta_initial`` (the vehicle's ``fix_d``; its prior sigma in
             ``theta_prior_sigmas`` is then the vehicle's tight one): reported as fixed.
         tie_segments: consecutive segments of a continuous stretch are one trajectory (each
@@ -142,6 +144,7 @@ class JointSettings:
     fix_error_time: float = 30.0
     robust_threshold: float = 5.0
     heading_noise_from_log: bool = True
+    wheel_noise_from_log: bool = True
     fix_d: bool = False
     tie_segments: bool = True
     model_check: bool = True
@@ -272,6 +275,7 @@ def without_defect_model(settings: JointSettings) -> JointSettings:
         slip="off",
         fix_error="off",
         heading_noise_from_log=False,
+        wheel_noise_from_log=False,
     )
 
 
