@@ -18,6 +18,7 @@ from graphcal.pipeline.end_to_end.trust import (
     NORMAL_IQR,
     assess_trust,
     spread_ratio,
+    validates_worse,
 )
 from graphcal.pipeline.methods.agreement import Agreement, segment_agreement
 from graphcal.statistics import chi2_survival
@@ -187,3 +188,18 @@ def test_a_solve_that_converged_on_its_last_allowed_iteration_is_converged():
         assert trust.trusted and trust.converged and trust.to_dict()["iterations"] == 30
     staged = assess_trust(**{**CLEAN, "solve": None})  # no whole-log solve to judge
     assert staged.trusted and staged.converged
+
+
+def test_validation_worse_by_its_segments_paired_differences():
+    """Worse is a mean paired difference beyond 2 standard errors: a small shift every
+    segment shows, not one a few segments' own fix errors put there (a robot's 5 segments,
+    0.11 m worse on average, differences scattering by 0.37 m)."""
+    nominal = np.array([0.93, 1.08, 1.40, 0.58, 2.02])
+    assert validates_worse(nominal + 0.02, nominal)  # every segment a little worse
+    noisy = nominal + np.array([0.004, 0.015, -0.346, 0.632, 0.25])
+    assert np.mean(noisy) > np.mean(nominal) and not validates_worse(noisy, nominal)
+    assert not validates_worse(nominal - 0.1, nominal)
+    assert validates_worse(np.array([1.01, 1.0]), np.array([1.0, 0.99]))  # two: any amount
+    assert validates_worse(1.01, 1.0) and not validates_worse(np.array([np.nan]), 1.0)
+    trust = assess_trust(**{**CLEAN, "validation_calibrated": noisy, "validation_nominal": nominal})
+    assert trust.trusted

@@ -223,10 +223,10 @@ def _trust(
     (a weakly determined c_d of a 100 m log, −4.3 ± 5.6 mm, moves the prediction by noise,
     and that is what its verdict and σ already say)."""
     whole = None if solved is None else solved.whole
-    calibrated, nominal = np.mean(segment_errors["calibrated"]), np.mean(segment_errors["nominal"])
+    calibrated, nominal = segment_errors["calibrated"], segment_errors["nominal"]
     if result.observability is not None and not result.observability.calibrated.all():
         claimed = np.where(result.observability.calibrated, result.theta, theta_nominal)
-        calibrated = mean_validation_error(validation, claimed)
+        calibrated = position_errors(validation, claimed)
     batch_theta = None
     if "joint" in result.batch_covariance:
         batch_theta = without_excluded(
@@ -240,8 +240,8 @@ def _trust(
         batch_covariance=result.batch_covariance.get("joint"),
         calibrated=observability.calibrated if observability is not None else np.ones(4, bool),
         agreement=None if solved is None else solved.agreement,
-        validation_calibrated=float(calibrated),
-        validation_nominal=float(nominal),
+        validation_calibrated=calibrated,
+        validation_nominal=nominal,
     )
 
 
