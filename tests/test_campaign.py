@@ -298,6 +298,27 @@ SLOW = [
     ),
     pytest.param(
         _shape(
+            vehicle="differential",
+            route="yard",
+            length_m=150.0,
+            gnss_rate=0.5,
+            noise_sigma=1.92,
+            noise_tau_s=11.0,
+            heading=True,
+            wheels="ticks",
+            ticks=287,
+            drives=2,
+            gap_s=30.0,
+            park_s=0.0,
+            lever_arm=(0.0, 0.0),
+            seed=43832,
+        ),
+        id="differential-sparse-far-noisier-fixes",  # seed 12's shape 6: fixes of 1.9 m
+        # weighted as the profile's 0.05 m, the wheels shifted by 350 ms on that solve and
+        # t_r out of range, exit 2 after 110 s; now the noise first, then the shifts
+    ),
+    pytest.param(
+        _shape(
             route="straight",
             length_m=1677.0,
             gnss_rate=2.5,
@@ -319,12 +340,18 @@ SLOW = [
 ]
 
 
+#: Slow-tier shapes whose recording cannot determine c_e (0.5 Hz fixes of 1.9 m on 300 m of
+#: a robot's driving): it must say so, not be calibrated.
+C_E_UNDETERMINED = {"differential-sparse-far-noisier-fixes"}
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("shape", SLOW)
-def test_calibrations_keep_the_invariants(shape: Shape, tmp_path: Path) -> None:
+def test_calibrations_keep_the_invariants(shape: Shape, tmp_path: Path, request) -> None:
     """Exit 0 (or one line naming a real cause); calibrated parameters within 3σ of the
-    truth; a parameter left out says why."""
+    truth; a parameter left out says why; c_e calibrated where the recording shows it."""
     result = calibrate(shape, write_recording(shape, tmp_path))
     assert result.broken == [], (shape.label(), result.verdicts, result.ratio, result.line)
     assert result.exit_code == 0
-    assert result.verdicts["c_e"].startswith("calibrated")
+    undetermined = request.node.callspec.id in C_E_UNDETERMINED
+    assert result.verdicts["c_e"].startswith("calibrated") != undetermined, result.verdicts

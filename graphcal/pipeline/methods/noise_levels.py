@@ -20,10 +20,21 @@ POSITION_NOISE_TOLERANCE = 0.25
 #: The fixes' white sigma stays at least this share of their residuals' RMS when a shared
 #: error explains the rest (the tracking residuals never near-hard).
 MIN_WHITE_SHARE = 0.1
+#: Fixes found this many times as noisy as the settings weighted them (or less than its
+#: inverse) were fitted under far wrong weights: the heading residuals and the wheel
+#: corrections of that solve show the misfit, not their own noise, and are judged after
+#: the solve under the fixes' own noise (:func:`fixes_reweighted`). A delivery robot's fixes
+#: sharing 1.1 m of error, weighted as the profile's RTK 0.05 m, put its wheel corrections
+#: at χ² 5.8 per row: wheel noise ×2.4 of their true 0.00063 rev.
+REWEIGHTED = 3.0
 
 
 def with_noise_levels(
-    whole: JointCalibration, settings: JointSettings, has_heading: bool, dt: float
+    whole: JointCalibration,
+    settings: JointSettings,
+    has_heading: bool,
+    dt: float,
+    fixes: bool = True,
 ) -> JointSettings:
     """``settings`` with the noise the whole-log solve's residuals show
     (:class:`~graphcal.pipeline.solvers.residual_noise.ResidualNoise`; ``dt`` the log's sample
@@ -42,36 +53,31 @@ def with_noise_levels(
 
     A real robot with motion capture (a profile's 0.0002 rev, the heading's 0.09° white
     noise) showed corrections at χ² 4 per row and heading residuals of 0.2°: χ²/dof 5.
+
+    ``fixes`` false: the fixes' noise stays the settings' (:func:`fixes_reweighted`).
     """
     noise = whole.noise
     x, y, _ = settings.pose_weights
     sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
     position, heading, wheel = float(sigmas[0]), float(sigmas[2]), settings.wheel_noise
-    drift = slow_fix_error(noise, settings, dt)
-    found = honest_sigma(noise.position, noise.position_correlation)
+    drift = slow_fix_error(noise, settings, dt) if fixes else None
+    found = honest_sigma(noise.position, noise.position_correlation) if fixes else None
     if drift is not None:
         found = drift[0]
-    elif settings.fix_error != "off" and settings.fix_error_sigma > 0:
+    elif fixes and settings.fix_error != "off" and settings.fix_error_sigma > 0:
         found = noise.position  # the shared error is the settings' and in the graph: white
     if found is not None:
-        say(f"position noise {noise.position:#.3g} m per axis (the fixes' residuals)")
-        if drift is not None:
-            say(
-                f"  the fixes' errors are alike from fix to fix (a mean of many varies "
-                f"{noise.position_correlation:.1f}× as much as white noise's): "
-                f"{drift[1]:#.2g} m of it modelled as an error they share, correlated over "
-                f"{drift[2]:.0f} s, {found:#.2g} m white"
-            )
-        elif found != noise.position:
-            say(
-                f"  the fixes' errors are alike from fix to fix (a mean of many varies "
-                f"{noise.position_correlation:.1f}× as much as white noise's): weighted as "
-                f"{found:#.3g} m"
-            )
+        _say_position_noise(noise, found, drift)
         if drift is not None or abs(found / position - 1.0) > POSITION_NOISE_TOLERANCE:
             if drift is None:
                 say(f"  not the {position:g} m the settings assume: solved again with it")
             position = found
+    fix_sigma = _fix_sigma(position, drift[1] if drift is not None else settings.fix_error_sigma)
+    if _far_apart(fix_sigma, _fix_sigma(float(sigmas[0]), settings.fix_error_sigma)):
+        say("  the heading's and the wheels' noise judged after a solve under the fixes' own")
+        has_heading, chi2 = False, None  # a misfit of far wrong fix weights, not their noise
+    else:
+        chi2 = noise.wheel_chi2
     found = noise.heading  # white: a correlated misfit of the heading is a defect, not noise
     if has_heading and found is not None and found > heading * (1 + POSITION_NOISE_TOLERANCE):
         say(
@@ -79,7 +85,6 @@ def with_noise_levels(
             "assumed: solved again with them"
         )
         heading = found
-    chi2 = noise.wheel_chi2
     if chi2 is not None and np.sqrt(chi2) > 1 + POSITION_NOISE_TOLERANCE:
         wheel = float(settings.wheel_noise * np.sqrt(chi2))
         say(
@@ -101,6 +106,53 @@ def with_noise_levels(
         wheel_noise=wheel,
         **slow,
     )
+
+
+def _say_position_noise(
+    noise: ResidualNoise, found: float, drift: tuple[float, float, float] | None
+) -> None:
+    """The fixes' noise the residuals show, and how it is weighted: ``found`` [m] per axis,
+    white, with the error they share (``drift``: white, shared [m], time [s]) if any."""
+    say(f"position noise {noise.position:#.3g} m per axis (the fixes' residuals)")
+    alike = (
+        f"  the fixes' errors are alike from fix to fix (a mean of many varies "
+        f"{noise.position_correlation:.1f}× as much as white noise's): "
+    )
+    if drift is not None:
+        say(
+            f"{alike}{drift[1]:#.2g} m of it modelled as an error they share, correlated "
+            f"over {drift[2]:.0f} s, {found:#.2g} m white"
+        )
+    elif found != noise.position:
+        say(f"{alike}weighted as {found:#.3g} m")
+
+
+def _fix_sigma(white: float, shared: float) -> float:
+    """The fixes' whole sigma [m] per axis: white and shared error together."""
+    return float(np.hypot(white, shared))
+
+
+def fixes_reweighted(before: JointSettings, after: JointSettings) -> bool:
+    """Whether ``after`` weights the fixes :data:`REWEIGHTED` times away from ``before``
+    (their white and shared sigma together): the solve under ``before`` fitted them under far
+    wrong weights; its values are no start, nor its residuals a judge of the other noise.
+    The next solve's judge the heading and the wheels, not the fixes again: once a shared
+    error is modelled, the residuals' RMS is not the white part (what the fixes share within
+    a chunk stays in it): taken as white, 0.035 m at 40 Hz against the 0.052 m of the first
+    solve's variogram, a delivery robot's segment groups scattered 2.1–2.3× beyond their σ
+    of c_e and t_r."""
+    old = _fix_sigma(
+        float(pose_sigmas(before.pose_weights, before.position_sigma)[0]), before.fix_error_sigma
+    )
+    new = _fix_sigma(
+        float(pose_sigmas(after.pose_weights, after.position_sigma)[0]), after.fix_error_sigma
+    )
+    return _far_apart(new, old)
+
+
+def _far_apart(new: float, old: float) -> bool:
+    """``new`` more than :data:`REWEIGHTED` times ``old`` or less than its inverse."""
+    return not 1.0 / REWEIGHTED <= new / old <= REWEIGHTED
 
 
 def slow_fix_error(

@@ -3,15 +3,17 @@ the sensors, corrected in the log for everything after it.
 
 Top-down, :func:`solve_whole_log` runs:
 
-1. time-offset rounds (:func:`solve_with_time_offset`): the joint solve
-   (:func:`~graphcal.pipeline.solvers.joint.solve_joint`: warm start, robust reweighting of the
-   fixes, slip screen), repeated with the wheels shifted by whole samples while it finds a time
-   offset;
-2. the noise the residuals show (:func:`~graphcal.pipeline.methods.noise_levels.with_noise_levels`:
+1. the joint solve (:func:`~graphcal.pipeline.solvers.joint.solve_joint`: warm start, robust
+   reweighting of the fixes, slip screen) under the settings' noise levels;
+2. the noise its residuals show (:func:`~graphcal.pipeline.methods.noise_levels.with_noise_levels`:
    the fixes' white noise and the error they share, the heading's, the wheels') and, for a
    log whose lateral acceleration comes from the wheels (and whose d is estimated), that
-   acceleration derived again with the solved theta; the rounds again if either changed the
-   graph;
+   acceleration derived again with the solved theta; then time-offset rounds
+   (:func:`solve_with_time_offset`): the solve repeated with the wheels shifted by whole
+   samples while it finds a time offset — under the noise found, since a profile's RTK
+   0.05 m on fixes of 1.9 m (χ²/dof 359) put a delivery robot's wheels 350 ms late and its
+   t_r out of range, and on fixes sharing 1.1 m of error shifted them by −225 ms (truth
+   −34 ms);
 3. theta judged under the weak prior
    (:func:`~graphcal.pipeline.methods.held_at_prior.judged_with_what_is_held`): every parameter its
    posterior with its marginal σ, what the settings held at its prior
@@ -34,8 +36,8 @@ import numpy as np
 from graphcal.graph.solution.plausibility import ImplausibleTheta
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
-from graphcal.log.segments import SegmentData, Segments, gather_segments
-from graphcal.log.timing import shift_wheel_rotations, whole_samples
+from graphcal.log.segments import SegmentData, gather_segments
+from graphcal.log.timing import whole_samples
 from graphcal.model import wheel_lateral_acceleration
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.methods.agreement import (
@@ -50,55 +52,32 @@ from graphcal.pipeline.methods.held_at_prior import (
     without_an_unseen_lever_arm,
 )
 from graphcal.pipeline.methods.joint_batches import segment_systems
-from graphcal.pipeline.methods.noise_levels import with_noise_levels
+from graphcal.pipeline.methods.noise_levels import fixes_reweighted, with_noise_levels
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import (
     DownWeightedFixes,
     SensorEstimate,
     component_names,
     correct_log,
-    detected_offsets,
     log_weights,
     measured_from,
     not_estimated,
     run_of,
     sensor_estimates,
 )
-from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings, solve_joint
-from graphcal.pipeline.solvers.robust import RoundsStart
+from graphcal.pipeline.methods.time_offset_rounds import (
+    OFFSET_ROUNDS,
+    Solved,
+    StoppedAt,
+    rounds_start,
+    solve_with_time_offset,
+)
+from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
 from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
 
-#: Whole-log solves at most, each after shifting the wheels by the offset found so far.
-OFFSET_ROUNDS = 4
-#: A run's wheels are shifted again only when the offset its solve finds beyond their shift
-#: exceeds this fraction of a sample interval: the graph's first-order shift covers less. A
-#: rest near half a sample otherwise rounds up and down from round to round (the real robot's
-#: run at +74.5 ms with 50 ms samples went 50 → 100 → 50 → 100 ms, four solves for one).
-SHIFT_AGAIN_SAMPLES = 0.75
 #: Why a parameter that left its plausible range in the first solve is held at its prior.
 RUNAWAY_REASON = "it left its plausible range in a free solve; held at its prior"
-
-
-@dataclass(frozen=True)
-class StoppedAt:
-    """Where a whole-log solve stopped, for a solve of the same segments to go on from.
-
-    Attributes:
-        values: its solution (the graph-wide variables are taken), or ``None``.
-        shift: ``(runs,)`` whole-sample shift [s] of each run's wheels.
-        rounds: where its robust rounds stopped, or ``None``.
-    """
-
-    values: gtsam.Values | None
-    shift: np.ndarray
-    rounds: RoundsStart | None
-
-
-def _rounds_start(whole: JointCalibration) -> RoundsStart:
-    """Where ``whole``'s robust rounds stopped: its fix weights and theta's σ."""
-    sigma = None if whole.covariance is None else whole.theta_sigma
-    return RoundsStart(whole.fix_weights, sigma)
 
 
 @dataclass(frozen=True)
@@ -158,38 +137,34 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     Raises:
         CalibrationFailed: if a solve fails or gives an implausible theta.
     """
-    log, settings = prepared.log, prepared.settings
-    gathered, validation = prepared.data, prepared.validation
-    held = dict(prepared.held)
-    try:
-        whole, values, data, offset = solve_with_time_offset(
-            log, gathered, prepared.selected, prepared.fix_weights, settings.joint, workers
-        )
-    except ImplausibleTheta as runaway:
-        settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
-        whole, values, data, offset = _holding_a_runaway(prepared, settings.joint, runaway, workers)
-        held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
-    joint = with_noise_levels(whole, settings.joint, gathered.has_heading(), log.dt)
+    settings, held = prepared.settings, dict(prepared.held)
+    settings, (whole, values, data, offset) = _holding_runaways(
+        prepared, settings, held, workers, rounds=1
+    )
+    has_heading = prepared.data.has_heading()
+    joint = with_noise_levels(whole, settings.joint, has_heading, prepared.log.dt)
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
-    rederive = log.ay_from_wheels and "d" not in settings.joint.held_at_prior
+    rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
     if rederive:  # a_y derived with the nominal theta: again with the solved one
-        log = dataclasses.replace(
-            log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, whole.theta, log.dt)
-        )
-        gathered = gather_segments(log, prepared.selected, prepared.fix_weights)
-        validation = gather_segments(log, prepared.validation_segments)
-        say("lateral acceleration of the wheels derived again with the solved theta")
-    if joint is not settings.joint or rederive:
-        settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
-        whole, values, data, offset = solve_with_time_offset(
-            log,
-            gathered,
-            prepared.selected,
-            prepared.fix_weights,
-            settings.joint,
-            workers,
-            StoppedAt(values, offset, _rounds_start(whole)),
-        )
+        prepared = _with_lateral_acceleration(prepared, whole.theta)
+    reweighted = fixes_reweighted(settings.joint, joint)
+    again = joint is not settings.joint or rederive
+    settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
+    start = StoppedAt(values, offset, rounds_start(whole))
+    if reweighted:  # fitted under far wrong fix weights: no start for the right ones
+        start = StoppedAt(None, offset, None)
+    settings, (whole, values, data, offset) = _holding_runaways(
+        prepared, settings, held, workers, start, None if again else (whole, values)
+    )
+    if reweighted:  # the heading's and the wheels' noise, under the fixes' own
+        joint = with_noise_levels(whole, settings.joint, has_heading, prepared.log.dt, False)
+        if joint is not settings.joint:
+            settings = dataclasses.replace(settings, joint=joint)
+            start = StoppedAt(values, offset, rounds_start(whole))
+            settings, (whole, values, data, offset) = _holding_runaways(
+                prepared, settings, held, workers, start
+            )
+    log, validation = prepared.log, prepared.validation
     whole = judged_with_what_is_held(whole, settings.joint, held)
     estimated = _with_total_offset(
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
@@ -216,12 +191,50 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     )
 
 
+def _holding_runaways(
+    prepared: PreparedLog,
+    settings: Settings,
+    held: dict[str, str],
+    workers: int,
+    start: StoppedAt | None = None,
+    solved: tuple[JointCalibration, gtsam.Values] | None = None,
+    rounds: int = OFFSET_ROUNDS,
+) -> tuple[Settings, Solved]:
+    """:func:`solve_with_time_offset` of ``prepared`` (``solved``: the solve under these
+    settings the rounds go on from); parameters that run out of their plausible range are
+    held at their prior (:func:`_holding_a_runaway`, recorded in ``held``) and the settings
+    holding them returned."""
+    try:
+        return settings, solve_with_time_offset(
+            prepared, settings.joint, workers, start, rounds, solved
+        )
+    except ImplausibleTheta as runaway:
+        settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
+        held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
+        return settings, _holding_a_runaway(prepared, settings.joint, runaway, workers, rounds)
+
+
+def _with_lateral_acceleration(prepared: PreparedLog, theta: np.ndarray) -> PreparedLog:
+    """``prepared`` whose lateral acceleration, derived from the wheels with the nominal
+    theta, is derived again with ``theta`` (SI)."""
+    log = prepared.log
+    log = dataclasses.replace(log, ay=wheel_lateral_acceleration(log.n_rl, log.n_rr, theta, log.dt))
+    say("lateral acceleration of the wheels derived again with the solved theta")
+    return dataclasses.replace(
+        prepared,
+        log=log,
+        data=gather_segments(log, prepared.selected, prepared.fix_weights),
+        validation=gather_segments(log, prepared.validation_segments),
+    )
+
+
 def _holding_a_runaway(
     prepared: PreparedLog,
     settings: JointSettings,
     runaway: ImplausibleTheta,
     workers: int,
-) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
+    rounds: int,
+) -> Solved:
     """The whole-log solve under ``settings``, which hold the parameters that ran out of
     their plausible range in the first solve (``runaway``) at their prior; ``runaway``
     raised again when the data determine one of them (then the data put it there: wrong
@@ -238,82 +251,10 @@ def _holding_a_runaway(
         f"{', '.join(runaway.names)} left the plausible range in the first solve: solved again "
         f"held at the prior, to see whether the data determine {them}"
     )
-    whole, values, data, offset = solve_with_time_offset(
-        prepared.log, prepared.data, prepared.selected, prepared.fix_weights, settings, workers
-    )
+    whole, values, data, offset = solve_with_time_offset(prepared, settings, workers, rounds=rounds)
     if any(data_determine(whole, settings, runaway.names)):
         raise runaway
     return whole, values, data, offset
-
-
-def solve_with_time_offset(
-    log: DriveLog,
-    data: SegmentData,
-    selected: Segments,
-    flagged: np.ndarray | None,
-    settings: JointSettings,
-    workers: int = 1,
-    start: StoppedAt | None = None,
-) -> tuple[JointCalibration, gtsam.Values, SegmentData, np.ndarray]:
-    """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
-    the offset found so far, rounded to whole samples, and the solve repeated, so that the
-    graph's first-order shift only covers the rest (at most about half a sample). A log of
-    several runs has an offset per run, each run shifted by its own.
-
-    Whole samples because a shift is exact only for them: between samples it averages
-    neighbouring rotations, which smooths their noise (tick quantization above all) away
-    from what the correction prior assumes. On a 24 km drive with 96-tick encoders, slow slip
-    and 62.5 ms latency, fractional shifting moved t_r by 4.3σ (``docs/defects.md``).
-
-    ``data`` are ``selected`` gathered from ``log`` with the ``flagged`` fix weights. Returns
-    the last solve, its values, the segments it solved and the shift [s] of each run's
-    wheels. Each solve after the first starts from the one before (its values and fix
-    weights); the first from ``start`` (where a solve of the same segments under other noise
-    levels stopped), if given. A run is shifted again only while its solve finds more than
-    :data:`SHIFT_AGAIN_SAMPLES` of a sample beyond its shift."""
-    start = start or StoppedAt(None, np.zeros(log.runs), None)
-    shift = start.shift
-    if shift.any():
-        data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-    whole, values = _whole_log_solve(data, settings, workers, start.values, start.rounds)
-    for _ in range(OFFSET_ROUNDS - 1):
-        found = detected_offsets(
-            sensor_estimates(whole.nuisance, settings.max_sigma_ratio), log.runs
-        )
-        again = np.abs(found) > SHIFT_AGAIN_SAMPLES * log.dt
-        rounded = np.where(again, [whole_samples(s, log.dt) for s in shift + found], shift)
-        if np.array_equal(rounded, shift):
-            break  # what is left is less than a sample: the graph's first order covers it
-        shift = rounded
-        shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
-        say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
-        data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole, values = _whole_log_solve(data, settings, workers, values, _rounds_start(whole))
-    return whole, values, data, shift
-
-
-def _per_run(runs: int) -> str:
-    """`` (runs 0–3)`` after a list of one value per run; empty for one run."""
-    return "" if runs == 1 else f" (runs 0–{runs - 1})"
-
-
-def _whole_log_solve(
-    data: SegmentData,
-    settings: JointSettings,
-    workers: int,
-    start: gtsam.Values | None = None,
-    rounds_start: RoundsStart | None = None,
-) -> tuple[JointCalibration, gtsam.Values]:
-    """The joint solve over all ``data`` (its segments shared out among ``workers``
-    processes; from the graph-wide variables of ``start`` and the robust rounds from
-    ``rounds_start``, if given), with the progress lines a user waits for, and the
-    solution's values."""
-    say(f"joint solve over all {len(data)} selected segments")
-    result, values = solve_joint(data, settings, workers, start=start, rounds_start=rounds_start)
-    chi2 = result.chi2_per_dof
-    fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
-    say(f"  {result.iterations} iterations{fit}")
-    return result, values
 
 
 def _with_total_offset(
