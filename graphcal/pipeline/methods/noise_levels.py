@@ -15,8 +15,10 @@ from graphcal.pipeline.solvers.residual_noise import CORRELATED_ERRORS, Residual
 from graphcal.progress import say
 
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this
-#: share (a variance component; one more solve).
-POSITION_NOISE_TOLERANCE = 0.25
+#: share (a variance component; one more solve): at most √1.5 − 1, so that noise left as
+#: found never fails the trust check's χ²/dof ≤ 1.5 (at 0.25, a car's 1.10 m white fixes
+#: weighted as 0.887 m were left so, χ²/dof 1.58, "not trusted").
+POSITION_NOISE_TOLERANCE = 0.2
 #: The fixes' white sigma stays at least this share of their residuals' RMS when a shared
 #: error explains the rest (the tracking residuals never near-hard).
 MIN_WHITE_SHARE = 0.1
@@ -54,12 +56,14 @@ def with_noise_levels(
     A real robot with motion capture (a profile's 0.0002 rev, the heading's 0.09° white
     noise) showed corrections at χ² 4 per row and heading residuals of 0.2°: χ²/dof 5.
 
-    ``fixes`` false: the fixes' noise stays the settings' (:func:`fixes_reweighted`).
+    ``fixes`` false: the fixes' noise stays the settings' where they share a modelled error
+    (:func:`fixes_reweighted`).
     """
     noise = whole.noise
     x, y, _ = settings.pose_weights
     sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
     position, heading, wheel = float(sigmas[0]), float(sigmas[2]), settings.wheel_noise
+    fixes = fixes or settings.fix_error_sigma == 0.0  # white fixes: their RMS is theirs
     drift = slow_fix_error(noise, settings, dt) if fixes else None
     found = honest_sigma(noise.position, noise.position_correlation) if fixes else None
     if drift is not None:
