@@ -320,6 +320,22 @@ SLOW = [
     pytest.param(
         _shape(
             route="straight",
+            length_m=2143.0,
+            gnss_rate=2.5,
+            noise_sigma=1.11,
+            heading=False,
+            imu=False,
+            park_s=0.0,
+            lever_arm=(1.5, -0.5),
+            seed=65536,
+        ),
+        id="car-straight-white-fixes-found-twice",  # seed 13's shape 2: 1.10 m fixes left
+        # weighted as the 0.887 m an over-fitted solve showed (within the old 25 %), χ²/dof
+        # 1.58, "not trusted"
+    ),
+    pytest.param(
+        _shape(
+            route="straight",
             length_m=1677.0,
             gnss_rate=2.5,
             noise_sigma=1.82,
