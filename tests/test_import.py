@@ -482,7 +482,8 @@ def test_lateral_acceleration_from_the_wheels_is_derived_again_with_the_solved_t
 @pytest.mark.slow
 def test_a_csv_written_by_import_keeps_what_its_rows_cannot_say(recording, tmp_path):
     """Counts interpolated onto the grid are no longer whole, and a_y from the wheels looks
-    like any a_y: the import's sidecar keeps the tick resolution and where a_y came from,
+    like any a_y, resampled speeds no longer show their noise: the import's sidecar keeps the
+    tick resolution, where a_y came from and the wheel rates' noise,
     and loading the CSV reads them back."""
     from graphcal.log.load import load_drive_log
 
@@ -496,6 +497,8 @@ def test_a_csv_written_by_import_keeps_what_its_rows_cannot_say(recording, tmp_p
     log = load_drive_log(out)
     assert log.ay_from_wheels
     assert log.tick_resolution is None  # m/s speeds
+    imported = import_recording(manifest).log  # the speeds' own noise, read before resampling
+    assert imported.wheel_noise is not None and log.wheel_noise == imported.wheel_noise
     counted = tmp_path / "counted"
     write_streams(simulate_streams(1.0, 2, settings=StreamSettings(wheel_kind="ticks")), counted)
     out = tmp_path / "counted.csv"

@@ -141,8 +141,9 @@ def load_drive_log(
 def _from_import_sidecar(path: Path) -> dict:
     """What the ``<stem>.json`` sidecar that ``graphcal import`` wrote beside the CSV says
     that the CSV cannot: the wheels' tick resolution (``ticks_per_revolution``; counts
-    interpolated onto the grid are no longer whole and cannot be found again) and whether
-    ``ay`` came from the wheels (``ay_from_wheels``). Empty without such a sidecar."""
+    interpolated onto the grid are no longer whole and cannot be found again), whether
+    ``ay`` came from the wheels (``ay_from_wheels``) and the white noise of the wheel rates
+    before they were resampled (``wheel_noise_rev_per_step``). Empty without such a sidecar."""
     meta = graphcal_json(path.with_name(f"{path.stem}.json"), made_by="import")
     if meta is None:
         return {}
@@ -152,4 +153,7 @@ def _from_import_sidecar(path: Path) -> dict:
         found["tick_resolution"] = 1.0 / float(ticks)
     if meta.get("ay_from_wheels") is True:
         found["ay_from_wheels"] = True
+    noise = meta.get("wheel_noise_rev_per_step")
+    if isinstance(noise, int | float) and not isinstance(noise, bool) and noise > 0:
+        found["wheel_noise"] = float(noise)
     return found

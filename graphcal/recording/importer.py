@@ -101,6 +101,7 @@ class ImportedLog:
             "ticks_per_revolution": None
             if self.log.tick_resolution is None
             else round(1.0 / self.log.tick_resolution),
+            "wheel_noise_rev_per_step": self.log.wheel_noise,
             "warnings": list(self.warnings),
         }
         if self.truth is not None:
