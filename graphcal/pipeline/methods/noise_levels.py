@@ -76,8 +76,10 @@ def with_noise_levels(
             if drift is None:
                 say(f"  not the {position:g} m the settings assume: solved again with it")
             position = found
-    fix_sigma = _fix_sigma(position, drift[1] if drift is not None else settings.fix_error_sigma)
-    if _far_apart(fix_sigma, _fix_sigma(float(sigmas[0]), settings.fix_error_sigma)):
+    slow = {} if drift is None else {"fix_error_sigma": drift[1], "fix_error_time": drift[2]}
+    if fixes_reweighted(
+        settings, dataclasses.replace(settings, position_sigma=position * np.sqrt(x), **slow)
+    ):
         say("  the heading's and the wheels' noise judged after a solve under the fixes' own")
         has_heading, chi2 = False, None  # a misfit of far wrong fix weights, not their noise
     else:
@@ -102,7 +104,6 @@ def with_noise_levels(
     ):
         return settings
     weight = float(f"{(position / heading) ** 2:.6g}")
-    slow = {} if drift is None else {"fix_error_sigma": drift[1], "fix_error_time": drift[2]}
     return dataclasses.replace(
         settings,
         position_sigma=position * np.sqrt(x),
@@ -151,11 +152,6 @@ def fixes_reweighted(before: JointSettings, after: JointSettings) -> bool:
     new = _fix_sigma(
         float(pose_sigmas(after.pose_weights, after.position_sigma)[0]), after.fix_error_sigma
     )
-    return _far_apart(new, old)
-
-
-def _far_apart(new: float, old: float) -> bool:
-    """``new`` more than :data:`REWEIGHTED` times ``old`` or less than its inverse."""
     return not 1.0 / REWEIGHTED <= new / old <= REWEIGHTED
 
 

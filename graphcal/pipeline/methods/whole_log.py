@@ -76,7 +76,7 @@ from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
 from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
 
-#: Why a parameter that left its plausible range in the first solve is held at its prior.
+#: Why a parameter that left its plausible range in a solve is held at its prior.
 RUNAWAY_REASON = "it left its plausible range in a free solve; held at its prior"
 
 
@@ -236,7 +236,7 @@ def _holding_a_runaway(
     rounds: int,
 ) -> Solved:
     """The whole-log solve under ``settings``, which hold the parameters that ran out of
-    their plausible range in the first solve (``runaway``) at their prior; ``runaway``
+    their plausible range in a solve (``runaway``) at their prior; ``runaway``
     raised again when the data determine one of them (then the data put it there: wrong
     units, not a weak direction).
 
@@ -248,7 +248,7 @@ def _holding_a_runaway(
     (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`)."""
     them = "it" if len(runaway.names) == 1 else "them"
     say(
-        f"{', '.join(runaway.names)} left the plausible range in the first solve: solved again "
+        f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
         f"held at the prior, to see whether the data determine {them}"
     )
     whole, values, data, offset = solve_with_time_offset(prepared, settings, workers, rounds=rounds)
