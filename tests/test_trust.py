@@ -11,16 +11,19 @@ import pytest
 from graphcal.cli import main
 from graphcal.graph.optimization.solve_options import SolveOutcome, SolveStatus
 from graphcal.log.drive_log import write_drive_log
+from graphcal.log.segments import gather_segments, split_segments
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.end_to_end.trust import (
     EXIT_UNTRUSTED,
     MAX_CHI2_PER_DOF,
     NORMAL_IQR,
+    ValidationErrors,
     assess_trust,
     spread_ratio,
     validates_worse,
 )
 from graphcal.pipeline.methods.agreement import Agreement, segment_agreement
+from graphcal.pipeline.methods.validation import position_error_spread, position_errors
 from graphcal.statistics import chi2_survival
 
 CLEAN = dict(
@@ -29,8 +32,7 @@ CLEAN = dict(
     batch_theta=None,
     batch_covariance=None,
     calibrated=np.ones(4, bool),
-    validation_calibrated=0.3,
-    validation_nominal=9.0,
+    validation=ValidationErrors(0.3, 9.0),
 )
 
 
@@ -52,7 +54,7 @@ def test_a_clean_run_is_trusted():
     [
         ({"solve": SolveOutcome(SolveStatus.ITERATION_LIMIT, 30, 30)}, "iteration limit"),
         ({"chi2_per_dof": MAX_CHI2_PER_DOF + 0.3}, "do not fit the noise model"),
-        ({"validation_calibrated": 10.0}, "validates worse than the nominal"),
+        ({"validation": ValidationErrors(10.0, 9.0)}, "validates worse than the nominal"),
     ],
 )
 def test_each_check_makes_the_run_untrusted(change, says):
@@ -201,5 +203,25 @@ def test_validation_worse_by_its_segments_paired_differences():
     assert not validates_worse(nominal - 0.1, nominal)
     assert validates_worse(np.array([1.01, 1.0]), np.array([1.0, 0.99]))  # two: any amount
     assert validates_worse(1.01, 1.0) and not validates_worse(np.array([np.nan]), 1.0)
-    trust = assess_trust(**{**CLEAN, "validation_calibrated": noisy, "validation_nominal": nominal})
+    # the calibration's own σ moving its validation error by 0.01 m: 0.01 m worse is not
+    assert not validates_worse(1.01, 1.0, theta_spread=0.01)
+    assert validates_worse(1.03, 1.0, theta_spread=0.01)
+    assert not validates_worse(nominal + 0.02, nominal, theta_spread=0.05)
+    trust = assess_trust(**{**CLEAN, "validation": ValidationErrors(noisy, nominal)})
     assert trust.trusted
+
+
+@pytest.mark.parametrize("offset", [0.0, 3.0])
+def test_validation_spread_is_the_scatter_of_the_error_under_theta_sigma(drive, offset):
+    """The σ of the mean validation error that theta's σ makes, against the scatter of that
+    error over thetas drawn with that σ (at the truth, and 3σ off it)."""
+    log = drive.measured
+    data = gather_segments(log, split_segments(log, 300.0).subset(np.arange(2)))
+    sigma = np.array([0.5e-3, 0.05e-3, 5e-3, 0.0])
+    theta = drive.theta_true + offset * sigma
+    rng = np.random.default_rng(0)
+    draws = [np.mean(position_errors(data, theta + sigma * rng.standard_normal(4)))
+             for _ in range(200)]  # fmt: skip
+    spread = position_error_spread(data, theta, np.diag(sigma**2))
+    assert spread == pytest.approx(np.std(draws), rel=0.3)
+    assert position_error_spread(data, theta, None) == 0.0

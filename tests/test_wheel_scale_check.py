@@ -130,17 +130,23 @@ def test_a_wrong_tick_count_is_still_refused(skid, tmp_path, capsys, ticks):
     assert "check [wheels] ticks_per_revolution" in err, err
 
 
-def test_the_skid_steer_profile_calibrates_its_own_simulation(tmp_path, capsys):
+@pytest.mark.parametrize("seed", [0, 4])
+def test_the_skid_steer_profile_calibrates_its_own_simulation(tmp_path, capsys, seed):
     """``graphcal simulate --vehicle data/vehicles/skid_steer_robot.toml --streams DIR`` then
     ``graphcal calibrate DIR/manifest.toml`` with the same profile: exit 0 (issue 43: exit 2,
-    "the wheels travel 0.527x the distance of the GNSS track")."""
+    "the wheels travel 0.527x the distance of the GNSS track"; seed 4: exit 3, c_e and t_r
+    within 1σ called "validates worse than nominal", 2.55 vs 2.45 m on its one segment with
+    c_d at its nominal)."""
     directory = tmp_path / "skid"
-    assert main(["simulate", "--vehicle", str(SKID), "--streams", str(directory)]) == 0
+    args = ["simulate", "--vehicle", str(SKID), "--streams", str(directory), "--seed", str(seed)]
+    assert main(args) == 0
     out = tmp_path / "out"
     code = main(["calibrate", str(directory / "manifest.toml"), "--vehicle", str(SKID),
                  "--out", str(out)])  # fmt: skip
     assert code == 0, capsys.readouterr().err
-    c_e = json.loads((out / "calibration.json").read_text())["parameters"]["c_e"]
-    truth = json.loads((directory / "truth.json").read_text())["theta_true"]["c_e"]
-    assert c_e["status"] == "calibrated"
-    assert abs(c_e["value"] - truth) < 3 * c_e["sigma"], (c_e, truth)
+    parameters = json.loads((out / "calibration.json").read_text())["parameters"]
+    truth = json.loads((directory / "truth.json").read_text())["theta_true"]
+    assert parameters["c_e"]["status"] == "calibrated"
+    for name, entry in parameters.items():
+        if entry["status"] == "calibrated":
+            assert abs(entry["value"] - truth[name]) < 3 * entry["sigma"], (name, entry, truth)

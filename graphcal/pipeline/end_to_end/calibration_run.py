@@ -13,12 +13,17 @@ from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, Segments
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.configuration.settings import Settings
-from graphcal.pipeline.end_to_end.trust import TrustAssessment, assess_trust, circumference_warning
+from graphcal.pipeline.end_to_end.trust import (
+    TrustAssessment,
+    ValidationErrors,
+    assess_trust,
+    circumference_warning,
+)
 from graphcal.pipeline.methods.model_check import ModelCheck
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import DownWeightedFixes, SensorEstimate
 from graphcal.pipeline.methods.staged import StagedResult
-from graphcal.pipeline.methods.validation import position_errors
+from graphcal.pipeline.methods.validation import position_error_spread, position_errors
 from graphcal.pipeline.methods.whole_log import WholeLog
 from graphcal.pipeline.solvers.joint import JointCalibration
 from graphcal.progress import say
@@ -224,6 +229,7 @@ def _trust(
     and that is what its verdict and σ already say)."""
     whole = None if solved is None else solved.whole
     calibrated, nominal = segment_errors["calibrated"], segment_errors["nominal"]
+    claimed = result.theta
     if result.observability is not None and not result.observability.calibrated.all():
         claimed = np.where(result.observability.calibrated, result.theta, theta_nominal)
         calibrated = position_errors(validation, claimed)
@@ -240,8 +246,9 @@ def _trust(
         batch_covariance=result.batch_covariance.get("joint"),
         calibrated=observability.calibrated if observability is not None else np.ones(4, bool),
         agreement=None if solved is None else solved.agreement,
-        validation_calibrated=calibrated,
-        validation_nominal=nominal,
+        validation=ValidationErrors(
+            calibrated, nominal, position_error_spread(validation, claimed, result.covariance)
+        ),
     )
 
 

@@ -99,3 +99,25 @@ def _errors_at_fixes(
     used = fixes.copy()
     used[:, 0] = False
     return (distance * used).sum(axis=1) / np.maximum(used.sum(axis=1), 1)
+
+
+def position_error_spread(
+    data: SegmentData, theta: np.ndarray, covariance: np.ndarray | None
+) -> float:
+    """σ [m] of the segments' mean position error (:func:`position_errors`) that theta's
+    own uncertainty makes, ``covariance`` ``(4, 4)`` [SI] (0 without one): to first order,
+    with each parameter's slope taken as the secant over ±1σ (the error is about ``|x|``
+    near its minimum, where a tangent would say nothing)."""
+    if covariance is None or not np.all(np.isfinite(covariance)):
+        return 0.0
+    sigma = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    varied = np.flatnonzero(sigma > 0.0)
+    if len(varied) == 0:
+        return 0.0
+    steps = np.zeros((2 * len(varied), len(theta)))
+    steps[np.arange(len(varied)), varied] = sigma[varied]
+    steps[len(varied) + np.arange(len(varied)), varied] = -sigma[varied]
+    errors = np.array([np.mean(position_errors(data, theta + step)) for step in steps])
+    slope = (errors[: len(varied)] - errors[len(varied) :]) / (2.0 * sigma[varied])
+    variance = slope @ covariance[np.ix_(varied, varied)] @ slope
+    return float(np.sqrt(max(variance, 0.0)))
