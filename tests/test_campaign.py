@@ -353,6 +353,25 @@ SLOW = [
         ),
         id="straight-correlated-fixes-confidently-wrong",
     ),
+    pytest.param(
+        _shape(
+            vehicle="skid-steer",
+            route="yard",
+            length_m=175.0,
+            gnss_rate=5.0,
+            heading=True,
+            wheels="angular_speed",
+            drives=3,
+            gap_s=33.0,
+            park_s=0.0,
+            time_offset_s=0.03,
+            lever_arm=(0.0, 0.0),
+            seed=452,
+        ),
+        id="skid-steer-spins-fused-heading",  # seed 13's shape 4: the datasheet track (half
+        # the effective one) turned the graph's reference path through > π too much in the
+        # spins; a rebuilt graph's heading residuals 2π off, χ²/dof 5942, exit 2 after 102 s
+    ),
 ]
 
 

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from graphcal.model import wrap_angle
+
 
 def tracking_residuals(
     at_fix: np.ndarray,
@@ -16,7 +18,10 @@ def tracking_residuals(
     """``measurement_k − measured_k`` of the poses ``k = 1..L`` ``(C, L, 3)``, the predicted
     measurement ``[p_k + R(ψ_k) · arm, ψ_k + bias]``; and how its x and y move with the
     heading beyond the state's own (the lever arm turning with it, ``(C, L, 2)``; ``None``
-    without a lever arm)."""
+    without a lever arm). The heading's residual is wrapped to ``(−π, π]``: a chunk's start
+    pose is unwrapped against a reference heading from the path the graph was built on, a
+    branch 2π away where that path turned through more than π too much (a skid-steer robot
+    integrated with its datasheet track, half its effective one, spinning on the spot)."""
     residual = at_fix - measured_poses[:, 1:]
     turn = None
     if lever_arm is not None:
@@ -27,6 +32,7 @@ def tracking_residuals(
         turn = np.stack([-sin * ahead - cos * left, cos * ahead - sin * left], axis=-1)
     if heading_bias is not None:
         residual[..., 2] += heading_bias[:, None]
+    residual[..., 2] = wrap_angle(residual[..., 2])  # whatever branch the state is on
     return residual, turn
 
 
