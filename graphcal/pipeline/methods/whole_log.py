@@ -199,19 +199,40 @@ def _holding_runaways(
     start: StoppedAt | None = None,
     solved: tuple[JointCalibration, gtsam.Values] | None = None,
     rounds: int = OFFSET_ROUNDS,
+    noisier_judged: bool = False,
 ) -> tuple[Settings, Solved]:
     """:func:`solve_with_time_offset` of ``prepared`` (``solved``: the solve under these
     settings the rounds go on from); parameters that run out of their plausible range are
     held at their prior (:func:`_holding_a_runaway`, recorded in ``held``) and the settings
-    holding them returned."""
+    holding them returned; a runaway whose held solve shows far noisier fixes is solved
+    again free under their noise, once (``noisier_judged``: that was done)."""
     try:
         return settings, solve_with_time_offset(
             prepared, settings.joint, workers, start, rounds, solved
         )
     except ImplausibleTheta as runaway:
-        settings = dataclasses.replace(settings, joint=settings.joint.holding(runaway.names))
+        holding = settings.joint.holding(runaway.names)
+        try:
+            outcome = _holding_a_runaway(prepared, holding, runaway, workers, rounds)
+        except _NoisierFixes as noisier:  # the runaway judged again under their own noise
+            if noisier_judged:
+                raise runaway from None
+            joint = dataclasses.replace(
+                noisier.settings, held_at_prior=settings.joint.held_at_prior
+            )
+            settings = dataclasses.replace(settings, joint=joint)
+            return _holding_runaways(prepared, settings, held, workers, None, None, rounds, True)
         held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
-        return settings, _holding_a_runaway(prepared, settings.joint, runaway, workers, rounds)
+        return dataclasses.replace(settings, joint=holding), outcome
+
+
+class _NoisierFixes(Exception):
+    """A runaway's held solve shows fixes far noisier than the solve weighted them: the
+    runaway is judged again under ``settings``, their own noise."""
+
+    def __init__(self, settings: JointSettings):
+        super().__init__("fixes noisier than weighted")
+        self.settings = settings
 
 
 def _with_lateral_acceleration(prepared: PreparedLog, theta: np.ndarray) -> PreparedLog:
@@ -245,7 +266,13 @@ def _holding_a_runaway(
     to 0.49 m (its prior 1.5 ± 0.2 m) in 50 iterations, and "check the units" ended a valid
     recording. Whether a direction is determined is read from the held solve's covariance
     with the weak prior put back
-    (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`)."""
+    (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`) — under noise levels
+    that fit: where the held solve's residuals show fixes :data:`REWEIGHTED
+    <graphcal.pipeline.methods.noise_levels.REWEIGHTED>` times noisier than weighted,
+    :class:`_NoisierFixes` is raised for the free solve to be repeated under them (a
+    delivery robot's 17-tick counters, its fixes wandering by 0.74 m weighted as the
+    profile's 0.05 m: c_e and t_r negative, then "determined" at χ²/dof 7.2, "check the
+    units")."""
     them = "it" if len(runaway.names) == 1 else "them"
     say(
         f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
@@ -253,6 +280,13 @@ def _holding_a_runaway(
     )
     whole, values, data, offset = solve_with_time_offset(prepared, settings, workers, rounds=rounds)
     if any(data_determine(whole, settings, runaway.names)):
+        noise = with_noise_levels(whole, settings, prepared.data.has_heading(), prepared.log.dt)
+        if fixes_reweighted(settings, noise):
+            say(
+                "  the fixes are far noisier than that solve weighted them: the free solve "
+                "again under their own noise, before the runaway is judged"
+            )
+            raise _NoisierFixes(noise)
         raise runaway
     return whole, values, data, offset
 
