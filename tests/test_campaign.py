@@ -202,6 +202,22 @@ EXAMPLES = [
         ),
         id="ticks-128-skid-steer",
     ),
+    pytest.param(  # seed 14's shape 7: refused, "the heading differs from the direction of
+        # travel by -27° on average", the median of courses between fixes 1.9 m noisy, 1 m apart
+        _shape(
+            vehicle="skid-steer",
+            route="yard",
+            length_m=123.0,
+            gnss_rate=1.0,
+            noise_sigma=1.95,
+            heading=True,
+            imu=False,
+            park_s=6.0,
+            lever_arm=(-0.15, 0.0),
+            seed=290,
+        ),
+        id="heading-against-a-noisy-course",
+    ),
 ]
 
 
