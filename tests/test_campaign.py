@@ -388,6 +388,22 @@ SLOW = [
         # the effective one) turned the graph's reference path through > π too much in the
         # spins; a rebuilt graph's heading residuals 2π off, χ²/dof 5942, exit 2 after 102 s
     ),
+    pytest.param(
+        _shape(
+            vehicle="differential",
+            route="yard",
+            length_m=117.0,
+            gnss_rate=0.5,
+            noise_sigma=0.36,
+            heading=True,
+            park_s=0.0,
+            time_offset_s=-0.012,
+            lever_arm=(-0.17, 0.0),
+            seed=114,
+        ),
+        id="differential-few-fixes-noisier",  # seed 15's shape 2: 78 fixes, fewer than the
+        # 100 a noise estimate needed; 0.36 m fixes kept weighted as 0.05 m, χ²/dof 26, exit 3
+    ),
 ]
 
 
