@@ -35,8 +35,9 @@ from graphcal.model import THETA_NOMINAL
 
 #: Largest plausible distance [m] of a position from the local frame's origin (1000 km).
 MAX_POSITION = 1e6
-#: Accepted range of GNSS distance / wheel distance over the whole log, and the window [s]
-#: over which both are compared.
+#: Accepted range of GNSS distance / wheel distance over the whole log (the fixes' white
+#: noise fitted out of the chords: a robot's 1 Hz fixes of 1.9 m doubled 2 m chords), and the
+#: window [s] over which both are compared.
 DISTANCE_RATIO_RANGE = (0.5, 2.0)
 RATIO_WINDOW_S = 2.0
 #: The comparison's windows must each travel :data:`RATIO_MIN_WINDOW_REVS` wheel revolutions
@@ -53,6 +54,10 @@ SPIKE_EXCESS_REVS = 1.5
 HEADING_EXCESS = 0.25
 #: Samples masked on each side of a jump [s] (the fix before and after it).
 SPIKE_MARGIN_S = 0.5
+#: The range of :func:`wheel_turn_scale` (the coarse search's: a skid-steer vehicle's
+#: effective track is 1.5–2.5 times its datasheet's) and the turning steps it needs.
+WHEEL_TURN_SCALES = (1.0 / 3.0, 3.0)
+MIN_TURN_STEPS = 10
 #: Fixes off the track for at most this long [s], the next fix back on it, are an isolated
 #: spike: flagged outlying, not masked.
 SPIKE_RETURN_S = 1.0
@@ -109,8 +114,15 @@ def position_problem(
     usable = clean & (wheels >= RATIO_MIN_WINDOW_REVS * nominal[0])
     if wheels[usable].sum() < RATIO_MIN_REVS * nominal[0]:
         return None
-    ratio = chords[usable].sum() / wheels[usable].sum()
+    # A chord between noisy fixes is longer than the path: E|chord|² = d² + 4σ² per window
+    # at most (two ends, two axes; less where an end lies between fixes). Too long only with
+    # that taken out, too short as it is.
+    squared, rolled = np.sum(chords[usable] ** 2), np.sum(wheels[usable] ** 2)
+    noise = 4.0 * usable.sum() * _white_fix_variance(log)
     low, high = DISTANCE_RATIO_RANGE
+    ratio = np.sqrt(squared / rolled)
+    if ratio > high:
+        ratio = np.sqrt(max(squared - noise, 0.0) / rolled)
     if not low <= ratio <= high:
         return (
             f"the positions travel {ratio:.3g}x the distance the wheel rotations imply "
@@ -120,6 +132,17 @@ def position_problem(
             "check the vehicle's nominal c_e (--vehicle)"
         )
     return None
+
+
+def _white_fix_variance(log) -> float:
+    """Variance [m²] per axis of the fixes' white noise: the scatter (MAD) of the distinct
+    fixes' second differences over 6; 0 for fewer than 10 fixes."""
+    rows = np.flatnonzero(log.position_measured)
+    if len(rows) < 10:
+        return 0.0
+    second = np.concatenate([np.diff(log.px[rows], 2), np.diff(log.py[rows], 2)])
+    spread = 1.4826 * np.median(np.abs(second - np.median(second)))
+    return float(spread**2 / 6.0)
 
 
 def inconsistent_samples(
@@ -240,17 +263,20 @@ def _position_spikes(
 def _heading_jumps(
     log, margin: int, explained: np.ndarray, notes: list[str], nominal: np.ndarray
 ) -> np.ndarray:
-    """Samples around a heading step far from the yaw the wheels imply (nominal theta), from
-    each measured heading to the next (per step in a uniform log), ``(N,)``; one note per
-    span not ``explained`` by a frozen fix or a position jump."""
+    """Samples around a heading step far from the yaw the wheels imply (nominal theta, scaled
+    to the heading's turns: :func:`wheel_turn_scale`), from each measured heading to the next
+    (per step in a uniform log), ``(N,)``; one note per span not ``explained`` by a frozen
+    fix or a position jump."""
     n = len(log)
     wheel_yaw = (log.n_rr[:-1] - log.n_rl[:-1]) * nominal[0] / nominal[2]
     headings = np.flatnonzero(log.heading_measured)
     if len(headings) == n:
-        yaw_excess = np.abs(np.diff(log.psi) - wheel_yaw)
+        measured_turn, wheel_turn = np.diff(log.psi), wheel_yaw
     else:
         turned = np.concatenate([[0.0], np.cumsum(wheel_yaw)])[headings]
-        yaw_excess = np.abs(np.diff(log.psi[headings]) - np.diff(turned))
+        measured_turn, wheel_turn = np.diff(log.psi[headings]), np.diff(turned)
+    scale = wheel_turn_scale(measured_turn, wheel_turn)
+    yaw_excess = np.abs(measured_turn - scale * wheel_turn)
     step_excess = yaw_excess  # per step, for the notes
     if len(headings) < n:
         step_excess = np.zeros(n - 1)
@@ -270,6 +296,26 @@ def _heading_jumps(
             f"{np.degrees(step_excess[a : max(a + 1, b)].max()):.0f}° more than the wheels turn)"
         )
     return turns
+
+
+def wheel_turn_scale(measured_turn: np.ndarray, wheel_turn: np.ndarray) -> float:
+    """How many times the heading turns as much as the wheels at the nominal theta: the
+    median of their ratio over the steps where the wheels turn most (the upper quarter),
+    within :data:`WHEEL_TURN_SCALES`; 1 for fewer than :data:`MIN_TURN_STEPS` of them or a
+    ratio that is not positive (a heading turning against the wheels is another check's).
+    A skid-steer robot's datasheet track is half its effective one: at the nominal its
+    wheels turn twice as far as its heading, and its spins on the spot read as heading
+    jumps (a 1 Hz heading: "64° more than the wheels turn", 6 s masked)."""
+    size = np.abs(wheel_turn)
+    if len(size) == 0:
+        return 1.0
+    turning = size >= max(float(np.percentile(size, 75)), np.finfo(float).tiny)
+    if turning.sum() < MIN_TURN_STEPS:
+        return 1.0
+    ratio = float(np.median(measured_turn[turning] / wheel_turn[turning]))
+    if not ratio > 0.0:
+        return 1.0
+    return float(np.clip(ratio, *WHEEL_TURN_SCALES))
 
 
 def _returns(
