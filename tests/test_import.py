@@ -488,17 +488,23 @@ def test_a_csv_written_by_import_keeps_what_its_rows_cannot_say(recording, tmp_p
     from graphcal.log.load import load_drive_log
 
     manifest = recording / "manifest.toml"
-    text = manifest.read_text().split("\n[imu]")[0]
+    original = manifest.read_text()
+    text = original.split("\n[imu]")[0]
     for line in ('heading = "heading"', 'heading_unit = "deg"', 'heading_convention = "compass"'):
         text = text.replace(line + "\n", "")
     manifest.write_text(text + "\n")
     out = tmp_path / "drive.csv"
     assert main(["import", str(manifest), "--out", str(out)]) == 0
     log = load_drive_log(out)
-    assert log.ay_from_wheels
+    assert log.ay_from_wheels and not log.ay_from_heading
     assert log.tick_resolution is None  # m/s speeds
     imported = import_recording(manifest).log  # the speeds' own noise, read before resampling
     assert imported.wheel_noise is not None and log.wheel_noise == imported.wheel_noise
+    headed = tmp_path / "headed.csv"  # no IMU, a heading: a_y from the heading
+    (recording / "headed.toml").write_text(original.split("\n[imu]")[0] + "\n")
+    assert main(["import", str(recording / "headed.toml"), "--out", str(headed)]) == 0
+    log = load_drive_log(headed)
+    assert log.ay_from_heading and not log.ay_from_wheels
     counted = tmp_path / "counted"
     write_streams(simulate_streams(1.0, 2, settings=StreamSettings(wheel_kind="ticks")), counted)
     out = tmp_path / "counted.csv"

@@ -67,7 +67,8 @@ class DriveLog:
     they are counts, :mod:`graphcal.log.quantization`). ``ay_from_wheels``: ``ay`` was
     derived from the wheels with the nominal theta (no IMU, no heading:
     :func:`graphcal.model.wheel_lateral_acceleration`), to be derived again with a solved
-    one. ``pose_source`` is what measured the pose when the recording says so: ``"GNSS"``
+    one; ``ay_from_heading``: ``ay`` is the wheels' speed times the measured heading's rate (no
+    IMU). ``pose_source`` is what measured the pose when the recording says so: ``"GNSS"``
     for geodetic fixes (a manifest's latitude and longitude, a bag's NavSatFix); ``None``
     when not known (a drive-log CSV, a local x/y pose: motion capture, a fused pose),
     which reports call the "position source" (:meth:`position_sensor`). ``wheel_noise``
@@ -91,6 +92,7 @@ class DriveLog:
     fix_lag: np.ndarray | None = field(default=None, compare=False)
     tick_resolution: float | None = field(default=None, compare=False)
     ay_from_wheels: bool = field(default=False, compare=False)
+    ay_from_heading: bool = field(default=False, compare=False)
     run: np.ndarray | None = field(default=None, compare=False)
     pose_source: str | None = field(default=None, compare=False)
     wheel_noise: float | None = field(default=None, compare=False)

@@ -142,7 +142,8 @@ def _from_import_sidecar(path: Path) -> dict:
     """What the ``<stem>.json`` sidecar that ``graphcal import`` wrote beside the CSV says
     that the CSV cannot: the wheels' tick resolution (``ticks_per_revolution``; counts
     interpolated onto the grid are no longer whole and cannot be found again), whether
-    ``ay`` came from the wheels (``ay_from_wheels``) and the white noise of the wheel rates
+    ``ay`` came from the wheels or the heading (``ay_from_wheels``, ``ay_from_heading``) and
+    the white noise of the wheel rates
     before they were resampled (``wheel_noise_rev_per_step``). Empty without such a sidecar."""
     meta = graphcal_json(path.with_name(f"{path.stem}.json"), made_by="import")
     if meta is None:
@@ -151,8 +152,9 @@ def _from_import_sidecar(path: Path) -> dict:
     ticks = meta.get("ticks_per_revolution")
     if isinstance(ticks, int | float) and not isinstance(ticks, bool) and ticks >= 1:
         found["tick_resolution"] = 1.0 / float(ticks)
-    if meta.get("ay_from_wheels") is True:
-        found["ay_from_wheels"] = True
+    for derived in ("ay_from_wheels", "ay_from_heading"):
+        if meta.get(derived) is True:
+            found[derived] = True
     noise = meta.get("wheel_noise_rev_per_step")
     if isinstance(noise, int | float) and not isinstance(noise, bool) and noise > 0:
         found["wheel_noise"] = float(noise)

@@ -98,6 +98,7 @@ class ImportedLog:
             "masked": list(self.log.mask_notes),
             "heading": "not logged (positions only)" if r.heading_derived else "logged",
             "ay_from_wheels": self.log.ay_from_wheels,
+            "ay_from_heading": self.log.ay_from_heading,
             "ticks_per_revolution": None
             if self.log.tick_resolution is None
             else round(1.0 / self.log.tick_resolution),
@@ -216,6 +217,8 @@ def import_recording(
         log = dataclasses.replace(log, wheel_noise=noise)
     if resampled.ay_from_wheels:
         log = dataclasses.replace(log, ay_from_wheels=True)
+    if resampled.ay_from_heading:
+        log = dataclasses.replace(log, ay_from_heading=True)
     if recording.pose.origin is not None:  # geodetic fixes: a GNSS receiver's
         log = dataclasses.replace(log, pose_source="GNSS")
     return ImportedLog(

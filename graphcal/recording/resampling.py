@@ -76,6 +76,7 @@ class Resampled:
     notes: tuple[str, ...] = field(default=())
     heading_derived: bool = False
     ay_from_wheels: bool = False
+    ay_from_heading: bool = False
     measured: np.ndarray | None = None
     fix_lag: np.ndarray | None = None
 
@@ -155,6 +156,9 @@ def resample(
         ay_from_wheels=(imu is None or imu.lateral_acceleration is None)
         and (imu is None or imu.yaw_rate is None)
         and pose.heading is None,
+        ay_from_heading=(imu is None or imu.lateral_acceleration is None)
+        and (imu is None or imu.yaw_rate is None)
+        and pose.heading is not None,
         measured=fixes.measured,
         fix_lag=fixes.lag,
     )

@@ -127,19 +127,23 @@ def _with_d_the_drive_can_show(
     log: DriveLog, data: SegmentData, settings: Settings
 ) -> tuple[Settings, dict[str, str]]:
     """``settings`` holding d at its prior when its lateral acceleration comes from the
-    wheels (no IMU, no heading) and the drive barely turns, and why (name → reason; else
-    ``settings`` and nothing). d · a_y then fits the noise of the wheels' own left/right
-    difference, from which a_y is taken, not a load transfer: on a straight road it is one
-    weak direction with c_d, and a weak prior let d drift along it (2–3 mm·s²/m on the real
-    highway minute) with c_d following, which predicted held-apart road worse (73 → 60 %). Its
-    prior's uncertainty stays in every other parameter's σ."""
-    if not log.ay_from_wheels or settings.joint.fix_d:
+    wheels (no IMU, no heading) or the heading (no IMU) and the drive barely turns, and why
+    (name → reason; else ``settings`` and nothing). d · a_y then fits the noise of the signal
+    a_y is taken from — the wheels' own left/right difference, or the heading the graph also
+    tracks — not a load transfer: on a straight road it is one weak direction with c_d, and
+    a weak prior let d drift along it (2–3 mm·s²/m on the real highway minute) with c_d
+    following, which predicted held-apart road worse (73 → 60 %). From the heading, on the
+    twin's straight roads with a fused heading and no IMU: d −7.6σ and −9.6σ, c_d −3.1σ
+    "calibrated" (held: c_d −0.9σ and +0.1σ). Its prior's uncertainty stays in every other
+    parameter's σ."""
+    source = "wheels" if log.ay_from_wheels else "heading" if log.ay_from_heading else None
+    if source is None or settings.joint.fix_d:
         return settings, {}
     rate = mean_wheel_yaw_rate(data, settings.joint.theta_initial)
     if rate >= D_FROM_WHEELS_MIN_YAW_RATE:
         return settings, {}
     reason = (
-        f"its lateral acceleration comes from the wheels, on a drive that barely turns "
+        f"its lateral acceleration comes from the {source}, on a drive that barely turns "
         f"(mean |yaw rate| {rate:.3f} rad/s): held at its nominal; log an IMU"
     )
     say(f"d not estimated: {reason}")
