@@ -31,6 +31,7 @@ import dataclasses
 
 import numpy as np
 
+from graphcal.log.turns import fix_noise
 from graphcal.model import THETA_NOMINAL
 
 #: Largest plausible distance [m] of a position from the local frame's origin (1000 km).
@@ -118,7 +119,8 @@ def position_problem(
     # at most (two ends, two axes; less where an end lies between fixes). Too long only with
     # that taken out, too short as it is.
     squared, rolled = np.sum(chords[usable] ** 2), np.sum(wheels[usable] ** 2)
-    noise = 4.0 * usable.sum() * _white_fix_variance(log)
+    fixes = log.position_measured
+    noise = 4.0 * usable.sum() * fix_noise({"px": log.px, "py": log.py}, fixes) ** 2
     low, high = DISTANCE_RATIO_RANGE
     ratio = np.sqrt(squared / rolled)
     if ratio > high:
@@ -132,17 +134,6 @@ def position_problem(
             "check the vehicle's nominal c_e (--vehicle)"
         )
     return None
-
-
-def _white_fix_variance(log) -> float:
-    """Variance [m²] per axis of the fixes' white noise: the scatter (MAD) of the distinct
-    fixes' second differences over 6; 0 for fewer than 10 fixes."""
-    rows = np.flatnonzero(log.position_measured)
-    if len(rows) < 10:
-        return 0.0
-    second = np.concatenate([np.diff(log.px[rows], 2), np.diff(log.py[rows], 2)])
-    spread = 1.4826 * np.median(np.abs(second - np.median(second)))
-    return float(spread**2 / 6.0)
 
 
 def inconsistent_samples(
