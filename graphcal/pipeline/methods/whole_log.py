@@ -212,27 +212,21 @@ def _holding_runaways(
         )
     except ImplausibleTheta as runaway:
         holding = settings.joint.holding(runaway.names)
-        try:
-            outcome = _holding_a_runaway(prepared, holding, runaway, workers, rounds)
-        except _NoisierFixes as noisier:  # the runaway judged again under their own noise
-            if noisier_judged:
-                raise runaway from None
-            joint = dataclasses.replace(
-                noisier.settings, held_at_prior=settings.joint.held_at_prior
-            )
-            settings = dataclasses.replace(settings, joint=joint)
-            return _holding_runaways(prepared, settings, held, workers, None, None, rounds, True)
-        held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
-        return dataclasses.replace(settings, joint=holding), outcome
-
-
-class _NoisierFixes(Exception):
-    """A runaway's held solve shows fixes far noisier than the solve weighted them: the
-    runaway is judged again under ``settings``, their own noise."""
-
-    def __init__(self, settings: JointSettings):
-        super().__init__("fixes noisier than weighted")
-        self.settings = settings
+        outcome = _holding_a_runaway(prepared, holding, runaway, workers, rounds)
+        if not any(data_determine(outcome[0], holding, runaway.names)):
+            held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
+            return dataclasses.replace(settings, joint=holding), outcome
+        has_heading, dt = prepared.data.has_heading(), prepared.log.dt
+        noise = with_noise_levels(outcome[0], holding, has_heading, dt)
+        if noisier_judged or not fixes_reweighted(holding, noise):
+            raise runaway from None  # the data put it there: wrong units, not a weak direction
+        say(
+            "  the fixes are far noisier than that solve weighted them: the free solve "
+            "again under their own noise, before the runaway is judged"
+        )
+        joint = dataclasses.replace(noise, held_at_prior=settings.joint.held_at_prior)
+        settings = dataclasses.replace(settings, joint=joint)
+        return _holding_runaways(prepared, settings, held, workers, None, None, rounds, True)
 
 
 def _with_lateral_acceleration(prepared: PreparedLog, theta: np.ndarray) -> PreparedLog:
@@ -257,9 +251,9 @@ def _holding_a_runaway(
     rounds: int,
 ) -> Solved:
     """The whole-log solve under ``settings``, which hold the parameters that ran out of
-    their plausible range in a solve (``runaway``) at their prior; ``runaway``
-    raised again when the data determine one of them (then the data put it there: wrong
-    units, not a weak direction).
+    their plausible range in a solve (``runaway``) at their prior, for
+    :func:`_holding_runaways` to judge whether the data determine them (then the data put
+    them there: wrong units, not a weak direction).
 
     A direction the data barely determine drifts where the model's misfit pulls it, a long
     way under a weak prior: a 2 km straight road from 10 Hz fixes without heading drove t_r
@@ -268,27 +262,16 @@ def _holding_a_runaway(
     with the weak prior put back
     (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`) — under noise levels
     that fit: where the held solve's residuals show fixes :data:`REWEIGHTED
-    <graphcal.pipeline.methods.noise_levels.REWEIGHTED>` times noisier than weighted,
-    :class:`_NoisierFixes` is raised for the free solve to be repeated under them (a
-    delivery robot's 17-tick counters, its fixes wandering by 0.74 m weighted as the
-    profile's 0.05 m: c_e and t_r negative, then "determined" at χ²/dof 7.2, "check the
-    units")."""
+    <graphcal.pipeline.methods.noise_levels.REWEIGHTED>` times noisier than weighted, the
+    free solve is repeated under them first (a delivery robot's 17-tick counters, its fixes
+    wandering by 0.74 m weighted as the profile's 0.05 m: c_e and t_r negative, then
+    "determined" at χ²/dof 7.2, "check the units")."""
     them = "it" if len(runaway.names) == 1 else "them"
     say(
         f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
         f"held at the prior, to see whether the data determine {them}"
     )
-    whole, values, data, offset = solve_with_time_offset(prepared, settings, workers, rounds=rounds)
-    if any(data_determine(whole, settings, runaway.names)):
-        noise = with_noise_levels(whole, settings, prepared.data.has_heading(), prepared.log.dt)
-        if fixes_reweighted(settings, noise):
-            say(
-                "  the fixes are far noisier than that solve weighted them: the free solve "
-                "again under their own noise, before the runaway is judged"
-            )
-            raise _NoisierFixes(noise)
-        raise runaway
-    return whole, values, data, offset
+    return solve_with_time_offset(prepared, settings, workers, rounds=rounds)
 
 
 def _with_total_offset(
