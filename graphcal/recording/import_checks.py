@@ -43,11 +43,10 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     check_units(resampled, recording, nominal)
     check_turning(resampled, recording, nominal)
     warnings = []
-    offset, beyond = _heading_offset(c, usable, dt, nominal, resampled.measured), 0.0
-    if offset is not None:
-        offset, sigma = offset
+    found = _heading_offset(c, usable, dt, nominal, resampled.measured)
+    if found is not None and recording.pose.heading is not None:
+        offset, sigma = found
         beyond = abs(offset) - HEADING_OFFSET_SIGMAS * sigma  # certainly beyond this
-    if offset is not None and recording.pose.heading is not None:
         where = provenance_of(recording.pose).at(("heading",))
         if beyond > HEADING_OFFSET_ERROR:
             raise StreamError(
