@@ -63,8 +63,14 @@ def calibrate_recording(arguments: tuple[str, ...], workers: int) -> dict:
     resolved = [a if a.startswith(("-", "/")) else str(DATA / a) for a in arguments]
     with tempfile.TemporaryDirectory() as tmp:
         command = ["calibrate", *resolved, "--workers", str(workers), "--out", f"{tmp}/out"]
+        # In the temporary directory: ``python -m`` puts the working directory first on the
+        # path, so from a source tree it would import that tree whatever PYTHONPATH says.
         done = subprocess.run(
-            [sys.executable, "-c", _CHILD, *command], capture_output=True, text=True, check=False
+            [sys.executable, "-c", _CHILD, *command],
+            capture_output=True,
+            text=True,
+            check=False,
+            cwd=tmp,
         )
     result = json.loads(done.stdout.strip().splitlines()[-1])
     iterations = solve_iterations(result.pop("lines"))
