@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from graphcal.log.timing import shift_wheel_rotations
+from graphcal.log.timing import shift_wheel_rotations, wheel_lag_from_turns
+from graphcal.model import THETA_NOMINAL
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 
@@ -29,3 +32,42 @@ def test_shifting_the_wheels_undoes_a_latency(clean, late):
     assert np.std(residual) < 1.2 * clean.noise.wheel_rotation  # only the white noise is left
     assert np.std(late_residual) > 1.5 * np.std(residual)  # 0.05 s late: 1.9x here
     np.testing.assert_allclose(undone.n_rl.sum(), late.measured.n_rl.sum(), rtol=1e-3)
+
+
+@pytest.mark.parametrize("latency", [-0.3, 0.0, 0.05, 0.35])
+def test_the_wheels_lag_is_found_from_the_turns_before_any_solve(clean, latency):
+    """What a user of a recording with late wheels gets before the first solve: the lag at
+    which the wheels' turns fit the heading's (1.5° of heading noise), to the sample."""
+    defects = "none" if latency == 0.0 else f"latency={latency}"
+    log = degrade(clean, parse_defects(defects), 1).measured
+    found = wheel_lag_from_turns(log, THETA_NOMINAL)
+    assert found.shape == (1,)
+    assert abs(found[0] - latency) <= log.dt + 1e-9
+    assert found[0] / log.dt == pytest.approx(round(found[0] / log.dt))  # whole samples
+
+
+def test_no_lag_is_claimed_without_a_measured_heading_or_beyond_the_search(clean):
+    late = degrade(clean, parse_defects("latency=0.2"), 1).measured
+    measured = np.ones((len(late.t), 2), bool)
+    measured[:, 1] = False  # positions only
+    no_heading = dataclasses.replace(late, measured=measured)
+    assert not wheel_lag_from_turns(no_heading, THETA_NOMINAL).any()
+    # 0.2 s late, searched within 0.1 s: the best fit is the search's edge, not a lag
+    assert not wheel_lag_from_turns(late, THETA_NOMINAL, max_lag=0.1).any()
+
+
+def test_each_run_has_its_own_lag(clean):
+    """Two drives on one clock, the second's wheels 0.25 s late: each run's own lag."""
+    on_time = clean.measured
+    late = degrade(clean, parse_defects("latency=0.25"), 1).measured
+    half = len(on_time.t) // 2
+    run = (np.arange(len(on_time.t)) >= half).astype(np.int64)
+    joined = dataclasses.replace(
+        on_time,
+        n_rl=np.where(run == 1, late.n_rl, on_time.n_rl),
+        n_rr=np.where(run == 1, late.n_rr, on_time.n_rr),
+        run=run,
+    )
+    found = wheel_lag_from_turns(joined, THETA_NOMINAL)
+    np.testing.assert_allclose(found, [0.0, 0.25], atol=on_time.dt + 1e-9)
+    assert found[1] - found[0] > 0.2

@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 
 from graphcal.log.drive_log import DriveLog
+from graphcal.model import step_increments, wrap_angle
 
 
 def shift_wheel_rotations(log: DriveLog, offset: float | np.ndarray) -> DriveLog:
@@ -95,3 +96,73 @@ def rotation_rate_changes(rotations: np.ndarray, dt: float) -> np.ndarray:
     last = 1.5 * speed[-1] - 0.5 * speed[-2]
     boundary = np.concatenate([first[None], inner, last[None]])
     return np.diff(boundary, axis=0)
+
+
+#: Widest wheel time offset [s] :func:`wheel_lag_from_turns` looks for.
+MAX_LAG_S = 1.0
+#: Time [s] over which the measured heading's change is compared with the wheels' turn.
+TURN_WINDOW_S = 0.5
+#: The fit of the heading's changes by the wheels' turns (a correlation) at the lag found must
+#: reach this: the recording turns clearly enough for its timing to show.
+MIN_TURN_CORRELATION = 0.9
+#: Windows at least, for a run's lag to be looked for.
+MIN_TURN_WINDOWS = 20
+
+
+def wheel_lag_from_turns(
+    log: DriveLog, theta: np.ndarray, max_lag: float = MAX_LAG_S
+) -> np.ndarray:
+    """How late each run's wheels are against the measured heading, in whole samples [s]
+    ``(runs,)``, before any solve: the lag at which the wheels' turn (eq. 2b with ``theta``;
+    only its shape matters) over :data:`TURN_WINDOW_S` windows best fits the measured
+    heading's change over the same windows (their correlation, largest), within
+    ±``max_lag``.
+
+    0 for a run whose heading is not measured, that turns too little to tell
+    (correlation under :data:`MIN_TURN_CORRELATION`, fewer than :data:`MIN_TURN_WINDOWS`
+    windows), or whose best lag is the search's edge. A shift by the lag found is exact (whole
+    samples): the joint solve's time offset covers what is left, under a sample."""
+    lags = np.zeros(log.runs)
+    dt = log.dt
+    reach = int(np.floor(max_lag / dt))
+    heading = log.heading_measured & np.isfinite(log.psi)
+    if log.masked is not None:
+        heading &= ~log.masked
+    if reach < 1 or heading.sum() < MIN_TURN_WINDOWS:
+        return lags
+    _, turn = step_increments(log.inputs, theta)
+    turn = np.nan_to_num(turn)
+    turned = np.concatenate([[0.0], np.cumsum(turn)])  # the wheels' heading at each sample
+    masked = np.zeros(len(log.t) + 1)
+    if log.masked is not None:
+        masked[1:] = np.cumsum(log.masked)
+    run = log.run_of(np.arange(len(log.t)))
+    for r in range(log.runs):
+        rows = np.flatnonzero(run == r)
+        first, last = int(rows[0]), int(rows[-1])
+        fixes = np.flatnonzero(heading[first : last + 1]) + first
+        if len(fixes) < 2:
+            continue
+        spacing = max(1, round(TURN_WINDOW_S / (dt * max(np.median(np.diff(fixes)), 1))))
+        a, b = fixes[:-spacing], fixes[spacing:]
+        # Windows whose every shifted span stays in the run and clear of masked samples.
+        keep = (a - reach >= first) & (b + reach <= last)
+        keep &= masked[np.minimum(b + reach, len(log.t))] - masked[a - reach] == 0
+        a, b = a[keep], b[keep]
+        if len(a) < MIN_TURN_WINDOWS:
+            continue
+        measured = wrap_angle(log.psi[b] - log.psi[a])
+        shifts = np.arange(-reach, reach + 1)
+        wheels = turned[b[None] + shifts[:, None]] - turned[a[None] + shifts[:, None]]
+        norms = np.linalg.norm(wheels, axis=1) * np.linalg.norm(measured)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            correlation = np.where(norms > 0, wheels @ measured / norms, 0.0)
+        best = int(np.argmax(np.abs(correlation)))
+        if abs(correlation[best]) < MIN_TURN_CORRELATION or best in (0, len(shifts) - 1):
+            continue
+        # The peak between samples (a parabola through it and its neighbours), rounded.
+        below, at, above = correlation[best - 1 : best + 2] * np.sign(correlation[best])
+        curvature = below - 2.0 * at + above
+        between = 0.5 * (below - above) / curvature if curvature < 0 else 0.0
+        lags[r] = np.round(shifts[best] + between) * dt
+    return lags

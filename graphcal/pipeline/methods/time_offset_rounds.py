@@ -95,13 +95,14 @@ def solve_with_time_offset(
             break  # what is left is less than a sample: the graph's first order covers it
         shift = rounded
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
-        say(f"wheels shifted by {shown} ms{_per_run(log.runs)}; solved again from the shifted log")
+        again = f"wheels shifted by {shown} ms{runs_label(log.runs)}"
+        say(f"{again}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
         whole, values = _whole_log_solve(data, settings, workers, values, rounds_start(whole))
     return whole, values, data, shift
 
 
-def _per_run(runs: int) -> str:
+def runs_label(runs: int) -> str:
     """`` (runs 0–3)`` after a list of one value per run; empty for one run."""
     return "" if runs == 1 else f" (runs 0–{runs - 1})"
 

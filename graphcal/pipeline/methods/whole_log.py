@@ -3,6 +3,10 @@ the sensors, corrected in the log for everything after it.
 
 Top-down, :func:`solve_whole_log` runs:
 
+0. each run's wheels shifted by the whole samples they lag the measured heading's turns
+   (:func:`~graphcal.log.timing.wheel_lag_from_turns`), where the time offset is estimated:
+   what the time-offset rounds of step 2 would otherwise find one whole-log solve at a time
+   (the real robot's run at +329 ms: a third solve);
 1. the joint solve (:func:`~graphcal.pipeline.solvers.joint.solve_joint`: warm start, robust
    reweighting of the fixes, slip screen) under the settings' noise levels;
 2. the noise its residuals show (:func:`~graphcal.pipeline.methods.noise_levels.with_noise_levels`:
@@ -37,7 +41,7 @@ from graphcal.graph.solution.plausibility import ImplausibleTheta
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, gather_segments
-from graphcal.log.timing import whole_samples
+from graphcal.log.timing import wheel_lag_from_turns, whole_samples
 from graphcal.model import wheel_lateral_acceleration
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.methods.agreement import (
@@ -70,6 +74,7 @@ from graphcal.pipeline.methods.time_offset_rounds import (
     Solved,
     StoppedAt,
     rounds_start,
+    runs_label,
     solve_with_time_offset,
 )
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
@@ -138,8 +143,9 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
         CalibrationFailed: if a solve fails or gives an implausible theta.
     """
     settings, held = prepared.settings, dict(prepared.held)
+    first = StoppedAt(None, _wheel_lag(prepared), None)
     settings, (whole, values, data, offset) = _holding_runaways(
-        prepared, settings, held, workers, rounds=1
+        prepared, settings, held, workers, first, rounds=1
     )
     has_heading = prepared.data.has_heading()
     joint = with_noise_levels(whole, settings.joint, has_heading, prepared.log.dt)
@@ -212,7 +218,8 @@ def _holding_runaways(
         )
     except ImplausibleTheta as runaway:
         holding = settings.joint.holding(runaway.names)
-        outcome = _holding_a_runaway(prepared, holding, runaway, workers, rounds)
+        shift = None if start is None else start.shift
+        outcome = _holding_a_runaway(prepared, holding, runaway, workers, rounds, shift)
         if not any(data_determine(outcome[0], holding, runaway.names)):
             held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
             return dataclasses.replace(settings, joint=holding), outcome
@@ -226,7 +233,8 @@ def _holding_runaways(
         )
         joint = dataclasses.replace(noise, held_at_prior=settings.joint.held_at_prior)
         settings = dataclasses.replace(settings, joint=joint)
-        return _holding_runaways(prepared, settings, held, workers, None, None, rounds, True)
+        unshifted = StoppedAt(None, start.shift, None) if start is not None else None
+        return _holding_runaways(prepared, settings, held, workers, unshifted, None, rounds, True)
 
 
 def _with_lateral_acceleration(prepared: PreparedLog, theta: np.ndarray) -> PreparedLog:
@@ -249,6 +257,7 @@ def _holding_a_runaway(
     runaway: ImplausibleTheta,
     workers: int,
     rounds: int,
+    shift: np.ndarray | None = None,
 ) -> Solved:
     """The whole-log solve under ``settings``, which hold the parameters that ran out of
     their plausible range in a solve (``runaway``) at their prior, for
@@ -271,7 +280,26 @@ def _holding_a_runaway(
         f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
         f"held at the prior, to see whether the data determine {them}"
     )
-    return solve_with_time_offset(prepared, settings, workers, rounds=rounds)
+    start = None if shift is None else StoppedAt(None, shift, None)
+    return solve_with_time_offset(prepared, settings, workers, start, rounds)
+
+
+def _wheel_lag(prepared: PreparedLog) -> np.ndarray:
+    """Each run's whole-sample shift [s] for the wheels before the first solve: the lag
+    at which their turns fit the measured heading's
+    (:func:`~graphcal.log.timing.wheel_lag_from_turns`), where the wheels' time offset is
+    estimated; else none."""
+    log, joint = prepared.log, prepared.settings.joint
+    if not joint.time_offset_sigma:
+        return np.zeros(log.runs)
+    lag = wheel_lag_from_turns(log, prepared.settings.vehicle.theta_nominal)
+    if lag.any():
+        shown = ", ".join(f"{s * 1e3:+.1f}" for s in lag)
+        say(
+            f"wheels shifted by {shown} ms{runs_label(log.runs)} before the first solve: "
+            "their lag behind the measured heading's turns"
+        )
+    return lag
 
 
 def _with_total_offset(
