@@ -78,6 +78,7 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
     data = gather_segments(log, selected, flagged)
     settings, left_out = _with_observable_lever_arm(data, settings, log.position_sensor())
     settings, held = _with_d_the_drive_can_show(log, data, settings)
+    settings, held = _with_t_r_the_drive_can_show(data, settings, held)
     return PreparedLog(
         log=log,
         settings=settings,
@@ -105,7 +106,7 @@ def _with_observable_lever_arm(
     if joint.lever_arm_sigma <= 0:
         return settings, {}
     sigmas = pose_sigmas(joint.pose_weights, joint.position_sigma)
-    best = lever_arm_sigma(data, sigmas[0], sigmas[2], joint.lever_arm_sigma)
+    best = lever_arm_sigma(data, sigmas[0], sigmas[2], joint.lever_arm_sigma, joint.theta_initial)
     if best.min() <= joint.max_sigma_ratio * joint.lever_arm_sigma:
         return settings, {}
     unit = length_unit(settings.vehicle.theta_nominal[2])
@@ -117,9 +118,10 @@ def _with_observable_lever_arm(
     return dataclasses.replace(settings, joint=joint), {"lever_arm": settings.joint.lever_arm_sigma}
 
 
-#: Mean |yaw rate| [rad/s] of the wheels (over 1 s, nominal theta) below which a drive whose
-#: lateral acceleration comes from the wheels cannot show d (straight roads: 0.00–0.01; a
-#: city drive's selected segments 0.25).
+#: Mean |yaw rate| [rad/s] of the wheels (over 1 s, nominal theta) below which a drive "barely
+#: turns": one whose lateral acceleration comes from the wheels or the heading cannot show d,
+#: one of positions only cannot show t_r (straight roads: 0.00–0.01; a city drive's selected
+#: segments 0.25).
 D_FROM_WHEELS_MIN_YAW_RATE = 0.05
 
 
@@ -149,6 +151,32 @@ def _with_d_the_drive_can_show(
     say(f"d not estimated: {reason}")
     joint = settings.joint.holding(("d",))
     return dataclasses.replace(settings, joint=joint), {"d": reason}
+
+
+def _with_t_r_the_drive_can_show(
+    data: SegmentData, settings: Settings, held: dict[str, str]
+) -> tuple[Settings, dict[str, str]]:
+    """``settings`` holding t_r at its prior when only positions are measured and the drive
+    barely turns (mean |yaw rate| of the wheels under :data:`D_FROM_WHEELS_MIN_YAW_RATE`),
+    and ``held`` with why. t_r scales every yaw the wheels' difference makes; with no turn
+    to pin it and no heading to measure the yaw, a smaller t_r lets corrections far inside
+    the wheels' noise bend each segment's path after its fixes' noise, and the solve runs
+    t_r towards 0 (the twin's 9 km of straight road from 5 Hz fixes without heading: the
+    warm start to t_r = 0.0017 m in 25 s, the joint solve from the nominal 50 iterations
+    into the same runaway, then held: 130 s). Held from the start, the same result in one
+    solve. Its prior's uncertainty stays in every other parameter's σ."""
+    if data.has_heading() or "t_r" in settings.joint.held_at_prior:
+        return settings, held
+    rate = mean_wheel_yaw_rate(data, settings.joint.theta_initial)
+    if rate >= D_FROM_WHEELS_MIN_YAW_RATE:
+        return settings, held
+    reason = (
+        f"positions only, on a drive that barely turns (mean |yaw rate| {rate:.3f} rad/s): "
+        "held at its nominal; a drive with turns or a measured heading determines it"
+    )
+    say(f"t_r not estimated: {reason}")
+    joint = settings.joint.holding(("t_r",))
+    return dataclasses.replace(settings, joint=joint), {**held, "t_r": reason}
 
 
 def mean_wheel_yaw_rate(data: SegmentData, theta: np.ndarray) -> float:
