@@ -153,10 +153,11 @@ def wheel_lag_from_turns(
             continue
         measured = wrap_angle(log.psi[b] - log.psi[a])
         shifts = np.arange(-reach, reach + 1)
-        wheels = turned[b[None] + shifts[:, None]] - turned[a[None] + shifts[:, None]]
-        norms = np.linalg.norm(wheels, axis=1) * np.linalg.norm(measured)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            correlation = np.where(norms > 0, wheels @ measured / norms, 0.0)
+        correlation = np.zeros(len(shifts))
+        for i, shift in enumerate(shifts):  # one pass per shift: a 200 km log's windows
+            wheels = turned[b + shift] - turned[a + shift]  # at once would take 0.5 GB
+            norm = float(np.linalg.norm(wheels) * np.linalg.norm(measured))
+            correlation[i] = float(wheels @ measured) / norm if norm > 0 else 0.0
         best = int(np.argmax(np.abs(correlation)))
         if abs(correlation[best]) < MIN_TURN_CORRELATION or best in (0, len(shifts) - 1):
             continue
@@ -164,5 +165,5 @@ def wheel_lag_from_turns(
         below, at, above = correlation[best - 1 : best + 2] * np.sign(correlation[best])
         curvature = below - 2.0 * at + above
         between = 0.5 * (below - above) / curvature if curvature < 0 else 0.0
-        lags[r] = np.round(shifts[best] + between) * dt
+        lags[r] = np.round(shifts[best] + between) * dt + 0.0  # never -0.0
     return lags
