@@ -45,10 +45,6 @@ STRAIGHT_POSITIONS_ONLY = dict(
 )  # fmt: skip
 
 
-def _xfail(reason: str):
-    return pytest.mark.xfail(strict=True, reason=reason)
-
-
 #: Shapes the campaign found breaking an invariant on main (each named by its failure), and
 #: shapes of issue 43's table kept as regression tests.
 EXAMPLES = [
@@ -315,9 +311,6 @@ SLOW = [
             lever_arm=(-0.22, 0.0),
             seed=197,
         ),
-        marks=_xfail(
-            "exit 2: the wheels' time offset runs to +4.3 s (prior ±0.5 s) and c_e to 2.7 m"
-        ),
         id="skid-steer-correlated-fixes",
     ),
     pytest.param(
@@ -459,7 +452,13 @@ SLOW = [
 
 #: Slow-tier shapes whose recording cannot determine c_e (0.5 Hz fixes of 1.9 m on 300 m of
 #: a robot's driving): it must say so, not be calibrated.
-C_E_UNDETERMINED = {"differential-sparse-far-noisier-fixes"}
+C_E_UNDETERMINED = {
+    "differential-sparse-far-noisier-fixes",
+    # 156 m whose 50 Hz fixes share 1.5 m of error over 12 s: about 17 independent looks at
+    # the scale over 200 s, c_e's σ 16.5 mm from the data (calibrated needs 4 mm); it once
+    # ran the time offset to +4.3 s and c_e to 2.7 m (exit 2), now within 0.6σ, weak
+    "skid-steer-correlated-fixes",
+}
 
 
 @pytest.mark.slow
