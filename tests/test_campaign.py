@@ -440,6 +440,24 @@ SLOW = [
         # 100 a noise estimate needed; 0.36 m fixes kept weighted as 0.05 m, χ²/dof 26, exit 3
     ),
     pytest.param(
+        _shape(
+            route="town",
+            length_m=2500.0,
+            gnss_rate=20.0,
+            noise_sigma=0.5,
+            noise_tau_s=48.0,
+            imu=False,
+            wheels="ticks",
+            ticks=218,
+            park_s=1.0,
+            lever_arm=(0.29, 0.33),
+            seed=705,
+        ),
+        id="town-correlated-fixes-false-slip",  # seed 19's shape 12: slip "found" (z 4.1)
+        # where the fixes share 0.5 m over 48 s; the defect model with it predicted 0.997 m,
+        # theta alone 0.393 m: theta alone chosen, blind to a 0.33 m arm, c_e -4.9σ
+    ),
+    pytest.param(
         _shape(**STRAIGHT_POSITIONS_ONLY),
         id="straight-positions-only-lateral-arm",  # seed 19's shape 9 (3 km drives, 275
         # ticks): the arm judged showable from the fixes' course, kept; the warm start ran

@@ -208,3 +208,24 @@ def test_an_estimate_without_information_is_not_observable_and_no_nan_goes_on():
     assert estimate.verdict == "not observable"
     with pytest.raises(ValueError, match=r"within ±1, got nan"):
         dataclasses.replace(JointSettings(), time_offset_means=(0.0, float("nan")))
+
+
+@pytest.mark.parametrize(
+    ("without_slip", "chosen"),
+    [
+        (None, "theta alone"),  # slip not tried apart: the defect model lost to theta alone
+        (0.335, "defect model without slip"),  # the twin's town drive, fixes sharing 0.5 m
+        (0.45, "theta alone"),  # without slip, still worse than theta alone
+        (0.40, "defect model without slip"),  # within the margin of theta alone: the arm
+    ],
+)
+def test_the_model_check_judges_slip_apart_from_the_other_terms(without_slip, chosen):
+    """Which model a run calibrates with, from the held-apart errors [m] of theta alone
+    (0.393), the defect model with slip (0.997) and without it."""
+    from graphcal.pipeline.methods.model_check import ModelCheck
+
+    check = ModelCheck(("lever arm", "slow wheel slip"), 0.997, 0.393, 8, without_slip)
+    assert check.chosen == chosen
+    assert check.to_dict()["chosen"] == chosen
+    assert check.theta_alone == (chosen == "theta alone")
+    assert ("with them but slip" in check.line()) == (without_slip is not None)

@@ -188,7 +188,8 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     """The whole-log solve (:func:`~graphcal.pipeline.methods.whole_log.solve_whole_log`), then, if
     the settings ask for it and its defect model found something, the model check
     (:mod:`graphcal.pipeline.methods.model_check`): when theta alone predicts held-apart segments at
-    least as well, the whole-log solve again without the defect model's sensor terms."""
+    least as well, the whole-log solve again without the defect model's sensor terms (or,
+    where the defect model predicts best without slip, without slip)."""
     solved = solve_whole_log(prepared, workers)
     if not prepared.settings.joint.model_check:
         return solved, None
@@ -196,11 +197,15 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     if check is None:
         return solved, None
     say(check.line())
-    if not check.theta_alone:
+    if check.without_slip:
+        joint = dataclasses.replace(prepared.settings.joint, slip="off")
+        left_out = prepared.left_out
+    elif check.theta_alone:
+        joint, left_out = theta_alone(prepared.settings.joint), {}
+    else:
         return solved, check
-    joint = theta_alone(prepared.settings.joint)
     simpler = dataclasses.replace(
-        prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out={}
+        prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out=left_out
     )
     return solve_whole_log(simpler, workers), check
 
