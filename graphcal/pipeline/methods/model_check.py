@@ -39,6 +39,7 @@ import numpy as np
 
 from graphcal.errors import CalibrationFailed
 from graphcal.graph.construction.keys import LEVER_ARM
+from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, gather_segments, spread
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.methods.prepare import PreparedLog
@@ -204,30 +205,27 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
     )
     fold = folds(len(segments))
     say(f"model check: {len(segments)} segments in 2 folds ({', '.join(found)} found)")
-    errors = {"full": [], "alone": []}
-    for f in (0, 1):
-        train, test = segments.subset(fold == f), segments.subset(fold != f)
-        held = gather_segments(log, test)
-        for name, model, source in (
-            ("full", full, shifted),
-            ("alone", theta_alone(settings), log),
-        ):
-            errors[name].append(
-                _held_apart_error(gather_segments(source, train, weights), held, model, workers)
-            )
+
+    def cross_validated(model: JointSettings, source: DriveLog) -> float:
+        """Mean error [m] of each fold's segments predicted by ``model`` calibrated from the
+        other fold's, taken from ``source``."""
+        errors = []
+        for f in (0, 1):
+            train = gather_segments(source, segments.subset(fold == f), weights)
+            held = gather_segments(log, segments.subset(fold != f))
+            errors.append(_held_apart_error(train, held, model, workers))
+        return float(np.mean(errors))
+
     check = ModelCheck(
-        found, float(np.mean(errors["full"])), float(np.mean(errors["alone"])), len(segments)
+        found,
+        cross_validated(full, shifted),
+        cross_validated(theta_alone(settings), log),
+        len(segments),
     )
     if not check.theta_alone or "slow wheel slip" not in found or len(found) == 1:
         return check
     no_slip = dataclasses.replace(full, slip="off")
-    without = []
-    for f in (0, 1):
-        train, test = segments.subset(fold == f), segments.subset(fold != f)
-        held = gather_segments(log, test)
-        train_data = gather_segments(shifted, train, weights)
-        without.append(_held_apart_error(train_data, held, no_slip, workers))
-    return dataclasses.replace(check, without_slip_error=float(np.mean(without)))
+    return dataclasses.replace(check, without_slip_error=cross_validated(no_slip, shifted))
 
 
 def _held_apart_error(
