@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graphcal.log.consistency import WHEEL_TURN_SCALES
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import (
     SegmentData,
@@ -164,17 +165,15 @@ def lever_arm_sigma(
     return np.sqrt(np.diag(np.linalg.inv(total)))
 
 
-#: Bounds of the factor the wheels' turn is scaled by to the track's
-#: (:func:`wheel_track_heading`): a skid-steer vehicle's datasheet track is about half its
-#: effective one.
-TURN_SCALES = (1.0 / 3.0, 3.0)
-
-
 def wheel_track_heading(data: SegmentData, theta: np.ndarray) -> np.ndarray:
     """``(S, K+1)`` heading [rad] of each segment's path as its wheels turn it (eq. 2b with
-    ``theta``), scaled to the track's turn (least squares over the segments, within
-    :data:`TURN_SCALES`) and at the track's mean heading: the shape of the path without the
-    wobble of a course taken from noisy fixes."""
+    ``theta``), scaled to the track's turn and at the track's mean heading: the shape of the
+    path without the wobble of a course taken from noisy fixes. The scale is a least-squares
+    fit of the turns from each segment's start, within
+    :data:`~graphcal.log.consistency.WHEEL_TURN_SCALES` — not
+    :func:`~graphcal.log.consistency.wheel_turn_scale`'s median of per-step ratios, which
+    suits a measured heading: on a skid-steer robot's 2.5 Hz course it fell back to 1 where
+    the fit finds 0.35 (a datasheet track half the effective one)."""
     _, omega = step_increments(data.inputs, theta)
     omega = np.where(data.valid[:, 1:], omega, 0.0)
     turned = np.zeros(data.poses.shape[:2])
@@ -183,7 +182,7 @@ def wheel_track_heading(data: SegmentData, theta: np.ndarray) -> np.ndarray:
     valid = data.valid
     wheels = np.sum(turned[valid] ** 2)
     scale = float(np.sum(turned[valid] * track[valid]) / wheels) if wheels > 0 else 1.0
-    scale = float(np.clip(scale, *TURN_SCALES)) if scale > 0 else 1.0
+    scale = float(np.clip(scale, *WHEEL_TURN_SCALES)) if scale > 0 else 1.0
     turned *= scale
     count = np.maximum(valid.sum(axis=1), 1)
     mean = np.sum(np.where(valid, data.poses[..., 2] - turned, 0.0), axis=1) / count
