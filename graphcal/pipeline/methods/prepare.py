@@ -77,8 +77,9 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
         flagged = np.where(log.outlying, FLAGGED_WEIGHT, 1.0)
     data = gather_segments(log, selected, flagged)
     settings, left_out = _with_observable_lever_arm(data, settings, log.position_sensor())
-    settings, held = _with_d_the_drive_can_show(log, data, settings)
-    settings, held = _with_t_r_the_drive_can_show(data, settings, held)
+    turning = mean_wheel_yaw_rate(data, settings.joint.theta_initial)
+    settings, held = _with_d_the_drive_can_show(log, turning, settings)
+    settings, held = _with_t_r_the_drive_can_show(data, turning, settings, held)
     return PreparedLog(
         log=log,
         settings=settings,
@@ -126,7 +127,7 @@ D_FROM_WHEELS_MIN_YAW_RATE = 0.05
 
 
 def _with_d_the_drive_can_show(
-    log: DriveLog, data: SegmentData, settings: Settings
+    log: DriveLog, rate: float, settings: Settings
 ) -> tuple[Settings, dict[str, str]]:
     """``settings`` holding d at its prior when its lateral acceleration comes from the
     wheels (no IMU, no heading) or the heading (no IMU) and the drive barely turns, and why
@@ -137,12 +138,10 @@ def _with_d_the_drive_can_show(
     following, which predicted held-apart road worse (73 → 60 %). From the heading, on the
     twin's straight roads with a fused heading and no IMU: d −7.6σ and −9.6σ, c_d −3.1σ
     "calibrated" (held: c_d −0.9σ and +0.1σ). Its prior's uncertainty stays in every other
-    parameter's σ."""
+    parameter's σ. ``rate``: the segments' mean |yaw rate| [rad/s] of the wheels
+    (:func:`mean_wheel_yaw_rate`)."""
     source = "wheels" if log.ay_from_wheels else "heading" if log.ay_from_heading else None
-    if source is None or settings.joint.fix_d:
-        return settings, {}
-    rate = mean_wheel_yaw_rate(data, settings.joint.theta_initial)
-    if rate >= D_FROM_WHEELS_MIN_YAW_RATE:
+    if source is None or settings.joint.fix_d or rate >= D_FROM_WHEELS_MIN_YAW_RATE:
         return settings, {}
     reason = (
         f"its lateral acceleration comes from the {source}, on a drive that barely turns "
@@ -154,7 +153,7 @@ def _with_d_the_drive_can_show(
 
 
 def _with_t_r_the_drive_can_show(
-    data: SegmentData, settings: Settings, held: dict[str, str]
+    data: SegmentData, rate: float, settings: Settings, held: dict[str, str]
 ) -> tuple[Settings, dict[str, str]]:
     """``settings`` holding t_r at its prior when only positions are measured and the drive
     barely turns (mean |yaw rate| of the wheels under :data:`D_FROM_WHEELS_MIN_YAW_RATE`),
@@ -164,10 +163,10 @@ def _with_t_r_the_drive_can_show(
     t_r towards 0 (the twin's 9 km of straight road from 5 Hz fixes without heading: the
     warm start to t_r = 0.0017 m in 25 s, the joint solve from the nominal 50 iterations
     into the same runaway, then held: 130 s). Held from the start, the same result in one
-    solve. Its prior's uncertainty stays in every other parameter's σ."""
+    solve. Its prior's uncertainty stays in every other parameter's σ. ``rate``: as
+    :func:`_with_d_the_drive_can_show`'s."""
     if data.has_heading() or "t_r" in settings.joint.held_at_prior:
         return settings, held
-    rate = mean_wheel_yaw_rate(data, settings.joint.theta_initial)
     if rate >= D_FROM_WHEELS_MIN_YAW_RATE:
         return settings, held
     reason = (
