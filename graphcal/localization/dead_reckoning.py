@@ -75,7 +75,7 @@ def pose_before_outage(
             sigmas = np.full(3, settings.gnss_sigma)
             graph.add(
                 MeasuredPoseFactor(
-                    key, log.poses[k], sigmas, with_heading=False, offset=np.array([offset, 0.0])
+                    key, log.pose(k), sigmas, with_heading=False, offset=np.array([offset, 0.0])
                 ).factor()
             )
     for factor in keyframe_odometry_factors(log, keyframes, keys, None, theta=theta):

@@ -204,7 +204,7 @@ class _KeyframeMeasurements:
             sigmas = np.full(3, self.settings.gnss_sigma)
             offset = np.array([offsets[int(k)], 0.0])
             factor = MeasuredPoseFactor(
-                key, log.poses[k], sigmas, None, None, False, self.settings.gnss_huber, offset
+                key, log.pose(k), sigmas, None, None, False, self.settings.gnss_huber, offset
             )
             out.append(factor.factor())
         if self.heading_noise is not None and log.heading_measured[k]:

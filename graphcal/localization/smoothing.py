@@ -126,7 +126,7 @@ def gnss_factor(
         )
     return MeasuredPoseFactor(
         key,
-        log.poses[k],
+        log.pose(k),
         np.full(3, settings.gnss_sigma),
         arm_key,
         with_heading=False,
@@ -297,7 +297,7 @@ def _bridged_states(
         # bias at the gap's start would swing the whole chain (a nonlinear correction that
         # cost Levenberg–Marquardt 15 iterations instead of 7 on two 30 s outages).
         chord, reckoned_chord = (
-            log.poses[b, :2] - log.poses[a, :2],
+            log.pose(b)[:2] - log.pose(a)[:2],
             reckoned[-1, :2] - reckoned[0, :2],
         )
         if np.hypot(*reckoned_chord) > 1.0:

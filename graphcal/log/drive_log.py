@@ -174,6 +174,11 @@ class DriveLog:
         """Measured states ``[px, py, psi]``, shape ``(N, 3)``."""
         return np.column_stack([self.px, self.py, self.psi])
 
+    def pose(self, k: int) -> np.ndarray:
+        """Measured state ``[px, py, psi]`` of sample ``k``, ``(3,)`` (a new array: not a row
+        of :attr:`poses`, which would build, and keep alive, all ``N`` of them)."""
+        return np.array([self.px[k], self.py[k], self.psi[k]], dtype=float)
+
     @property
     def inputs(self) -> np.ndarray:
         """Model inputs ``[n_rl, n_rr, beta, ay]``, shape ``(N, 4)``; row k drives step k → k+1."""
