@@ -58,13 +58,16 @@ def test_rounds_from_an_earlier_solve_stop_once_theta_settles(outlying):
 
 def test_rounds_whose_weights_keep_trading_stop_when_theta_has_settled(outlying, monkeypatch):
     """Fixes in a spike trade weight from round to round (here: any change counts); with an
-    earlier solve's σ the rounds stop once one moves theta by less than 0.05σ."""
+    earlier solve's σ, or the σ the first solve's last linearization gives, the rounds stop
+    once one moves theta by less than 0.05σ."""
     import graphcal.pipeline.solvers.robust as robust
 
     monkeypatch.setattr(robust, "WEIGHT_TOLERANCE", 0.0)
     data, spec = outlying
     calls: list[int] = []
-    full, weights, _ = solve_robust(data, spec, _counted_solve(data, spec, calls), 3.0)
+    with monkeypatch.context() as unknown:  # no σ at all: only the limit stops them
+        unknown.setattr(robust, "_known_theta_sigma", lambda solution: None)
+        full, weights, _ = solve_robust(data, spec, _counted_solve(data, spec, calls), 3.0)
     assert len(calls) == 5  # the limit: the weights never stop changing by "0"
     weighted = dataclasses.replace(data, fix_weights=weights)
     sigma = np.sqrt(np.diag(solve_segment_graph(weighted, spec, SolveOptions(50, 1e-7)).covariance))
@@ -74,3 +77,7 @@ def test_rounds_whose_weights_keep_trading_stop_when_theta_has_settled(outlying,
     )
     assert len(settled) < 5
     assert np.all(np.abs(early.theta - full.theta) <= 0.1 * sigma)
+    own: list[int] = []  # no earlier solve: the first solve's own σ
+    first, _, _ = solve_robust(data, spec, _counted_solve(data, spec, own), 3.0)
+    assert len(own) < 5
+    assert np.all(np.abs(first.theta - full.theta) <= 0.1 * sigma)

@@ -161,6 +161,11 @@ class PartitionedGraph:
             self._information = total[:-1, :-1].copy()
         return self._information.copy()
 
+    def known_information(self) -> np.ndarray | None:
+        """:meth:`shared_information` if it is known without linearizing (the solve's last
+        Gauss–Newton step left it), else ``None``."""
+        return None if self._information is None else self._information.copy()
+
     def moved(self, error: float, information: np.ndarray | None) -> None:
         """Record the graph's ``error`` at values a step moved it to and the shared
         variables' ``information`` there (``None``: not known)."""
