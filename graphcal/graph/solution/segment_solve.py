@@ -24,6 +24,7 @@ from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.partitioned_lm import optimize_partitioned
 from graphcal.graph.optimization.solve import solve_lm
 from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.values import copy_value, tangent_dims
 from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.plausibility import check_plausible
@@ -40,10 +41,14 @@ class BuilderStart:
         shared: those values (none: the builder's own).
         gauss_newton_first: the first step is an undamped Gauss–Newton step (``shared``
             near the optimum, such as a warm start's).
+        solution: a solution of the same segments under other settings (other noise levels,
+            fix weights), or ``None``: every variable of the built graph it holds, in the
+            same dimension, starts from it (the others from the builder).
     """
 
     shared: dict[int, np.ndarray] = field(default_factory=dict)
     gauss_newton_first: bool = False
+    solution: gtsam.Values | None = None
 
     @classmethod
     def warm(cls, shared: dict[int, np.ndarray] | None) -> BuilderStart:
@@ -89,6 +94,8 @@ def solve_segment_graph(
     else:
         built = build_segment_graph(data, spec, start.shared)
         values, gauss_newton_first = built.values, start.gauss_newton_first
+        if start.solution is not None:
+            values = _taken_from(built.values, start.solution)
     partitioned = PartitionedGraph(built.graph, values, shared_keys(spec))
     if len(partitioned.parts) < 2:  # nothing to split: one graph, one solve
         return _solve_whole_graph(built, values, options, covariance)
@@ -124,6 +131,17 @@ def solve_segment_graph(
         nuisance=nuisance,
         partitioned=partitioned,
     )
+
+
+def _taken_from(initial: gtsam.Values, solution: gtsam.Values) -> gtsam.Values:
+    """``initial`` with every variable that ``solution`` holds in the same dimension taken
+    from it."""
+    out = gtsam.Values(initial)
+    given = tangent_dims(solution)
+    for key, dim in tangent_dims(initial).items():
+        if given.get(key) == dim:
+            copy_value(out, solution, key)
+    return out
 
 
 def _solve_whole_graph(

@@ -31,7 +31,8 @@ class StoppedAt:
     """Where a whole-log solve stopped, for a solve of the same segments to go on from.
 
     Attributes:
-        values: its solution (the graph-wide variables are taken), or ``None``.
+        values: its solution (of the log shifted by ``shift``: every variable the next
+            solve's start; after another shift, the graph-wide ones), or ``None``.
         shift: ``(runs,)`` whole-sample shift [s] of each run's wheels.
         rounds: where its robust rounds stopped, or ``None``.
     """
@@ -82,7 +83,9 @@ def solve_with_time_offset(
     if shift.any():
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
     if solved is None:
-        whole, values = _whole_log_solve(data, settings, workers, start.values, start.rounds)
+        whole, values = _whole_log_solve(
+            data, settings, workers, start.values, start.rounds, same_segments=True
+        )
     else:
         whole, values = solved
     for _ in range(rounds - 1):
@@ -113,13 +116,22 @@ def _whole_log_solve(
     workers: int,
     start: gtsam.Values | None = None,
     rounds_start: RoundsStart | None = None,
+    same_segments: bool = False,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
-    processes; from the graph-wide variables of ``start`` and the robust rounds from
+    processes; from the graph-wide variables of ``start`` — every variable, with
+    ``same_segments``: ``start`` solved ``data`` itself — and the robust rounds from
     ``rounds_start``, if given), with the progress lines a user waits for, and the
     solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
-    result, values = solve_joint(data, settings, workers, start=start, rounds_start=rounds_start)
+    result, values = solve_joint(
+        data,
+        settings,
+        workers,
+        start=start,
+        rounds_start=rounds_start,
+        same_segments=same_segments,
+    )
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
     say(f"  {result.iterations} iterations{fit}")

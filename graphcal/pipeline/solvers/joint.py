@@ -340,6 +340,7 @@ def solve_joint(
     progress: Progress | None = None,
     start: gtsam.Values | None = None,
     rounds_start: RoundsStart | None = None,
+    same_segments: bool = False,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
     point to linearize other graphs of the same segments at (the joint batches,
@@ -347,7 +348,11 @@ def solve_joint(
     under other settings (other noise levels, a shifted log) whose graph-wide variables the
     solve starts from instead of a warm start's; ``rounds_start``: that solution's fix
     weights and theta's σ, where the robust rounds start
-    (:func:`~graphcal.pipeline.solvers.robust.solve_robust`).
+    (:func:`~graphcal.pipeline.solvers.robust.solve_robust`); ``same_segments``: ``start`` is
+    a solution of these very segments (not of a shifted log), so every variable it holds
+    starts from it — a solve under other noise levels then starts at its optimum's
+    neighbour, not at the builder's odometry (the real robot: 4 iterations from χ²/dof 129
+    before).
 
     The steps: the warm start (:mod:`graphcal.pipeline.solvers.warm_start`), the solve with robust
     fix weights (:mod:`graphcal.pipeline.solvers.robust`), the fixes' noise in its residuals, with
@@ -363,7 +368,7 @@ def solve_joint(
         shared = warm_start(data, spec, options)
     else:
         shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
-        say("  start: the previous solve's theta")
+        say(f"  start: the previous solve's {'solution' if same_segments else 'theta'}")
     solved, weights, residuals = solve_segment_graph_robust(
         data,
         spec,
@@ -372,6 +377,7 @@ def solve_joint(
         covariance=not auto,
         shared_start=shared,
         rounds_start=rounds_start,
+        solution_start=start if same_segments else None,
     )
     del residuals
     noise = residual_noise(solved, data, weights)
