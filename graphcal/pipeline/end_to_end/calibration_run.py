@@ -3,6 +3,7 @@ the validation segments and judged by the trust checks into a :class:`Calibratio
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -152,16 +153,17 @@ def validated_run(
     corrected: PreparedLog,
     solved: WholeLog | None,
     result: MethodResult,
+    workers: int = 1,
 ) -> CalibrationRun:
     """The run: ``result`` validated on the validation segments of ``corrected`` (the log
-    the method calibrated from), judged (:mod:`graphcal.pipeline.end_to_end.trust`), with every
-    warning said."""
+    the method calibrated from; the batches' thetas in ``workers`` threads), judged
+    (:mod:`graphcal.pipeline.end_to_end.trust`), with every warning said."""
     validation, settings = corrected.validation, corrected.settings
     segment_errors = {
         "nominal": position_errors(validation, settings.vehicle.theta_nominal),
         "calibrated": position_errors(validation, result.theta),
     }
-    batch_errors = _batch_errors(validation, result)
+    batch_errors = _batch_errors(validation, result, workers)
     whole = None if solved is None else solved.whole
     trust = _trust(solved, result, segment_errors, validation, settings.vehicle.theta_nominal)
     warnings = [
@@ -202,16 +204,32 @@ def validated_run(
     )
 
 
-def _batch_errors(validation: SegmentData, result: MethodResult) -> dict[str, np.ndarray]:
-    """Per step or method, E_p [m] of each batch's theta; NaN for failed or excluded ones."""
+def _batch_errors(
+    validation: SegmentData, result: MethodResult, workers: int = 1
+) -> dict[str, np.ndarray]:
+    """Per step or method, E_p [m] of each batch's theta; NaN for failed or excluded ones.
+    In ``workers`` threads: numpy's integration releases the GIL, and each theta is
+    independent of the others (the same errors whatever the count; a 24 km run's 200
+    thetas: 2.05 s in one thread, 1.20 s in two)."""
+    names = list(result.batch_theta)
+    thetas = [
+        without_excluded(result.batch_theta[name], result.batch_excluded.get(name))
+        for name in names
+    ]
+    every = [theta for block in thetas for theta in block]
+
+    def error(theta: np.ndarray) -> float:
+        return mean_validation_error(validation, theta)
+
+    if workers > 1 and len(every) > 1:
+        with ThreadPoolExecutor(workers) as pool:
+            errors = list(pool.map(error, every))
+    else:
+        errors = [error(theta) for theta in every]
+    bounds = np.cumsum([0, *(len(block) for block in thetas)])
     return {
-        name: np.array(
-            [
-                mean_validation_error(validation, t)
-                for t in without_excluded(thetas, result.batch_excluded.get(name))
-            ]
-        )
-        for name, thetas in result.batch_theta.items()
+        name: np.array(errors[a:b], dtype=float)
+        for name, a, b in zip(names, bounds[:-1], bounds[1:], strict=True)
     }
 
 

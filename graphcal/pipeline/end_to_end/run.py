@@ -109,7 +109,7 @@ def _run_whole(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
     prepared = prepare_log(log, settings, fall_back_to_all=True)
     solved, check = _solve_checked(prepared, workers)
     result = dataclasses.replace(_recommended(solved), model_check=check)
-    return validated_run("whole", solved.corrected, solved, result)
+    return validated_run("whole", solved.corrected, solved, result, workers)
 
 
 def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
@@ -125,7 +125,7 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
             f"only {selected} selected segments, no more than one batch of {size}: no batch "
             "study (the whole-log solve's σ and the segments' agreement stand)"
         )
-        return validated_run("joint", solved.corrected, solved, recommended)
+        return validated_run("joint", solved.corrected, solved, recommended, workers)
     batches = _batches(solved.corrected, "joint", workers)
     study = joint_batch_study(solved, batches, workers)
     result = dataclasses.replace(
@@ -140,7 +140,7 @@ def _run_joint(log: DriveLog, settings: Settings, workers: int) -> CalibrationRu
         batch_covariance=study.covariance,
         batch_excluded=study.excluded,
     )
-    return validated_run("joint", solved.corrected, solved, result)
+    return validated_run("joint", solved.corrected, solved, result, workers)
 
 
 def _run_staged(log: DriveLog, settings: Settings, workers: int) -> CalibrationRun:
@@ -160,7 +160,7 @@ def _run_staged(log: DriveLog, settings: Settings, workers: int) -> CalibrationR
         staged=staged,
         model_check=check,
     )
-    return validated_run("staged", corrected, solved, result)
+    return validated_run("staged", corrected, solved, result, workers)
 
 
 _RUNS: dict[str, Callable[[DriveLog, Settings, int], CalibrationRun]] = {
