@@ -41,7 +41,7 @@ from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, r
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.solvers.robust import RoundsStart, solve_segment_graph_robust
 from graphcal.pipeline.solvers.slip_screen import SlipTest, with_slip_if_shown
-from graphcal.pipeline.solvers.warm_start import warm_start
+from graphcal.pipeline.solvers.warm_start import warm_start_solution
 from graphcal.progress import Progress, reports_progress, say
 from graphcal.vehicle import HELD_SIGMA_SCALE
 
@@ -364,8 +364,9 @@ def solve_joint(
         settings.max_iterations, TOLERANCE, "joint solve", workers, report_iterations=True
     )
     spec = settings.graph_spec()
+    solution = start if same_segments else None
     if start is None:
-        shared = warm_start(data, spec, options)
+        shared, solution = warm_start_solution(data, spec, options)
     else:
         shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
         say(f"  start: the previous solve's {'solution' if same_segments else 'theta'}")
@@ -377,7 +378,7 @@ def solve_joint(
         covariance=not auto,
         shared_start=shared,
         rounds_start=rounds_start,
-        solution_start=start if same_segments else None,
+        solution_start=solution,
     )
     del residuals
     noise = residual_noise(solved, data, weights)

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dataclasses
 
+import gtsam
 import numpy as np
 
 from graphcal.errors import GraphcalError
@@ -48,6 +49,13 @@ COARSE_MIN_GAIN = 0.5
 def warm_start(
     data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions
 ) -> dict[int, np.ndarray] | None:
+    """:func:`warm_start_solution`'s graph-wide variables alone."""
+    return warm_start_solution(data, spec, options)[0]
+
+
+def warm_start_solution(
+    data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions
+) -> tuple[dict[int, np.ndarray] | None, gtsam.Values | None]:
     """The graph-wide variables (theta, time offset, lever arm, by key) solved on
     :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, each on its own
     (untied), for the whole-log solve to start from. A shorter log whose segments the whole
@@ -59,9 +67,13 @@ def warm_start(
     starts from the nominal theta with each segment's odometry moved onto its fixes (a
     robot's start heading from 2 Hz fixes of 1 m noise left its solve at χ²/dof 7 after 100
     iterations). The sample is solved as ``options``
-    say, without a line per iteration."""
+    say, without a line per iteration.
+
+    Also returns the sample's solution where the sample is every segment of ``data`` (a
+    shorter log whose segments the whole solve ties): a start for every variable of the tied
+    solve, not only the graph-wide ones (else ``None``)."""
     if not spec.estimate_theta:
-        return None
+        return None, None
     sample = spread(len(data), WARM_START_SEGMENTS)
     coarse = coarse_theta(data.take(sample), np.asarray(spec.theta, float))
     if coarse is not None:
@@ -76,12 +88,12 @@ def warm_start(
         sample = np.arange(len(data))
         say("  start: theta from the segments each on its own")
     elif coarse is not None:
-        return {keys.THETA: coarse}
+        return {keys.THETA: coarse}, None
     elif not data.has_heading():  # positions only: a start heading from noisy fixes is poor
         say("  start: each segment's odometry moved onto its fixes (no heading measured)")
-        return {keys.THETA: np.asarray(spec.theta, float)}
+        return {keys.THETA: np.asarray(spec.theta, float)}, None
     else:
-        return None
+        return None, None
     quiet = dataclasses.replace(options, label="warm start", report_iterations=False)
     untied = dataclasses.replace(spec, tie_segments=False)
     start = BuilderStart.warm(None if coarse is None else {keys.THETA: coarse})
@@ -90,8 +102,9 @@ def warm_start(
             data.take(sample), untied, quiet, start=start, covariance=False
         )
     except GraphcalError:
-        return None if coarse is None else {keys.THETA: coarse}
-    return {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}
+        return (None if coarse is None else {keys.THETA: coarse}), None
+    shared = {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}
+    return shared, solved.result if len(sample) == len(data) else None
 
 
 def coarse_theta(data: SegmentData, nominal: np.ndarray) -> np.ndarray | None:
