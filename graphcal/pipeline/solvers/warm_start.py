@@ -31,10 +31,6 @@ from graphcal.progress import say
 
 #: Segments of the sample a warm start solves.
 WARM_START_SEGMENTS = 32
-#: Iterations of the sample's solve at most: it is a start, and its last iteration only
-#: confirms what the one before reached (24 km: χ²/dof 493 → 0.993 in 3 iterations, the 4th
-#: a linearization of 0.4 s for the same theta to the printed digit).
-WARM_START_ITERATIONS = 3
 #: Logs with fewer selected segments than this start from the nominal theta: the sample would
 #: not save a whole-log iteration's worth.
 WARM_START_MIN_SEGMENTS = 3 * WARM_START_SEGMENTS
@@ -98,9 +94,7 @@ def warm_start_solution(
         return {keys.THETA: np.asarray(spec.theta, float)}, None
     else:
         return None, None
-    quiet = dataclasses.replace(
-        options, label="warm start", report_iterations=False, max_iterations=WARM_START_ITERATIONS
-    )
+    quiet = dataclasses.replace(options, label="warm start", report_iterations=False)
     untied = dataclasses.replace(spec, tie_segments=False)
     start = BuilderStart.warm(None if coarse is None else {keys.THETA: coarse})
     try:
