@@ -465,6 +465,22 @@ SLOW = [
         # then the arm not observable, left out, its share of the residuals not re-judged:
         # χ²/dof 1.67 "not to be trusted", exit 3 after 112 s
     ),
+    pytest.param(
+        _shape(
+            length_m=2493.0,
+            noise_sigma=1.99,
+            imu=False,
+            drives=2,
+            gap_s=20.0,
+            park_s=2.0,
+            time_offset_s=-0.032,
+            lever_arm=(0.03, 0.3),
+            seed=24625,
+        ),
+        id="town-fixes-ten-times-noisier",  # seed 22's shape 9: 10 Hz fixes of 2 m weighted
+        # as the profile's 0.2 m; the first solve crept 41 iterations at χ²/dof 95, and the
+        # runs from there ended t_r +3.4σ, d -6.0σ "calibrated" (18 s)
+    ),
 ]
 
 

@@ -1,6 +1,7 @@
 """The heading's white noise read from the log (graphcal.log.noise), on uniform and on
 sparse logs: what sets the heading's weight, so an overstated noise biases t_r and d; the
-wheel rates' white noise, what the wheel-rotation corrections are weighted by."""
+wheel rates' white noise, what the wheel-rotation corrections are weighted by; the fixes'
+white noise, what a first solve weights fixes far noisier than the settings assume by."""
 
 from __future__ import annotations
 
@@ -9,11 +10,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.log.noise import heading_noise, rate_wheel_noise
+from graphcal.log.noise import heading_noise, position_noise, rate_wheel_noise
 from graphcal.log.quantization import quantization_sigma
 from graphcal.model import THETA_NOMINAL
 from graphcal.simulate.defects import degrade, parse_defects
-from graphcal.simulate.drive import simulate_drive
+from graphcal.simulate.drive import NoiseLevels, simulate_drive
 
 WHITE = np.deg2rad(0.3)  # the heading_bias defect's white noise
 
@@ -152,3 +153,34 @@ def test_an_imported_recordings_wheel_noise_raises_the_profiles(tmp_path):
         settings, joint=dataclasses.replace(settings.joint, wheel_noise_from_log=False)
     )
     assert prepare_log(log, off, fall_back_to_all=True).settings.joint.wheel_noise == 0.0005
+
+
+@pytest.mark.parametrize("sigma", [0.2, 2.0])
+@pytest.mark.parametrize("defects", ["none", "gnss10hz", "gnss10hz,ticks"])
+def test_the_fixes_white_noise_is_read_from_their_second_differences(sigma, defects):
+    """40 Hz or 10 Hz fixes of 0.2 or 2 m, wheel speeds or 96-tick counts: the motion the
+    wheels put in a second difference is taken out, what is left is the noise."""
+    drive = simulate_drive(4.0, seed=3, noise=NoiseLevels(position=sigma))
+    log = degrade(drive, parse_defects(defects), 3).measured
+    assert position_noise(log, THETA_NOMINAL) == pytest.approx(sigma, rel=0.05)
+
+
+def test_a_first_solve_weights_fixes_far_noisier_than_the_settings_assume():
+    """Fixes of 2 m under the default 0.2 m: the first solve weights them as the 2 m their
+    second differences show, the heading's σ kept; fixes of 0.4 m (2×, within what the
+    solve's residuals judge) keep the settings' 0.2 m."""
+    from graphcal.factors import pose_sigmas
+    from graphcal.pipeline.configuration.settings import Settings
+    from graphcal.pipeline.methods.prepare import prepare_log
+
+    settings = Settings()
+    heading = pose_sigmas(settings.joint.pose_weights, settings.joint.position_sigma)[2]
+    settings = dataclasses.replace(
+        settings, joint=dataclasses.replace(settings.joint, heading_noise_from_log=False)
+    )
+    for sigma, weighted in ((2.0, 2.0), (0.4, 0.2)):
+        log = simulate_drive(4.0, seed=3, noise=NoiseLevels(position=sigma)).measured
+        joint = prepare_log(log, settings, True).settings.joint
+        sigmas = pose_sigmas(joint.pose_weights, joint.position_sigma)
+        assert sigmas[0] == pytest.approx(weighted, rel=0.05)
+        assert sigmas[2] == pytest.approx(heading, rel=1e-5)

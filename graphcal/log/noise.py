@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from graphcal.log.drive_log import DriveLog
-from graphcal.model import THETA_NOMINAL
+from graphcal.model import THETA_NOMINAL, step_increments
 
 #: White noise has second differences of the same spread over one and over two steps; a
 #: heading interpolated or held from a slower stream has much wider ones over two steps. Above
@@ -187,3 +187,56 @@ def rate_wheel_noise(
             return None  # interpolated, held or smoothed: not white per sample
         variances.append((1.4826 * _mad(second)) ** 2 / 6.0)
     return float(np.sqrt(np.mean(variances) * spacing * step))
+
+
+#: Fix triples a position-noise estimate needs at least.
+MIN_FIX_TRIPLES = 100
+#: A fix triple counts only where the wheels' odometry moves its second difference by less
+#: than this share of the fixes' median one: there the noise, not the motion, makes it.
+MOTION_SHARE = 0.5
+
+
+def position_noise(log: DriveLog, nominal: np.ndarray) -> float | None:
+    """White noise σ [m] per axis of the measured positions, from the second differences of
+    consecutive, evenly spaced usable fixes (not masked, not flagged) of one run, less the
+    motion the wheels' odometry (``nominal`` theta) puts in them, or ``None`` for fewer than
+    :data:`MIN_FIX_TRIPLES` triples.
+
+    Without a heading the motion's direction in the fixes' frame is unknown, its size is not:
+    ``|Δ²p|² − |Δ²q|²`` (``q`` the odometry's positions at the fixes' times) has median about
+    ``12 ln 2 · σ²`` (the squared norm of a 2-D Gaussian of ``6 σ²`` per axis). Triples whose
+    motion is at least :data:`MOTION_SHARE` of the fixes' median second difference are left
+    out. Only the white part shows: an error the fixes share over seconds barely moves a
+    second difference (the solve's residuals judge it); so does tick rounding of the wheels,
+    which this subtracts as motion — both make the estimate low, never high."""
+    usable = log.position_measured.copy()
+    for flags in (log.masked, log.outlying):
+        if flags is not None:
+            usable &= ~np.asarray(flags)
+    rows = np.flatnonzero(usable)
+    if len(rows) < MIN_FIX_TRIPLES + 2:
+        return None
+    times = log.t[rows] if log.fix_lag is None else (log.t - log.fix_lag)[rows]
+    v, omega = step_increments(log.inputs[:-1], nominal)
+    course = np.concatenate([[0.0], np.cumsum(omega)])[:-1] + 0.5 * omega
+    odometry = [
+        np.interp(times, log.t, np.concatenate([[0.0], np.cumsum(v * f(course))]))
+        for f in (np.cos, np.sin)
+    ]
+    spacing = np.diff(times)
+    gap = GAP_INTERVALS * float(np.median(spacing))
+    even = np.abs(spacing[1:] - spacing[:-1]) <= 1e-3 * (spacing[1:] + spacing[:-1])
+    even &= (spacing[1:] <= gap) & (spacing[:-1] <= gap) & (spacing[:-1] > 0)
+    if log.run is not None:
+        run = np.asarray(log.run)[rows]
+        even &= run[:-2] == run[2:]
+    fix_second = np.hypot(*(np.diff(np.stack([log.px[rows], log.py[rows]]), 2, axis=1)))
+    motion = np.hypot(*(np.diff(np.stack(odometry), 2, axis=1)))
+    fix_second, motion = fix_second[even], motion[even]
+    if len(fix_second) < MIN_FIX_TRIPLES:
+        return None
+    quiet = motion < MOTION_SHARE * float(np.median(fix_second))
+    if quiet.sum() < MIN_FIX_TRIPLES:
+        return None
+    excess = np.median(fix_second[quiet] ** 2 - motion[quiet] ** 2)
+    return float(np.sqrt(max(excess, 0.0) / (12.0 * np.log(2.0))))
