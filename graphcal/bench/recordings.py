@@ -1,11 +1,14 @@
 """Benchmark item (n): ``graphcal calibrate`` with defaults on each recording the test suite
 holds — the real highway car in its four forms, the real robot, the shipped sample drive —
-end to end in a child process: wall time, peak memory, exit status and the whole-log
-solves with their iterations (from the run's progress lines; the model check's and batches'
-solves are not said).
+and on simulated shapes the issues name (:data:`SIMULATED`: the 24 km default run, a 12 km
+drive with every defect of real logs, wheels 0.3 s late, the skid-steer profile's own
+recording), end to end in a child process: wall time, peak memory, exit status and the
+whole-log solves with their iterations (from the run's progress lines; the model check's and
+batches' solves are not said).
 
 The recordings are read from the source tree's ``data/`` (an installed copy without it
-gets no rows)."""
+gets no rows); the simulated ones are written by ``graphcal simulate`` into a temporary
+directory first (not timed)."""
 
 from __future__ import annotations
 
@@ -29,6 +32,32 @@ RECORDINGS: tuple[tuple[str, tuple[str, ...]], ...] = (
     (
         "robot, motion capture, 7 runs",
         ("real/optiodom/free", "--vehicle", "vehicles/mocap_robot.toml"),
+    ),
+)
+
+#: Each simulated shape: its name, the arguments of ``graphcal simulate`` before ``--out``
+#: or ``--streams`` (``{out}``: where it writes), and those of ``graphcal calibrate`` (``{out}``:
+#: what it wrote; other relative paths in :data:`DATA`).
+SIMULATED: tuple[tuple[str, tuple[str, ...], tuple[str, ...]], ...] = (
+    (
+        "simulated city drive, 24 km (seed 3)",
+        ("--length-km", "24", "--seed", "3", "--out", "{out}/city24.csv"),
+        ("{out}/city24.csv",),
+    ),
+    (
+        "simulated 12 km, every defect of real logs (seed 3)",
+        ("--length-km", "12", "--seed", "3", "--defects", "all", "--out", "{out}/defects12.csv"),
+        ("{out}/defects12.csv",),
+    ),
+    (
+        "simulated 4 km, wheels 0.3 s late (seed 3)",
+        ("--length-km", "4", "--seed", "3", "--defects", "latency=0.3", "--out", "{out}/late4.csv"),
+        ("{out}/late4.csv",),
+    ),
+    (
+        "simulated skid-steer robot, its profile's streams (seed 0)",
+        ("--vehicle", str(DATA / "vehicles/skid_steer_robot.toml"), "--streams", "{out}/skid"),
+        ("{out}/skid/manifest.toml", "--vehicle", "vehicles/skid_steer_robot.toml"),
     ),
 )
 
@@ -77,14 +106,35 @@ def calibrate_recording(arguments: tuple[str, ...], workers: int) -> dict:
     return {**result, "solves": len(iterations), "iterations": iterations}
 
 
+def simulated_recordings(folder: Path) -> list[tuple[str, tuple[str, ...]]]:
+    """Write every shape of :data:`SIMULATED` into ``folder`` with ``graphcal simulate``;
+    each one's name and the arguments that calibrate it."""
+    out = []
+    for name, simulate, calibrate in SIMULATED:
+        filled = [a.replace("{out}", str(folder)) for a in simulate]
+        subprocess.run(
+            [sys.executable, "-m", "graphcal.cli", "simulate", *filled],
+            capture_output=True,
+            check=True,
+            cwd=folder,
+        )
+        out.append((name, tuple(a.replace("{out}", str(folder)) for a in calibrate)))
+    return out
+
+
 def recording_items(record, workers: int) -> list[dict]:
-    """(n): every recording of :data:`RECORDINGS` calibrated with defaults, one row each;
-    none when the source tree's data are missing."""
+    """(n): every recording of :data:`RECORDINGS` and :data:`SIMULATED` calibrated with
+    defaults, one row each; none when the source tree's data are missing."""
     if not (DATA / "real").is_dir():
         record.say("(n) no recordings: data/ of the source tree not found")
         return []
+    with tempfile.TemporaryDirectory() as tmp:
+        return _calibrated(record, workers, [*RECORDINGS, *simulated_recordings(Path(tmp))])
+
+
+def _calibrated(record, workers: int, recordings: list) -> list[dict]:
     out = []
-    for name, arguments in RECORDINGS:
+    for name, arguments in recordings:
         run = calibrate_recording(arguments, workers)
         record(
             f"(n) calibrate {name}",
