@@ -81,3 +81,29 @@ def test_rounds_whose_weights_keep_trading_stop_when_theta_has_settled(outlying,
     first, _, _ = solve_robust(data, spec, _counted_solve(data, spec, own), 3.0)
     assert len(own) < 5
     assert np.all(np.abs(first.theta - full.theta) <= 0.1 * sigma)
+
+
+def test_rounds_end_at_the_first_where_a_solve_under_other_settings_follows(outlying):
+    """A first solve whose residuals change the noise levels is solved again under them:
+    its rounds end at the first, handing on the weights its residuals give (the outliers
+    already down-weighted, for the noise to be judged without them and the next solve to
+    go on from)."""
+    data, spec = outlying
+    calls: list[int] = []
+    asked: list[np.ndarray] = []
+
+    def ends(solution, weights) -> bool:
+        asked.append(weights)
+        return True
+
+    _, weights, residuals = solve_robust(
+        data, spec, _counted_solve(data, spec, calls), 3.0, stop_after_first=ends
+    )
+    assert len(calls) == 1 and len(asked) == 1
+    assert weights is asked[0] and (weights < 0.5).sum() >= 3
+    assert residuals is None  # not computed under the weights handed on
+    going_on: list[int] = []
+    solve_robust(
+        data, spec, _counted_solve(data, spec, going_on), 3.0, stop_after_first=lambda *_: False
+    )
+    assert len(going_on) > 1  # asked, and not ended: the rounds go on

@@ -6,13 +6,14 @@ wheels' noise (:mod:`graphcal.pipeline.solvers.residual_noise` measures them).""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
 from graphcal.factors import pose_sigmas
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
 from graphcal.pipeline.solvers.residual_noise import CORRELATED_ERRORS, ResidualNoise, honest_sigma
-from graphcal.progress import say
+from graphcal.progress import muted, say
 
 #: The fixes' noise from the solve replaces the settings' when they differ by more than this
 #: share (a variance component; one more solve): at most √1.5 − 1, so that noise left as
@@ -59,7 +60,32 @@ def with_noise_levels(
     ``fixes`` false: the fixes' noise stays the settings' where they share a modelled error
     (:func:`fixes_reweighted`).
     """
-    noise = whole.noise
+    return with_residual_noise(whole.noise, settings, has_heading, dt, fixes)
+
+
+def noise_levels_change(
+    settings: JointSettings, has_heading: bool, dt: float
+) -> Callable[[ResidualNoise], bool]:
+    """Whether a solve's residual ``noise`` would change ``settings``' noise levels
+    (:func:`with_noise_levels`, its lines unsaid): then that solve is solved again under
+    them, and its robust rounds and slip screen can stop at its first round
+    (:func:`~graphcal.pipeline.solvers.joint.solve_joint`'s ``stop_if``)."""
+
+    def changes(noise: ResidualNoise) -> bool:
+        with muted():
+            return with_residual_noise(noise, settings, has_heading, dt) is not settings
+
+    return changes
+
+
+def with_residual_noise(
+    noise: ResidualNoise,
+    settings: JointSettings,
+    has_heading: bool,
+    dt: float,
+    fixes: bool = True,
+) -> JointSettings:
+    """:func:`with_noise_levels` of a solve's residual ``noise``."""
     x, y, _ = settings.pose_weights
     sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
     position, heading, wheel = float(sigmas[0]), float(sigmas[2]), settings.wheel_noise

@@ -4,6 +4,7 @@ shifted by the whole samples of the offset it finds, until what is left is under
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import gtsam
@@ -14,6 +15,7 @@ from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import detected_offsets, sensor_estimates
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings, solve_joint
+from graphcal.pipeline.solvers.residual_noise import ResidualNoise
 from graphcal.pipeline.solvers.robust import RoundsStart
 from graphcal.progress import say
 
@@ -58,6 +60,7 @@ def solve_with_time_offset(
     start: StoppedAt | None = None,
     rounds: int = OFFSET_ROUNDS,
     solved: tuple[JointCalibration, gtsam.Values] | None = None,
+    stop_if: Callable[[ResidualNoise], bool] | None = None,
 ) -> Solved:
     """The whole-log solve; while it detects a wheel time offset, the wheels are shifted by
     the offset found so far, rounded to whole samples, and the solve repeated, so that the
@@ -75,7 +78,8 @@ def solve_with_time_offset(
     weights); the first from ``start`` (where a solve of the same segments under other noise
     levels stopped), if given; ``solved``: that solve itself, under these settings (the
     rounds go on from it). A run is shifted again only while its solve finds more than
-    :data:`SHIFT_AGAIN_SAMPLES` of a sample beyond its shift; ``rounds`` solves at most."""
+    :data:`SHIFT_AGAIN_SAMPLES` of a sample beyond its shift; ``rounds`` solves at most.
+    ``stop_if``: the first solve's (:func:`~graphcal.pipeline.solvers.joint.solve_joint`)."""
     log, selected, flagged = prepared.log, prepared.selected, prepared.fix_weights
     data = prepared.data
     start = start or StoppedAt(None, np.zeros(log.runs), None)
@@ -84,7 +88,7 @@ def solve_with_time_offset(
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
     if solved is None:
         whole, values = _whole_log_solve(
-            data, settings, workers, start.values, start.rounds, same_segments=True
+            data, settings, workers, start.values, start.rounds, True, stop_if
         )
     else:
         whole, values = solved
@@ -117,12 +121,13 @@ def _whole_log_solve(
     start: gtsam.Values | None = None,
     rounds_start: RoundsStart | None = None,
     same_segments: bool = False,
+    stop_if: Callable[[ResidualNoise], bool] | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """The joint solve over all ``data`` (its segments shared out among ``workers``
     processes; from the graph-wide variables of ``start`` — every variable, with
     ``same_segments``: ``start`` solved ``data`` itself — and the robust rounds from
-    ``rounds_start``, if given), with the progress lines a user waits for, and the
-    solution's values."""
+    ``rounds_start``, if given; ``stop_if`` as :func:`solve_joint`'s), with the progress
+    lines a user waits for, and the solution's values."""
     say(f"joint solve over all {len(data)} selected segments")
     result, values = solve_joint(
         data,
@@ -131,6 +136,7 @@ def _whole_log_solve(
         start=start,
         rounds_start=rounds_start,
         same_segments=same_segments,
+        stop_if=stop_if,
     )
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"

@@ -33,6 +33,7 @@ Top-down, :func:`solve_whole_log` runs:
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import gtsam
@@ -57,7 +58,11 @@ from graphcal.pipeline.methods.held_at_prior import (
     without_an_unseen_lever_arm,
 )
 from graphcal.pipeline.methods.joint_batches import segment_systems
-from graphcal.pipeline.methods.noise_levels import fixes_reweighted, with_noise_levels
+from graphcal.pipeline.methods.noise_levels import (
+    fixes_reweighted,
+    noise_levels_change,
+    with_noise_levels,
+)
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import (
     DownWeightedFixes,
@@ -79,6 +84,7 @@ from graphcal.pipeline.methods.time_offset_rounds import (
     solve_with_time_offset,
 )
 from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
+from graphcal.pipeline.solvers.residual_noise import ResidualNoise
 from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
 
@@ -137,6 +143,18 @@ class WholeLog:
         return gather_segments(batch_log, self.corrected.selected, self.corrected.fix_weights)
 
 
+@dataclass(frozen=True)
+class FreeSolve:
+    """How a free whole-log solve runs (:func:`solve_with_time_offset`'s arguments): from
+    where (``start``), going on from which solve under these settings (``solved``), with
+    how many time-offset rounds, and when its first robust round ends it (``stop_if``)."""
+
+    start: StoppedAt | None = None
+    solved: tuple[JointCalibration, gtsam.Values] | None = None
+    rounds: int = OFFSET_ROUNDS
+    stop_if: Callable[[ResidualNoise], bool] | None = None
+
+
 def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     """The whole-log procedure of the module docstring on ``prepared``.
 
@@ -145,10 +163,15 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     """
     settings, held = prepared.settings, dict(prepared.held)
     first = StoppedAt(None, _wheel_lag(prepared), None)
-    settings, (whole, values, data, offset) = _holding_runaways(
-        prepared, settings, held, workers, first, rounds=1
-    )
     has_heading = prepared.data.has_heading()
+    rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
+    # The first solve stops at its first robust round where the next is certain: a_y derived
+    # again, or noise levels its residuals change.
+    changes = noise_levels_change(settings.joint, has_heading, prepared.log.dt)
+    stop_if = (lambda noise: True) if rederive else changes
+    settings, (whole, values, data, offset) = _holding_runaways(
+        prepared, settings, held, workers, FreeSolve(first, rounds=1, stop_if=stop_if)
+    )
     joint = with_noise_levels(whole, settings.joint, has_heading, prepared.log.dt)
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
@@ -161,7 +184,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     if reweighted:  # fitted under far wrong fix weights: no start for the right ones
         start = StoppedAt(None, offset, None)
     settings, (whole, values, data, offset) = _holding_runaways(
-        prepared, settings, held, workers, start, None if again else (whole, values)
+        prepared, settings, held, workers, FreeSolve(start, None if again else (whole, values))
     )
     # Noise judged again where the solve it was judged from differs: it fitted far wrong fix
     # weights (the heading's and the wheels' noise, under the fixes' own), or a lever arm it
@@ -177,7 +200,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
             settings = dataclasses.replace(settings, joint=joint)
             start = StoppedAt(values, offset, rounds_start(whole))
             settings, (whole, values, data, offset) = _holding_runaways(
-                prepared, settings, held, workers, start
+                prepared, settings, held, workers, FreeSolve(start)
             )
     log, validation = prepared.log, prepared.validation
     whole = judged_with_what_is_held(whole, settings.joint, held)
@@ -211,19 +234,18 @@ def _holding_runaways(
     settings: Settings,
     held: dict[str, str],
     workers: int,
-    start: StoppedAt | None = None,
-    solved: tuple[JointCalibration, gtsam.Values] | None = None,
-    rounds: int = OFFSET_ROUNDS,
+    free: FreeSolve = FreeSolve(),
     noisier_judged: bool = False,
 ) -> tuple[Settings, Solved]:
-    """:func:`solve_with_time_offset` of ``prepared`` (``solved``: the solve under these
-    settings the rounds go on from); parameters that run out of their plausible range are
-    held at their prior (:func:`_holding_a_runaway`, recorded in ``held``) and the settings
-    holding them returned; a runaway whose held solve shows far noisier fixes is solved
-    again free under their noise, once (``noisier_judged``: that was done)."""
+    """:func:`solve_with_time_offset` of ``prepared`` as ``free`` says; parameters that run
+    out of their plausible range are held at their prior (:func:`_holding_a_runaway`,
+    recorded in ``held``) and the settings holding them returned; a runaway whose held solve
+    shows far noisier fixes is solved again free under their noise, once
+    (``noisier_judged``: that was done)."""
+    start, rounds = free.start, free.rounds
     try:
         return settings, solve_with_time_offset(
-            prepared, settings.joint, workers, start, rounds, solved
+            prepared, settings.joint, workers, start, rounds, free.solved, free.stop_if
         )
     except ImplausibleTheta as runaway:
         holding = settings.joint.holding(runaway.names)
@@ -243,7 +265,8 @@ def _holding_runaways(
         joint = dataclasses.replace(noise, held_at_prior=settings.joint.held_at_prior)
         settings = dataclasses.replace(settings, joint=joint)
         unshifted = StoppedAt(None, start.shift, None) if start is not None else None
-        return _holding_runaways(prepared, settings, held, workers, unshifted, None, rounds, True)
+        again = FreeSolve(unshifted, rounds=rounds)
+        return _holding_runaways(prepared, settings, held, workers, again, noisier_judged=True)
 
 
 def _with_lateral_acceleration(prepared: PreparedLog, theta: np.ndarray) -> PreparedLog:

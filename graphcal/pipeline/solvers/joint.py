@@ -21,6 +21,7 @@ likelihood estimate of theta, start poses and true rotations together.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import gtsam
@@ -30,12 +31,14 @@ from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
 from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraphSpec, shared_keys
 from graphcal.graph.optimization.solve_options import SolveOptions
-from graphcal.graph.solution.estimates import ThetaEstimate
+from graphcal.graph.solution.covariance import with_covariance
+from graphcal.graph.solution.estimates import SolvedGraph, ThetaEstimate
 from graphcal.graph.solution.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
     assess_observability,
 )
+from graphcal.graph.solution.segment_solve import BuilderStart
 from graphcal.log.segments import SegmentData
 from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
@@ -341,18 +344,17 @@ def solve_joint(
     start: gtsam.Values | None = None,
     rounds_start: RoundsStart | None = None,
     same_segments: bool = False,
+    stop_if: Callable[[ResidualNoise], bool] | None = None,
 ) -> tuple[JointCalibration, gtsam.Values]:
-    """:func:`calibrate_joint`, with the solution's value of every variable of the graph: the
-    point to linearize other graphs of the same segments at (the joint batches,
-    :mod:`graphcal.pipeline.methods.joint_batches`). ``start``: a solution of the same segments
-    under other settings (other noise levels, a shifted log) whose graph-wide variables the
-    solve starts from instead of a warm start's; ``rounds_start``: that solution's fix
-    weights and theta's σ, where the robust rounds start
-    (:func:`~graphcal.pipeline.solvers.robust.solve_robust`); ``same_segments``: ``start`` is
-    a solution of these very segments (not of a shifted log), so every variable it holds
-    starts from it — a solve under other noise levels then starts at its optimum's
-    neighbour, not at the builder's odometry (the real robot: 4 iterations from χ²/dof 129
-    before).
+    """:func:`calibrate_joint`, with the solution's value of every variable of the graph (the
+    point the joint batches linearize at). ``start``: a solution of the same segments under
+    other settings whose graph-wide variables the solve starts from, not a warm start's
+    (with ``same_segments``, a solution of these very segments: every variable; the real
+    robot's re-solve 4 → 3 iterations); ``rounds_start``: its fix weights and theta's σ
+    (:func:`~graphcal.pipeline.solvers.robust.solve_robust`); ``stop_if``: given the first
+    robust round's residual noise, whether the solve ends there, without more rounds or the
+    slip screen, because the caller solves again under other settings (the real robot's
+    first solve: 4 more rounds and the screen, 2.3 s, that the next solve did again).
 
     The steps: the warm start (:mod:`graphcal.pipeline.solvers.warm_start`), the solve with robust
     fix weights (:mod:`graphcal.pipeline.solvers.robust`), the fixes' noise in its residuals, with
@@ -363,34 +365,17 @@ def solve_joint(
     options = SolveOptions(
         settings.max_iterations, TOLERANCE, "joint solve", workers, report_iterations=True
     )
-    spec = settings.graph_spec()
-    solution = start if same_segments else None
-    if start is None:
-        shared, solution = warm_start_solution(data, spec, options)
-    else:
-        shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
-        say(f"  start: the previous solve's {'solution' if same_segments else 'theta'}")
-    solved, weights, residuals = solve_segment_graph_robust(
-        data,
-        spec,
-        options,
-        settings.robust_threshold,
-        covariance=not auto,
-        shared_start=shared,
-        rounds_start=rounds_start,
-        solution_start=solution,
+    first = _first_start(data, settings.graph_spec(), options, start, same_segments)
+    solved, weights, noise, stopped = _robust_solve(
+        data, settings, options, first, rounds_start, stop_if
     )
-    del residuals
-    noise = residual_noise(solved, data, weights)
     statistic = None
-    if auto:
+    if auto and stopped:  # solved again under other settings: no slip screen here
+        solved = with_covariance(solved, options.label, options.workers)
+    elif auto:
+        slip = settings.graph_spec(slip=True)
         solved, statistic = with_slip_if_shown(
-            solved,
-            data,
-            weights,
-            settings.graph_spec(slip=True),
-            settings.slip_alpha,
-            options,
+            solved, data, weights, slip, settings.slip_alpha, options
         )
     observability = settings.observability(solved.covariance)
     calibration = JointCalibration(
@@ -409,3 +394,55 @@ def solve_joint(
         nuisance=solved.nuisance,
     )
     return calibration, solved.result
+
+
+def _first_start(
+    data: SegmentData,
+    spec: SegmentGraphSpec,
+    options: SolveOptions,
+    start: gtsam.Values | None,
+    same_segments: bool,
+) -> BuilderStart:
+    """Where :func:`solve_joint` starts: a warm start's (graph-wide variables, and its
+    solution where it solved every segment), or ``start``'s."""
+    if start is None:
+        shared, solution = warm_start_solution(data, spec, options)
+    else:
+        shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
+        solution = start if same_segments else None
+        say(f"  start: the previous solve's {'solution' if same_segments else 'theta'}")
+    if solution is None:
+        return BuilderStart.warm(shared)
+    return BuilderStart(shared or {}, gauss_newton_first=True, solution=solution)
+
+
+def _robust_solve(
+    data: SegmentData,
+    settings: JointSettings,
+    options: SolveOptions,
+    first: BuilderStart,
+    rounds_start: RoundsStart | None,
+    stop_if: Callable[[ResidualNoise], bool] | None,
+) -> tuple[SolvedGraph, np.ndarray | None, ResidualNoise, bool]:
+    """:func:`solve_joint`'s robust solve from ``first``: the solution (its covariance unless
+    the slip screen follows), weights, residual noise, and whether ``stop_if`` ended it."""
+    stopped: list[bool] = []
+
+    def first_round_ends(solved: SolvedGraph, weights: np.ndarray | None) -> bool:
+        stopped.append(stop_if is not None and stop_if(residual_noise(solved, data, weights)))
+        return stopped[-1]
+
+    solved, weights, _ = solve_segment_graph_robust(
+        data,
+        settings.graph_spec(),
+        options,
+        settings.robust_threshold,
+        covariance=settings.slip != "auto",
+        start=first,
+        rounds_start=rounds_start,
+        stop_after_first=None if stop_if is None else first_round_ends,
+    )
+    noise = residual_noise(solved, data, weights)
+    if stop_if is not None and not stopped:  # solved once, without robust rounds
+        stopped.append(stop_if(noise))
+    return solved, weights, noise, any(stopped)

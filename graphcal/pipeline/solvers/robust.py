@@ -27,7 +27,6 @@ import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
-import gtsam
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
@@ -88,6 +87,7 @@ def solve_robust(
     threshold: float,
     rounds: int = 5,
     start: RoundsStart | None = None,
+    stop_after_first: Callable[[SolvedGraph, np.ndarray | None], bool] | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """Solve ``spec`` over ``data`` with robust fix weights.
 
@@ -101,6 +101,10 @@ def solve_robust(
         start: where an earlier solve of the same segments left the rounds
             (:class:`RoundsStart`): its weights the first solve's (each at most the given
             one), so that the rounds go on from where it stopped, not from weight 1.
+        stop_after_first: given the first solve and the weights its residuals give (the
+            second round's), whether the rounds end there: a solve under other settings
+            follows and goes on from those weights (returned, though not yet solved with),
+            or ``None``.
 
     Returns:
         The last solution, the weights ``(S, K+1)`` it used (``None``: every fix kept
@@ -120,7 +124,7 @@ def solve_robust(
     if theta_sigma is None:
         theta_sigma = _known_theta_sigma(solution)
     residuals = None
-    for _ in range(rounds - 1):
+    for round_ in range(rounds - 1):
         residuals = solution.built.fix_residuals(solution.result, solution.partitioned)
         # The scale from fixes not flagged already (samples between fixes have none).
         usable = data.position_fixes() & (given >= 1.0)
@@ -129,6 +133,8 @@ def solve_robust(
         old = given if weights is None else weights
         if np.max(np.abs(new - old)) <= WEIGHT_TOLERANCE:
             return solution, weights, residuals  # computed at this solution
+        if round_ == 0 and stop_after_first is not None and stop_after_first(solution, new):
+            return solution, new, None  # the next round's weights, for the solve after
         weights = new
         before = solution.theta
         solution = solve(dataclasses.replace(data, fix_weights=weights), solution.result)
@@ -166,20 +172,16 @@ def solve_segment_graph_robust(
     threshold: float,
     *,
     covariance: bool = True,
-    shared_start: dict[int, np.ndarray] | None = None,
+    start: BuilderStart | None = None,
     rounds_start: RoundsStart | None = None,
-    solution_start: gtsam.Values | None = None,
+    stop_after_first: Callable[[SolvedGraph, np.ndarray | None], bool] | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """:func:`~graphcal.graph.solution.segment_solve.solve_segment_graph` (each solve as ``options``
     say) with robust fix weights (:func:`solve_robust`, whose three results it returns);
-    ``threshold`` 0 solves once without them. ``shared_start``: where the first solve starts
-    the graph-wide variables (e.g. :func:`~graphcal.pipeline.solvers.warm_start.warm_start`);
-    ``rounds_start``: where the rounds start (:func:`solve_robust`); ``solution_start``: a
-    solution of the same segments under other settings, every variable it holds the first
-    solve's start (:class:`~graphcal.graph.solution.segment_solve.BuilderStart`)."""
-    first = BuilderStart.warm(shared_start)
-    if solution_start is not None:
-        first = BuilderStart(shared_start or {}, gauss_newton_first=True, solution=solution_start)
+    ``threshold`` 0 solves once without them. ``start``: where the first solve starts (e.g.
+    a warm start's graph-wide variables; default: the builder's values); ``rounds_start``:
+    where the rounds start, and ``stop_after_first``, as :func:`solve_robust`'s."""
+    first = start or BuilderStart()
 
     def solve(segments: SegmentData, initial) -> SolvedGraph:
         return solve_segment_graph(
@@ -194,7 +196,7 @@ def solve_segment_graph_robust(
         solution, weights, residuals = solve(data, None), data.fix_weights, None
     else:
         solution, weights, residuals = solve_robust(
-            data, spec, solve, threshold, start=rounds_start
+            data, spec, solve, threshold, start=rounds_start, stop_after_first=stop_after_first
         )
     if covariance:
         solution = with_covariance(solution, options.label, options.workers)
