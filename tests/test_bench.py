@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -90,3 +92,17 @@ def test_the_sample_drive_calibrates_in_a_few_iterations_per_solve():
     run = calibrate_recording(("sample_drive.csv",), workers=1)
     assert run["returncode"] == 0
     assert 1 <= run["solves"] <= 3 and max(run["iterations"]) < 10
+
+
+@pytest.mark.slow
+def test_the_simulated_shapes_are_written_where_their_calibration_reads_them(tmp_path):
+    """Item (n)'s simulated shapes: each written by ``graphcal simulate`` into the folder,
+    and each calibration's recording there (the 24 km and 12 km drives once overwrote one
+    another under one name)."""
+    from graphcal.bench.recordings import SIMULATED, simulated_recordings
+
+    shapes = simulated_recordings(tmp_path)
+    assert [name for name, _ in shapes] == [name for name, _, _ in SIMULATED]
+    recordings = [Path(arguments[0]) for _, arguments in shapes]
+    assert len(set(recordings)) == len(recordings)
+    assert all(r.is_file() and r.parent.is_relative_to(tmp_path) for r in recordings)

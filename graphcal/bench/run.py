@@ -254,6 +254,11 @@ def run_bench(args: Any, progress: Progress | None = None) -> dict[str, Any]:
             "import": import_item(sizes["import_hours"]),
             "import_can": can_import_item(sizes["import_hours"]),
         }
+    if getattr(args, "only_recordings", False):
+        record = Recorder(progress)
+        recordings = recording_items(record, args.workers)
+        config = {"workers": args.workers, "python": sys.version.split()[0]}
+        return {"config": config, "items": record.rows, "recordings": recordings}
     report = run_benchmarks(BenchSizes(**sizes), args.workers, progress)
     report["config"]["quick"] = bool(getattr(args, "quick", False))
     return report
