@@ -96,3 +96,25 @@ def test_a_skid_steer_robot_with_a_consumer_gps_and_an_imu_imports(tmp_path, cap
     manifest = tmp_path / "rec" / "manifest.toml"
     args = ["import", str(manifest), "--vehicle", str(profile), "--out", str(tmp_path / "d.csv")]
     assert main(args) == 0, capsys.readouterr().err
+
+
+def test_wandering_fixes_do_not_refuse_a_robots_valid_lateral_acceleration(tmp_path, capsys):
+    """Campaign seed 24's shape 21: a differential robot's 50 Hz fixes of 1.8 m sharing their
+    error over 26 s bend the track's course more than the robot turns, and its valid lateral
+    acceleration was refused as 0.185x the track's speed × yaw rate. It is judged against
+    the yaw rate (else the heading) that passed its own check; in g it is still named."""
+    from campaign.recording import write_recording
+    from campaign.shape import Shape
+
+    shape = Shape(
+        vehicle="differential", route="yard", length_m=202.0, gnss_rate=50.0,
+        noise_sigma=1.82, noise_tau_s=26.0, heading=True, imu=True, wheels="speed", ticks=0,
+        drives=1, gap_s=0.0, park_s=0.0, time_offset_s=0.0, lever_arm=(-0.2, 0.0), seed=22,
+    )  # fmt: skip
+    manifest = write_recording(shape, tmp_path / "rec")
+    vehicle = ["--vehicle", str(manifest.parent / "vehicle.toml")]
+    out = ["--out", str(tmp_path / "drive.csv")]
+    assert main(["import", str(manifest), *vehicle, *out]) == 0, capsys.readouterr().err
+    _change(manifest.parent / "imu.csv", "ay", lambda v: v / 9.80665)
+    assert main(["import", str(manifest), *vehicle, "--out", str(tmp_path / "g.csv")]) == 2
+    assert "apparently in g" in capsys.readouterr().err

@@ -232,7 +232,7 @@ def track_turns(
 
 
 def lateral_acceleration_scale(
-    ay: np.ndarray, turns: TrackTurns, dt: float
+    ay: np.ndarray, turns: TrackTurns, dt: float, reference: np.ndarray | None = None
 ) -> tuple[float, int, float, float] | None:
     """How many times speed × yaw rate of the track a lateral acceleration ``ay`` [m/s² as
     logged, one per grid sample of ``dt`` s] is in the track's clear ``turns``: the median
@@ -242,11 +242,16 @@ def lateral_acceleration_scale(
     The track's speed × yaw rate in a window is the wheels' (nominal θ: speed at each
     sample times yaw rate, averaged) scaled by the track's turn over the wheels': a window
     as long as a chord many times the fixes' noise holds stops, spins and bends, whose
-    speeds and turns the window's totals alone would mix up."""
+    speeds and turns the window's totals alone would mix up. ``reference``: each window's
+    turn [rad] of a yaw that passed its own check (the IMU's yaw rate, or the heading), in
+    place of the track's: fixes whose errors wander together over tens of seconds bend the
+    track's course by more than a robot's turns (a differential robot's 50 Hz fixes of
+    1.8 m over 26 s: its valid lateral acceleration 0.185× the track's, refused)."""
     sums = np.add.reduceat(ay, turns.ends[:-1])
     counts = np.diff(np.append(turns.ends[:-1], len(ay)))
+    turned = turns.track if reference is None else reference
     with np.errstate(invalid="ignore", divide="ignore"):
-        expected = turns.wheel_ay * np.nan_to_num(turns.track) / turns.wheels
+        expected = turns.wheel_ay * np.nan_to_num(turned) / turns.wheels
     expected = np.where(np.isfinite(expected), expected, 0.0)
     found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
     if found is None:

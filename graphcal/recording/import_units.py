@@ -102,8 +102,10 @@ def check_units(
     grid = c["t"] + resampled.overlap[0]
     usable = ~resampled.masked
     pose, imu = recording.pose, recording.imu
+    reference = None  # the turns of a yaw that passed its check: the lateral acceleration's
     if pose.heading is not None:
         _check_angle_scale(c["psi"], "heading", pose, pose.t, turns, usable, grid)
+        reference = turns.turns_of(c["psi"])
     if imu is None:
         return
     where = provenance_of(imu)
@@ -111,9 +113,10 @@ def check_units(
         rate = interval_means(imu.t, imu.yaw_rate, grid)
         yaw = np.concatenate([[0.0], np.cumsum(rate[:-1] * dt)])
         _check_angle_scale(yaw, "yaw_rate", imu, imu.t, turns, usable, grid)
+        reference = turns.turns_of(yaw)
     if imu.lateral_acceleration is not None:
         mean = interval_means(imu.t, imu.lateral_acceleration, grid)
-        found = lateral_acceleration_scale(mean, turns, dt)
+        found = lateral_acceleration_scale(mean, turns, dt, reference)
         if found is not None and not (
             1 / ACCELERATION_SCALE_LIMIT <= found[0] <= ACCELERATION_SCALE_LIMIT
         ):
