@@ -176,3 +176,26 @@ def test_a_continuous_signal_that_cruises_has_no_resolution(rate):
     assert ticks_per_revolution(narrow) is None
     narrow += np.random.default_rng(7).normal(0.0, 5e-4, narrow.shape)
     assert ticks_per_revolution(narrow) is None
+
+
+@pytest.mark.parametrize("rate", RATES)
+def test_a_counter_slower_than_a_tick_per_interval_gives_its_resolution(rate):
+    """A skid-steer robot's 16-tick wheels (0.8 m circumference at 0.1–0.5 m/s): every
+    positive rotation is one tick, the intervals around it none (campaign seed 24's shape
+    15: found none). One value alone would sit on many grids by chance; beside the
+    standstills it is a counter's."""
+    rotations = _counted(_angles(600.0, rate, 0.1, 0.5, 0.8), 16)
+    assert set(np.unique(np.round(rotations * 16))) == {0.0, 1.0}
+    assert ticks_per_revolution(rotations) == 16
+
+
+@pytest.mark.parametrize("rate", RATES)
+def test_a_continuous_signal_that_stops_and_cruises_has_no_resolution(rate):
+    """Exact zeros where a robot stands, and one exact value at its cruise speed (an encoder
+    rate quantized by the logger, say): a few samples lie beside a standstill, not a counter's
+    share."""
+    per = np.full(int(600 * rate), 0.03)  # rev per interval
+    stops = (np.arange(len(per)) // int(20 * rate)) % 2 == 1  # 20 s cruising, 20 s standing
+    per[stops] = 0.0
+    rotations = np.column_stack([per, per])
+    assert ticks_per_revolution(rotations) is None

@@ -112,8 +112,9 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     about one level, so where the values scatter (``ε`` above its floor) the grid levels
     occupied must be beyond chance too, ``p^L`` for ``L`` levels (a 1 km highway cruise's
     speeds, 1/3 rev per interval ± 0.0006, made 6 ticks "found" from one level); exact
-    repeats of one count (a 16-tick counter on a slow robot: 0 or 1 tick per interval) are
-    a counter's. ``k`` of ``K`` values on the grid have chance at most
+    repeats of one count are a counter's where the intervals around them read none
+    (:func:`_beside_standstills`: a 16-tick counter on a slow robot, 0 or 1 tick per
+    interval). ``k`` of ``K`` values on the grid have chance at most
     ``exp(−K D(k/K ‖ p))`` (Chernoff; ``p^K`` when all are), times ``tried``."""
     n = rotations.reshape(-1)
     ticked = n[np.isfinite(n) & (n > 0)] * ticks
@@ -126,6 +127,8 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     levels = len(np.unique(np.round(ticked[off <= tolerance])))  # grid levels occupied
     chance = 2.5 * tolerance
     scattered = tolerance > GRID_PRECISION_TICKS  # exact repeats are a counter's, not a dwell's
+    if levels == 1 and not scattered and _beside_standstills(rotations):
+        return True  # one count, and none in the intervals around it: a slow counter's
     if scattered and levels * math.log(chance) + math.log(tried) > math.log(MAX_CHANCE):
         return False  # too few levels: a dwell's scatter about one level is one value
     if share <= chance or chance >= 1.0:
@@ -134,6 +137,29 @@ def _on_grid_beyond_chance(rotations: np.ndarray, ticks: int, tried: int) -> boo
     if share < 1.0:
         divergence += (1.0 - share) * math.log((1.0 - share) / (1.0 - chance))
     return -len(values) * divergence + math.log(tried) <= math.log(MAX_CHANCE)
+
+
+#: Positive rotations next to an interval of none that make a single count a counter's: a
+#: share of them, and a number.
+BESIDE_NONE_SHARE = 0.1
+BESIDE_NONE_COUNT = 100
+
+
+def _beside_standstills(rotations: np.ndarray) -> bool:
+    """Whether many positive rotations ``(N, ...)`` lie next to an interval of exactly none
+    (in the same column): a counter too coarse for the speed reads 0 or 1 tick in turn (a
+    skid-steer robot's 16-tick wheels at 40 Hz: every positive rotation one tick, 10,269 of
+    them), while a continuous signal reads exact zeros only at a standstill, whose ends are
+    a few of its samples. One count alone sits on the grids of all its divisors' multiples
+    by chance no less than a dwell's one value does: this is the evidence."""
+    columns = np.asarray(rotations, float).reshape(len(rotations), -1)
+    positive = np.isfinite(columns) & (columns > 0)
+    none = columns == 0.0
+    beside = np.zeros_like(none)
+    beside[1:] |= none[:-1]
+    beside[:-1] |= none[1:]
+    count = int((positive & beside).sum())
+    return count >= BESIDE_NONE_COUNT and count >= BESIDE_NONE_SHARE * int(positive.sum())
 
 
 def _residuals(n: np.ndarray, ticks: int) -> tuple[np.ndarray, np.ndarray]:
