@@ -224,6 +224,62 @@ EXAMPLES = [
         ),
         id="heading-against-a-noisy-course",
     ),
+    pytest.param(
+        _shape(
+            vehicle="differential",
+            route="yard",
+            length_m=236.0,
+            gnss_rate=50.0,
+            noise_sigma=1.7,
+            heading=False,
+            wheels="ticks",
+            ticks=3302,
+            drives=3,
+            gap_s=45.0,
+            time_offset_s=0.012,
+            lever_arm=(0.0, 0.0),
+            seed=343,
+        ),
+        id="course-of-noisy-fixes-read-as-degrees",  # seed 25's shape 7: the track's own
+        # course (no heading logged) turned 22x the wheels' and was refused as "degrees"
+    ),
+    pytest.param(
+        _shape(
+            vehicle="differential",
+            route="yard",
+            length_m=162.0,
+            gnss_rate=5.0,
+            noise_sigma=1.98,
+            heading=False,
+            wheels="angular_speed",
+            drives=3,
+            gap_s=50.0,
+            park_s=4.0,
+            lever_arm=(0.01, 0.0),
+            seed=436,
+        ),
+        id="distance-ratio-of-chords-all-noise",  # seed 25's shape 13: 2 m fixes, 0.3 m of
+        # travel per 2 s window; the chords' length less their noise came out 0: refused
+    ),
+    pytest.param(
+        _shape(
+            vehicle="skid-steer",
+            route="yard",
+            length_m=248.0,
+            gnss_rate=1.0,
+            noise_sigma=0.2,
+            noise_tau_s=5.0,
+            heading=False,
+            imu=False,
+            wheels="ticks",
+            ticks=16,
+            park_s=2.0,
+            lever_arm=(0.0, 0.0),
+            seed=16,
+        ),
+        id="sixteen-ticks-one-per-interval",  # seed 24's shape 15: every positive rotation
+        # one tick, the intervals around it none: no resolution found
+    ),
 ]
 
 

@@ -41,6 +41,11 @@ MAX_POSITION = 1e6
 #: window [s] over which both are compared.
 DISTANCE_RATIO_RANGE = (0.5, 2.0)
 RATIO_WINDOW_S = 2.0
+#: Where the fixes' noise is at least this share of the chords' squared length, the
+#: distance ratio is not judged: what is left once the noise is taken out is the difference
+#: of two noisy sums (a differential robot's 5 Hz fixes of 2 m, 0.3 m of travel per window:
+#: the ratio came out 0 and a valid recording was refused).
+NOISE_SHARE_JUDGED = 0.5
 #: The comparison's windows must each travel :data:`RATIO_MIN_WINDOW_REVS` wheel revolutions
 #: (nominal c_e: 5 m for the paper's car), and all of them together
 #: :data:`RATIO_MIN_REVS` (50 m), so that the position noise is small next to them.
@@ -124,7 +129,9 @@ def position_problem(
     low, high = DISTANCE_RATIO_RANGE
     ratio = np.sqrt(squared / rolled)
     if ratio > high:
-        ratio = np.sqrt(max(squared - noise, 0.0) / rolled)
+        if noise >= NOISE_SHARE_JUDGED * squared:
+            return None  # the chords are mostly the fixes' noise: they tell no scale
+        ratio = np.sqrt((squared - noise) / rolled)
     if not low <= ratio <= high:
         return (
             f"the positions travel {ratio:.3g}x the distance the wheel rotations imply "
