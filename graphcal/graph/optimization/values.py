@@ -53,3 +53,15 @@ def tangent_dims(values: gtsam.Values) -> dict[int, int]:
     """Tangent dimension of every variable of ``values``."""
     zero = values.zeroVectors()
     return {int(k): len(zero.at(k)) for k in values.keys()}
+
+
+def taken_from(initial: gtsam.Values, solution: gtsam.Values) -> gtsam.Values:
+    """``initial`` (a graph's own start) with every variable that ``solution`` holds in the
+    same tangent dimension taken from it: an earlier solve's values as the start of another
+    graph of the same segments, its variables the graph lacks left out."""
+    out = gtsam.Values(initial)
+    given = tangent_dims(solution)
+    for key, dim in tangent_dims(initial).items():
+        if given.get(key) == dim:
+            copy_value(out, solution, key)
+    return out

@@ -24,7 +24,7 @@ from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.partitioned_lm import optimize_partitioned
 from graphcal.graph.optimization.solve import solve_lm
 from graphcal.graph.optimization.solve_options import SolveOptions
-from graphcal.graph.optimization.values import copy_value, tangent_dims
+from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.plausibility import check_plausible
@@ -95,7 +95,7 @@ def solve_segment_graph(
         built = build_segment_graph(data, spec, start.shared)
         values, gauss_newton_first = built.values, start.gauss_newton_first
         if start.solution is not None:
-            values = _taken_from(built.values, start.solution)
+            values = taken_from(built.values, start.solution)
     partitioned = PartitionedGraph(built.graph, values, shared_keys(spec))
     if len(partitioned.parts) < 2:  # nothing to split: one graph, one solve
         return _solve_whole_graph(built, values, options, covariance)
@@ -131,17 +131,6 @@ def solve_segment_graph(
         nuisance=nuisance,
         partitioned=partitioned,
     )
-
-
-def _taken_from(initial: gtsam.Values, solution: gtsam.Values) -> gtsam.Values:
-    """``initial`` with every variable that ``solution`` holds in the same dimension taken
-    from it."""
-    out = gtsam.Values(initial)
-    given = tangent_dims(solution)
-    for key, dim in tangent_dims(initial).items():
-        if given.get(key) == dim:
-            copy_value(out, solution, key)
-    return out
 
 
 def _solve_whole_graph(

@@ -27,7 +27,7 @@ from graphcal.graph.construction import keys
 from graphcal.graph.construction.builder import build_segment_graph
 from graphcal.graph.construction.graph_spec import shared_keys
 from graphcal.graph.optimization.partitioned import PartitionedGraph
-from graphcal.graph.optimization.values import copy_value
+from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.observability import Observability
 from graphcal.graph.solution.plausibility import check_plausible
 from graphcal.graph.solution.reduced_systems import ReducedSystems, reduced_systems
@@ -131,7 +131,7 @@ def segment_systems(
     """
     spec = settings.graph_spec()
     built = build_segment_graph(data, spec)
-    values = built.values if start is None else _completed(start, built.values)
+    values = built.values if start is None else taken_from(built.values, start)
     if spec.time_offset_sigma is not None:  # the batches' frame: their prior's mean
         values.update(keys.TIME_OFFSET, spec.for_runs(data.runs).time_offset_means())
     segmented = PartitionedGraph(built.graph, values, shared_keys(spec))
@@ -157,15 +157,6 @@ def linearized_batches(
         out.append(_estimate(theta, covariance, settings, settings.theta_initial))
     say(f"joint batches: {len(batches)} solved from the segments' systems")
     return out
-
-
-def _completed(start: gtsam.Values, initial: gtsam.Values) -> gtsam.Values:
-    """``start`` with the variables it lacks taken from ``initial``."""
-    values = gtsam.Values(start)
-    for key in initial.keys():
-        if not values.exists(key):
-            copy_value(values, initial, key)
-    return values
 
 
 def _estimate(
