@@ -208,7 +208,10 @@ def position_noise(log: DriveLog, nominal: np.ndarray) -> float | None:
     motion is at least :data:`MOTION_SHARE` of the fixes' median second difference are left
     out. Only the white part shows: an error the fixes share over seconds barely moves a
     second difference (the solve's residuals judge it); so does tick rounding of the wheels,
-    which this subtracts as motion — both make the estimate low, never high."""
+    which this subtracts as motion — both make the estimate low, never high. The import's
+    checks use :func:`graphcal.log.turns.fix_noise` instead, which keeps the motion in and so
+    errs high, the safe side for a chord's length; a weight that errs high at 1 Hz (a car's
+    2 m/s² is 2 m of second difference) would loosen fixes that are right."""
     usable = log.position_measured.copy()
     for flags in (log.masked, log.outlying):
         if flags is not None:
