@@ -37,6 +37,11 @@ def _shape(**axes) -> Shape:
     return Shape(**{**base, **axes})
 
 
+def _yard(vehicle: str, **axes) -> Shape:
+    """A robot's shape (``vehicle`` in a yard), as :func:`_shape` otherwise."""
+    return _shape(vehicle=vehicle, route="yard", **axes)
+
+
 #: Three 1.5 km drives on a straight road, 5 Hz fixes of 0.26 m, no heading, an antenna
 #: 0.38 m to the side: neither the arm nor t_r shows.
 STRAIGHT_POSITIONS_ONLY = dict(
@@ -108,9 +113,8 @@ EXAMPLES = [
         id="heading-noisy-fixes",
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=150.0,
             gnss_rate=2.5,
             noise_sigma=2.0,
@@ -140,9 +144,8 @@ EXAMPLES = [
         id="yaw-rate-noisy-fixes",
     ),
     pytest.param(
-        _shape(
-            vehicle="skid-steer",
-            route="yard",
+        _yard(
+            "skid-steer",
             length_m=60.0,
             gnss_rate=5.0,
             noise_sigma=1.2,
@@ -172,9 +175,8 @@ EXAMPLES = [
         id="gap-longer-than-drives",
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=120.0,
             gnss_rate=20.0,
             noise_sigma=1.3,
@@ -191,9 +193,8 @@ EXAMPLES = [
         id="ticks-16-robot",
     ),
     pytest.param(
-        _shape(
-            vehicle="skid-steer",
-            route="yard",
+        _yard(
+            "skid-steer",
             length_m=81.0,
             gnss_rate=2.5,
             noise_sigma=1.1,
@@ -210,9 +211,8 @@ EXAMPLES = [
     ),
     pytest.param(  # seed 14's shape 7: refused, "the heading differs from the direction of
         # travel by -27° on average", the median of courses between fixes 1.9 m noisy, 1 m apart
-        _shape(
-            vehicle="skid-steer",
-            route="yard",
+        _yard(
+            "skid-steer",
             length_m=123.0,
             gnss_rate=1.0,
             noise_sigma=1.95,
@@ -225,9 +225,8 @@ EXAMPLES = [
         id="heading-against-a-noisy-course",
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=236.0,
             gnss_rate=50.0,
             noise_sigma=1.7,
@@ -244,9 +243,8 @@ EXAMPLES = [
         # course (no heading logged) turned 22x the wheels' and was refused as "degrees"
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=162.0,
             gnss_rate=5.0,
             noise_sigma=1.98,
@@ -262,9 +260,8 @@ EXAMPLES = [
         # travel per 2 s window; the chords' length less their noise came out 0: refused
     ),
     pytest.param(
-        _shape(
-            vehicle="skid-steer",
-            route="yard",
+        _yard(
+            "skid-steer",
             length_m=248.0,
             gnss_rate=1.0,
             noise_sigma=0.2,
@@ -354,9 +351,8 @@ SLOW = [
         id="car-three-drives",
     ),
     pytest.param(
-        _shape(
-            vehicle="skid-steer",
-            route="yard",
+        _yard(
+            "skid-steer",
             length_m=156.0,
             gnss_rate=50.0,
             noise_sigma=1.53,
@@ -387,9 +383,8 @@ SLOW = [
         id="car-noisy-fixes",
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=213.0,
             gnss_rate=50.0,
             noise_sigma=0.33,
@@ -407,9 +402,8 @@ SLOW = [
         # wheel noise (its speeds 26 % noisier per step), the spare noise found as "slip"
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=150.0,
             gnss_rate=0.5,
             noise_sigma=1.92,
@@ -461,9 +455,8 @@ SLOW = [
         # tracks, on a road that barely turns; now held at its nominal as from the wheels
     ),
     pytest.param(
-        _shape(
-            vehicle="skid-steer",
-            route="yard",
+        _yard(
+            "skid-steer",
             length_m=175.0,
             gnss_rate=5.0,
             heading=True,
@@ -480,9 +473,8 @@ SLOW = [
         # spins; a rebuilt graph's heading residuals 2π off, χ²/dof 5942, exit 2 after 102 s
     ),
     pytest.param(
-        _shape(
-            vehicle="differential",
-            route="yard",
+        _yard(
+            "differential",
             length_m=117.0,
             gnss_rate=0.5,
             noise_sigma=0.36,
