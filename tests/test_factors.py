@@ -151,7 +151,8 @@ def test_chunk_factor_with_wheel_slip_scales(segment, with_corrections, rng):
 def test_chunk_factor_with_time_offset_lever_arm_heading_bias_and_fix_offset(segment, tracked, rng):
     poses, inputs = segment[0][:31], segment[1][:30]
     OFFSET, A, B = gtsam.symbol("o", 0), gtsam.symbol("a", 0), gtsam.symbol("b", 0)
-    E0, E1 = gtsam.symbol("e", 0), gtsam.symbol("e", 1)
+    E0, E1, G = gtsam.symbol("e", 0), gtsam.symbol("e", 1), gtsam.symbol("g", 0)
+    assert np.ptp(inputs[:, 3]) > 0.4 and np.any(inputs[:, 2] != 0)  # a turn, a sideslip
     rates = rotation_rate_changes(inputs[:, :2], 0.025)
     chunk = OdometryChunk(inputs, poses if tracked else None, float(poses[0, 2]), rates)
     factor = ChunkOdometryFactor(
@@ -160,9 +161,11 @@ def test_chunk_factor_with_time_offset_lever_arm_heading_bias_and_fix_offset(seg
         T,
         corrections=C(0),
         end=X1,
-        defects=DefectKeys(time_offset=OFFSET, lever_arm=A, heading_bias=B, fix_offset=(E0, E1)),
+        defects=DefectKeys(
+            time_offset=OFFSET, lever_arm=A, heading_bias=B, fix_offset=(E0, E1), rear_slip_gain=G
+        ),
     ).factor()
-    assert list(factor.keys())[-5:] == [OFFSET, A, B, E0, E1]
+    assert list(factor.keys())[-6:] == [OFFSET, A, B, E0, E1, G]
     values = gtsam.Values()
     values.insert(X0, pose2_from_state(poses[0] + [0.2, -0.1, 0.02]))
     values.insert(X1, pose2_from_state(poses[-1] + [0.3, 0.1, -0.03]))
@@ -173,7 +176,26 @@ def test_chunk_factor_with_time_offset_lever_arm_heading_bias_and_fix_offset(seg
     values.insert(B, np.array([0.01]))
     values.insert(E0, np.array([0.7, -1.1]))
     values.insert(E1, np.array([0.9, -0.6]))
+    values.insert(G, np.array([0.005]))
     assert_jacobians(factor, values)
+
+
+@pytest.mark.parametrize("fractions", [None, 0.4])
+def test_a_rear_slip_gain_is_the_sideslip_minus_gain_times_lateral_acceleration(segment, fractions):
+    # A rear axle whose tyres slip at -g a_y moves as the model with that sideslip logged.
+    poses, inputs = segment[0][:31], segment[1][:30]
+    parts = None if fractions is None else np.full(30, fractions)
+    slipping = inputs.copy()
+    slipping[:, 2] -= 0.005 * inputs[:, 3]
+    start = poses[0] + [0.1, 0.2, 0.01]
+    logged = OdometryChunk(slipping, poses, fractions=parts).error(start, THETA, jacobians=False)
+    gained = OdometryChunk(inputs, poses, fractions=parts).error(
+        start, THETA, jacobians=False, defects=DefectValues(rear_slip_gain=0.005)
+    )
+    np.testing.assert_allclose(gained.error, logged.error, atol=1e-12)
+    assert (
+        np.abs(gained.error - OdometryChunk(inputs, poses).error(start, THETA).error).max() > 1e-3
+    )
 
 
 def test_a_fix_offset_is_the_error_the_fixes_share(segment):
@@ -451,6 +473,7 @@ def test_chunk_factor_with_fixes_between_samples_and_missing_components(segment,
     fix, no heading at most: Jacobians of every slot against numerical derivatives."""
     poses, inputs = segment[0][:31], segment[1][:30]
     OFFSET, A, S = gtsam.symbol("o", 0), gtsam.symbol("a", 0), gtsam.symbol("s", 0)
+    G = gtsam.symbol("g", 0)
     rates = rotation_rate_changes(inputs[:, :2], 0.025)
     fractions = rng.uniform(0.05, 1.0, 30)
     fractions[::7] = 1.0  # some fixes on the samples
@@ -464,7 +487,7 @@ def test_chunk_factor_with_fixes_between_samples_and_missing_components(segment,
         T,
         corrections=C(0),
         end=X1 if end else None,
-        defects=DefectKeys(slip=S, time_offset=OFFSET, lever_arm=A),
+        defects=DefectKeys(slip=S, time_offset=OFFSET, lever_arm=A, rear_slip_gain=G),
     ).factor()
     positions, headings = measured[1:, 0].sum(), measured[1:, 1].sum()
     assert factor.dim() == 2 * positions + headings + (3 if end else 0)
@@ -477,6 +500,7 @@ def test_chunk_factor_with_fixes_between_samples_and_missing_components(segment,
     values.insert(S, np.array([1e-3, -2e-3]))
     values.insert(OFFSET, np.array([0.04]))
     values.insert(A, np.array([1.2, -0.4]))
+    values.insert(G, np.array([0.005]))
     assert_jacobians(factor, values)
 
 

@@ -38,7 +38,10 @@ from graphcal.factors.chunk_terms import (
     lever_arm_jacobian,
     tracking_residuals,
 )
+from graphcal.factors.rear_slip import rear_slip_gain_jacobian
 from graphcal.model import (
+    AY,
+    BETA,
     N_RL,
     N_RR,
     integrate_with_jacobians,
@@ -66,6 +69,7 @@ class ChunkError:
             ``None`` (not given).
         fix_offset: ``(dim, 4)``: by the fixes' error at the chunk's start then at its end,
             or ``None`` (not given).
+        rear_slip_gain: ``(dim, 1)`` or ``None`` (not given).
     """
 
     error: np.ndarray
@@ -78,6 +82,7 @@ class ChunkError:
     lever_arm: np.ndarray | None = None
     heading_bias: np.ndarray | None = None
     fix_offset: np.ndarray | None = None
+    rear_slip_gain: np.ndarray | None = None
 
 
 class OdometryChunk:
@@ -196,6 +201,7 @@ class OdometryChunk:
                 one(defects.lever_arm),
                 scalar(defects.heading_bias),
                 one(defects.fix_offset),
+                scalar(defects.rear_slip_gain),
             ),
         )
         fields = (getattr(batch, f.name) for f in dataclasses.fields(batch))
@@ -215,7 +221,8 @@ def chunk_errors(
     chunks: their measurements ``chunks`` (:class:`StackedChunks`), ``start (C, 3)``,
     ``theta (C, 4)``, ``corrections (C, L, 2)``, ``end (C, 3)`` and the ``defects``
     (:class:`DefectValues`: ``slip (C, 2)``, ``time_offset (C,)`` with the chunks'
-    rotation rates, ``lever_arm (C, 2)``, ``heading_bias (C,)``, ``fix_offset (C, 2, 2)``).
+    rotation rates, ``lever_arm (C, 2)``, ``heading_bias (C,)``, ``fix_offset (C, 2, 2)``,
+    ``rear_slip_gain (C,)``).
     Every field of the result
     has the leading chunk axis; the error has every tracking row (a chunk's
     :attr:`~OdometryChunk.residual_rows` picks its own)."""
@@ -225,7 +232,11 @@ def chunk_errors(
     lever_arm, heading_bias = defects.lever_arm, defects.heading_bias
     fix_offset = defects.fix_offset
     count, n_steps = inputs.shape[:2]
+    rear_slip_gain = defects.rear_slip_gain
     rotations = _wheel_rotations(inputs, corrections, slip, time_offset, rotation_rates)
+    if rear_slip_gain is not None:  # the rear axle's sideslip: beta − gain · a_y
+        rotations = rotations.copy() if rotations is inputs else rotations
+        rotations[..., BETA] -= rear_slip_gain[:, None] * inputs[..., AY]
     states, d_start, d_theta = integrate_with_jacobians(start, rotations, theta, jacobians)
     tracked = measured_poses is not None
     fixes = _predict_fixes(states, rotations, theta, fractions if tracked else None, jacobians)
@@ -254,6 +265,9 @@ def chunk_errors(
         d_arm = lever_arm_jacobian(fixes.states if tracked else None, count, dim, n_tracked)
     d_bias = None if heading_bias is None else heading_bias_jacobian(count, dim, n_tracked)
     d_offset = None if fix_offset is None else fix_offset_jacobian(along, dim, n_tracked)
+    d_rear_slip = None
+    if rear_slip_gain is not None:
+        d_rear_slip = layout.stack(*rear_slip_gain_jacobian(states, rotations, theta, fractions))
     return ChunkError(
         error,
         layout.stack(d_start),
@@ -265,6 +279,7 @@ def chunk_errors(
         d_arm,
         d_bias,
         d_offset,
+        d_rear_slip,
     )
 
 

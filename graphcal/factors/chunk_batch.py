@@ -57,6 +57,7 @@ class ChunkArguments:
     lever_arm: np.ndarray | None
     heading_bias: np.ndarray | None
     fix_offset: np.ndarray | None = None
+    rear_slip_gain: np.ndarray | None = None
 
 
 class BatchMember(Protocol):
@@ -154,6 +155,7 @@ class ChunkBatch:
                 stacked("lever_arm"),
                 stacked("heading_bias"),
                 stacked("fix_offset"),
+                stacked("rear_slip_gain"),
             ),
         )
         blocks = None

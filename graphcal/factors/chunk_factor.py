@@ -10,7 +10,8 @@ state), theta (a 4-vector key, or a fixed value), the chunk's wheel-rotation cor
 ``2L``-vector key, laid out ``[dn_rl_0, dn_rr_0, dn_rl_1, ...]``, or none), the end (the
 Pose2 key of the next chunk's start, or none for a segment's last chunk) and the defects of
 real logs, each an optional key: relative wheel-slip scales, the wheels' time offset against
-the pose, the GNSS antenna's lever arm and a heading bias of the measured (fused) heading.
+the pose, the GNSS antenna's lever arm, a heading bias of the measured (fused) heading and the rear
+tyres' slip gain of a log without a sideslip.
 Headings of Pose2 variables are unwrapped against the chunk's reference heading.
 
 :func:`segment_odometry_factor` is the whole-segment case (the batch residual of eqs. 6–11).
@@ -43,6 +44,8 @@ class DefectKeys:
         fix_offset: keys of the 2-vector world-frame error [m] of the fixes at the chunk's
             start and at its end (a slowly varying GNSS error, linear between:
             :mod:`graphcal.graph.construction.gauss_markov`).
+        rear_slip_gain: key of the 1-vector rear slip gain [rad per m/s²] of a log without a
+            sideslip (:class:`~graphcal.factors.chunk_inputs.DefectValues`).
     """
 
     slip: int | None = None
@@ -51,6 +54,7 @@ class DefectKeys:
     heading_bias: int | None = None
     fix_offset: tuple[int, int] | None = None
     time_offset_slot: tuple[int, int] = (0, 1)
+    rear_slip_gain: int | None = None
 
 
 @dataclass(frozen=True)
@@ -89,7 +93,8 @@ class ChunkOdometryFactor:
             evaluated in, shared by the chunk factors of a graph (default: one of its own).
 
     Keys, in order: start, end, corrections, theta, slip, time_offset, lever_arm,
-    heading_bias, the fixes' error at the start and at the end — each only if it is a key.
+    heading_bias, the fixes' error at the start and at the end, the rear slip gain — each only
+    if it is a key.
     """
 
     def __init__(
@@ -114,6 +119,7 @@ class ChunkOdometryFactor:
         self.lever_arm_key = defects.lever_arm
         self.heading_bias_key = defects.heading_bias
         self.fix_offset_keys = defects.fix_offset or (None, None)
+        self.rear_slip_gain_key = defects.rear_slip_gain
         tracking_sigmas, continuity_sigmas = noise.tracking, noise.continuity
         fix_weights = noise.fix_weights
         self.start_key, self.start_state = _slot(start, 3, "start")
@@ -149,6 +155,7 @@ class ChunkOdometryFactor:
             ("heading_bias", self.heading_bias_key, 1),
             ("fix_offset_start", self.fix_offset_keys[0], 2),
             ("fix_offset_end", self.fix_offset_keys[1], 2),
+            ("rear_slip_gain", self.rear_slip_gain_key, 1),
         )
         self._vector_keys = [key for _, key, _ in self._vector_slots if key is not None]
         self.batch = ChunkBatch() if batch is None else batch
@@ -165,6 +172,7 @@ class ChunkOdometryFactor:
             self.lever_arm_key,
             self.heading_bias_key,
             *self.fix_offset_keys,
+            self.rear_slip_gain_key,
         )
 
     @property
@@ -210,6 +218,7 @@ class ChunkOdometryFactor:
         if corrections is not None:
             corrections = corrections.reshape(self.chunk.n_steps, 2)
         time_offset, bias = read.get("time_offset"), read.get("heading_bias")
+        gain = read.get("rear_slip_gain")
         return ChunkArguments(
             start,
             read.get("theta", self.theta),
@@ -222,6 +231,7 @@ class ChunkOdometryFactor:
             None
             if "fix_offset_start" not in read
             else np.stack([read["fix_offset_start"], read["fix_offset_end"]]),
+            None if gain is None else gain[0],
         )
 
     def read(self, values: gtsam.Values) -> ChunkArguments:
@@ -270,6 +280,8 @@ class ChunkOdometryFactor:
                 blocks.append(block)
         if self.fix_offset_keys[0] is not None:
             blocks += [result.fix_offset[..., :2], result.fix_offset[..., 2:]]
+        if self.rear_slip_gain_key is not None:
+            blocks.append(result.rear_slip_gain)
         return blocks
 
     def __call__(

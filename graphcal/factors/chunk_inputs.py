@@ -19,14 +19,17 @@ class DefectValues:
     the centre of gravity), ``heading_bias`` [rad] of the measured heading, ``fix_offset
     (2, 2)`` [m] the fixes' world-frame error ``[east, north]`` at the chunk's start and at its
     end (a slowly varying GNSS error, linear between:
-    :mod:`graphcal.graph.construction.gauss_markov`); for :func:`chunk_errors` each with a leading
-    chunk axis."""
+    :mod:`graphcal.graph.construction.gauss_markov`), ``rear_slip_gain`` [rad per m/s²] of a
+    log without a sideslip (the model's point, the rear axle, moves at the sideslip
+    ``−gain · a_y`` to the heading: its tyres' slip angle); for :func:`chunk_errors` each with
+    a leading chunk axis."""
 
     slip: np.ndarray | None = None
     time_offset: np.ndarray | float | None = None
     lever_arm: np.ndarray | None = None
     heading_bias: np.ndarray | float | None = None
     fix_offset: np.ndarray | None = None
+    rear_slip_gain: np.ndarray | float | None = None
 
 
 #: No defect variables: the paper's chunk.
