@@ -184,6 +184,7 @@ def estimates_table(estimated: dict, unit: LengthUnit = METRES) -> str:
         "lever_arm_lateral": "lever arm, left",
     }
     rows = [["sensors, estimated with θ", "value", "1σ", "verdict"]]
+    slip_label = "rear axle's slip angle per lateral acceleration"
     for name, e in estimated.items():
         base, _, run = name.partition(":")
         label = labels.get(base, base)
@@ -193,6 +194,9 @@ def estimates_table(estimated: dict, unit: LengthUnit = METRES) -> str:
             label = f"{label}, run {run}"
         if base == "time_offset":
             symbol, value, sigma = "ms", f"{e.value * 1e3:+.1f}", f"{e.sigma * 1e3:.1f}"
+        elif base == "rear_slip_gain":
+            label, symbol = slip_label, "mrad per m/s²"
+            value, sigma = f"{e.value * 1e3:+.2f}", f"{e.sigma * 1e3:.2f}"
         elif base in labels:
             symbol, value, sigma = unit.name, unit.format(e.value, sign=True), unit.spread(e.sigma)
         else:

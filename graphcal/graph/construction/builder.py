@@ -72,7 +72,8 @@ class _GraphWide:
         theta_key: theta's key, or ``None`` when theta is not a variable.
         fixed_theta: theta's value when it is not a variable (``spec.theta``).
         integrate_with: the theta the boundary poses' initial values are integrated with.
-        time_offset_key, lever_arm_key: those variables' keys, or ``None``.
+        time_offset_key, lever_arm_key, rear_slip_gain_key: those variables' keys, or
+            ``None``.
         align: move each free start (with its path) to fit the fixes (a solved start theta).
         arm: the lever arm to align with, or ``None``.
         tracking, continuity: the spec's sigmas as arrays.
@@ -83,6 +84,7 @@ class _GraphWide:
     integrate_with: np.ndarray
     time_offset_key: int | None
     lever_arm_key: int | None
+    rear_slip_gain_key: int | None
     align: bool
     arm: np.ndarray | None
     tracking: np.ndarray
@@ -184,6 +186,10 @@ def _add_graph_wide(
     if spec.lever_arm_sigma is not None:
         lever_arm_key = keys.LEVER_ARM
         graph.add(_vector_prior(lever_arm_key, 2, spec.lever_arm_sigma))
+    rear_slip_gain_key = None
+    if spec.rear_slip_gain_sigma is not None:
+        rear_slip_gain_key = keys.REAR_SLIP_GAIN
+        graph.add(_vector_prior(rear_slip_gain_key, 1, spec.rear_slip_gain_sigma))
     # With a theta already solved (a warm start) the odometry has the path's shape, and its
     # start is moved to fit the fixes: a measured start heading is 1.5° off, 4 m of drift over
     # 150 m. The nominal theta's path is bent (c_d), and fitting it moves the start away from
@@ -196,6 +202,7 @@ def _add_graph_wide(
         integrate_with,
         time_offset_key,
         lever_arm_key,
+        rear_slip_gain_key,
         align,
         arm,
         np.asarray(spec.tracking_sigmas, float),
@@ -347,6 +354,7 @@ def _add_chunks(
                 heading_bias=bias_key,
                 fix_offset=None if spec.fix_error_sigma is None else (errors[j], errors[j + 1]),
                 time_offset_slot=(segment.run, spec.time_offset_runs),
+                rear_slip_gain=wide.rear_slip_gain_key,
             ),
             batch=batch,
         )

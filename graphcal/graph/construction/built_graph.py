@@ -176,9 +176,11 @@ def insert_segment(
 
 
 def insert_nuisance(values: gtsam.Values, spec: SegmentGraphSpec) -> None:
-    """Insert the graph-wide time offset (at its prior mean) and lever arm (at zero) if
-    ``spec`` has them."""
+    """Insert the graph-wide time offset (at its prior mean), lever arm and rear slip gain (at
+    zero) if ``spec`` has them."""
     if spec.time_offset_sigma is not None:
         values.insert(keys.TIME_OFFSET, spec.time_offset_means())
     if spec.lever_arm_sigma is not None:
         values.insert(keys.LEVER_ARM, np.zeros(2))
+    if spec.rear_slip_gain_sigma is not None:
+        values.insert(keys.REAR_SLIP_GAIN, np.zeros(1))

@@ -67,6 +67,10 @@ class SegmentGraphSpec:
             variable, :data:`~graphcal.graph.construction.keys.LEVER_ARM`), or ``None`` for none.
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading,
             or ``None`` for none.
+        rear_slip_gain_sigma: prior sigma [rad per m/s²] of the rear tyres' slip gain, at
+            zero (a variable, :data:`~graphcal.graph.construction.keys.REAR_SLIP_GAIN`: the
+            rear axle of a log without a sideslip moves at ``−gain · a_y`` to the heading), or
+            ``None`` for none.
         fix_error_sigma: stationary sigma [m] per axis of the error the fixes share over
             a chunk (a GNSS receiver's slowly varying error: one ``[east, north]`` 2-vector
             per chunk, a first-order Gauss–Markov process along each chain of tied segments,
@@ -93,6 +97,7 @@ class SegmentGraphSpec:
     time_offset_runs: int = 1
     lever_arm_sigma: float | None = None
     heading_bias_sigma: float | None = None
+    rear_slip_gain_sigma: float | None = None
     fix_error_sigma: float | None = None
     fix_error_time: float = 30.0
     tie_segments: bool = False
@@ -123,12 +128,15 @@ class SegmentGraphSpec:
         return data.tied()
 
     def nuisance_keys(self) -> dict[str, int]:
-        """Graph-wide variables besides theta, by name: ``"time_offset"``, ``"lever_arm"``."""
+        """Graph-wide variables besides theta, by name: ``"time_offset"``, ``"lever_arm"``,
+        ``"rear_slip_gain"``."""
         found = {}
         if self.time_offset_sigma is not None:
             found["time_offset"] = keys.TIME_OFFSET
         if self.lever_arm_sigma is not None:
             found["lever_arm"] = keys.LEVER_ARM
+        if self.rear_slip_gain_sigma is not None:
+            found["rear_slip_gain"] = keys.REAR_SLIP_GAIN
         return found
 
 

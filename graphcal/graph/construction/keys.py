@@ -82,6 +82,9 @@ def segment_fix_offset(segment: int, chunk: int = 0) -> int:
 TIME_OFFSET = gtsam.symbol("o", 0)
 #: The GNSS antenna's lever arm ``[ahead, left]`` [m] from the centre of gravity (2-vector).
 LEVER_ARM = gtsam.symbol("a", 0)
+#: The rear tyres' slip gain [rad per m/s²] of a log without a sideslip (1-vector): the model's
+#: point, the rear axle, moves at the sideslip ``−gain · a_y`` to the heading.
+REAR_SLIP_GAIN = gtsam.symbol("r", 0)
 
 
 def segment_heading_bias(segment: int) -> int:

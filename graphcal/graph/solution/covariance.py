@@ -129,7 +129,11 @@ def _nuisance(
 ) -> dict[str, NuisanceEstimate]:
     """The graph-wide nuisance estimates from ``values`` and the joint covariance of theta
     and them (in :meth:`SegmentGraphSpec.nuisance_keys` order after theta)."""
-    priors = {"time_offset": spec.time_offset_sigma, "lever_arm": spec.lever_arm_sigma}
+    priors = {
+        "time_offset": spec.time_offset_sigma,
+        "lever_arm": spec.lever_arm_sigma,
+        "rear_slip_gain": spec.rear_slip_gain_sigma,
+    }
     nuisance, at = {}, 4
     for name, key in spec.nuisance_keys().items():
         value = np.asarray(values.atVector(key))

@@ -84,6 +84,8 @@ Every section and key, with the defaults::
     time_offset_mean = 0.0      # s, its prior mean (the offset known to remain in the log)
     lever_arm_sigma = 2.0       # m, prior of the GNSS antenna's lever arm (estimated); 0 = off
     heading_bias_sigma = 0.02   # rad, prior of a per-segment heading bias; 0 = off
+    rear_slip_gain_sigma = 0.01 # rad per m/s², prior of the rear tyres' slip gain (a log
+                                # without sideslip, with the lever arm estimated); 0 = off
     fix_error = "auto"          # the fixes' slowly varying shared error (Gauss–Markov):
                                 # auto (when the residuals show it) | off
     fix_error_sigma = 0.0       # m per axis, when known; 0 = from the residuals

@@ -80,4 +80,8 @@ def without_an_unseen_lever_arm(
         "solved again without it"
     )
     left_out = {**prepared.left_out, "lever_arm": estimate.prior_sigma}
-    return dataclasses.replace(settings, lever_arm_sigma=0.0), left_out
+    gain = whole.nuisance.get("rear_slip_gain")
+    if gain is not None:  # it moves the model's point as the arm does: left out with it
+        left_out["rear_slip_gain"] = gain.prior_sigma
+    replaced = dataclasses.replace(settings, lever_arm_sigma=0.0, rear_slip_gain_sigma=0.0)
+    return replaced, left_out

@@ -156,6 +156,9 @@ def defects_found(solved: WholeLog) -> tuple[str, ...]:
     arm = [solved.estimated.get(f"lever_arm_{side}") for side in ("longitudinal", "lateral")]
     if any(e is not None and e.detected for e in arm):
         found.append("lever arm")
+    gain = solved.estimated.get("rear_slip_gain")
+    if gain is not None and gain.detected:
+        found.append("rear tyre slip")
     if solved.whole.slip_modelled:
         found.append("slow wheel slip")
     return tuple(found)
@@ -163,9 +166,14 @@ def defects_found(solved: WholeLog) -> tuple[str, ...]:
 
 def theta_alone(settings: JointSettings) -> JointSettings:
     """``settings`` without the defect model's sensor terms (time offset, lever arm, heading
-    biases, slip); the noise levels and the robust weighting of fixes stay."""
+    biases, rear slip gain, slip); the noise levels and the robust weighting of fixes stay."""
     return dataclasses.replace(
-        settings, time_offset_sigma=0.0, lever_arm_sigma=0.0, heading_bias_sigma=0.0, slip="off"
+        settings,
+        time_offset_sigma=0.0,
+        lever_arm_sigma=0.0,
+        heading_bias_sigma=0.0,
+        rear_slip_gain_sigma=0.0,
+        slip="off",
     )
 
 

@@ -33,6 +33,7 @@ DETECTION_SIGMAS = 3.0
 COMPONENTS = {
     "time_offset": ("time_offset",),
     "lever_arm": ("lever_arm_longitudinal", "lever_arm_lateral"),
+    "rear_slip_gain": ("rear_slip_gain",),
 }
 
 
@@ -43,7 +44,9 @@ class SensorEstimate:
     Attributes:
         name: ``"time_offset"`` [s] (positive: wheels late against the pose; one per run,
             ``"time_offset:0"``, ``"time_offset:1"``, …, in a log of several runs),
-            ``"lever_arm_longitudinal"`` or ``"lever_arm_lateral"`` [m] (ahead, left).
+            ``"lever_arm_longitudinal"`` or ``"lever_arm_lateral"`` [m] (ahead, left),
+            ``"rear_slip_gain"`` [rad per m/s²] (a log without a sideslip: its rear axle moves
+            at ``−gain · a_y`` to the heading).
         value, sigma: the estimate and its standard deviation.
         prior_sigma: the sigma of its zero-mean prior.
         observable: the drive determined it.
@@ -164,7 +167,8 @@ def correct_log(
     to whole samples with ``in_whole_samples``: the rest is then the graph's to model) and,
     with ``move_antenna``, positions moved from the antenna to the centre of gravity (along
     the measured heading: a graph that has the lever arm as a variable does better, with its
-    predicted heading)."""
+    predicted heading). A detected rear slip gain becomes the log's sideslip, ``−gain ·
+    a_y`` (its position reference stays the rear axle)."""
 
     def value(name: str) -> float:
         e = estimates.get(name)
@@ -174,6 +178,8 @@ def correct_log(
     if in_whole_samples:
         offset = np.array([whole_samples(o, log.dt) for o in offset])
     log = shift_wheel_rotations(log, offset)
+    if value("rear_slip_gain") != 0.0:
+        log = dataclasses.replace(log, beta=log.beta - value("rear_slip_gain") * log.ay)
     if not move_antenna:
         return log
     return move_to_centre(log, (value("lever_arm_longitudinal"), value("lever_arm_lateral")))

@@ -409,6 +409,7 @@ def estimate_lines(
         "time_offset": "time offset: wheels late against the pose",
         "lever_arm_longitudinal": f"{sensor} ahead of the {point}",
         "lever_arm_lateral": f"{sensor} left of the {point}",
+        "rear_slip_gain": f"{point}'s slip angle per lateral acceleration",
     }
     lines = []
     for name, e in estimated.items():
@@ -420,6 +421,10 @@ def estimate_lines(
             lines.append(f"{label}: not observable from this drive")
         elif base == "time_offset":
             lines.append(f"{label}: {e.value * 1e3:+.1f} ± {e.sigma * 1e3:.1f} ms; {e.verdict}")
+        elif base == "rear_slip_gain":
+            lines.append(
+                f"{label}: {e.value * 1e3:+.2f} ± {e.sigma * 1e3:.2f} mrad per m/s²; {e.verdict}"
+            )
         else:
             lines.append(
                 f"{label}: {unit.format(e.value, sign=True)} ± {unit.spread(e.sigma)} "

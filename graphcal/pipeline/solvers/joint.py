@@ -6,16 +6,12 @@ initial pose. In a factor graph all of them can be variables at once:
 * theta, a 4-vector under a weak prior at the nominal values;
 * per segment, its start pose (Pose2) under the measured pose (world-frame position and
   heading priors, the paper's W);
-* the segment cut into chunks of ``chunk_steps`` steps; one Python factor per chunk integrates
-  eq. (1) from the chunk's start pose with the corrected wheel rotations and theta and tracks
-  the measured poses; Pose2 variables at chunk boundaries carry a near-hard continuity
-  residual;
-* per chunk, one vector of wheel-rotation corrections under their noise prior (the measured
-  rotation is the true one plus noise, so the correction is minus the noise: zero-mean with
-  the wheel-noise sigma), optionally with the paper's smoothness prior on Δu.
+* the segment cut into chunks of ``chunk_steps`` steps, one factor each: eq. (1) from the
+  chunk's start pose, tracking the measured poses, continuous at the chunk boundaries;
+* per chunk, one vector of wheel-rotation corrections under their noise prior (minus the
+  noise: zero-mean), optionally with the paper's smoothness prior on Δu.
 
-Levenberg–Marquardt solves it once from the nominal theta: an errors-in-variables maximum-
-likelihood estimate of theta, start poses and true rotations together.
+Levenberg–Marquardt solves it once: theta, start poses and true rotations together.
 """
 
 from __future__ import annotations
@@ -94,6 +90,8 @@ class JointSettings:
             estimated with theta (0: not estimated).
         heading_bias_sigma: prior sigma [rad] of a per-segment bias of the measured heading
             (a fused heading's slow bias; 0: none).
+        rear_slip_gain_sigma: prior sigma [rad per m/s²] of the rear tyres' slip gain of a
+            log without a sideslip (:mod:`graphcal.factors.rear_slip`; 0: not estimated).
         fix_error: an error the fixes share, a first-order Gauss–Markov process (a GNSS
             receiver's slowly varying error): ``"auto"`` models it when the residuals show
             one (:mod:`graphcal.pipeline.methods.noise_levels`) or with ``fix_error_sigma`` when
@@ -142,6 +140,7 @@ class JointSettings:
     time_offset_mean: float = 0.0
     lever_arm_sigma: float = 2.0
     heading_bias_sigma: float = 0.02
+    rear_slip_gain_sigma: float = 0.01
     fix_error: str = "auto"
     fix_error_sigma: float = 0.0
     fix_error_time: float = 30.0
@@ -228,6 +227,7 @@ class JointSettings:
                 "time_offset_sigma": self.time_offset_sigma,
                 "lever_arm_sigma": self.lever_arm_sigma,
                 "heading_bias_sigma": self.heading_bias_sigma,
+                "rear_slip_gain_sigma": self.rear_slip_gain_sigma,
                 "fix_error_sigma": self.fix_error_sigma,
                 "robust_threshold": self.robust_threshold,
             },
@@ -260,6 +260,7 @@ class JointSettings:
             time_offset_mean=self.time_offset_means or self.time_offset_mean,
             lever_arm_sigma=_optional(self.lever_arm_sigma),
             heading_bias_sigma=_optional(self.heading_bias_sigma),
+            rear_slip_gain_sigma=_optional(self.rear_slip_gain_sigma),
             fix_error_sigma=_optional(self.fix_error_sigma) if self.fix_error != "off" else None,
             fix_error_time=self.fix_error_time,
             tie_segments=self.tie_segments,
@@ -267,13 +268,14 @@ class JointSettings:
 
 
 def without_defect_model(settings: JointSettings) -> JointSettings:
-    """``settings`` estimating theta alone: no time offset, lever arm, heading biases, slip,
-    shared fix error or robust weights (the model of a clean log)."""
+    """``settings`` estimating theta alone: no time offset, lever arm, heading biases, rear
+    slip gain, slip, shared fix error or robust weights (the model of a clean log)."""
     return dataclasses.replace(
         settings,
         time_offset_sigma=0.0,
         lever_arm_sigma=0.0,
         heading_bias_sigma=0.0,
+        rear_slip_gain_sigma=0.0,
         robust_threshold=0.0,
         slip="off",
         fix_error="off",
