@@ -15,7 +15,7 @@ from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraph
 from graphcal.log.segments import gather_segments, split_segments
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
-from graphcal.pipeline.methods.noise_levels import slow_fix_error
+from graphcal.pipeline.methods.noise_levels import slow_fix_error, with_residual_noise
 from graphcal.pipeline.solvers.joint import JointSettings, without_defect_model
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, drift_fit, error_variogram
 from graphcal.simulate.defect_effects import gauss_markov
@@ -84,6 +84,24 @@ def test_white_or_declared_or_switched_off_errors_model_no_drift():
     assert slow_fix_error(_noise(position_correlation=1.2), JointSettings(), DT) is None
     assert slow_fix_error(_noise(), JointSettings(fix_error_sigma=1.5), DT) is None
     assert slow_fix_error(_noise(), without_defect_model(JointSettings()), DT) is None
+
+
+def test_fixes_too_few_to_measure_are_weighted_as_white_and_shared_noise_never_lighter():
+    # 25 fixes at 0.1 m RMS under the profile's 0.2 m: too few to tell white from shared; the
+    # RMS of a fit of few fixes is no floor below the settings' (it took their error in).
+    few = ResidualNoise(few_fixes=(25, 0.1))
+    settings = with_residual_noise(few, JointSettings(position_sigma=0.2), False, DT)
+    assert settings.position_sigma == pytest.approx(0.2)
+    assert settings.fix_error_sigma == pytest.approx(0.2)
+    assert settings.fix_error_time == JointSettings().fix_error_time
+    noisier = with_residual_noise(ResidualNoise(few_fixes=(29, 0.47)), JointSettings(), False, DT)
+    assert noisier.position_sigma == pytest.approx(0.47)
+    assert noisier.fix_error_sigma == pytest.approx(0.47)
+    # a shared error the user declared, or switched off, is theirs
+    declared = JointSettings(fix_error_sigma=0.5)
+    assert with_residual_noise(few, declared, False, DT).fix_error_sigma == 0.5
+    off = with_residual_noise(few, JointSettings(fix_error="off"), False, DT)
+    assert off.fix_error_sigma == 0.0
 
 
 def test_the_fix_error_chain_goes_on_across_tied_segments(segments):

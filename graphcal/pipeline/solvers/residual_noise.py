@@ -23,6 +23,10 @@ from graphcal.log.segments import SegmentData
 #: robot's 120 m with 78 fixes at 0.5 Hz, 0.36 m noisy, stayed weighted as its profile's
 #: RTK 0.05 m: χ²/dof 26, "not trusted".
 MIN_NOISE_FIXES = 30
+#: Fewer fixes than :data:`MIN_NOISE_FIXES` but at least this many still show how noisy
+#: they are at least (their RMS, :attr:`ResidualNoise.few_fixes`), not whether their errors
+#: are alike from fix to fix.
+MIN_FEW_FIXES = 10
 #: The fixes count as correlated (weighted by :func:`honest_sigma`)
 #: when their residuals' variance of a mean exceeds white noise's by this factor (white
 #: simulated fixes: 1.00–1.02; a real u-blox receiver at 10 Hz: 3.0; a fused pose at 20 Hz:
@@ -58,7 +62,11 @@ class ResidualNoise:
         wheel_chi2: χ² per row of the wheel-rotation corrections' priors (about 1 or less
             when the wheels are as noisy as assumed: the data determine the corrections only
             in part; well above 1, the wheels are noisier).
-        Each is ``None`` for fewer than :data:`MIN_NOISE_FIXES` measurements of its kind.
+        Each is ``None`` for fewer than :data:`MIN_NOISE_FIXES` measurements of its kind
+        (the heading's for fewer than :data:`MIN_FEW_FIXES`).
+        few_fixes: ``(count, RMS per axis [m])`` of the fixes when they are fewer than
+            :data:`MIN_NOISE_FIXES` but at least :data:`MIN_FEW_FIXES` (``position`` is then
+            ``None``), else ``None``.
     """
 
     position: float | None = None
@@ -70,6 +78,7 @@ class ResidualNoise:
     fix_interval: float | None = None
     position_variogram: tuple[np.ndarray, np.ndarray] | None = field(default=None, compare=False)
     wheel_chi2: float | None = None
+    few_fixes: tuple[int, float] | None = None
 
 
 def residual_noise(
@@ -89,10 +98,15 @@ def residual_noise(
         ("position", used, slice(0, 2)),
         ("heading", headings, slice(2, 3)),
     ):
-        if rows.sum() >= MIN_NOISE_FIXES:
+        # A heading's RMS is only ever raised to (with_noise_levels): from a few, too.
+        least = MIN_FEW_FIXES if name == "heading" else MIN_NOISE_FIXES
+        if rows.sum() >= least:
             part = residuals[..., columns]
             out[name] = float(np.sqrt(np.mean(part[rows] ** 2)))
             out[f"{name}_correlation"] = error_correlation(part, rows)
+        elif name == "position" and rows.sum() >= MIN_FEW_FIXES:
+            rms = float(np.sqrt(np.mean(residuals[..., columns][rows] ** 2)))
+            out["few_fixes"] = (int(rows.sum()), rms)
     if "position" in out and data.sample_index is not None:
         tied = solved.built.spec.tied(data)  # the graph's trajectories
         lags, gamma, pairs = error_variogram(residuals[..., :2], used, data, tied)
