@@ -529,6 +529,38 @@ SLOW = [
         # as the profile's 0.2 m; the first solve crept 41 iterations at χ²/dof 95, and the
         # runs from there ended t_r +3.4σ, d -6.0σ "calibrated" (18 s)
     ),
+    pytest.param(
+        _shape(
+            route="straight",
+            length_m=1138.0,
+            gnss_rate=0.5,
+            noise_sigma=0.34,
+            noise_tau_s=19.0,
+            heading=True,
+            park_s=2.0,
+            time_offset_s=0.023,
+            lever_arm=(1.35, -0.05),
+            seed=13,
+        ),
+        id="few-fixes-sharing-their-error",  # seed 26's shape 17: 25 fixes in 54 s, too few
+        # to measure their noise, weighted as the profile's white 0.2 m: c_e +3.9σ "calibrated"
+    ),
+    pytest.param(
+        _shape(
+            route="straight",
+            length_m=1657.0,
+            gnss_rate=0.5,
+            noise_sigma=0.51,
+            heading=True,
+            imu=False,
+            park_s=0.0,
+            time_offset_s=0.05,
+            lever_arm=(0.0, 0.0),
+            seed=231,
+        ),
+        id="few-fixes-far-noisier",  # seed 27's shape 15: 29 fixes of 0.5 m weighted as the
+        # profile's 0.2 m: χ²/dof 4.1, "not to be trusted", exit 3
+    ),
 ]
 
 
