@@ -347,6 +347,7 @@ def solve_joint(
     rounds_start: RoundsStart | None = None,
     same_segments: bool = False,
     stop_if: Callable[[ResidualNoise], bool] | None = None,
+    tolerance: float = TOLERANCE,
 ) -> tuple[JointCalibration, gtsam.Values]:
     """:func:`calibrate_joint`, with the solution's value of every variable of the graph (the
     point the joint batches linearize at). ``start``: a solution of the same segments under
@@ -355,8 +356,8 @@ def solve_joint(
     robot's re-solve 4 → 3 iterations); ``rounds_start``: its fix weights and theta's σ
     (:func:`~graphcal.pipeline.solvers.robust.solve_robust`); ``stop_if``: given the first
     robust round's residual noise, whether the solve ends there, without more rounds or the
-    slip screen, because the caller solves again under other settings (the real robot's
-    first solve: 4 more rounds and the screen, 2.3 s, that the next solve did again).
+    slip screen, because the caller solves again under other settings (the real robot's first
+    solve: 4 more rounds and the screen, 2.3 s); ``tolerance``: LM's relative χ² decrease.
 
     The steps: the warm start (:mod:`graphcal.pipeline.solvers.warm_start`), the solve with robust
     fix weights (:mod:`graphcal.pipeline.solvers.robust`), the fixes' noise in its residuals, with
@@ -364,9 +365,8 @@ def solve_joint(
     observability."""
     settings = settings or JointSettings()
     auto = settings.slip == "auto"
-    options = SolveOptions(
-        settings.max_iterations, TOLERANCE, "joint solve", workers, report_iterations=True
-    )
+    limit, label = settings.max_iterations, "joint solve"
+    options = SolveOptions(limit, tolerance, label, workers, report_iterations=True)
     first = _first_start(data, settings.graph_spec(), options, start, same_segments)
     solved, weights, noise, stopped = _robust_solve(
         data, settings, options, first, rounds_start, stop_if
