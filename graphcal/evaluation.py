@@ -38,7 +38,7 @@ from graphcal.log.load import load_drive_log
 from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.pipeline.methods.validation import position_errors
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import Progress, reports_progress, say
 from graphcal.recording.importer import ImportedLog
 from graphcal.simulate.drive import read_sidecar, truth_path

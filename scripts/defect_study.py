@@ -28,7 +28,7 @@ from graphcal.evaluation import Truth, evaluate
 from graphcal.log.validation import validate_frame
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
-from graphcal.pipeline.solvers.joint import without_defect_model
+from graphcal.pipeline.solvers.joint_settings import without_defect_model
 from graphcal.simulate.defects import DEFECTS_IN_ALL, degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 from graphcal.units import DEVIATION_SCALE

@@ -166,7 +166,8 @@ def test_joint_covariance_matches_a_finite_difference_jacobian(drive):
 
     from graphcal.graph.construction.builder import build_segment_graph
     from graphcal.graph.construction.keys import THETA as THETA_KEY
-    from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
+    from graphcal.pipeline.solvers.joint import calibrate_joint
+    from graphcal.pipeline.solvers.joint_settings import JointSettings
 
     log = drive.measured
     selected = gather_segments(log, select_segments(log, split_segments(log, 150.0)))

@@ -13,7 +13,7 @@ import pytest
 from graphcal.cli import main
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
-from graphcal.pipeline.solvers.joint import without_defect_model
+from graphcal.pipeline.solvers.joint_settings import without_defect_model
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive, write_synthetic_drive
 
@@ -200,7 +200,7 @@ def test_an_estimate_without_information_is_not_observable_and_no_nan_goes_on():
 
     from graphcal.graph.solution.estimates import NuisanceEstimate
     from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
-    from graphcal.pipeline.solvers.joint import JointSettings
+    from graphcal.pipeline.solvers.joint_settings import JointSettings
 
     singular = NuisanceEstimate(np.array([np.nan]), np.array([[np.nan]]), 0.5)
     (estimate,) = sensor_estimates({"time_offset": singular}, 0.1).values()

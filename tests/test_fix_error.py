@@ -16,7 +16,7 @@ from graphcal.log.segments import gather_segments, split_segments
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.methods.noise_levels import slow_fix_error, with_residual_noise
-from graphcal.pipeline.solvers.joint import JointSettings, without_defect_model
+from graphcal.pipeline.solvers.joint_settings import JointSettings, without_defect_model
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, drift_fit, error_variogram
 from graphcal.simulate.defect_effects import gauss_markov
 from graphcal.simulate.drive import simulate_drive

@@ -14,7 +14,7 @@ from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
 from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.pipeline.end_to_end.run import run_calibration
-from graphcal.pipeline.solvers.joint import without_defect_model
+from graphcal.pipeline.solvers.joint_settings import without_defect_model
 from graphcal.report.figures import figures
 from graphcal.report.results import summary_text
 from graphcal.simulate.defects import degrade, parse_defects

@@ -15,7 +15,8 @@ from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL
 from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.methods.selection import MIN_SELECTED_SEGMENTS
-from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.solvers.joint import calibrate_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.simulate.drive import simulate_drive
 
 PRIOR = np.array([0.1, 0.01, 0.2, 0.01])

@@ -11,7 +11,7 @@ import pytest
 from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.solution.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.log.segments import gather_segments, select_segments, split_segments
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.robust import RoundsStart, solve_robust
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive

@@ -16,7 +16,8 @@ from graphcal.graph.solution.covariance import marginal_covariance
 from graphcal.graph.solution.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.segments import gather_segments, make_batches, select_segments, split_segments
 from graphcal.pipeline.methods.joint_batches import solve_joint_batches
-from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
+from graphcal.pipeline.solvers.joint import solve_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from graphcal.graph.solution.covariance import marginal_covariance
 from graphcal.graph.solution.segment_solve import solve_segment_graph
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
 

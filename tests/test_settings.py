@@ -24,7 +24,7 @@ from graphcal.pipeline.configuration.settings import (
 from graphcal.pipeline.configuration.settings_file import load_settings, settings_from_dict
 from graphcal.pipeline.solvers.batch_calibration import BatchSettings
 from graphcal.pipeline.solvers.input_estimation import InputEstimationSettings
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 
 
 def to_toml(data: dict[str, Any], prefix: str = "") -> str:

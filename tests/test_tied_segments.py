@@ -15,7 +15,8 @@ from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.log.load import load_drive_log
 from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.model import integrate
-from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
+from graphcal.pipeline.solvers.joint import solve_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
 

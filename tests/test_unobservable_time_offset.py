@@ -11,7 +11,7 @@ import numpy as np
 from graphcal.graph.solution.estimates import NuisanceEstimate
 from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
 from graphcal.pipeline.methods.whole_log import _batch_time_offset
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 
 
 def test_a_time_offset_without_information_gives_the_batches_a_valid_prior():

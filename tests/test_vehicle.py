@@ -26,7 +26,7 @@ from graphcal.pipeline.configuration.settings_file import (
 from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.solvers.batch_calibration import BatchSettings
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.report.document import results_document
 from graphcal.report.results import summary_text
 from graphcal.simulate.drive import NoiseLevels, VehicleMotion, simulate_drive

@@ -20,7 +20,8 @@ from graphcal.log.segments import (
     spread,
 )
 from graphcal.model import integrate
-from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
+from graphcal.pipeline.solvers.joint import solve_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 
 SAMPLE = Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv"
 

@@ -28,7 +28,8 @@ from graphcal.log.segments import SegmentData, make_batches
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.methods.joint_batches import solve_joint_batches
-from graphcal.pipeline.solvers.joint import JointSettings, solve_joint, without_defect_model
+from graphcal.pipeline.solvers.joint import solve_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings, without_defect_model
 
 
 def segmented_items(record: Callable[..., None], data: SegmentData, repeats: int) -> dict[str, Any]:

@@ -15,7 +15,7 @@ from graphcal.pipeline.configuration.settings_file import (
     vehicle_settings_in,
 )
 from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
-from graphcal.pipeline.solvers.joint import without_defect_model
+from graphcal.pipeline.solvers.joint_settings import without_defect_model
 
 
 def configure_settings(

@@ -126,7 +126,7 @@ import numpy as np
 from graphcal.log.segments import YawRateStatistic
 from graphcal.pipeline.solvers.batch_calibration import BatchSettings
 from graphcal.pipeline.solvers.input_estimation import InputEstimationSettings
-from graphcal.pipeline.solvers.joint import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.vehicle import VehicleProfile
 
 #: Shortest segment, in tracks of the vehicle (7.75 m for the car, 1 m for a 0.2 m robot):

@@ -36,7 +36,8 @@ import numpy as np
 
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.model import PARAMETER_NAMES
-from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
+from graphcal.pipeline.solvers.joint import JointCalibration
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import say
 from graphcal.statistics import chi2_quantile, chi2_survival
 

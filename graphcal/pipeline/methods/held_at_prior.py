@@ -12,7 +12,8 @@ import numpy as np
 from graphcal.graph.solution.observability import with_prior_sigmas
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.methods.prepare import PreparedLog
-from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
+from graphcal.pipeline.solvers.joint import JointCalibration
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import say
 
 

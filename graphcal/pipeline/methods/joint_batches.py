@@ -32,7 +32,8 @@ from graphcal.graph.solution.observability import Observability
 from graphcal.graph.solution.plausibility import check_plausible
 from graphcal.graph.solution.reduced_systems import ReducedSystems, reduced_systems
 from graphcal.log.segments import SegmentData
-from graphcal.pipeline.solvers.joint import JointSettings, calibrate_joint
+from graphcal.pipeline.solvers.joint import calibrate_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.parallel import map_tasks
 from graphcal.progress import Progress, muted, reports_progress, say
 

@@ -48,7 +48,8 @@ from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import detected_offsets, time_offsets
 from graphcal.pipeline.methods.validation import position_errors
 from graphcal.pipeline.methods.whole_log import WholeLog
-from graphcal.pipeline.solvers.joint import JointSettings, solve_joint
+from graphcal.pipeline.solvers.joint import solve_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import muted, say
 
 #: Groups of consecutive segments, alternately in the two folds.
@@ -261,9 +262,8 @@ def _held_apart_error(
     ``start``: the graph-wide values the solve starts from (``None``: a warm start's)."""
     try:
         with muted():  # a fold's solve: its lines are not the user's concern
-            solve, values = solve_joint(
-                train, settings, workers, start=start, tolerance=FOLD_TOLERANCE
-            )
+            fold = dataclasses.replace(settings, tolerance=FOLD_TOLERANCE)
+            solve, values = solve_joint(train, fold, workers, start=start)
     except CalibrationFailed:
         return float("inf")
     arm = np.asarray(values.atVector(LEVER_ARM)) if values.exists(LEVER_ARM) else None

@@ -11,7 +11,8 @@ from collections.abc import Callable
 import numpy as np
 
 from graphcal.factors import pose_sigmas
-from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
+from graphcal.pipeline.solvers.joint import JointCalibration
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import CORRELATED_ERRORS, ResidualNoise, honest_sigma
 from graphcal.progress import muted, say
 

@@ -130,14 +130,14 @@ D_FROM_WHEELS_MIN_YAW_RATE = 0.05
 
 
 def _with_rear_slip_gain_where_it_shows(log: DriveLog, settings: Settings) -> Settings:
-    """``settings`` without the rear tyres' slip gain as a variable unless the log has no
-    sideslip, the lever arm is estimated and d is: the gain moves the model's point, the rear
-    axle, sideways by ``−gain · a_y`` — in a log of the centre of gravity's sideslip that
-    motion is logged already, and where d is held the drive's lateral acceleration is too
-    little or not measured to show it. Without it a 4 km city drive's antenna, at the centre
-    of gravity 1.35 m ahead of the rear axle, came out +1.177 ± 0.021 m ahead (the rear tyres'
-    slip at city speeds, 4.7 ms²/m × v², read as the arm); with it, both paths of the drive
-    agree (docs/defects.md)."""
+    """``settings`` with the rear tyres' slip gain as a variable (``rear_slip_modelled``)
+    where its prior is set, the log has no sideslip, the lever arm is estimated and d is: the
+    gain moves the model's point, the rear axle, sideways by ``−gain · a_y`` — in a log of
+    the centre of gravity's sideslip that motion is logged already, and where d is held the
+    drive's lateral acceleration is too little or not measured to show it. Without it a 4 km
+    city drive's antenna, at the centre of gravity 1.35 m ahead of the rear axle, came out
+    +1.177 ± 0.021 m ahead (the rear tyres' slip at city speeds, 4.7 ms²/m × v², read as the
+    arm); with it, both paths of the drive agree (docs/defects.md)."""
     joint = settings.joint
     keep = (
         joint.rear_slip_gain_sigma > 0
@@ -146,9 +146,9 @@ def _with_rear_slip_gain_where_it_shows(log: DriveLog, settings: Settings) -> Se
         and not joint.fix_d
         and "d" not in joint.held_at_prior
     )
-    if keep or joint.rear_slip_gain_sigma == 0:
+    if not keep:
         return settings
-    joint = dataclasses.replace(joint, rear_slip_gain_sigma=0.0)
+    joint = dataclasses.replace(joint, rear_slip_modelled=True)
     return dataclasses.replace(settings, joint=joint)
 
 

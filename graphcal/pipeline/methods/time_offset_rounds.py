@@ -14,7 +14,8 @@ from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import detected_offsets, sensor_estimates
-from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings, solve_joint
+from graphcal.pipeline.solvers.joint import JointCalibration, solve_joint
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise
 from graphcal.pipeline.solvers.robust import RoundsStart
 from graphcal.progress import say

@@ -83,7 +83,8 @@ from graphcal.pipeline.methods.time_offset_rounds import (
     runs_label,
     solve_with_time_offset,
 )
-from graphcal.pipeline.solvers.joint import JointCalibration, JointSettings
+from graphcal.pipeline.solvers.joint import JointCalibration
+from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise
 from graphcal.progress import say
 from graphcal.units import LengthUnit, length_unit
