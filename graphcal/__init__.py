@@ -102,7 +102,7 @@ _PUBLIC = {
     "SolveOutcome": "graphcal.graph.optimization.solve_options",
     "SolveStatus": "graphcal.graph.optimization.solve_options",
     "solve_joint_batches": "graphcal.pipeline.methods.joint_batches",
-    "JointSettings": "graphcal.pipeline.solvers.joint",
+    "JointSettings": "graphcal.pipeline.solvers.joint_settings",
     "assess_observability": "graphcal.graph.solution.observability",
     "Observability": "graphcal.graph.solution.observability",
     # Validation on data the calibration did not see: another log, or held-apart windows.
