@@ -195,7 +195,7 @@ def few_fixes_error(
     noise from an error they share, they are weighted as both: white at their RMS, never
     below the ``position`` [m] the settings assume (a fit of few fixes takes part of their
     error into its start poses), and a shared error as large over ``fix_error_time``. A car's
-    27 fixes at 0.5 Hz over 54 s of straight road, sharing 0.34 m over 19 s, weighted as the
+    25 fixes at 0.5 Hz over 54 s of straight road, sharing 0.34 m over 19 s, weighted as the
     profile's white 0.2 m: c_e 3.9σ off "calibrated"."""
     if noise.few_fixes is None or settings.fix_error != "auto" or settings.fix_error_sigma > 0:
         return None
