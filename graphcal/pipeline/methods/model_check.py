@@ -49,7 +49,7 @@ from graphcal.pipeline.methods.sensor_estimates import detected_offsets, time_of
 from graphcal.pipeline.methods.validation import position_errors
 from graphcal.pipeline.methods.whole_log import WholeLog
 from graphcal.pipeline.solvers.joint import solve_joint
-from graphcal.pipeline.solvers.joint_settings import JointSettings
+from graphcal.pipeline.solvers.joint_settings import JointSettings, without_sensor_terms
 from graphcal.progress import muted, say
 
 #: Groups of consecutive segments, alternately in the two folds.
@@ -173,14 +173,7 @@ def defects_found(solved: WholeLog) -> tuple[str, ...]:
 def theta_alone(settings: JointSettings) -> JointSettings:
     """``settings`` without the defect model's sensor terms (time offset, lever arm, heading
     biases, rear slip gain, slip); the noise levels and the robust weighting of fixes stay."""
-    return dataclasses.replace(
-        settings,
-        time_offset_sigma=0.0,
-        lever_arm_sigma=0.0,
-        heading_bias_sigma=0.0,
-        rear_slip_gain_sigma=0.0,
-        slip="off",
-    )
+    return without_sensor_terms(settings)
 
 
 def folds(count: int) -> np.ndarray:

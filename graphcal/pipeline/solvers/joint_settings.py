@@ -254,17 +254,25 @@ class JointSettings:
         )
 
 
-def without_defect_model(settings: JointSettings) -> JointSettings:
-    """``settings`` estimating theta alone: no time offset, lever arm, heading biases, rear
-    slip gain, slip, shared fix error or robust weights (the model of a clean log)."""
+def without_sensor_terms(settings: JointSettings) -> JointSettings:
+    """``settings`` without the defect model's sensor terms: no time offset, lever arm,
+    heading biases, rear slip gain or slip (the noise levels and robust weights stay)."""
     return dataclasses.replace(
         settings,
         time_offset_sigma=0.0,
         lever_arm_sigma=0.0,
         heading_bias_sigma=0.0,
         rear_slip_gain_sigma=0.0,
-        robust_threshold=0.0,
         slip="off",
+    )
+
+
+def without_defect_model(settings: JointSettings) -> JointSettings:
+    """``settings`` estimating theta alone: no sensor terms (:func:`without_sensor_terms`),
+    shared fix error or robust weights (the model of a clean log)."""
+    return dataclasses.replace(
+        without_sensor_terms(settings),
+        robust_threshold=0.0,
         fix_error="off",
         heading_noise_from_log=False,
         wheel_noise_from_log=False,
