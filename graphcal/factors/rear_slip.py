@@ -32,23 +32,28 @@ def rear_slip_gain_jacobian(
         d p_k / d g = sum_(j<k) −a_y,j · travel_j ([−sin, cos] + tan beta_j [cos, sin])(course_j)
     """
     heading = states[..., :-1, 2]
-    whole = _position_effects(heading, inputs, theta, 1.0)
+    increments = step_increments(inputs, theta, True)  # (v, omega), once for both
+    whole = _position_effects(heading, inputs, increments, 1.0)
     full = np.zeros((*states.shape, 1))
     np.cumsum(whole, axis=-2, out=full[..., 1:, :2, 0])
     direct = None
     if fractions is not None:
-        part = _position_effects(heading, inputs, theta, fractions)
+        part = _position_effects(heading, inputs, increments, fractions)
         direct = np.zeros((*part.shape[:-1], 3, 1))
         direct[..., :2, 0] = part
     return full, direct
 
 
 def _position_effects(
-    heading: np.ndarray, inputs: np.ndarray, theta: np.ndarray, fraction: np.ndarray | float
+    heading: np.ndarray,
+    inputs: np.ndarray,
+    increments: tuple[np.ndarray, np.ndarray],
+    fraction: np.ndarray | float,
 ) -> np.ndarray:
     """``(..., K, 2)``: how the position at the end of ``fraction`` of each step, from the
-    step's start ``heading (..., K)``, moves with ``g``."""
-    v, omega = step_increments(inputs, theta, True)
+    step's start ``heading (..., K)`` with its eq. (2) ``increments`` ``(v, omega)``, moves
+    with ``g``."""
+    v, omega = increments
     beta = inputs[..., BETA]
     travel = fraction * v / np.cos(beta)
     course = heading + 0.5 * fraction * omega + beta

@@ -98,15 +98,17 @@ def residual_noise(
         ("position", used, slice(0, 2)),
         ("heading", headings, slice(2, 3)),
     ):
+        count = int(rows.sum())
+        if count < MIN_FEW_FIXES:
+            continue
+        part = residuals[..., columns]
+        rms = float(np.sqrt(np.mean(part[rows] ** 2)))
         # A heading's RMS is only ever raised to (with_noise_levels): from a few, too.
-        least = MIN_FEW_FIXES if name == "heading" else MIN_NOISE_FIXES
-        if rows.sum() >= least:
-            part = residuals[..., columns]
-            out[name] = float(np.sqrt(np.mean(part[rows] ** 2)))
+        if count >= MIN_NOISE_FIXES or name == "heading":
+            out[name] = rms
             out[f"{name}_correlation"] = error_correlation(part, rows)
-        elif name == "position" and rows.sum() >= MIN_FEW_FIXES:
-            rms = float(np.sqrt(np.mean(residuals[..., columns][rows] ** 2)))
-            out["few_fixes"] = (int(rows.sum()), rms)
+        else:
+            out["few_fixes"] = (count, rms)
     if "position" in out and data.sample_index is not None:
         tied = solved.built.spec.tied(data)  # the graph's trajectories
         lags, gamma, pairs = error_variogram(residuals[..., :2], used, data, tied)
