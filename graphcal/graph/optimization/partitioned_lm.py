@@ -22,6 +22,7 @@ import numpy as np
 
 from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.optimization.levenberg_marquardt import (
+    CreepWatch,
     Damping,
     Verdict,
     converged,
@@ -199,6 +200,9 @@ def optimize(
     linearizing again (at the sample drive's tolerance, within 5e-5 of the covariance at the
     solution itself).
 
+    With ``options.misweighted_chi2``, a solve that creeps above that χ²/dof stops there
+    (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`).
+
     ``gauss_newton_first``: the first step is already undamped (values near the optimum,
     such as a warm start's: no damping to compute).
 
@@ -208,12 +212,16 @@ def optimize(
     started = time.perf_counter()
     dof = max(1, graph.factor_dims() - graph.dim())
     solve = _Solve(graph, options.relative_error_tol, gauss_newton_first)
+    watch = CreepWatch(options.misweighted_chi2, dof)
     iterations, stop = 0, None
     while iterations < options.max_iterations:
         iterations += 1
         ended = solve.iterate()
         graph.workers.release()
+        before = solve.error
         stop = solve.finish(ended)
+        if stop is None and watch.creeping(before, solve.error):
+            stop = SolveStatus.MISWEIGHTED
         elapsed = time.perf_counter() - started
         if options.report_iterations and elapsed >= PROGRESS_AFTER_S:
             say(

@@ -10,6 +10,7 @@ import numpy as np
 
 from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.optimization.levenberg_marquardt import (
+    CreepWatch,
     Damping,
     Verdict,
     converged,
@@ -48,6 +49,8 @@ def solve_lm(
       (the diagonal of the first linearization, raised to the largest seen, as MINPACK
       scales), a step accepted when the error falls by at least 1e-3 of what the
       linearization predicts (then λ / 10), else λ × 10 up to 1e5; GTSAM's defaults.
+      With ``options.misweighted_chi2``, it stops where it creeps above that χ²/dof
+      (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`).
 
     GTSAM's exceptions (e.g. an indeterminate linear system) become ``error_type`` with the
     message ``"<options.label> failed: <reason>"``. GTSAM's optimizer does not say why it
@@ -84,6 +87,10 @@ def _levenberg_marquardt(
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
     damping = Damping()
+    watch = CreepWatch(options.misweighted_chi2, 0)
+    if watch.limit > 0:
+        residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
+        watch.dof = int(residuals - values.dim())
     iterations, stop = 0, None
     while iterations < options.max_iterations:
         linear = graph.linearize(values)
@@ -124,6 +131,8 @@ def _levenberg_marquardt(
         decrease = error - new_error
         if stop is None and converged(decrease, error, relative_error_tol):
             stop = SolveStatus.CONVERGED
+        if stop is None and watch.creeping(error, new_error):
+            stop = SolveStatus.MISWEIGHTED
         error = new_error
         if stop is not None:
             break

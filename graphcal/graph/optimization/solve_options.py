@@ -20,6 +20,11 @@ class SolveOptions:
             result does not depend on it).
         report_iterations: a long solve says a line per iteration
             (:func:`graphcal.progress.say`).
+        misweighted_chi2: > 0: the solve stops (:attr:`SolveStatus.MISWEIGHTED`) where it
+            creeps at a χ²/dof above this
+            (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`): weights
+            far tighter than the misfit, for a caller that reads the noise from the
+            residuals and solves again under it.
     """
 
     max_iterations: int = 50
@@ -27,6 +32,7 @@ class SolveOptions:
     label: str = "solve"
     workers: int = 1
     report_iterations: bool = False
+    misweighted_chi2: float = 0.0
 
 
 class SolveStatus(enum.Enum):
@@ -39,6 +45,9 @@ class SolveStatus(enum.Enum):
     NOT_IMPROVING = "not improving"
     #: The iteration limit came first.
     ITERATION_LIMIT = "iteration limit"
+    #: It crept at a χ²/dof far above any noise (``SolveOptions.misweighted_chi2``): not a
+    #: minimum, a point to read the noise at.
+    MISWEIGHTED = "misweighted"
 
 
 @dataclass(frozen=True)
@@ -59,6 +68,8 @@ class SolveOutcome:
         """One line: how the solve ended."""
         if self.status is SolveStatus.ITERATION_LIMIT:
             return f"stopped at its iteration limit ({self.max_iterations}) without converging"
+        if self.status is SolveStatus.MISWEIGHTED:
+            return f"stopped after {self.iterations} iteration(s) creeping under too tight weights"
         how = "no step lowers the error" if self.status is SolveStatus.NOT_IMPROVING else ""
         return f"converged after {self.iterations} iteration(s)" + (f" ({how})" if how else "")
 

@@ -23,7 +23,7 @@ from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.partitioned_lm import optimize_partitioned
 from graphcal.graph.optimization.solve import solve_lm
-from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
 from graphcal.graph.solution.estimates import SolvedGraph
@@ -82,7 +82,9 @@ def solve_segment_graph(
     progress line per iteration of a long solve (:func:`graphcal.progress.say`).
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
-    initial ``spec.theta``) and, with ``covariance``, gets its marginal covariance.
+    initial ``spec.theta``; not where the solve stopped creeping,
+    :attr:`~graphcal.graph.optimization.solve_options.SolveStatus.MISWEIGHTED`: no solution)
+    and, with ``covariance``, gets its marginal covariance.
 
     Raises:
         CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
@@ -108,13 +110,14 @@ def solve_segment_graph(
         )
         if spec.estimate_theta:
             theta = np.asarray(partitioned.shared_values.atVector(keys.THETA))
-            check_plausible(
-                theta,
-                label,
-                spec.theta,
-                lambda: implausibility_causes(built, partitioned.values()),
-                spec.theta_prior_sigmas,
-            )
+            if outcome.status is not SolveStatus.MISWEIGHTED:  # not a solution: no verdict
+                check_plausible(
+                    theta,
+                    label,
+                    spec.theta,
+                    lambda: implausibility_causes(built, partitioned.values()),
+                    spec.theta_prior_sigmas,
+                )
             if covariance:
                 marginal, nuisance = partitioned_marginals(partitioned, built.spec, label)
     result = partitioned.values()
@@ -149,13 +152,14 @@ def _solve_whole_graph(
     marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
-        check_plausible(
-            theta,
-            label,
-            spec.theta,
-            lambda: implausibility_causes(built, result),
-            spec.theta_prior_sigmas,
-        )
+        if outcome.status is not SolveStatus.MISWEIGHTED:  # not a solution: no verdict
+            check_plausible(
+                theta,
+                label,
+                spec.theta,
+                lambda: implausibility_causes(built, result),
+                spec.theta_prior_sigmas,
+            )
         if covariance:
             marginal, nuisance = whole_graph_marginals(built, result, label)
     return SolvedGraph(

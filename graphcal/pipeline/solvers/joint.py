@@ -16,6 +16,7 @@ Levenberg–Marquardt solves it once: theta, start poses and true rotations toge
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -33,10 +34,16 @@ from graphcal.graph.solution.segment_solve import BuilderStart
 from graphcal.log.segments import SegmentData
 from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
-from graphcal.pipeline.solvers.robust import RoundsStart, solve_segment_graph_robust
+from graphcal.pipeline.solvers.robust import FirstRound, RoundsStart, solve_segment_graph_robust
 from graphcal.pipeline.solvers.slip_screen import SlipTest, with_slip_if_shown
 from graphcal.pipeline.solvers.warm_start import warm_start_solution
 from graphcal.progress import Progress, reports_progress, say
+
+#: A first solve whose noise levels are read again after it (``stop_if``) stops where it
+#: creeps at a χ²/dof above this (residuals 5× their weights' σ;
+#: :class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`): a point to read
+#: the noise at, not a minimum to judge.
+MISWEIGHTED_CHI2 = 25.0
 
 
 @dataclass(frozen=True)
@@ -116,9 +123,13 @@ def solve_joint(
     auto = settings.slip == "auto"
     limit, tolerance = settings.max_iterations, settings.tolerance
     options = SolveOptions(limit, tolerance, "joint solve", workers, report_iterations=True)
-    first = _first_start(data, settings.graph_spec(), options, start, same_segments)
+    # A solve whose noise is read again after it stops where it creeps under too tight weights
+    head = options
+    if stop_if is not None:
+        head = dataclasses.replace(options, misweighted_chi2=MISWEIGHTED_CHI2)
+    first = _first_start(data, settings.graph_spec(), head, start, same_segments)
     solved, weights, noise, stopped = _robust_solve(
-        data, settings, options, first, rounds_start, stop_if
+        data, settings, (options, head), first, rounds_start, stop_if
     )
     statistic = None
     if auto and stopped:  # solved again under other settings: no slip screen here
@@ -170,18 +181,23 @@ def _first_start(
 def _robust_solve(
     data: SegmentData,
     settings: JointSettings,
-    options: SolveOptions,
+    options: tuple[SolveOptions, SolveOptions],
     first: BuilderStart,
     rounds_start: RoundsStart | None,
     stop_if: Callable[[ResidualNoise], bool] | None,
 ) -> tuple[SolvedGraph, np.ndarray | None, ResidualNoise, bool]:
-    """:func:`solve_joint`'s robust solve from ``first``: the solution (its covariance unless
-    the slip screen follows), weights, residual noise, and whether ``stop_if`` ended it."""
+    """:func:`solve_joint`'s robust solve from ``first`` (``options``: every solve's, and the
+    first's): the solution (its covariance unless the slip screen follows), weights, residual
+    noise, and whether ``stop_if`` ended it."""
     stopped: list[bool] = []
+    options, head = options
 
     def first_round_ends(solved: SolvedGraph, weights: np.ndarray | None) -> bool:
         stopped.append(stop_if is not None and stop_if(residual_noise(solved, data, weights)))
         return stopped[-1]
+
+    def reweights(solved: SolvedGraph, segments: SegmentData) -> bool:
+        return stop_if(residual_noise(solved, segments, segments.fix_weights))
 
     solved, weights, _ = solve_segment_graph_robust(
         data,
@@ -191,7 +207,7 @@ def _robust_solve(
         covariance=settings.slip != "auto",
         start=first,
         rounds_start=rounds_start,
-        stop_after_first=None if stop_if is None else first_round_ends,
+        first_round=None if stop_if is None else FirstRound(first_round_ends, head, reweights),
     )
     noise = residual_noise(solved, data, weights)
     if stop_if is not None and not stopped:  # solved once, without robust rounds

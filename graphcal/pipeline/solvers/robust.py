@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
-from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.solution.covariance import covariance_from_information, with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
@@ -60,6 +60,25 @@ class RoundsStart:
 
     weights: np.ndarray | None
     theta_sigma: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class FirstRound:
+    """What the caller of a robust solve does after its first solve.
+
+    Attributes:
+        ends: ``ends(solved, weights)``: whether the rounds end after the first (a solve
+            under other settings follows; :func:`solve_robust`'s ``stop_after_first``).
+        options: the first solve's options (``SolveOptions.misweighted_chi2`` set: it may
+            stop creeping under too tight weights), or ``None``: every solve's.
+        reweights: ``reweights(solved, segments)``: after a first solve that stopped
+            creeping, whether the caller solves again under the noise its residuals show
+            (else that solve goes on to its minimum).
+    """
+
+    ends: Callable[[SolvedGraph, np.ndarray | None], bool]
+    options: SolveOptions | None = None
+    reweights: Callable[[SolvedGraph, SegmentData], bool] | None = None
 
 
 def residual_scale(residuals: np.ndarray, valid: np.ndarray, floor: float) -> float:
@@ -174,29 +193,43 @@ def solve_segment_graph_robust(
     covariance: bool = True,
     start: BuilderStart | None = None,
     rounds_start: RoundsStart | None = None,
-    stop_after_first: Callable[[SolvedGraph, np.ndarray | None], bool] | None = None,
+    first_round: FirstRound | None = None,
 ) -> tuple[SolvedGraph, np.ndarray | None, np.ndarray | None]:
     """:func:`~graphcal.graph.solution.segment_solve.solve_segment_graph` (each solve as ``options``
     say) with robust fix weights (:func:`solve_robust`, whose three results it returns);
     ``threshold`` 0 solves once without them. ``start``: where the first solve starts (e.g.
     a warm start's graph-wide variables; default: the builder's values); ``rounds_start``:
-    where the rounds start, and ``stop_after_first``, as :func:`solve_robust`'s."""
+    where the rounds start, as :func:`solve_robust`'s; ``first_round``: what the caller does
+    after the first solve (:class:`FirstRound`)."""
     first = start or BuilderStart()
+    first_round = first_round or FirstRound(lambda *_: False)
+    reweights = first_round.reweights
 
     def solve(segments: SegmentData, initial) -> SolvedGraph:
-        return solve_segment_graph(
+        head = options
+        if initial is None and first_round.options is not None:
+            head = first_round.options
+        solved = solve_segment_graph(
             segments,
             spec,
-            options,
+            head,
             start=first if initial is None else ValuesStart(initial),
             covariance=False,
         )
+        if solved.outcome.status is not SolveStatus.MISWEIGHTED:
+            return solved
+        if reweights is not None and reweights(solved, segments):
+            return solved
+        rest = solve_segment_graph(
+            segments, spec, options, start=ValuesStart(solved.result), covariance=False
+        )
+        return dataclasses.replace(rest, outcome=solved.outcome.then(rest.outcome))
 
     if threshold <= 0:
         solution, weights, residuals = solve(data, None), data.fix_weights, None
     else:
         solution, weights, residuals = solve_robust(
-            data, spec, solve, threshold, start=rounds_start, stop_after_first=stop_after_first
+            data, spec, solve, threshold, start=rounds_start, stop_after_first=first_round.ends
         )
     if covariance:
         solution = with_covariance(solution, options.label, options.workers)

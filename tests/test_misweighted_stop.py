@@ -1,0 +1,72 @@
+"""A first solve that creeps under weights far tighter than its misfit stops there
+(``SolveOptions.misweighted_chi2``, ``CreepWatch``), for its caller to read the noise and
+solve again; where the caller would not, it goes on to the minimum."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from graphcal.graph.optimization.levenberg_marquardt import CREEP_ITERATIONS, CreepWatch
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.solution.segment_solve import solve_segment_graph
+from graphcal.log.segments import gather_segments, select_segments, split_segments
+from graphcal.pipeline.solvers.joint_settings import JointSettings
+from graphcal.pipeline.solvers.robust import FirstRound, solve_segment_graph_robust
+from graphcal.simulate.drive import simulate_drive
+
+
+def test_a_creep_is_several_slow_iterations_in_a_row_far_above_the_noise():
+    watch = CreepWatch(limit=25.0, dof=100)  # χ²/dof = error / 50
+    # Fast iterations far above the limit are no creep; nor is one slow one.
+    assert not watch.creeping(100_000.0, 20_000.0)
+    assert not watch.creeping(20_000.0, 19_000.0)
+    assert not watch.creeping(19_000.0, 5_000.0)  # a fast one starts the count again
+    slow = [watch.creeping(e, 0.95 * e) for e in (5_000.0, 4_750.0, 4_512.5)]
+    assert slow == [False] * (CREEP_ITERATIONS - 1) + [True]
+    # Slow iterations near the noise (χ²/dof 1.2, an ordinary solve's convergence) are not.
+    near = CreepWatch(limit=25.0, dof=100)
+    assert not any(near.creeping(e, 0.99 * e) for e in (62.0, 61.0, 60.0, 59.0, 58.0))
+    assert not any(CreepWatch(0.0, 100).creeping(e, 0.99 * e) for e in (1e6, 1e6, 1e6, 1e6))
+
+
+@pytest.fixture(scope="module", params=["one-graph", "segment-by-segment"])
+def segments(request):
+    """Segments and their joint graph's shape: a 1 km drive's, tied into one chain (one
+    graph's Levenberg–Marquardt), or a 2 km drive's, each on its own (the partitioned one)."""
+    one_graph = request.param == "one-graph"
+    log = simulate_drive(1.0 if one_graph else 2.0, seed=2 if one_graph else 4).measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0)))
+    settings = JointSettings(slip="off", robust_threshold=0.0, tie_segments=one_graph)
+    return data, settings.graph_spec(), one_graph
+
+
+def test_a_creeping_first_solve_stops_only_for_a_caller_that_reweights(segments):
+    data, spec, one_graph = segments
+    # Near its minimum every solve lowers its error slowly: with no χ²/dof too low to
+    # watch, and a tolerance that keeps it iterating there, that is a creep.
+    options = SolveOptions(50, 1e-14, "creep test")
+    watched = SolveOptions(50, 1e-14, "creep test", misweighted_chi2=1e-9)
+    full = solve_segment_graph(data, spec, options, covariance=False)
+    assert (full.partitioned is None) == one_graph
+    assert full.outcome.converged and full.outcome.status is not SolveStatus.MISWEIGHTED
+
+    stopped = solve_segment_graph(data, spec, watched, covariance=False)
+    assert stopped.outcome.status is SolveStatus.MISWEIGHTED
+    assert stopped.outcome.iterations < full.outcome.iterations
+    assert "creeping" in stopped.outcome.message
+
+    def solved(reweights: bool):
+        first = FirstRound(lambda *_: reweights, watched, lambda *_: reweights)
+        return solve_segment_graph_robust(
+            data, spec, options, 0.0, covariance=False, first_round=first
+        )[0]
+
+    kept = solved(reweights=True)  # the caller reads the noise at the stop
+    assert kept.outcome.status is SolveStatus.MISWEIGHTED
+    went_on = solved(reweights=False)  # no caller to reweight: on to the minimum
+    assert went_on.outcome.converged and went_on.outcome.status is not SolveStatus.MISWEIGHTED
+    assert went_on.outcome.iterations > stopped.outcome.iterations
+    assert went_on.final_error <= full.final_error * (1 + 1e-9)
+    sigma = np.sqrt(np.diag(solve_segment_graph(data, spec, options).covariance))
+    assert np.all(np.abs(went_on.theta - full.theta) < 1e-3 * sigma)
