@@ -84,13 +84,15 @@ def _cell(result: Calibrated, name: str) -> str:
     return short
 
 
-def table(rows: list[tuple[Shape, Calibrated, list[str]]]) -> str:
-    """The campaign's table and summary (markdown)."""
+def table(rows: list[tuple[Shape, Calibrated, list[str]]], numbers: list[int] | None = None) -> str:
+    """The campaign's table and summary (markdown); ``numbers``: each row's index in the
+    draw (default: 0, 1, …)."""
+    numbers = list(range(len(rows))) if numbers is None else numbers
     lines = [
         "| # | shape | exit | " + " | ".join(f"{n} e/σ" for n in NAMES) + " | broken | s |",
         "|---|---|---|" + "---|" * len(NAMES) + "---|---|",
     ]
-    for i, (shape, result, broken) in enumerate(rows):
+    for i, (shape, result, broken) in zip(numbers, rows, strict=True):
         cells = " | ".join(_cell(result, n) for n in NAMES)
         lines.append(
             f"| {i} | {shape.label()} | {result.exit_code} | {cells} | "
@@ -142,24 +144,35 @@ def main(argv: list[str] | None = None) -> int:
         "--timeout", type=float, default=300.0, help="longest calibration [s] (300; broken after)"
     )
     parser.add_argument("--keep", type=Path, help="write the recordings and results here")
+    parser.add_argument(
+        "--only",
+        type=int,
+        nargs="+",
+        metavar="INDEX",
+        help="run only these shapes of the draw (0-based, as the table numbers them)",
+    )
     args = parser.parse_args(argv)
     if args.n < 1 or args.jobs < 1:
         parser.error("--n and --jobs must be at least 1")
-    drawn = draw_shapes(args.n, args.seed, tuple(args.car_km), tuple(args.robot_m))
+    drawn = list(enumerate(draw_shapes(args.n, args.seed, tuple(args.car_km), tuple(args.robot_m))))
+    if args.only:
+        if not all(0 <= i < args.n for i in args.only):
+            parser.error(f"--only: each index must be in 0 … {args.n - 1}")
+        drawn = [drawn[i] for i in args.only]
     base = args.keep or Path(tempfile.mkdtemp(prefix="campaign_"))
     try:
         with ThreadPoolExecutor(max_workers=args.jobs) as pool:
             rows = list(
                 pool.map(
                     lambda ix: run_shape(ix[1], base / f"shape{ix[0]:03d}", args.timeout),
-                    enumerate(drawn),
+                    drawn,
                 )
             )
     finally:
         if args.keep is None:
             shutil.rmtree(base, ignore_errors=True)
     print(f"`python scripts/campaign.py {' '.join(argv if argv is not None else sys.argv[1:])}`\n")
-    print(table(rows))
+    print(table(rows, [i for i, _ in drawn]))
     return 0
 
 
