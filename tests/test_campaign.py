@@ -578,6 +578,24 @@ SLOW = [
         id="fixes-wandering-far-above-rtk",  # seed 22's shape 4: 50 Hz fixes wandering by
         # 1.7 m, weighted as the profile's RTK 0.05 m: the first solves crept (121 s)
     ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=106.0,
+            gnss_rate=10.0,
+            noise_sigma=1.69,
+            heading=False,
+            imu=False,
+            wheels="ticks",
+            ticks=500,
+            park_s=5.0,
+            time_offset_s=-0.03,
+            lever_arm=(0.3, 0.0),
+            seed=5,
+        ),
+        id="white-fixes-far-above-rtk",  # seed 29's shape 9: 1.7 m white fixes weighted as
+        # RTK 0.05 m; read as 4.5 m shared from a first solve stopped creeping: exit 2
+    ),
 ]
 
 
@@ -592,6 +610,8 @@ C_E_UNDETERMINED = {
     # 150 m whose 50 Hz fixes share 1.7 m of error over 10 s: c_e's σ 15 mm from the data
     # (calibrated needs 2.5 mm)
     "fixes-wandering-far-above-rtk",
+    # 106 m of 1.7 m white fixes without heading or IMU: c_e's σ 5.7 mm (calibrated needs 2.5)
+    "white-fixes-far-above-rtk",
 }
 
 

@@ -10,8 +10,10 @@ import dataclasses
 import numpy as np
 import pytest
 
+from graphcal.factors import pose_sigmas
 from graphcal.graph.construction.builder import build_segment_graph
 from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraphSpec
+from graphcal.graph.optimization.solve_options import SolveOutcome, SolveStatus
 from graphcal.log.segments import gather_segments, split_segments
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.end_to_end.run import run_calibration
@@ -86,6 +88,17 @@ def test_white_or_declared_or_switched_off_errors_model_no_drift():
     assert slow_fix_error(_noise(), without_defect_model(JointSettings()), DT) is None
 
 
+def test_residuals_of_a_solve_that_stopped_creeping_weight_the_fixes_white_at_their_rms():
+    # Residuals alike from fix to fix: from a converged solve, an error the fixes share;
+    # from one that stopped creeping short of its minimum, its own unfinished fit — white.
+    profile = JointSettings(position_sigma=0.05)
+    converged = with_residual_noise(_noise(), profile, False, DT)
+    assert converged.fix_error_sigma == pytest.approx(1.0)
+    crept = with_residual_noise(_noise(), profile, False, DT, converged=False)
+    assert crept.fix_error_sigma == 0.0
+    assert pose_sigmas(crept.pose_weights, crept.position_sigma)[0] == pytest.approx(0.3)
+
+
 def test_fixes_too_few_to_measure_are_weighted_as_white_and_shared_noise_never_lighter():
     # 25 fixes at 0.1 m RMS under the profile's 0.2 m: too few to tell white from shared; the
     # RMS of a fit of few fixes is no floor below the settings' (it took their error in).
@@ -152,7 +165,10 @@ def test_a_declared_shared_error_leaves_the_white_part_uninflated():
     from graphcal.pipeline.methods.noise_levels import with_noise_levels
 
     declared = JointSettings(fix_error_sigma=1.0, position_sigma=0.05)
-    whole = SimpleNamespace(noise=_noise(position=0.3, position_correlation=20.0))
+    converged = SolveOutcome(SolveStatus.CONVERGED, 5, 50)
+    whole = SimpleNamespace(
+        noise=_noise(position=0.3, position_correlation=20.0), outcome=converged
+    )
     out = with_noise_levels(whole, declared, has_heading=False, dt=DT)
     assert out.position_sigma == pytest.approx(0.3)
     assert out.fix_error_sigma == 1.0

@@ -11,6 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from graphcal.factors import pose_sigmas
+from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.pipeline.solvers.joint import JointCalibration
 from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import CORRELATED_ERRORS, ResidualNoise, honest_sigma
@@ -60,8 +61,16 @@ def with_noise_levels(
 
     ``fixes`` false: the fixes' noise stays the settings' where they share a modelled error
     (:func:`fixes_reweighted`).
+
+    A solve that stopped creeping under too tight weights
+    (:attr:`~graphcal.graph.optimization.solve_options.SolveStatus.MISWEIGHTED`) left
+    residuals that carry its own unfinished fit, alike from fix to fix: the fixes are
+    weighted white at their RMS, and whether they share an error is read after the solve
+    under it (a robot's 1.7 m white fixes read from such residuals as 4.5 m shared and
+    1.8 m white: the solve under that was indeterminate, exit 2).
     """
-    return with_residual_noise(whole.noise, settings, has_heading, dt, fixes)
+    converged = whole.outcome.status is not SolveStatus.MISWEIGHTED
+    return with_residual_noise(whole.noise, settings, has_heading, dt, fixes, converged)
 
 
 def noise_levels_change(
@@ -85,15 +94,20 @@ def with_residual_noise(
     has_heading: bool,
     dt: float,
     fixes: bool = True,
+    converged: bool = True,
 ) -> JointSettings:
-    """:func:`with_noise_levels` of a solve's residual ``noise``."""
+    """:func:`with_noise_levels` of a solve's residual ``noise`` (``converged`` false: of a
+    solve that stopped creeping, the fixes white at their RMS)."""
     x, y, _ = settings.pose_weights
     sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
     position, heading, wheel = float(sigmas[0]), float(sigmas[2]), settings.wheel_noise
     fixes = fixes or settings.fix_error_sigma == 0.0  # white fixes: their RMS is theirs
-    drift = slow_fix_error(noise, settings, dt) if fixes else None
-    found = honest_sigma(noise.position, noise.position_correlation) if fixes else None
-    few = few_fixes_error(noise, settings, position) if fixes else None
+    correlated = fixes and converged  # an unfinished fit's residuals are alike by themselves
+    drift = slow_fix_error(noise, settings, dt) if correlated else None
+    found = honest_sigma(noise.position, noise.position_correlation) if correlated else None
+    if fixes and not converged:
+        found = noise.position
+    few = few_fixes_error(noise, settings, position) if correlated else None
     if few is not None:
         drift = few
     if drift is not None:
