@@ -54,6 +54,19 @@ STRAIGHT_POSITIONS_ONLY = dict(
 #: shapes of issue 43's table kept as regression tests.
 EXAMPLES = [
     pytest.param(
+        _yard(
+            "differential",
+            length_m=250.0,
+            noise_sigma=1.0,
+            park_s=3.0,
+            time_offset_s=-0.038,
+            lever_arm=(0.01, 0.0),
+            seed=4466,
+        ),
+        id="noisy-fixes-read-as-a-mirrored-track",  # seed 29's shape 155: 10 Hz fixes of
+        # 1 m on a slow robot turned at random over 1 s chords: "a mirrored track", refused
+    ),
+    pytest.param(
         _shape(drives=3, gap_s=30.0, park_s=5.0, gnss_rate=5.0, heading=False),
         id="three-drives-one-clock",
     ),

@@ -37,7 +37,8 @@ def check_turn_directions(log: DriveLog, nominal: np.ndarray) -> None:
     which columns look swapped or of the other sign, and how to fix them."""
     columns, excluded = _columns(log)
     heading = int(log.heading_measured.sum()) >= 2
-    found = turning(columns, ~excluded, nominal, heading).opposite()
+    fixed = None if log.measured is None else log.measured[:, 0]
+    found = turning(columns, ~excluded, nominal, heading, fixed).opposite()
     if found is None:
         return
     signal, share = found

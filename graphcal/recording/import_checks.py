@@ -11,6 +11,7 @@ from graphcal.log.turns import (
     TURN_MIN_AGREEMENT,
     TURN_WINDOW_S,
     grid_course,
+    track_directions,
     turn_agreement,
     turn_directions,
 )
@@ -190,7 +191,8 @@ def _check_imu_signs(
     if imu is None:
         return
     window = max(1, round(TURN_WINDOW_S / dt))
-    track = turn_directions(grid_course(c, dt, nominal), usable, window)
+    fixed = None if resampled.measured is None else resampled.measured[:, 0]
+    track = track_directions(c, usable, window, nominal, fixed)  # beyond its course noise
     grid = c["t"] + resampled.overlap[0]  # the streams' time base
     for quantity, signal, hint in (
         ("lateral_acceleration", imu.lateral_acceleration, "positive to the left"),

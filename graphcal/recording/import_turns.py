@@ -21,7 +21,9 @@ def check_turning(resampled: Resampled, recording: Recording, nominal: np.ndarra
     opposite directions (:meth:`~graphcal.log.turns.Turning.opposite`).
     """
     pose = recording.pose
-    turns = turning(resampled.columns, ~resampled.masked, nominal, pose.heading is not None)
+    fixed = None if resampled.measured is None else resampled.measured[:, 0]
+    heading = pose.heading is not None
+    turns = turning(resampled.columns, ~resampled.masked, nominal, heading, fixed)
     found = turns.opposite()
     if found is None:
         return
