@@ -54,7 +54,6 @@ from graphcal.pipeline.end_to_end.calibration_run import (
 )
 from graphcal.pipeline.methods.batch_study import joint_batch_study
 from graphcal.pipeline.methods.model_check import ModelCheck, check_model, theta_alone
-from graphcal.pipeline.methods.noise_levels import with_noise_of
 from graphcal.pipeline.methods.prepare import PreparedLog, prepare_log
 from graphcal.pipeline.methods.staged import run_staged
 from graphcal.pipeline.methods.whole_log import WholeLog, models_sensors, solve_whole_log
@@ -190,8 +189,7 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     the settings ask for it and its defect model found something, the model check
     (:mod:`graphcal.pipeline.methods.model_check`): when theta alone predicts held-apart segments at
     least as well, the whole-log solve again without the defect model's sensor terms (or,
-    where the defect model predicts best without slip, without slip), from the noise levels
-    the first found."""
+    where the defect model predicts best without slip, without slip)."""
     solved = solve_whole_log(prepared, workers)
     if not prepared.settings.joint.model_check:
         return solved, None
@@ -199,11 +197,11 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     if check is None:
         return solved, None
     say(check.line())
-    learned = with_noise_of(prepared.settings.joint, solved.corrected.settings.joint)
     if check.without_slip:
-        joint, left_out = dataclasses.replace(learned, slip="off"), prepared.left_out
+        joint = dataclasses.replace(prepared.settings.joint, slip="off")
+        left_out = prepared.left_out
     elif check.theta_alone:
-        joint, left_out = theta_alone(learned), {}
+        joint, left_out = theta_alone(prepared.settings.joint), {}
     else:
         return solved, check
     simpler = dataclasses.replace(

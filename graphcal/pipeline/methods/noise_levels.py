@@ -182,25 +182,6 @@ def _fix_sigma(white: float, shared: float) -> float:
     return float(np.hypot(white, shared))
 
 
-#: The fields of the joint settings that hold noise levels (:func:`with_noise_levels` sets them).
-NOISE_FIELDS = (
-    "position_sigma",
-    "pose_weights",
-    "wheel_noise",
-    "fix_error_sigma",
-    "fix_error_time",
-)
-
-
-def with_noise_of(settings: JointSettings, solved: JointSettings) -> JointSettings:
-    """``settings`` with the noise levels of ``solved`` (:data:`NOISE_FIELDS`), the settings
-    a whole-log solve ended with: a solve of the same log under another model starts from
-    the noise the data showed, not from the profile's (a differential robot's 50 Hz fixes
-    wandering by 1.7 m, weighted as the profile's RTK 0.05 m: the model check's re-solve with
-    theta alone crept 50 s through the same far wrong weights again)."""
-    return dataclasses.replace(settings, **{name: getattr(solved, name) for name in NOISE_FIELDS})
-
-
 def fixes_reweighted(before: JointSettings, after: JointSettings) -> bool:
     """Whether ``after`` weights the fixes :data:`REWEIGHTED` times away from ``before``
     (their white and shared sigma together): the solve under ``before`` fitted them under far
