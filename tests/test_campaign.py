@@ -57,7 +57,7 @@ EXAMPLES = [
         _yard(
             "differential",
             length_m=250.0,
-            noise_sigma=1.0,
+            noise_sigma=1.03,
             park_s=3.0,
             time_offset_s=-0.038,
             lever_arm=(0.01, 0.0),
@@ -65,6 +65,22 @@ EXAMPLES = [
         ),
         id="noisy-fixes-read-as-a-mirrored-track",  # seed 29's shape 155: 10 Hz fixes of
         # 1 m on a slow robot turned at random over 1 s chords: "a mirrored track", refused
+    ),
+    pytest.param(
+        _yard(
+            "skid-steer",
+            length_m=126.0,
+            gnss_rate=20.0,
+            noise_sigma=1.75,
+            heading=True,
+            imu=False,
+            park_s=3.0,
+            time_offset_s=0.029,
+            lever_arm=(0.15, 0.0),
+            seed=1382,
+        ),
+        id="loops-within-a-noisy-tracks-chord",  # seed 30's shape 8: 1.8 m fixes, a 90 m
+        # chord in a yard bending back on itself: "a mirrored track", refused
     ),
     pytest.param(
         _shape(drives=3, gap_s=30.0, park_s=5.0, gnss_rate=5.0, heading=False),

@@ -122,7 +122,10 @@ def track_directions(
     and a window's turn counts beyond :data:`TRACK_TURN_SIGMAS` of that course's noise.
     Over a 1 s chord, a slow robot's 10 Hz fixes of 1 m turned both ways at random, and 4
     of 5 such "turns" against the wheels read as a mirrored track (campaign seed 29's shape
-    155, refused)."""
+    155, refused). Windows whose courses come from chords that bend back on themselves
+    (shorter than :data:`STRAIGHT_CHORD_SHARE` of the travel along them) are NaN: a 90 m
+    chord of a skid-steer robot's 1.8 m fixes in a yard pointed anywhere (seed 30's shape
+    8, refused)."""
     c = columns
     dt = float(c["t"][1] - c["t"][0])
     travelled = np.concatenate(
@@ -135,8 +138,22 @@ def track_directions(
         half_distance=half,
     )  # fmt: skip
     turns = turn_directions(heading, usable, window)
+    # A chord that bends back on itself (a loop in a yard, within ±half) points anywhere:
+    # only windows whose two courses come from nearly straight chords are judged.
+    n = len(travelled)
+    ahead = np.minimum(np.searchsorted(travelled, travelled + half, side="left"), n - 1)
+    behind = np.maximum(np.searchsorted(travelled, travelled - half, side="right") - 1, 0)
+    chord = np.hypot(c["px"][ahead] - c["px"][behind], c["py"][ahead] - c["py"][behind])
+    straight = chord >= STRAIGHT_CHORD_SHARE * (travelled[ahead] - travelled[behind])
+    ends = np.arange(0, n, window)[: len(turns) + 1]
+    turns = np.where(straight[ends[:-1]] & straight[ends[1:]], turns, np.nan)
     clear = max(TURN_MIN_YAW, TRACK_TURN_SIGMAS * sigma / half)
     return np.where(np.isnan(turns) | (np.abs(turns) > clear), turns, 0.0)
+
+
+#: A course's chord counts as straight where it is at least this share of the wheels' travel
+#: along it (a turn of up to about 2 rad within it); a chord that bends further is not judged.
+STRAIGHT_CHORD_SHARE = 0.8
 
 
 #: Standard gravity [m/s²], and how far (relative) the ratio × it may be from 1 for an
