@@ -127,16 +127,7 @@ def track_directions(
     chord of a skid-steer robot's 1.8 m fixes in a yard pointed anywhere (seed 30's shape
     8, refused)."""
     c = columns
-    dt = float(c["t"][1] - c["t"][0])
-    travelled = np.concatenate(
-        [[0.0], np.cumsum(np.abs(0.5 * (c["n_rl"] + c["n_rr"]))[:-1] * nominal[0])]
-    )
-    sigma = fix_noise(c, fixed)
-    half = max(COURSE_HALF_REVS * float(nominal[0]), TRACK_HALF_CHORD_SIGMAS * sigma)
-    heading = course(
-        c["px"], c["py"], dt, travelled, min_distance=COURSE_MIN_REVS * float(nominal[0]),
-        half_distance=half,
-    )  # fmt: skip
+    heading, travelled, sigma, half = _noise_proof_course(c, nominal, fixed)
     turns = turn_directions(heading, usable, window)
     # A chord that bends back on itself (a loop in a yard, within ±half) points anywhere:
     # only windows whose two courses come from nearly straight chords are judged.
@@ -216,6 +207,26 @@ def _window_turns(yaw: np.ndarray, usable: np.ndarray, ends: np.ndarray) -> np.n
     return np.where(clean, turns, np.nan)
 
 
+def _noise_proof_course(
+    c: dict[str, np.ndarray], nominal, fixed: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """The track's course [rad] over a chord along the wheels' travel of
+    :data:`TRACK_HALF_CHORD_SIGMAS` times the fixes' noise on each side (at least
+    :data:`~graphcal.log.track.COURSE_HALF_REVS` revolutions), with the travel [m] at each
+    row, the fixes' noise σ [m] and the half chord [m]."""
+    dt = float(c["t"][1] - c["t"][0])
+    travelled = np.concatenate(
+        [[0.0], np.cumsum(np.abs(0.5 * (c["n_rl"] + c["n_rr"]))[:-1] * nominal[0])]
+    )
+    sigma = fix_noise(c, fixed)
+    half = max(COURSE_HALF_REVS * float(nominal[0]), TRACK_HALF_CHORD_SIGMAS * sigma)
+    heading = course(
+        c["px"], c["py"], dt, travelled, min_distance=COURSE_MIN_REVS * float(nominal[0]),
+        half_distance=half,
+    )  # fmt: skip
+    return heading, travelled, sigma, half
+
+
 def fix_noise(columns: dict[str, np.ndarray], fixed: np.ndarray | None = None) -> float:
     """Robust σ [m] per axis of the fixes (rows ``fixed``; ``None``: every row) from their
     second differences (``6σ²`` each for white noise; the motion's share is small between
@@ -245,16 +256,8 @@ def track_turns(
     :data:`TURN_MIN_YAW`, over a chord of :data:`TURN_MIN_CHORD_REVS` of the nominal c_e."""
     c = columns
     dt = float(c["t"][1] - c["t"][0])
-    travelled = np.concatenate(
-        [[0.0], np.cumsum(np.abs(0.5 * (c["n_rl"] + c["n_rr"]))[:-1] * nominal[0])]
-    )
-    sigma = fix_noise(c, fixed)
-    half = max(COURSE_HALF_REVS * float(nominal[0]), TRACK_HALF_CHORD_SIGMAS * sigma)
+    heading, travelled, sigma, half = _noise_proof_course(c, nominal, fixed)
     n = len(travelled)
-    heading = course(
-        c["px"], c["py"], dt, travelled, min_distance=COURSE_MIN_REVS * float(nominal[0]),
-        half_distance=half,
-    )  # fmt: skip
     marks = np.arange(0.0, max(travelled[-1], 2.0 * half), 2.0 * half)  # [0] when parked
     ends = np.unique(np.searchsorted(travelled, marks))
     ends = np.append(ends, n - 1) if ends[-1] < n - 1 else ends
