@@ -83,6 +83,23 @@ EXAMPLES = [
         # chord in a yard bending back on itself: "a mirrored track", refused
     ),
     pytest.param(
+        _yard(
+            "skid-steer",
+            length_m=100.0,
+            gnss_rate=5.0,
+            noise_sigma=1.43,
+            noise_tau_s=5.0,
+            imu=False,
+            wheels="ticks",
+            ticks=2792,
+            park_s=4.0,
+            lever_arm=(0.0, 0.0),
+            seed=2792,
+        ),
+        id="chords-too-alike-to-fit-the-noise-out",  # seed 30's shape 83: 1.4 m fixes,
+        # chord² 1.5 m² on 0.36 m² of wheel travel, all alike: "the wheels travel 0.49x"
+    ),
+    pytest.param(
         _shape(drives=3, gap_s=30.0, park_s=5.0, gnss_rate=5.0, heading=False),
         id="three-drives-one-clock",
     ),

@@ -59,7 +59,7 @@ def _ratio(recording: Path) -> tuple[float, float]:
         resampled.columns, resampled.measured[:, 0], ~resampled.masked, nominal
     )
     assert found is not None
-    return found
+    return found[:2]
 
 
 def _thin(recording: Path, rate: float, heading: bool = False) -> None:

@@ -110,9 +110,10 @@ def _check_wheel_scale(
     found = wheel_track_ratio(c, fixed, usable, nominal)
     if found is None:
         return
-    ratio, sigma = found
+    ratio, sigma, at_least = found
     low, high = np.log(WHEEL_SCALE_RANGE)
-    beyond = max(low - np.log(ratio), np.log(ratio) - high)
+    short = -np.inf if at_least else low - np.log(ratio)  # a lower bound shows no shortfall
+    beyond = max(short, np.log(ratio) - high)
     if beyond > WHEEL_SCALE_SIGMAS * sigma:
         wheels = provenance_of(recording.wheels)
         raise StreamError(
