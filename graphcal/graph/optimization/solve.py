@@ -73,6 +73,12 @@ def solve_lm(
         raise error_type(f"{options.label} failed: {reason}") from exc
 
 
+def degrees_of_freedom(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> int:
+    """Residual dimensions of ``graph`` minus the dimensions of the unknowns in ``values``."""
+    residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
+    return int(residuals - values.dim())
+
+
 def _levenberg_marquardt(
     graph: gtsam.NonlinearFactorGraph, values: gtsam.Values, options: SolveOptions
 ) -> tuple[gtsam.Values, SolveOutcome]:
@@ -89,8 +95,7 @@ def _levenberg_marquardt(
     damping = Damping()
     watch = CreepWatch(options.misweighted_chi2, 0)
     if watch.limit > 0:
-        residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
-        watch.dof = int(residuals - values.dim())
+        watch.dof = degrees_of_freedom(graph, values)
     iterations, stop = 0, None
     while iterations < options.max_iterations:
         linear = graph.linearize(values)

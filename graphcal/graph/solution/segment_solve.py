@@ -22,7 +22,7 @@ from graphcal.graph.construction.built_graph import BuiltGraph
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.partitioned_lm import optimize_partitioned
-from graphcal.graph.optimization.solve import solve_lm
+from graphcal.graph.optimization.solve import degrees_of_freedom, solve_lm
 from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
@@ -174,12 +174,6 @@ def _solve_whole_graph(
         degrees_of_freedom=degrees_of_freedom(built.graph, result),
         nuisance=nuisance,
     )
-
-
-def degrees_of_freedom(graph: gtsam.NonlinearFactorGraph, values: gtsam.Values) -> int:
-    """Residual dimensions of ``graph`` minus the dimensions of the unknowns in ``values``."""
-    residuals = sum(graph.at(i).dim() for i in range(graph.size()) if graph.at(i) is not None)
-    return int(residuals - values.dim())
 
 
 #: Fix rate [Hz] below which an implausible theta names the rate among its causes, and

@@ -129,7 +129,7 @@ def solve_joint(
         head = dataclasses.replace(options, misweighted_chi2=MISWEIGHTED_CHI2)
     first = _first_start(data, settings.graph_spec(), head, start, same_segments)
     solved, weights, noise, stopped = _robust_solve(
-        data, settings, (options, head), first, rounds_start, stop_if
+        data, settings, options, head, first, rounds_start, stop_if
     )
     statistic = None
     if auto and stopped:  # solved again under other settings: no slip screen here
@@ -181,16 +181,16 @@ def _first_start(
 def _robust_solve(
     data: SegmentData,
     settings: JointSettings,
-    options: tuple[SolveOptions, SolveOptions],
+    options: SolveOptions,
+    head: SolveOptions,
     first: BuilderStart,
     rounds_start: RoundsStart | None,
     stop_if: Callable[[ResidualNoise], bool] | None,
 ) -> tuple[SolvedGraph, np.ndarray | None, ResidualNoise, bool]:
-    """:func:`solve_joint`'s robust solve from ``first`` (``options``: every solve's, and the
-    first's): the solution (its covariance unless the slip screen follows), weights, residual
+    """:func:`solve_joint`'s robust solve from ``first`` (``options``: every solve's; ``head``:
+    the first's): the solution (its covariance unless the slip screen follows), weights, residual
     noise, and whether ``stop_if`` ended it."""
     stopped: list[bool] = []
-    options, head = options
 
     def first_round_ends(solved: SolvedGraph, weights: np.ndarray | None) -> bool:
         stopped.append(stop_if is not None and stop_if(residual_noise(solved, data, weights)))
