@@ -47,9 +47,7 @@ def course(
     """
     n = len(x)
     if travelled is not None:
-        ahead = np.searchsorted(travelled, travelled + half_distance, side="left")
-        behind = np.searchsorted(travelled, travelled - half_distance, side="right") - 1
-        ahead, behind = np.minimum(ahead, n - 1), np.maximum(behind, 0)
+        behind, ahead = chord_ends(travelled, half_distance)
     else:
         half = max(1, round(0.5 * COURSE_WINDOW_S / dt))
         ahead = np.minimum(np.arange(n) + half, n - 1)
@@ -63,6 +61,15 @@ def course(
     index[index < 0] = int(np.flatnonzero(defined)[0])
     angle = np.arctan2(dy, dx)[index]
     return np.unwrap(angle)
+
+
+def chord_ends(travelled: np.ndarray, half_distance: float) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``(behind, ahead)`` of each row's chord: ``half_distance`` [m] of ``travelled``
+    [m] on each side, clipped to the log."""
+    n = len(travelled)
+    ahead = np.searchsorted(travelled, travelled + half_distance, side="left")
+    behind = np.searchsorted(travelled, travelled - half_distance, side="right") - 1
+    return np.maximum(behind, 0), np.minimum(ahead, n - 1)
 
 
 def course_distances(wheel_circumference: float) -> dict[str, float]:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.log.track import COURSE_HALF_REVS, COURSE_MIN_REVS, course
+from graphcal.log.track import COURSE_HALF_REVS, COURSE_MIN_REVS, chord_ends, course
 from graphcal.model import THETA_NOMINAL
 
 #: Window [s] over which the pose's and the wheels' turning are compared.
@@ -132,8 +132,7 @@ def track_directions(
     # A chord that bends back on itself (a loop in a yard, within ±half) points anywhere:
     # only windows whose two courses come from nearly straight chords are judged.
     n = len(travelled)
-    ahead = np.minimum(np.searchsorted(travelled, travelled + half, side="left"), n - 1)
-    behind = np.maximum(np.searchsorted(travelled, travelled - half, side="right") - 1, 0)
+    behind, ahead = chord_ends(travelled, half)
     chord = np.hypot(c["px"][ahead] - c["px"][behind], c["py"][ahead] - c["py"][behind])
     straight = chord >= STRAIGHT_CHORD_SHARE * (travelled[ahead] - travelled[behind])
     ends = np.arange(0, n, window)[: len(turns) + 1]

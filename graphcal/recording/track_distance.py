@@ -114,15 +114,15 @@ def _fit(w2: np.ndarray, g2: np.ndarray) -> tuple[float, float, float, bool]:
     (:data:`MIN_SPREAD`; ``fitted`` false: ``a`` then is an upper bound). ``σ_a`` is the
     sandwich (heteroscedasticity-consistent) standard error: the scatter of a chord² grows
     with its length."""
-    if np.std(w2) >= MIN_SPREAD * np.mean(w2):
+    fitted = bool(np.std(w2) >= MIN_SPREAD * np.mean(w2))
+    if fitted:
         a, noise = np.polyfit(w2, g2, 1)
         if noise >= 0:
             lever = w2 - w2.mean()
             return float(a), float(noise), _sandwich(lever, g2 - a * w2 - noise, 2), True
-        a = float(np.sum(w2 * g2) / np.sum(w2 * w2))  # N fitted below 0: no noise to take
-        return a, 0.0, _sandwich(w2, g2 - a * w2, 1), True
+    # through the origin: N too alike to tell from a (not fitted), or fitted below 0 (none)
     a = float(np.sum(w2 * g2) / np.sum(w2 * w2))
-    return a, 0.0, _sandwich(w2, g2 - a * w2, 1), False
+    return a, 0.0, _sandwich(w2, g2 - a * w2, 1), fitted
 
 
 def _sandwich(lever: np.ndarray, residual: np.ndarray, parameters: int) -> float:
