@@ -13,12 +13,11 @@ Top-down, :func:`solve_whole_log` runs:
    the fixes' white noise and the error they share, the heading's, the wheels') and, for a
    log whose lateral acceleration comes from the wheels (and whose d is estimated), that
    acceleration derived again with the solved theta; then time-offset rounds
-   (:func:`solve_with_time_offset`): the solve repeated with the wheels shifted by whole
-   samples while it finds a time offset — under the noise found, since a profile's RTK
-   0.05 m on fixes of 1.9 m (χ²/dof 359) put a delivery robot's wheels 350 ms late and its
-   t_r out of range, and on fixes sharing 1.1 m of error shifted them by −225 ms (truth
-   −34 ms); the noise judged once more, and the log solved again if it changed, where the
-   first solve fitted far wrong fix weights or held a lever arm left out since;
+   (:func:`solve_with_time_offset`: the wheels shifted by whole samples while the solve
+   finds an offset) under the noise found (a profile's RTK 0.05 m on fixes of 1.9 m put a
+   delivery robot's wheels 350 ms late); the noise judged once more, and the log solved
+   again if it changed, where the first solve fitted far wrong fix weights or held a lever
+   arm left out since;
 3. theta judged under the weak prior
    (:func:`~graphcal.pipeline.methods.held_at_prior.judged_with_what_is_held`): every parameter its
    posterior with its marginal σ, what the settings held at its prior
@@ -251,15 +250,11 @@ def _holding_runaways(
     except ImplausibleTheta as runaway:
         holding = settings.joint.holding(runaway.names)
         shift = None if start is None else start.shift
-        # One solve judges the runaway; its time-offset rounds only where it is kept held
-        # (seed 29's shape 82: three rounds, 165 s, under fixes weighted 2.7× too tight,
-        # shifting the wheels by −1.85 s, before that solve was dropped)
-        outcome = _holding_a_runaway(prepared, holding, runaway, workers, 1, shift)
+        outcome = _holding_a_runaway(prepared, holding, runaway, workers, shift)
         if not any(data_determine(outcome[0], holding, runaway.names)):
             held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
-            if rounds > 1:
-                solved, offset = (outcome[0], outcome[1]), outcome[3]
-                go_on = StoppedAt(None, offset, None)
+            if rounds > 1:  # kept held: its time-offset rounds, going on from it
+                go_on, solved = StoppedAt(None, outcome[3], None), outcome[:2]
                 outcome = solve_with_time_offset(prepared, holding, workers, go_on, rounds, solved)
             return dataclasses.replace(settings, joint=holding), outcome
         has_heading, dt = prepared.data.has_heading(), prepared.log.dt
@@ -296,32 +291,30 @@ def _holding_a_runaway(
     settings: JointSettings,
     runaway: ImplausibleTheta,
     workers: int,
-    rounds: int,
     shift: np.ndarray | None = None,
 ) -> Solved:
     """The whole-log solve under ``settings``, which hold the parameters that ran out of
     their plausible range in a solve (``runaway``) at their prior, for
     :func:`_holding_runaways` to judge whether the data determine them (then the data put
-    them there: wrong units, not a weak direction).
+    them there: wrong units, not a weak direction). One solve: its time-offset rounds only
+    where the runaway stays held (seed 29's shape 82 ran three, 165 s, before the solve was
+    dropped for the fixes' own noise).
 
-    A direction the data barely determine drifts where the model's misfit pulls it, a long
-    way under a weak prior: a 2 km straight road from 10 Hz fixes without heading drove t_r
-    to 0.49 m (its prior 1.5 ± 0.2 m) in 50 iterations, and "check the units" ended a valid
-    recording. Whether a direction is determined is read from the held solve's covariance
-    with the weak prior put back
-    (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`) — under noise levels
-    that fit: where the held solve's residuals show fixes :data:`REWEIGHTED
+    A direction the data barely determine drifts where the misfit pulls it under a weak
+    prior (a 2 km straight road of fixes without heading drove t_r to 0.49 m, its prior
+    1.5 ± 0.2 m). Whether it is determined is read from the held solve's covariance with
+    the weak prior put back (:func:`~graphcal.graph.solution.observability.with_prior_sigmas`)
+    under noise levels that fit: where its residuals show fixes :data:`REWEIGHTED
     <graphcal.pipeline.methods.noise_levels.REWEIGHTED>` times noisier than weighted, the
-    free solve is repeated under them first (a delivery robot's 17-tick counters, its fixes
-    wandering by 0.74 m weighted as the profile's 0.05 m: c_e and t_r negative, then
-    "determined" at χ²/dof 7.2, "check the units")."""
+    free solve is repeated under them first (a delivery robot's fixes wandering by 0.74 m
+    weighted as 0.05 m: c_e and t_r "determined" at χ²/dof 7.2)."""
     them = "it" if len(runaway.names) == 1 else "them"
     say(
         f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
         f"held at the prior, to see whether the data determine {them}"
     )
     start = None if shift is None else StoppedAt(None, shift, None)
-    return solve_with_time_offset(prepared, settings, workers, start, rounds)
+    return solve_with_time_offset(prepared, settings, workers, start, 1)
 
 
 def _wheel_lag(prepared: PreparedLog) -> np.ndarray:
