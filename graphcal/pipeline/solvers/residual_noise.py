@@ -94,6 +94,7 @@ def residual_noise(
     if data.measured is not None:
         headings &= data.measured[..., 1]
     out = {}
+    tied = solved.built.spec.tied(data)  # the graph's trajectories
     for name, rows, columns in (
         ("position", used, slice(0, 2)),
         ("heading", headings, slice(2, 3)),
@@ -103,6 +104,8 @@ def residual_noise(
             continue
         part = residuals[..., columns]
         rms = float(np.sqrt(np.mean(part[rows] ** 2)))
+        if name == "position":
+            rms *= fitted_start_correction(rows, tied)
         # A heading's RMS is only ever raised to (with_noise_levels): from a few, too.
         if count >= MIN_NOISE_FIXES or name == "heading":
             out[name] = rms
@@ -110,7 +113,6 @@ def residual_noise(
         else:
             out["few_fixes"] = (count, rms)
     if "position" in out and data.sample_index is not None:
-        tied = solved.built.spec.tied(data)  # the graph's trajectories
         lags, gamma, pairs = error_variogram(residuals[..., :2], used, data, tied)
         fitted = drift_fit(lags, gamma, pairs)
         if fitted is not None:
@@ -121,6 +123,24 @@ def residual_noise(
     if rows >= MIN_NOISE_FIXES:
         out["wheel_chi2"] = chi2 / rows
     return ResidualNoise(**out)
+
+
+def fitted_start_correction(used: np.ndarray, tied: np.ndarray) -> float:
+    """The factor that makes the RMS of fix residuals an unbiased noise estimate: each
+    trajectory (a chain of ``tied (S,)`` segments) has its start pose fitted to its ``used
+    (S, K+1)`` fixes, 3 unknowns taken from their 2 coordinates each (all of them from one
+    fix), so the residuals' variance is the noise's times ``1 − 3 / (2 n)`` over a trajectory
+    of n fixes: ``√(2 N / (2 N − U))`` over N fixes whose trajectories take U unknowns from
+    them (1 where none are left over). 0.5 Hz fixes of 1.18 m on 150 m segments of a town
+    car (9 per segment) read 0.90–1.08 m without it, and c_e's mean (e/σ)² over 12 noise
+    draws was 2.15."""
+    chain = np.cumsum(~np.asarray(tied, bool)) - 1
+    per_chain = np.bincount(chain, weights=used.sum(axis=1))
+    coordinates = 2.0 * per_chain.sum()
+    unknowns = np.minimum(3.0, 2.0 * per_chain).sum()
+    if coordinates <= unknowns:
+        return 1.0
+    return float(np.sqrt(coordinates / (coordinates - unknowns)))
 
 
 def error_correlation(residuals: np.ndarray, used: np.ndarray) -> float:
