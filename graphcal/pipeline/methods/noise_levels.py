@@ -102,6 +102,7 @@ def with_residual_noise(
     sigmas = pose_sigmas(settings.pose_weights, settings.position_sigma)
     position, heading, wheel = float(sigmas[0]), float(sigmas[2]), settings.wheel_noise
     fixes = fixes or settings.fix_error_sigma == 0.0  # white fixes: their RMS is theirs
+    converged = converged and not noise.unfinished
     correlated = fixes and converged  # an unfinished fit's residuals are alike by themselves
     drift = slow_fix_error(noise, settings, dt) if correlated else None
     found = honest_sigma(noise.position, noise.position_correlation) if correlated else None
@@ -127,6 +128,8 @@ def with_residual_noise(
     ):
         say("  the heading's and the wheels' noise judged after a solve under the fixes' own")
         has_heading, chi2 = False, None  # a misfit of far wrong fix weights, not their noise
+    elif not converged:  # an unfinished fit's misfit (a start far off), not their noise
+        has_heading, chi2 = False, None
     else:
         chi2 = noise.wheel_chi2
     found = noise.heading  # white: a correlated misfit of the heading is a defect, not noise

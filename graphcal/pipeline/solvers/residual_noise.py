@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.log.segments import SegmentData
 
@@ -67,6 +68,8 @@ class ResidualNoise:
         few_fixes: ``(count, RMS per axis [m])`` of the fixes when they are fewer than
             :data:`MIN_NOISE_FIXES` but at least :data:`MIN_FEW_FIXES` (``position`` is then
             ``None``), else ``None``.
+        unfinished: the solve stopped creeping under weights far too tight
+            (``SolveStatus.MISWEIGHTED``): its residuals carry its unfinished fit.
     """
 
     position: float | None = None
@@ -79,6 +82,7 @@ class ResidualNoise:
     position_variogram: tuple[np.ndarray, np.ndarray] | None = field(default=None, compare=False)
     wheel_chi2: float | None = None
     few_fixes: tuple[int, float] | None = None
+    unfinished: bool = False
 
 
 def residual_noise(
@@ -93,7 +97,7 @@ def residual_noise(
     headings = data.valid.copy()
     if data.measured is not None:
         headings &= data.measured[..., 1]
-    out = {}
+    out: dict = {"unfinished": solved.outcome.status is SolveStatus.MISWEIGHTED}
     tied = solved.built.spec.tied(data)  # the graph's trajectories
     for name, rows, columns in (
         ("position", used, slice(0, 2)),
