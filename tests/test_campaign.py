@@ -671,6 +671,20 @@ SLOW = [
         # at 1.11 ± 0.035 m against the geometric 0.55 m; the validation check put the
         # calibrated c_d beside the nominal t_r, "validates worse": exit 3
     ),
+    pytest.param(
+        _yard(
+            "skid-steer",
+            length_m=109.0,
+            gnss_rate=1.0,
+            noise_sigma=0.85,
+            heading=True,
+            park_s=6.0,
+            lever_arm=(-0.28, 0.0),
+            seed=339,
+        ),
+        id="heading-shows-the-track-sparse-fixes-do-not",  # seed 32's shape 198: the solve
+        # stayed at t_r 0.52 m (truth 1.08), its heading 7° off: exit 3
+    ),
 ]
 
 

@@ -95,3 +95,37 @@ def test_a_coarse_search_finds_a_track_twice_the_nominal():
     assert coarse is not None
     assert abs(coarse[2] / truth[2] - 1.0) < 0.1 and abs(coarse[0] / truth[0] - 1.0) < 0.05
     assert warm.coarse_theta(data, truth) is None  # the nominal that fits is kept
+
+
+def test_a_measured_heading_shows_the_track_where_sparse_noisy_fixes_do_not():
+    """Seed 32's shape 198 of the campaign: a skid-steer robot, two 53 m segments of 1 Hz
+    fixes of 0.85 m with a heading. Its fixes alone did not move the coarse search off the
+    nominal; the solve stayed at t_r 0.52 m (truth 1.08) with the heading 7° off, "not to be
+    trusted". Weighed by their sigmas, the measured headings show how fast the odometry
+    turns, c_e / t_r (the fixes, what c_e is)."""
+    rng = np.random.default_rng(5)
+    nominal = np.array([0.8, 0.0, 0.55, 0.0])
+    truth = np.array([0.785, 0.0006, 1.08, 0.0])
+    steps, segments, every = 2500, 2, 50
+    turn = 0.6 * np.sin(np.arange(segments * steps) * 0.02 / 7.0)
+    left = (1.0 - 0.5 * truth[2] * turn) * 0.02 / (truth[0] + 0.5 * truth[1])
+    right = (1.0 + 0.5 * truth[2] * turn) * 0.02 / (truth[0] - 0.5 * truth[1])
+    inputs = np.zeros((segments, steps, 4))
+    inputs[..., 0] = left.reshape(segments, steps)
+    inputs[..., 1] = right.reshape(segments, steps)
+    poses = integrate(np.zeros((segments, 3)), inputs, truth)
+    poses[..., :2] += rng.normal(0.0, 5.0, poses[..., :2].shape)
+    poses[..., 2] += rng.normal(0.0, 0.005, poses.shape[:2])
+    measured = np.zeros((*poses.shape[:2], 2), bool)
+    measured[:, ::every] = True
+    valid = np.ones(poses.shape[:2], bool)
+    data = SegmentData(poses, inputs, np.full(segments, steps), valid, 0.02, measured=measured)
+    sigmas = np.array([5.0, 5.0, 0.005])
+
+    def turning_off(theta: np.ndarray | None) -> float:
+        theta = nominal if theta is None else theta
+        return abs((theta[0] / theta[2]) / (truth[0] / truth[2]) - 1.0)
+
+    assert turning_off(warm.coarse_theta(data, nominal)) > 0.3  # the fixes alone: no
+    assert turning_off(warm.coarse_theta(data, nominal, sigmas)) < 0.05
+    assert warm.coarse_theta(data, truth, sigmas) is None  # the nominal that fits is kept

@@ -75,7 +75,7 @@ def warm_start_solution(
     if not spec.estimate_theta:
         return None, None
     sample = spread(len(data), WARM_START_SEGMENTS)
-    coarse = coarse_theta(data.take(sample), np.asarray(spec.theta, float))
+    coarse = coarse_theta(data.take(sample), np.asarray(spec.theta, float), spec.tracking_sigmas)
     if coarse is not None:
         scale = coarse[[0, 2]] / np.asarray(spec.theta, float)[[0, 2]]
         say(
@@ -107,10 +107,14 @@ def warm_start_solution(
     return shared, solved.result if len(sample) == len(data) else None
 
 
-def coarse_theta(data: SegmentData, nominal: np.ndarray) -> np.ndarray | None:
+def coarse_theta(
+    data: SegmentData, nominal: np.ndarray, sigmas: np.ndarray | None = None
+) -> np.ndarray | None:
     """The nominal theta with c_e and t_r scaled by the grid point of :data:`COARSE_C_E` ×
     :data:`COARSE_T_R` whose odometry, each segment moved onto its fixes as one body, fits
-    them best; ``None`` when that is the nominal itself (or nothing is measured).
+    them best — and its measured headings, each segment's turned by one angle, where the
+    log has them (``sigmas``: the fixes' and the heading's, ``(σx, σy, σψ)`` [m, m, rad],
+    weigh the two); ``None`` when that is the nominal itself (or nothing is measured).
 
     A solve from a theta far off can creep or stall: a skid-steer robot whose effective
     track is twice the datasheet's turns twice too fast on its odometry, a path a local
@@ -127,7 +131,11 @@ def coarse_theta(data: SegmentData, nominal: np.ndarray) -> np.ndarray | None:
     thetas = np.repeat(nominal[None], len(grid), axis=0)
     thetas[:, 0] *= grid[:, 0]
     thetas[:, 2] *= grid[:, 1]
-    misfit = np.array([_aligned_misfit(data, theta, fixes) for theta in thetas])
+    states = [integrate(data.poses[:, 0], data.inputs, theta) for theta in thetas]
+    misfit = np.array([_aligned_misfit(data, odometry, fixes) for odometry in states])
+    if sigmas is not None and data.has_heading():
+        turned = np.array([_heading_misfit(data, odometry) for odometry in states])
+        misfit = misfit / float(sigmas[0]) ** 2 + turned / float(sigmas[2]) ** 2
     best = int(np.argmin(misfit))
     at_nominal = int(np.argmin(np.abs(np.log(grid)).sum(axis=1)))
     if best == at_nominal or misfit[best] > COARSE_MIN_GAIN * misfit[at_nominal]:
@@ -135,11 +143,24 @@ def coarse_theta(data: SegmentData, nominal: np.ndarray) -> np.ndarray | None:
     return thetas[best]
 
 
-def _aligned_misfit(data: SegmentData, theta: np.ndarray, weights: np.ndarray) -> float:
+def _heading_misfit(data: SegmentData, odometry: np.ndarray) -> float:
+    """Σ over ``data``'s segments of the squared differences [rad²] of the measured headings
+    from the ``odometry``'s ``(S, K+1, 3)`` yaw, each segment's turned by their circular
+    mean (``n − |Σ e^{iΔ}|² / n`` per segment: wrap-safe, ``Σ (Δ − Δ̄)²`` for small ones)."""
+    measured = data.valid.copy()
+    if data.measured is not None:
+        measured &= data.measured[..., 1]
+    turns = np.where(measured, np.exp(1j * (data.poses[..., 2] - odometry[..., 2])), 0.0)
+    count = measured.sum(axis=1)
+    held = count > 0
+    return float(np.sum(count[held] - np.abs(turns.sum(axis=1)[held]) ** 2 / count[held]))
+
+
+def _aligned_misfit(data: SegmentData, states: np.ndarray, weights: np.ndarray) -> float:
     """Σ over ``data``'s segments of the weighted squared distance of the fixes from the
-    odometry of ``theta`` turned and shifted onto them (2-D Procrustes, in closed form:
-    ``Σw|a−ā|² + Σw|b−b̄|² − 2|Σw conj(a−ā)(b−b̄)|`` with positions as complex numbers)."""
-    states = integrate(data.poses[:, 0], data.inputs, theta)
+    odometry ``states`` ``(S, K+1, 3)`` turned and shifted onto them (2-D Procrustes, in
+    closed form: ``Σw|a−ā|² + Σw|b−b̄|² − 2|Σw conj(a−ā)(b−b̄)|``, positions as complex
+    numbers)."""
     a = states[..., 0] + 1j * states[..., 1]
     b = data.poses[..., 0] + 1j * data.poses[..., 1]
     total = np.maximum(weights.sum(axis=1), np.finfo(float).tiny)
