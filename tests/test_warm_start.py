@@ -73,6 +73,18 @@ def test_the_warm_started_solve_reaches_the_same_optimum(monkeypatch):
     np.testing.assert_allclose(warmed.covariance, cold.covariance, rtol=1e-3)
 
 
+def _turning_robot(truth: np.ndarray, segments: int, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Exact poses ``(S, K+1, 3)`` and sprocket rotations per 20 ms ``(S, K, 4)`` of a robot
+    at 1 m/s whose turns come and go, in ``segments`` of ``steps``, under ``truth``."""
+    turn = 0.6 * np.sin(np.arange(segments * steps) * 0.02 / 7.0)
+    left = (1.0 - 0.5 * truth[2] * turn) * 0.02 / (truth[0] + 0.5 * truth[1])
+    right = (1.0 + 0.5 * truth[2] * turn) * 0.02 / (truth[0] - 0.5 * truth[1])
+    inputs = np.zeros((segments, steps, 4))
+    inputs[..., 0] = left.reshape(segments, steps)
+    inputs[..., 1] = right.reshape(segments, steps)
+    return integrate(np.zeros((segments, 3)), inputs, truth), inputs
+
+
 def test_a_coarse_search_finds_a_track_twice_the_nominal():
     """A skid-steer robot's effective track is about twice its datasheet's: on the nominal's
     odometry it turns twice too fast, a path a local solver did not untangle (100
@@ -81,14 +93,7 @@ def test_a_coarse_search_finds_a_track_twice_the_nominal():
     nominal = np.array([0.8, 0.0, 0.55, 0.0])
     truth = np.array([0.78, 0.0006, 1.1, 0.0])
     steps, segments = 2500, 4
-    # Sprocket rotations per 20 ms of a robot at 1 m/s whose turns come and go.
-    turn = 0.6 * np.sin(np.arange(segments * steps) * 0.02 / 7.0)
-    left = (1.0 - 0.5 * truth[2] * turn) * 0.02 / (truth[0] + 0.5 * truth[1])
-    right = (1.0 + 0.5 * truth[2] * turn) * 0.02 / (truth[0] - 0.5 * truth[1])
-    inputs = np.zeros((segments, steps, 4))
-    inputs[..., 0] = left.reshape(segments, steps)
-    inputs[..., 1] = right.reshape(segments, steps)
-    poses = integrate(np.zeros((segments, 3)), inputs, truth)
+    poses, inputs = _turning_robot(truth, segments, steps)
     poses[..., :2] += rng.normal(0.0, 1.0, poses[..., :2].shape)
     data = SegmentData(poses, inputs, np.full(segments, steps), np.ones(poses.shape[:2], bool))
     coarse = warm.coarse_theta(data, nominal)
@@ -107,13 +112,7 @@ def test_a_measured_heading_shows_the_track_where_sparse_noisy_fixes_do_not():
     nominal = np.array([0.8, 0.0, 0.55, 0.0])
     truth = np.array([0.785, 0.0006, 1.08, 0.0])
     steps, segments, every = 2500, 2, 50
-    turn = 0.6 * np.sin(np.arange(segments * steps) * 0.02 / 7.0)
-    left = (1.0 - 0.5 * truth[2] * turn) * 0.02 / (truth[0] + 0.5 * truth[1])
-    right = (1.0 + 0.5 * truth[2] * turn) * 0.02 / (truth[0] - 0.5 * truth[1])
-    inputs = np.zeros((segments, steps, 4))
-    inputs[..., 0] = left.reshape(segments, steps)
-    inputs[..., 1] = right.reshape(segments, steps)
-    poses = integrate(np.zeros((segments, 3)), inputs, truth)
+    poses, inputs = _turning_robot(truth, segments, steps)
     poses[..., :2] += rng.normal(0.0, 5.0, poses[..., :2].shape)
     poses[..., 2] += rng.normal(0.0, 0.005, poses.shape[:2])
     measured = np.zeros((*poses.shape[:2], 2), bool)
