@@ -131,11 +131,19 @@ def coarse_theta(
     thetas = np.repeat(nominal[None], len(grid), axis=0)
     thetas[:, 0] *= grid[:, 0]
     thetas[:, 2] *= grid[:, 1]
-    states = [integrate(data.poses[:, 0], data.inputs, theta) for theta in thetas]
-    misfit = np.array([_aligned_misfit(data, odometry, fixes) for odometry in states])
-    if sigmas is not None and data.has_heading():
-        turned = np.array([_heading_misfit(data, odometry) for odometry in states])
-        misfit = misfit / float(sigmas[0]) ** 2 + turned / float(sigmas[2]) ** 2
+    headings = sigmas is not None and data.has_heading()
+
+    def misfit_of(theta: np.ndarray) -> float:
+        odometry = integrate(data.poses[:, 0], data.inputs, theta)  # one grid point's at a time
+        aligned = _aligned_misfit(data, odometry, fixes)
+        if not headings:
+            return aligned
+        return (
+            aligned / float(sigmas[0]) ** 2
+            + _heading_misfit(data, odometry) / float(sigmas[2]) ** 2
+        )
+
+    misfit = np.array([misfit_of(theta) for theta in thetas])
     best = int(np.argmin(misfit))
     at_nominal = int(np.argmin(np.abs(np.log(grid)).sum(axis=1)))
     if best == at_nominal or misfit[best] > COARSE_MIN_GAIN * misfit[at_nominal]:
