@@ -154,7 +154,7 @@ def lever_arm_sigma(
     )
     weights = fixes / position_sigma**2
     info = np.einsum("sk,skri,skrj->sij", weights, jacobian, jacobian)
-    headings = data.valid if data.measured is None else data.valid & data.measured[..., 1]
+    headings = data.headings_measured()
     info[:, 2, 2] += headings.sum(axis=1) / heading_sigma**2
     pose, arm = slice(0, 3), slice(3, 5)
     pose_info = info[:, pose, pose] + 1e-12 * np.eye(3)

@@ -102,6 +102,12 @@ class SegmentData:
             return self.valid.copy()
         return self.valid & self.measured[..., 0]
 
+    def headings_measured(self) -> np.ndarray:
+        """``(S, K+1)``: real samples whose heading was measured (padding excluded)."""
+        if self.measured is None:
+            return self.valid.copy()
+        return self.valid & self.measured[..., 1]
+
     def start_measured(self) -> np.ndarray:
         """``(S, 2)``: each segment's first sample measured the position / heading at the
         sample itself (a measurement within the step before it lies outside the segment)."""
@@ -114,7 +120,7 @@ class SegmentData:
 
     def has_heading(self) -> bool:
         """Some sample measured the heading."""
-        return self.measured is None or bool((self.measured[..., 1] & self.valid).any())
+        return self.measured is None or bool(self.headings_measured().any())
 
     @classmethod
     def single(cls, poses: np.ndarray, inputs: np.ndarray) -> SegmentData:

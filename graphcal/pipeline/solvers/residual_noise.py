@@ -94,9 +94,7 @@ def residual_noise(
     used = data.position_fixes()
     if weights is not None:
         used &= weights >= 1.0
-    headings = data.valid.copy()
-    if data.measured is not None:
-        headings &= data.measured[..., 1]
+    headings = data.headings_measured()
     out: dict = {"unfinished": solved.outcome.status is SolveStatus.MISWEIGHTED}
     tied = solved.built.spec.tied(data)  # the graph's trajectories
     for name, rows, columns in (

@@ -155,9 +155,7 @@ def _heading_misfit(data: SegmentData, odometry: np.ndarray) -> float:
     """Σ over ``data``'s segments of the squared differences [rad²] of the measured headings
     from the ``odometry``'s ``(S, K+1, 3)`` yaw, each segment's turned by their circular
     mean (``n − |Σ e^{iΔ}|² / n`` per segment: wrap-safe, ``Σ (Δ − Δ̄)²`` for small ones)."""
-    measured = data.valid.copy()
-    if data.measured is not None:
-        measured &= data.measured[..., 1]
+    measured = data.headings_measured()
     turns = np.where(measured, np.exp(1j * (data.poses[..., 2] - odometry[..., 2])), 0.0)
     count = measured.sum(axis=1)
     held = count > 0
