@@ -25,9 +25,9 @@ from graphcal.statistics import chi2_survival
 
 pytest.importorskip("distributed")
 
-#: The acceptance fleet: 3 vehicles × 3 days of 4 km, v3's c_e 3 mm lower from day 3 on (the
+#: The acceptance fleet: 3 vehicles × 3 days of 2 km, v3's c_e 3 mm lower from day 3 on (the
 #: change among the unchanged days of the others).
-VEHICLES, DAYS, LENGTH_KM = 3, 3, 4.0
+VEHICLES, DAYS, LENGTH_KM = 3, 3, 2.0
 
 
 @pytest.fixture(scope="module")
