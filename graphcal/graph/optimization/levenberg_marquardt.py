@@ -14,8 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow (λ's update
-#: follows the gain ratio instead: :class:`Damping`; its largest decrease is GTSAM's factor).
+#: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow.
 LAMBDA_INITIAL = 1e-5
 LAMBDA_FACTOR = 10.0
 LAMBDA_UPPER_BOUND = 1e5
@@ -62,39 +61,22 @@ class CreepWatch:
 
 @dataclass
 class Damping:
-    """The damping λ, following the gain ratio ρ of each step (Nielsen's rule, as Ceres and
-    MINPACK-derived solvers use it): after an accepted step λ × max(1/10, 1 − (2ρ − 1)³) —
-    a tenth after a step its linearization predicted well, about the same after one it
-    predicted half right — and after a rejected one λ × ν, ν doubling with each rejection
-    in a row (2, 4, 8, …; up to :data:`LAMBDA_UPPER_BOUND`).
-
-    GTSAM's ×10 / ÷10 rejected every other step where the linearization predicts a step
-    poorly: campaign seed 29's shape 82 (fixes of 1.4 m weighted as 0.05 m) held t_r at its
-    prior in a solve that stopped at its limit of 100 iterations at χ²/dof 7.9; under this
-    rule it converged in 28 to χ²/dof 3.4, and the recording took 248 → 126 s. The floor is
-    GTSAM's tenth, not Nielsen's third: with a third the car's third solve took 5 → 8
-    iterations, the skid-steer profile's 4 → 6; with a tenth every recording of the suite
-    takes the iterations it took before (docs/performance.md)."""
+    """The damping λ: raised by :data:`LAMBDA_FACTOR` after a rejected step (up to
+    :data:`LAMBDA_UPPER_BOUND`), lowered by it after an accepted one."""
 
     lam: float = LAMBDA_INITIAL
-    #: Nielsen's ν: the factor of the next rejection.
-    raise_factor: float = 2.0
 
     def can_increase(self) -> bool:
         """λ may still be raised (once more is below the upper bound)."""
-        return self.lam * self.raise_factor < LAMBDA_UPPER_BOUND
+        return self.lam * LAMBDA_FACTOR < LAMBDA_UPPER_BOUND
 
     def increase(self) -> None:
-        """λ × ν, ν doubled (a rejected step, or an indeterminate system)."""
-        self.lam *= self.raise_factor
-        self.raise_factor *= 2.0
+        """λ × :data:`LAMBDA_FACTOR` (a rejected step, or an indeterminate system)."""
+        self.lam *= LAMBDA_FACTOR
 
-    def decrease(self, gain_ratio: float) -> None:
-        """λ × max(1/10, 1 − (2ρ − 1)³) after an accepted step of gain ratio ``gain_ratio``
-        (ρ), at least :data:`LAMBDA_LOWER_BOUND`; ν back to 2."""
-        factor = max(1.0 / LAMBDA_FACTOR, 1.0 - (2.0 * gain_ratio - 1.0) ** 3)
-        self.lam = max(self.lam * factor, LAMBDA_LOWER_BOUND)
-        self.raise_factor = 2.0
+    def decrease(self) -> None:
+        """λ / :data:`LAMBDA_FACTOR`, at least :data:`LAMBDA_LOWER_BOUND` (an accepted step)."""
+        self.lam = max(self.lam / LAMBDA_FACTOR, LAMBDA_LOWER_BOUND)
 
     def roots(self, scale: np.ndarray) -> np.ndarray:
         """Square roots of the diagonal damping ``λ · clamp(scale, 1e-6, 1e32)``."""

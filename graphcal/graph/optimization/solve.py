@@ -48,8 +48,7 @@ def solve_lm(
       growing with the drive). Damping ``λ · clamp(diag(JᵀJ), 1e-6, 1e32)`` per variable
       (the diagonal of the first linearization, raised to the largest seen, as MINPACK
       scales), a step accepted when the error falls by at least 1e-3 of what the
-      linearization predicts (GTSAM's defaults), λ then updated by the step's gain ratio
-      (:class:`~graphcal.graph.optimization.levenberg_marquardt.Damping`: Nielsen's rule).
+      linearization predicts (then λ / 10), else λ × 10 up to 1e5; GTSAM's defaults.
       With ``options.misweighted_chi2``, it stops where it creeps above that χ²/dof
       (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`).
 
@@ -127,7 +126,7 @@ def _levenberg_marquardt(
             judgement = judge_step(error, new_error, predicted, damping, relative_error_tol)
             if judgement.verdict is Verdict.ACCEPT:
                 values = candidate
-                damping.decrease(judgement.gain_ratio)
+                damping.decrease()
                 break
             if judgement.verdict is Verdict.AT_MINIMUM:
                 new_error = error  # no step lowers the error: at the minimum
