@@ -24,6 +24,7 @@ from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.optimization.levenberg_marquardt import (
     CreepWatch,
     Damping,
+    RunawayWatch,
     Verdict,
     converged,
     error_tolerance,
@@ -201,7 +202,9 @@ def optimize(
     solution itself).
 
     With ``options.misweighted_chi2``, a solve that creeps above that χ²/dof stops there
-    (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`).
+    (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`); with
+    ``options.runaway``, one whose shared variables run out of their plausible range
+    (:class:`~graphcal.graph.optimization.levenberg_marquardt.RunawayWatch`).
 
     ``gauss_newton_first``: the first step is already undamped (values near the optimum,
     such as a warm start's: no damping to compute).
@@ -213,6 +216,7 @@ def optimize(
     dof = max(1, graph.factor_dims() - graph.dim())
     solve = _Solve(graph, options.relative_error_tol, gauss_newton_first)
     watch = CreepWatch(options.misweighted_chi2, dof)
+    runaway = RunawayWatch(options.runaway)
     iterations, stop = 0, None
     while iterations < options.max_iterations:
         iterations += 1
@@ -222,6 +226,8 @@ def optimize(
         stop = solve.finish(ended)
         if stop is None and watch.creeping(before, solve.error):
             stop = SolveStatus.MISWEIGHTED
+        if stop is None and runaway.running_away(graph.shared_values):
+            stop = SolveStatus.RUNAWAY
         elapsed = time.perf_counter() - started
         if options.report_iterations and elapsed >= PROGRESS_AFTER_S:
             say(

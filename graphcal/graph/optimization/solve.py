@@ -12,6 +12,7 @@ from graphcal.errors import GraphcalError, exception_reason
 from graphcal.graph.optimization.levenberg_marquardt import (
     CreepWatch,
     Damping,
+    RunawayWatch,
     Verdict,
     converged,
     judge_step,
@@ -50,7 +51,9 @@ def solve_lm(
       scales), a step accepted when the error falls by at least 1e-3 of what the
       linearization predicts (then λ / 10), else λ × 10 up to 1e5; GTSAM's defaults.
       With ``options.misweighted_chi2``, it stops where it creeps above that χ²/dof
-      (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`).
+      (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`), with
+      ``options.runaway`` where it runs out of the plausible range
+      (:class:`~graphcal.graph.optimization.levenberg_marquardt.RunawayWatch`).
 
     GTSAM's exceptions (e.g. an indeterminate linear system) become ``error_type`` with the
     message ``"<options.label> failed: <reason>"``. GTSAM's optimizer does not say why it
@@ -96,6 +99,7 @@ def _levenberg_marquardt(
     watch = CreepWatch(options.misweighted_chi2, 0)
     if watch.limit > 0:
         watch.dof = degrees_of_freedom(graph, values)
+    runaway = RunawayWatch(options.runaway)
     iterations, stop = 0, None
     while iterations < options.max_iterations:
         linear = graph.linearize(values)
@@ -138,6 +142,8 @@ def _levenberg_marquardt(
             stop = SolveStatus.CONVERGED
         if stop is None and watch.creeping(error, new_error):
             stop = SolveStatus.MISWEIGHTED
+        if stop is None and runaway.running_away(values):
+            stop = SolveStatus.RUNAWAY
         error = new_error
         if stop is not None:
             break

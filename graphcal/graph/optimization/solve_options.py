@@ -4,7 +4,10 @@ it ended (:class:`SolveOutcome`: a status and a message, as scipy's ``OptimizeRe
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass
+
+import gtsam
 
 
 @dataclass(frozen=True)
@@ -25,6 +28,12 @@ class SolveOptions:
             (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`): weights
             far tighter than the misfit, for a caller that reads the noise from the
             residuals and solves again under it.
+        runaway: how far the iterate's graph-wide variables lie beyond their plausible
+            range (0 inside; :class:`~graphcal.graph.solution.plausibility.BeyondPlausible`):
+            the solve stops (:attr:`SolveStatus.RUNAWAY`) once they run farther out
+            iteration after iteration
+            (:class:`~graphcal.graph.optimization.levenberg_marquardt.RunawayWatch`), for its
+            caller to judge the runaway at once; ``None``: not watched.
     """
 
     max_iterations: int = 50
@@ -33,6 +42,7 @@ class SolveOptions:
     workers: int = 1
     report_iterations: bool = False
     misweighted_chi2: float = 0.0
+    runaway: Callable[[gtsam.Values], float] | None = None
 
 
 class SolveStatus(enum.Enum):
@@ -48,6 +58,9 @@ class SolveStatus(enum.Enum):
     #: It crept at a χ²/dof far above any noise (``SolveOptions.misweighted_chi2``): not a
     #: minimum, a point to read the noise at.
     MISWEIGHTED = "misweighted"
+    #: Its graph-wide variables ran out of their plausible range iteration after iteration
+    #: (``SolveOptions.runaway``): not a minimum, a runaway to judge.
+    RUNAWAY = "runaway"
 
 
 @dataclass(frozen=True)
@@ -70,6 +83,10 @@ class SolveOutcome:
             return f"stopped at its iteration limit ({self.max_iterations}) without converging"
         if self.status is SolveStatus.MISWEIGHTED:
             return f"stopped after {self.iterations} iteration(s) creeping under too tight weights"
+        if self.status is SolveStatus.RUNAWAY:
+            return (
+                f"stopped after {self.iterations} iteration(s) running out of the plausible range"
+            )
         how = "no step lowers the error" if self.status is SolveStatus.NOT_IMPROVING else ""
         return f"converged after {self.iterations} iteration(s)" + (f" ({how})" if how else "")
 

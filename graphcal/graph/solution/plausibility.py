@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
+import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed
+from graphcal.graph.construction import keys
 from graphcal.model import C_E, PARAMETER_NAMES, T_R, THETA_NOMINAL
 
 #: Plausible ranges of theta (SI) for a road vehicle like the paper's car; outside them the data
@@ -58,6 +61,21 @@ def plausible_ranges(
         ranges[:, 0] = np.minimum(ranges[:, 0], reference - span)
         ranges[:, 1] = np.maximum(ranges[:, 1], reference + span)
     return ranges
+
+
+@dataclass(frozen=True)
+class BeyondPlausible:
+    """How far a solve's theta lies beyond ``ranges`` (``(4, 2)``, :func:`plausible_ranges`),
+    in widths of its range: the largest over the parameters, 0 inside (a solve's
+    ``SolveOptions.runaway``)."""
+
+    ranges: np.ndarray
+
+    def __call__(self, values: gtsam.Values) -> float:
+        theta = np.asarray(values.atVector(keys.THETA), float)
+        low, high = self.ranges[:, 0], self.ranges[:, 1]
+        beyond = np.maximum(low - theta, theta - high) / (high - low)
+        return float(max(beyond.max(), 0.0))
 
 
 def check_plausible(

@@ -10,6 +10,7 @@ Python (:func:`graphcal.graph.optimization.solve.solve_lm`, with the rollout of
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import gtsam
@@ -27,7 +28,11 @@ from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
 from graphcal.graph.solution.estimates import SolvedGraph
-from graphcal.graph.solution.plausibility import check_plausible
+from graphcal.graph.solution.plausibility import (
+    BeyondPlausible,
+    check_plausible,
+    plausible_ranges,
+)
 from graphcal.log.segments import SegmentData
 
 
@@ -82,7 +87,9 @@ def solve_segment_graph(
     progress line per iteration of a long solve (:func:`graphcal.progress.say`).
 
     An estimated theta is checked for plausibility (for a vehicle whose nominal theta is the
-    initial ``spec.theta``; not where the solve stopped creeping,
+    initial ``spec.theta``; the solve stops where it runs out of that range,
+    :attr:`~graphcal.graph.optimization.solve_options.SolveStatus.RUNAWAY`; not where it
+    stopped creeping,
     :attr:`~graphcal.graph.optimization.solve_options.SolveStatus.MISWEIGHTED`: no solution)
     and, with ``covariance``, gets its marginal covariance.
 
@@ -90,6 +97,9 @@ def solve_segment_graph(
         CalibrationFailed: if the solve fails, or theta is non-finite or implausible.
     """
     start = BuilderStart() if start is None else start
+    if spec.estimate_theta:  # a runaway stops the solve where it leaves the range
+        ranges = plausible_ranges(np.asarray(spec.theta, float), spec.theta_prior_sigmas)
+        options = dataclasses.replace(options, runaway=BeyondPlausible(ranges))
     if isinstance(start, ValuesStart):
         built = start.built if start.built is not None else build_segment_graph(data, spec)
         values, gauss_newton_first = start.values, False

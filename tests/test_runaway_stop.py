@@ -1,0 +1,80 @@
+"""A solve whose theta runs out of its plausible range stops there (``SolveOptions.runaway``,
+``RunawayWatch``) for its caller to judge the runaway at once, instead of creeping on to its
+iteration limit; a solve that stays in range is not touched."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from graphcal.graph.construction.builder import build_segment_graph
+from graphcal.graph.construction.graph_spec import shared_keys
+from graphcal.graph.optimization.levenberg_marquardt import RUNAWAY_ITERATIONS, RunawayWatch
+from graphcal.graph.optimization.partitioned import PartitionedGraph
+from graphcal.graph.optimization.partitioned_lm import optimize
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.solution.plausibility import BeyondPlausible, plausible_ranges
+from graphcal.log.segments import gather_segments, select_segments, split_segments
+from graphcal.pipeline.solvers.joint_settings import JointSettings
+from graphcal.simulate.drive import simulate_drive
+
+
+def test_a_runaway_is_several_iterations_in_a_row_each_farther_out():
+    distances = iter([0.0, 0.2, 0.1, 0.3, 0.4, 0.5])
+    watch = RunawayWatch(lambda _: next(distances))
+    seen = [watch.running_away(None) for _ in range(6)]
+    # out at 0.2, back towards the range at 0.1 (the count starts again), then farther 3×
+    assert seen == [False] * 5 + [True]
+    assert RUNAWAY_ITERATIONS == 3
+    assert not RunawayWatch(None).running_away(None)
+
+
+def test_distance_beyond_the_plausible_range_in_its_widths():
+    ranges = np.array([[0.5, 5.0], [-0.1, 0.1], [0.5, 3.0], [-0.05, 0.05]])
+
+    class Theta:
+        def __init__(self, theta):
+            self.theta = np.asarray(theta, float)
+
+        def atVector(self, _key):
+            return self.theta
+
+    beyond = BeyondPlausible(ranges)
+    assert beyond(Theta([2.0, 0.0, 1.5, 0.0])) == 0.0
+    assert beyond(Theta([2.0, 0.0, 0.25, 0.0])) == pytest.approx(0.1)  # 0.25 m below, of 2.5
+    assert beyond(Theta([2.0, 0.3, 0.25, 0.0])) == pytest.approx(1.0)  # the farthest counts
+
+
+@pytest.fixture(scope="module")
+def straight_road():
+    """A 2 km straight road's segments, t_r under a prior of 5 m: it drifts from 1.55 m to
+    about 2.3 m in 50 iterations (nothing turns to hold it)."""
+    log = simulate_drive(length_km=2.0, seed=5, route="straight").measured
+    data = gather_segments(log, select_segments(log, split_segments(log, 150.0), min_yaw_rate=0))
+    spec = JointSettings(slip="off", robust_threshold=0.0, tie_segments=False).graph_spec()
+    spec = dataclasses.replace(spec, theta_prior_sigmas=np.array([0.5, 0.05, 5.0, 0.05]))
+    return data, spec
+
+
+def _solved(straight_road, runaway):
+    data, spec = straight_road
+    built = build_segment_graph(data, spec)
+    graph = PartitionedGraph(built.graph, built.values, shared_keys(spec))
+    with graph.parallel(1):
+        return optimize(graph, SolveOptions(50, 1e-7, "runaway test", runaway=runaway))
+
+
+def test_a_solve_stops_where_its_theta_runs_out_of_range(straight_road):
+    # The drift of t_r above 1.6 m is a runaway from a range that ends there.
+    narrow = np.array([[0.5, 5.0], [-0.1, 0.1], [0.5, 1.6], [-0.05, 0.05]])
+    stopped = _solved(straight_road, BeyondPlausible(narrow))
+    assert stopped.status is SolveStatus.RUNAWAY
+    assert stopped.iterations <= 5
+    assert "plausible range" in stopped.message
+    # Within the vehicle's own ranges (its prior widens them) it is no runaway.
+    spec = straight_road[1]
+    wide = plausible_ranges(np.asarray(spec.theta, float), spec.theta_prior_sigmas)
+    full = _solved(straight_road, BeyondPlausible(wide))
+    assert full.status is not SolveStatus.RUNAWAY and full.iterations > stopped.iterations
