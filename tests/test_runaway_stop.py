@@ -29,6 +29,12 @@ def test_a_runaway_is_several_iterations_in_a_row_each_farther_out():
     assert seen == [False] * 5 + [True]
     assert RUNAWAY_ITERATIONS == 3
     assert not RunawayWatch(None).running_away(None)
+    # Far above the noise (weights far too tight) theta wanders: not counted, and the count
+    # starts again.
+    distances = iter([0.1, 0.2, 0.3, 0.4, 0.5])
+    wandering = RunawayWatch(lambda _: next(distances))
+    judged = [True, True, False, True, True]
+    assert [wandering.running_away(None, j) for j in judged] == [False] * 5
 
 
 def test_distance_beyond_the_plausible_range_in_its_widths():

@@ -54,12 +54,16 @@ class CreepWatch:
     dof: int
     slow: int = 0
 
+    def above(self, error: float) -> bool:
+        """The graph ``error`` (½χ²) is a χ²/dof above the limit (never without one)."""
+        return self.limit > 0 and 2.0 * error / max(self.dof, 1) > self.limit
+
     def creeping(self, error: float, new_error: float) -> bool:
         """Count the iteration from ``error`` to ``new_error`` (graph errors, ½χ²); whether
         the solve now creeps."""
         if self.limit <= 0:
             return False
-        high = 2.0 * new_error / max(self.dof, 1) > self.limit
+        high = self.above(new_error)
         self.slow = self.slow + 1 if high and error - new_error < CREEP_SHARE * error else 0
         return self.slow >= CREEP_ITERATIONS
 
@@ -71,15 +75,22 @@ class RunawayWatch:
     :data:`RUNAWAY_ITERATIONS` iterations in a row. Such a solve ended out of range and was
     judged a runaway — after its 50 iterations: a 1.9 km straight road's t_r (prior
     1.55 ± 0.2 m) left its range [0.5, 3] m at the third iteration (0.37 m) and crept on to
-    0.006 m, 10 s for a verdict the fifth iteration gives."""
+    0.006 m, 10 s for a verdict the fifth iteration gives. Not counted where the solve
+    runs far above its noise (:meth:`CreepWatch.above`): under weights far too tight, theta
+    wanders where the misfit pulls it (a robot's t_r out and back in while its fixes of 1.7 m
+    were weighted as 0.05 m); the creep watch stops such a solve for its noise to be read."""
 
     beyond: Callable[[gtsam.Values], float] | None
     farther: int = 0
     last: float = 0.0
 
-    def running_away(self, values: gtsam.Values) -> bool:
-        """Count the iteration that ended at ``values``; whether the solve now runs away."""
+    def running_away(self, values: gtsam.Values, judged: bool = True) -> bool:
+        """Count the iteration that ended at ``values`` (not ``judged``: under weights far too
+        tight, the count starts again); whether the solve now runs away."""
         if self.beyond is None:
+            return False
+        if not judged:
+            self.farther, self.last = 0, 0.0
             return False
         distance = float(self.beyond(values))
         self.farther = self.farther + 1 if distance > max(self.last, 0.0) else 0

@@ -226,7 +226,8 @@ def optimize(
         stop = solve.finish(ended)
         if stop is None and watch.creeping(before, solve.error):
             stop = SolveStatus.MISWEIGHTED
-        if stop is None and runaway.running_away(graph.shared_values):
+        judged = not watch.above(solve.error)
+        if stop is None and runaway.running_away(graph.shared_values, judged):
             stop = SolveStatus.RUNAWAY
         elapsed = time.perf_counter() - started
         if options.report_iterations and elapsed >= PROGRESS_AFTER_S:

@@ -142,7 +142,7 @@ def _levenberg_marquardt(
             stop = SolveStatus.CONVERGED
         if stop is None and watch.creeping(error, new_error):
             stop = SolveStatus.MISWEIGHTED
-        if stop is None and runaway.running_away(values):
+        if stop is None and runaway.running_away(values, not watch.above(new_error)):
             stop = SolveStatus.RUNAWAY
         error = new_error
         if stop is not None:
