@@ -18,7 +18,7 @@ import graphcal
 from graphcal.log.drive_log import DriveLog
 from graphcal.pipeline.configuration.settings import BatchingSettings, Settings
 from graphcal.pipeline.methods.sensor_estimates import SensorEstimate, measured_from
-from graphcal.pipeline.methods.whole_log import estimate_lines
+from graphcal.pipeline.methods.whole_log_lines import estimate_lines
 from graphcal.report.tables import estimates_table
 from graphcal.simulate.drive import VehicleMotion, simulate_drive
 from graphcal.units import METRES

@@ -19,7 +19,7 @@ from graphcal.pipeline.configuration.vehicle_settings import apply_vehicle
 from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.methods.sensor_estimates import SensorEstimate
-from graphcal.pipeline.methods.whole_log import estimate_lines
+from graphcal.pipeline.methods.whole_log_lines import estimate_lines
 from graphcal.recording.importer import import_recording
 from graphcal.report.figures import trajectory_figure, validation_figure
 from graphcal.report.results import summary_text

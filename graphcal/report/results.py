@@ -18,7 +18,7 @@ from graphcal.evaluation import Evaluation
 from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
-from graphcal.pipeline.methods.whole_log import slip_line
+from graphcal.pipeline.methods.whole_log_lines import slip_line
 from graphcal.report.document import (
     results_document,
     run_statistics,
