@@ -42,8 +42,12 @@ def test_the_python_driver_finds_the_minimum_of_a_curved_valley_as_gtsam_does():
 
 def test_the_damping_a_rejection_raised_holds_for_a_few_accepted_steps():
     damping = Damping()
+    damping.increase()  # far from the minimum (λ above its start): no hold
+    damping.decrease()
+    assert damping.lam == pytest.approx(LAMBDA_INITIAL)
     damping.decrease()
     assert damping.lam == pytest.approx(LAMBDA_INITIAL / 10)  # accepted: a tenth
+    damping.decrease()
     damping.increase()  # rejected: λ/10 overshot
     held = damping.lam
     for _ in range(HOLD_ACCEPTED):

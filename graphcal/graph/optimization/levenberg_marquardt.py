@@ -104,10 +104,11 @@ class RunawayWatch:
 class Damping:
     """The damping λ: raised by :data:`LAMBDA_FACTOR` after a rejected step (up to
     :data:`LAMBDA_UPPER_BOUND`), lowered by it after an accepted one — except for the
-    :data:`HOLD_ACCEPTED` accepted steps after a rejection, which keep the λ the rejection
-    raised it to: the λ a tenth of it overshot. GTSAM's plain ×10 / ÷10 alternated there on
-    a curved valley, every other trial step rejected (campaign seed 32's shape 159: accepted
-    at λ 10⁻⁶ with gain ratios 0.97–0.998, rejected at 10⁻⁷ with −8 … −0.06)."""
+    :data:`HOLD_ACCEPTED` accepted steps after a rejection that raised λ to at most its
+    start :data:`LAMBDA_INITIAL`, which keep that λ: the λ a tenth of it overshot. GTSAM's
+    plain ×10 / ÷10 alternated there on a curved valley, every other trial step rejected
+    (campaign seed 32's shape 159: accepted at λ 10⁻⁶ with gain ratios 0.97–0.998, rejected
+    at 10⁻⁷ with −8 … −0.06)."""
 
     lam: float = LAMBDA_INITIAL
     #: Accepted steps left that keep λ (set by a rejection).
@@ -119,9 +120,11 @@ class Damping:
 
     def increase(self) -> None:
         """λ × :data:`LAMBDA_FACTOR` (a rejected step, or an indeterminate system); the next
-        :data:`HOLD_ACCEPTED` accepted steps keep it."""
+        :data:`HOLD_ACCEPTED` accepted steps keep it if it is at most :data:`LAMBDA_INITIAL`."""
         self.lam *= LAMBDA_FACTOR
-        self.hold = HOLD_ACCEPTED
+        # Only near the minimum (λ below its start): from a start far off, a λ held high
+        # slowed the first steps until the creep watch stopped the solve.
+        self.hold = HOLD_ACCEPTED if self.lam <= LAMBDA_INITIAL else 0
 
     def decrease(self) -> None:
         """λ / :data:`LAMBDA_FACTOR`, at least :data:`LAMBDA_LOWER_BOUND` (an accepted step),
