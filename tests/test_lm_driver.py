@@ -1,14 +1,11 @@
 """The Python-driven Levenberg–Marquardt reaches the minimum GTSAM's optimizer reaches on a
-problem whose linearization predicts its steps poorly, and its damping holds where a tenth
-of it overshot."""
+problem whose linearization predicts its steps poorly."""
 
 from __future__ import annotations
 
 import gtsam
 import numpy as np
-import pytest
 
-from graphcal.graph.optimization.levenberg_marquardt import HOLD_ACCEPTED, LAMBDA_INITIAL, Damping
 from graphcal.graph.optimization.solve import solve_lm
 from graphcal.graph.optimization.solve_options import SolveOptions
 
@@ -38,20 +35,3 @@ def test_the_python_driver_finds_the_minimum_of_a_curved_valley_as_gtsam_does():
     assert outcome.converged
     np.testing.assert_allclose(ours.atVector(0), [1.0, 1.0], atol=1e-5)
     np.testing.assert_allclose(ours.atVector(0), theirs.atVector(0), atol=1e-5)
-
-
-def test_the_damping_a_rejection_raised_holds_for_a_few_accepted_steps():
-    damping = Damping()
-    damping.increase()  # far from the minimum (λ above its start): no hold
-    damping.decrease()
-    assert damping.lam == pytest.approx(LAMBDA_INITIAL)
-    damping.decrease()
-    assert damping.lam == pytest.approx(LAMBDA_INITIAL / 10)  # accepted: a tenth
-    damping.decrease()
-    damping.increase()  # rejected: λ/10 overshot
-    held = damping.lam
-    for _ in range(HOLD_ACCEPTED):
-        damping.decrease()
-        assert damping.lam == held
-    damping.decrease()
-    assert damping.lam == pytest.approx(held / 10)

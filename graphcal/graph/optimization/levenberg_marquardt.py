@@ -36,8 +36,6 @@ GAUSS_NEWTON_FIDELITY = 0.1
 #: error by less than :data:`CREEP_SHARE` of it.
 CREEP_ITERATIONS = 3
 CREEP_SHARE = 0.1
-#: Accepted steps after a rejected one that keep its λ (:class:`Damping`).
-HOLD_ACCEPTED = 4
 #: A solve runs away (:class:`RunawayWatch`) when this many iterations in a row each leave
 #: its graph-wide variables farther beyond their plausible range.
 RUNAWAY_ITERATIONS = 3
@@ -103,35 +101,20 @@ class RunawayWatch:
 @dataclass
 class Damping:
     """The damping λ: raised by :data:`LAMBDA_FACTOR` after a rejected step (up to
-    :data:`LAMBDA_UPPER_BOUND`), lowered by it after an accepted one — except for the
-    :data:`HOLD_ACCEPTED` accepted steps after a rejection that raised λ to at most its
-    start :data:`LAMBDA_INITIAL`, which keep that λ: the λ a tenth of it overshot. GTSAM's
-    plain ×10 / ÷10 alternated there on a curved valley, every other trial step rejected
-    (campaign seed 32's shape 159: accepted at λ 10⁻⁶ with gain ratios 0.97–0.998, rejected
-    at 10⁻⁷ with −8 … −0.06)."""
+    :data:`LAMBDA_UPPER_BOUND`), lowered by it after an accepted one."""
 
     lam: float = LAMBDA_INITIAL
-    #: Accepted steps left that keep λ (set by a rejection).
-    hold: int = 0
 
     def can_increase(self) -> bool:
         """λ may still be raised (once more is below the upper bound)."""
         return self.lam * LAMBDA_FACTOR < LAMBDA_UPPER_BOUND
 
     def increase(self) -> None:
-        """λ × :data:`LAMBDA_FACTOR` (a rejected step, or an indeterminate system); the next
-        :data:`HOLD_ACCEPTED` accepted steps keep it if it is at most :data:`LAMBDA_INITIAL`."""
+        """λ × :data:`LAMBDA_FACTOR` (a rejected step, or an indeterminate system)."""
         self.lam *= LAMBDA_FACTOR
-        # Only near the minimum (λ below its start): from a start far off, a λ held high
-        # slowed the first steps until the creep watch stopped the solve.
-        self.hold = HOLD_ACCEPTED if self.lam <= LAMBDA_INITIAL else 0
 
     def decrease(self) -> None:
-        """λ / :data:`LAMBDA_FACTOR`, at least :data:`LAMBDA_LOWER_BOUND` (an accepted step),
-        unless a rejection holds it."""
-        if self.hold > 0:
-            self.hold -= 1
-            return
+        """λ / :data:`LAMBDA_FACTOR`, at least :data:`LAMBDA_LOWER_BOUND` (an accepted step)."""
         self.lam = max(self.lam / LAMBDA_FACTOR, LAMBDA_LOWER_BOUND)
 
     def roots(self, scale: np.ndarray) -> np.ndarray:

@@ -49,9 +49,7 @@ def solve_lm(
       growing with the drive). Damping ``λ · clamp(diag(JᵀJ), 1e-6, 1e32)`` per variable
       (the diagonal of the first linearization, raised to the largest seen, as MINPACK
       scales), a step accepted when the error falls by at least 1e-3 of what the
-      linearization predicts (then λ / 10), else λ × 10 up to 1e5; GTSAM's defaults, but
-      the accepted steps right after a rejection keep its λ
-      (:class:`~graphcal.graph.optimization.levenberg_marquardt.Damping`).
+      linearization predicts (then λ / 10), else λ × 10 up to 1e5; GTSAM's defaults.
       With ``options.misweighted_chi2``, it stops where it creeps above that χ²/dof
       (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`), with
       ``options.runaway`` where it runs out of the plausible range
