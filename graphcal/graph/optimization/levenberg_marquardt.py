@@ -93,7 +93,7 @@ class RunawayWatch:
             self.farther, self.last = 0, 0.0
             return False
         distance = float(self.beyond(values))
-        self.farther = self.farther + 1 if distance > max(self.last, 0.0) else 0
+        self.farther = self.farther + 1 if distance > self.last else 0  # (≥ 0 both)
         self.last = distance
         return self.farther >= RUNAWAY_ITERATIONS
 
