@@ -61,6 +61,52 @@ def test_white_errors_have_no_drift(segments):
     assert rate < 0.01 * 0.25  # below a hundredth of the white variance per second
 
 
+def test_the_variogram_along_the_travel_is_the_differences_component_along_it(segments):
+    # Brute force over every pair of fixes of each chain: ½ mean of (u(t) · Δr)² per lag.
+    rng = np.random.default_rng(3)
+    residuals = rng.standard_normal(segments.poses.shape[:2] + (2,))
+    angle = rng.uniform(0.0, 2.0 * np.pi, segments.poses.shape[:2])
+    directions = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    used = segments.position_fixes() & (rng.random(angle.shape) < 0.3)
+    lags, gamma, pairs = error_variogram(residuals, used, segments, directions=directions)
+    tied = segments.tied()
+    chain = np.cumsum(~tied) - 1
+    rows, cols = np.nonzero(used)
+    t = segments.sample_index[rows, cols]
+    sums: dict[int, list[float]] = {}
+    for c in np.unique(chain):
+        mine = chain[rows] == c
+        r, u, tt = residuals[rows[mine], cols[mine]], directions[rows[mine], cols[mine]], t[mine]
+        lag = tt[None, :] - tt[:, None]
+        first, second = np.nonzero(lag > 0)
+        along = np.einsum("ij,ij->i", u[first], r[second] - r[first])
+        for k, value in zip(lag[first, second], along**2, strict=True):
+            sums.setdefault(int(k), []).append(float(value))
+    for lag_s, g, n in zip(lags[:50], gamma[:50], pairs[:50], strict=True):
+        found = sums[round(lag_s / segments.dt)]
+        assert n == len(found)
+        assert g == pytest.approx(0.5 * np.mean(found), rel=1e-9)
+
+
+def test_along_the_travel_a_slow_error_drifts_at_its_own_rate(segments):
+    # The same Gauss–Markov error as above, its rate read from the component along the track.
+    from graphcal.pipeline.solvers.residual_noise import travel_directions
+
+    rng = np.random.default_rng(1)
+    n = int(segments.sample_index.max()) + 1
+    error = gauss_markov(n, DT, 1.0, 30.0, rng, 2) + 0.2 * rng.standard_normal((n, 2))
+    directions = travel_directions(segments)
+    assert np.allclose(np.linalg.norm(directions, axis=-1), 1.0)
+    white, rate, _ = drift_fit(
+        *error_variogram(
+            _residuals(segments, error), segments.position_fixes(), segments,
+            directions=directions,
+        )
+    )  # fmt: skip
+    assert white == pytest.approx(0.2, rel=0.15)
+    assert rate == pytest.approx(1.0 / 30.0, rel=0.35)
+
+
 def _noise(**fields) -> ResidualNoise:
     lags = np.array([0.025, 0.5, 1.0, 2.0])
     base = dict(
