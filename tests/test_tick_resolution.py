@@ -156,6 +156,19 @@ def test_counts_that_stay_the_same_through_cruises_give_the_resolution(rate, tic
     assert ticks_per_revolution(rotations) == ticks
 
 
+def test_a_cruise_of_two_counts_with_each_first_reading_off_the_grid_gives_the_resolution():
+    """A 1 km straight at one speed on 1849-tick wheels (campaign seed 32's shape 151): two
+    counts (595 and 596 per interval) and each wheel's first interval from another epoch.
+    Counted among the values, those two halved the share on the grid (chance 1.5·10⁻³:
+    found none)."""
+    per = np.full(1560, 595.4 / 1849)
+    angle = np.concatenate([[0.0], np.cumsum(per)])
+    rotations = _counted(np.column_stack([angle, 1.0001 * angle]), 1849)
+    rotations[0] += np.array([0.37, 0.61]) / 1849
+    assert len(np.unique(np.round(rotations[1:] * 1849))) == 2
+    assert ticks_per_revolution(rotations) == 1849
+
+
 def test_a_counter_that_reads_one_or_two_ticks_per_interval_gives_its_resolution():
     """A 16-tick wheel at 100 Hz, 0–20 m/s on a 2 m wheel: counts of 0, 1 or 2 (a spread of
     a fraction of a tick), 98 % of them 1."""
