@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import shutil
 import sys
 import tempfile
@@ -25,7 +26,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from campaign.invariants import NAMES, Calibrated, calibrate, data_path_broken
+from campaign.invariants import MAX_SIGMAS, NAMES, Calibrated, calibrate, data_path_broken
 from campaign.recording import write_recording
 from campaign.shape import Shape, drawn_from_the_seed_alone, shapes
 
@@ -110,7 +111,24 @@ def table(rows: list[tuple[Shape, Calibrated, list[str]]], numbers: list[int] | 
             )
         else:
             lines.append(f"- {name}: calibrated in no run")
+    ratios = [r for _, res, _ in rows for r in res.ratio.values()]
+    lines.append(beyond_line(ratios))
     return "\n".join(lines)
+
+
+def beyond_line(ratios: list[float]) -> str:
+    """How many calibrated values lie beyond :data:`MAX_SIGMAS` σ of the truth, beside what
+    honest normal errors give: each with chance ``p = P(|z| > MAX_SIGMAS)``, so ``M p`` of M
+    expected, and the binomial chance of at least as many."""
+    count = len(ratios)
+    beyond = sum(abs(r) > MAX_SIGMAS for r in ratios)
+    p = math.erfc(MAX_SIGMAS / math.sqrt(2.0))
+    tail = 1.0 - sum(math.comb(count, k) * p**k * (1 - p) ** (count - k) for k in range(beyond))
+    return (
+        f"- beyond {MAX_SIGMAS:g}σ: {beyond} of {count} calibrated values; normal errors with "
+        f"the σ reported put {count * p:.1f} there, and {beyond} or more with chance "
+        f"{max(tail, 0.0):.2g}"
+    )
 
 
 def run_shape(shape: Shape, directory: Path, timeout: float) -> tuple[Shape, Calibrated, list[str]]:

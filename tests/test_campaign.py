@@ -716,3 +716,17 @@ def test_calibrations_keep_the_invariants(shape: Shape, tmp_path: Path, request)
     assert result.exit_code == 0
     undetermined = request.node.callspec.id in C_E_UNDETERMINED
     assert result.verdicts["c_e"].startswith("calibrated") != undetermined, result.verdicts
+
+
+def test_the_summary_sets_values_beyond_3_sigma_beside_what_honest_errors_give():
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "scripts" / "campaign.py"
+    spec = importlib.util.spec_from_file_location("campaign_script", path)
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    # 0.27 % of normal errors lie beyond 3σ: 1.3 of 468 values.
+    line = script.beyond_line([0.5] * 466 + [3.6, -2.9])
+    assert "1 of 468 calibrated values" in line and "put 1.3 there" in line
+    assert "chance 0.72" in line  # 1 − (1 − p)^468
+    assert "chance 1" in script.beyond_line([0.0] * 10)
