@@ -107,3 +107,20 @@ def test_rounds_end_at_the_first_where_a_solve_under_other_settings_follows(outl
         data, spec, _counted_solve(data, spec, going_on), 3.0, stop_after_first=lambda *_: False
     )
     assert len(going_on) > 1  # asked, and not ended: the rounds go on
+
+
+def test_the_down_weighted_line_counts_fixes_not_samples():
+    """1 Hz fixes on a 40 Hz log: "1 of 4575 fixes" was the samples of a log of 60 fixes."""
+    from graphcal.pipeline.methods.sensor_estimates import DownWeightedFixes
+
+    log = simulate_drive(1.0, seed=4).measured
+    measured = np.ones((len(log.t), 2), bool)
+    measured[np.arange(len(measured)) % 40 != 0, 0] = False  # a fix each 40th sample
+    sparse = dataclasses.replace(log, measured=measured)
+    data = gather_segments(sparse, split_segments(sparse, 150.0))
+    weights = np.ones(data.valid.shape)
+    fixes_of_log = np.unique(data.sample_index[data.valid & data.measured[..., 0]])
+    weights[0, 40] = 0.01  # one fix down-weighted
+    found = DownWeightedFixes.from_solve(data, weights, np.arange(len(log.t)) * 0.025)
+    assert found.total == len(fixes_of_log) < data.valid.sum() / 30
+    assert found.summary().startswith(f"1 of {len(fixes_of_log)} fixes down-weighted")

@@ -205,7 +205,10 @@ class DownWeightedFixes:
     ) -> DownWeightedFixes:
         """From a solve's per-segment ``weights`` ``(S, K+1)`` over ``data`` gathered from a
         log with sample ``times``."""
-        total = int(data.valid.sum())
+        fixes = data.position_fixes()
+        total = int(fixes.sum())
+        if data.sample_index is not None:  # a fix two segments share counts once
+            total = len(np.unique(data.sample_index[fixes]))
         if weights is None or data.sample_index is None:
             return cls(np.zeros(0, int), np.zeros(0), np.zeros(0), total)
         per_row = log_weights(data, weights, len(times))
