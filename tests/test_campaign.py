@@ -685,6 +685,24 @@ SLOW = [
         id="heading-shows-the-track-sparse-fixes-do-not",  # seed 32's shape 198: the solve
         # stayed at t_r 0.52 m (truth 1.08), its heading 7° off: exit 3
     ),
+    pytest.param(
+        _shape(
+            route="straight",
+            length_m=2881.0,
+            gnss_rate=0.5,
+            noise_sigma=0.93,
+            imu=False,
+            wheels="ticks",
+            ticks=16,
+            park_s=0.0,
+            time_offset_s=-0.009,
+            lever_arm=(-0.48, 0.15),
+            seed=155,
+        ),
+        id="sparse-fixes-across-the-track-absorbed",  # seed 32's shape 160: 0.93 m fixes
+        # read as 0.50 m (0.68 m along the track, 0.08 m across it: the wheels' corrections
+        # turned the trajectory onto them), χ²/dof 1.77, "not to be trusted", exit 3
+    ),
 ]
 
 
