@@ -110,7 +110,9 @@ def test_rounds_end_at_the_first_where_a_solve_under_other_settings_follows(outl
 
 
 def test_the_down_weighted_line_counts_fixes_not_samples():
-    """1 Hz fixes on a 40 Hz log: "1 of 4575 fixes" was the samples of a log of 60 fixes."""
+    """1 Hz fixes on a 40 Hz log: "1 of 4575 fixes" was the samples of a log of 60 fixes,
+    and a town car's 19 outliers at 5 Hz read "142 of 1770 fixes down-weighted" (the samples
+    between fixes carry the weights too)."""
     from graphcal.pipeline.methods.sensor_estimates import DownWeightedFixes
 
     log = simulate_drive(1.0, seed=4).measured
@@ -121,6 +123,7 @@ def test_the_down_weighted_line_counts_fixes_not_samples():
     weights = np.ones(data.valid.shape)
     fixes_of_log = np.unique(data.sample_index[data.valid & data.measured[..., 0]])
     weights[0, 40] = 0.01  # one fix down-weighted
+    weights[0, 41:60] = 0.01  # the samples after it, no fixes (a robust weight between fixes)
     found = DownWeightedFixes.from_solve(data, weights, np.arange(len(log.t)) * 0.025)
     assert found.total == len(fixes_of_log) < data.valid.sum() / 30
     assert found.summary().startswith(f"1 of {len(fixes_of_log)} fixes down-weighted")

@@ -21,8 +21,11 @@ from graphcal.log.segments import Segments, split_segments
 
 NAMES = ("c_e", "c_d", "t_r", "d")
 #: Refusals (exit 2) that name a real cause of a recording the campaign draws: too little
-#: driving for a segment, or no turn to calibrate from.
-REAL_CAUSES = re.compile(r"too short|shorter than|no segment|not enough|no usable", re.I)
+#: driving for a segment, no turn to calibrate from, too little acceleration, braking or
+#: turning to estimate a mounted IMU's rotation from.
+REAL_CAUSES = re.compile(
+    r"too short|shorter than|no segment|not enough|no usable|s of acceleration, braking", re.I
+)
 #: How a parameter that is not calibrated says why.
 REASONS = (
     "not calibrated: ",

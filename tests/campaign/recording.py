@@ -4,6 +4,7 @@ as the shape says, written as CSV streams with a manifest and a vehicle profile.
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 import math
 import sys
@@ -52,6 +53,7 @@ SPEED_NOISE = 0.02  # m/s of a wheel speed; angular speeds: the same over the ra
 HEADING_NOISE = 0.3  # deg, a fused heading
 IMU_NOISE = (0.05, 0.1 * math.pi / 180.0)  # m/s², rad/s
 LOG_RATE = 40.0  # Hz, the manifest's drive-log rate
+GRAVITY = 9.80665  # m/s², the specific force of a vehicle at rest (up)
 
 
 @dataclass
@@ -137,6 +139,80 @@ def motion(shape: Shape) -> Motion:
     return Motion(**joined, spans=spans)
 
 
+def _slipping(m: Motion, shape: Shape, rng: np.random.Generator) -> Motion:
+    """``m`` with the wheels slipping slowly: their rates scaled by ``1 + slip · sin(2π t /
+    P + φ)``, P 60–300 s (none on average; theta stays the truth), rotations integrated."""
+    if not shape.slip:
+        return m
+    period, phase = rng.uniform(60.0, 300.0), rng.uniform(0.0, 2.0 * np.pi)
+    scale = 1.0 + shape.slip * np.sin(2.0 * np.pi * m.t / period + phase)
+    dt = np.diff(m.t)
+    dt[dt > 1.0] = 0.0  # across a gap between drives the wheels are not turning
+
+    def extra(rate: np.ndarray) -> np.ndarray:
+        return twin._cumtrapz(rate * (scale - 1.0), dt)
+
+    return dataclasses.replace(
+        m, rate_l=m.rate_l * scale, rate_r=m.rate_r * scale,
+        rev_l=m.rev_l + extra(m.rate_l), rev_r=m.rev_r + extra(m.rate_r),
+    )  # fmt: skip
+
+
+def _fixes_kept(tg: np.ndarray, m: Motion, shape: Shape) -> np.ndarray:
+    """Which fix instants ``tg`` are outside the outage amid the first drive (the fixes stop
+    ``outage_s``, at most half the drive; the wheels go on)."""
+    if not shape.outage_s:
+        return np.ones(len(tg), bool)
+    start, end = m.spans[0]
+    length = min(shape.outage_s, 0.5 * (end - start))
+    middle = 0.5 * (start + end)
+    return (tg < middle - 0.5 * length) | (tg > middle + 0.5 * length)
+
+
+def _with_outliers(
+    east: np.ndarray, north: np.ndarray, share: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """A ``share`` of the fixes (at least one if any) moved 10–50 m in random directions."""
+    if not share:
+        return east, north
+    count = max(1, round(share * len(east)))
+    rows = rng.choice(len(east), size=min(count, len(east)), replace=False)
+    distance = rng.uniform(10.0, 50.0, len(rows))
+    angle = rng.uniform(0.0, 2.0 * np.pi, len(rows))
+    east, north = east.copy(), north.copy()
+    east[rows] += distance * np.cos(angle)
+    north[rows] += distance * np.sin(angle)
+    return east, north
+
+
+def _rotation(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """``Rz(yaw) · Ry(pitch) · Rx(roll)`` [angles in deg]: the IMU's frame in the vehicle's."""
+    r, p, y = np.radians([roll, pitch, yaw])
+    rx = np.array([[1, 0, 0], [0, np.cos(r), -np.sin(r)], [0, np.sin(r), np.cos(r)]])
+    ry = np.array([[np.cos(p), 0, np.sin(p)], [0, 1, 0], [-np.sin(p), 0, np.cos(p)]])
+    rz = np.array([[np.cos(y), -np.sin(y), 0], [np.sin(y), np.cos(y), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _imu_frame(shape: Shape, m: Motion, ti: np.ndarray, rng: np.random.Generator) -> dict:
+    """The IMU's six columns in its own frame, mounted at ``shape.mounting``: the vehicle's
+    specific force (the speed's rate forward, the lateral acceleration, gravity up) and turn
+    rate, rotated into the IMU's frame, with white noise per axis."""
+    speed = 0.5 * (m.rate_l + m.rate_r) * THETA_TRUE[shape.vehicle][0]
+    along = np.interp(ti, m.t, speed)
+    window = max(1, round(0.5 * WHEEL_RATE))
+    smooth = np.convolve(along, np.ones(window) / window, mode="same")
+    force = np.column_stack(
+        [np.gradient(smooth, ti), np.interp(ti, m.t, m.ay), np.full(len(ti), GRAVITY)]
+    )
+    turn = np.column_stack([np.zeros(len(ti)), np.zeros(len(ti)), np.interp(ti, m.t, m.yaw_rate)])
+    matrix = _rotation(*shape.mounting)
+    force = force @ matrix + IMU_NOISE[0] * rng.standard_normal(force.shape)  # Rᵀ v per row
+    turn = turn @ matrix + IMU_NOISE[1] * rng.standard_normal(turn.shape)
+    names = ("ax", "ay", "az", "wx", "wy", "wz")
+    return dict(zip(names, np.column_stack([force, turn]).T, strict=True))
+
+
 def _clock(m: Motion, rate: float, rng: np.random.Generator, start_delay: float = 0.0):
     """Sample instants at ``rate`` [Hz] within each drive (none in the gaps), each drive's
     stream starting ``start_delay`` s after it."""
@@ -150,6 +226,8 @@ def write_recording(shape: Shape, directory: Path) -> Path:
     rng = np.random.default_rng([shape.seed, 43])
     m = motion(shape)
     epoch = 1.78e9 + rng.uniform(0.0, 86400.0)
+    defects = np.random.default_rng([shape.seed, 45])  # the draws above stay as they were
+    m = _slipping(m, shape, defects)
 
     def at(t: np.ndarray, values: np.ndarray) -> np.ndarray:
         return np.interp(t, m.t, values)
@@ -161,10 +239,13 @@ def write_recording(shape: Shape, directory: Path) -> Path:
     tau = shape.noise_tau_s * shape.gnss_rate  # in fixes
     east = east + twin.gnss_noise(len(tg), shape.noise_sigma, tau, rng)
     north = north + twin.gnss_noise(len(tg), shape.noise_sigma, tau, rng)
+    kept = _fixes_kept(tg, m, shape)
+    tg, yaw, east, north = tg[kept], yaw[kept], east[kept], north[kept]
+    east, north = _with_outliers(east, north, shape.outliers, defects)
     lat, lon = twin.enu_to_geodetic(east, north)
     gnss = {"t": epoch + tg + rng.uniform(-0.002, 0.002, len(tg)), "lat": lat, "lon": lon}
     if shape.heading:
-        noisy = np.degrees(yaw) + HEADING_NOISE * rng.standard_normal(len(tg))
+        noisy = np.degrees(yaw) + HEADING_NOISE * rng.standard_normal(len(kept))[kept]
         gnss["heading"] = np.mod(90.0 - noisy, 360.0)
     pd.DataFrame(gnss).to_csv(directory / "gnss.csv", index=False, float_format="%.10f")
 
@@ -190,6 +271,8 @@ def write_recording(shape: Shape, directory: Path) -> Path:
                 "wz": at(ti, m.yaw_rate) + IMU_NOISE[1] * rng.standard_normal(len(ti)),
             }
         )
+        if shape.mounting is not None:
+            imu = pd.DataFrame({"t": imu["t"], **_imu_frame(shape, m, ti, defects)})
         imu.to_csv(directory / "imu.csv", index=False, float_format="%.6f")
     (directory / "vehicle.toml").write_text(profile_text(shape))
     path = directory / "manifest.toml"
@@ -226,5 +309,11 @@ def manifest_text(shape: Shape) -> str:
         lines += ['speed_unit = "m/s"', f"circumference = {ECU_CIRCUMFERENCE[shape.vehicle]}"]
     if shape.imu:
         lines += ["", "[imu]", 'file = "imu.csv"', 'time = "t"']
-        lines += ['lateral_acceleration = "ay"', 'yaw_rate = "wz"', 'yaw_rate_unit = "rad/s"']
+        if shape.mounting is None:
+            lines += ['lateral_acceleration = "ay"', 'yaw_rate = "wz"', 'yaw_rate_unit = "rad/s"']
+        else:
+            lines += ['acceleration = ["ax", "ay", "az"]', 'angular_velocity = ["wx", "wy", "wz"]']
+            angles = ", ".join(f"{a:g}" for a in shape.mounting)
+            given = '"estimate"' if shape.mounting_estimated else f"[{angles}]"
+            lines += [f"mounting = {given}"]
     return "\n".join(lines) + "\n"

@@ -20,7 +20,12 @@ class Shape:
     ``noise_tau_s`` 0 is white position noise, else a Gauss–Markov error with that
     correlation time. ``time_offset_s`` > 0: the wheels are stamped late. ``lever_arm`` is
     the antenna's (ahead, left) [m] of the wheels' reference point. ``ticks`` is the
-    counter's resolution [ticks/rev] when ``wheels == "ticks"`` (else 0)."""
+    counter's resolution [ticks/rev] when ``wheels == "ticks"`` (else 0). ``outliers``: the
+    share of fixes 10–50 m off; ``outage_s``: the fixes stop that long amid the first drive
+    (the wheels go on); ``slip``: the amplitude of a slow wheel slip (the rotations scaled
+    by 1 + slip · sin, over minutes: none on average); ``mounting``: the IMU's (roll, pitch,
+    yaw) [deg] in the vehicle (its three axes logged in its own frame; the manifest gives
+    the angles, or ``"estimate"`` with ``mounting_estimated``)."""
 
     vehicle: str
     route: str
@@ -38,6 +43,11 @@ class Shape:
     time_offset_s: float
     lever_arm: tuple[float, float]
     seed: int
+    outliers: float = 0.0
+    outage_s: float = 0.0
+    slip: float = 0.0
+    mounting: tuple[float, float, float] | None = None
+    mounting_estimated: bool = False
 
     def label(self) -> str:
         """The shape in one short line."""
@@ -51,8 +61,22 @@ class Shape:
             f"{noise}, {'heading' if self.heading else 'no heading'}, "
             f"{'IMU' if self.imu else 'no IMU'}, {wheels}{drives}, park {self.park_s:.0f} s, "
             f"late {self.time_offset_s * 1e3:.0f} ms, arm ({self.lever_arm[0]:.2g}, "
-            f"{self.lever_arm[1]:.2g}) m, seed {self.seed}"
+            f"{self.lever_arm[1]:.2g}) m{self._defects()}, seed {self.seed}"
         )
+
+    def _defects(self) -> str:
+        """The label's part for outliers, an outage, slip and a mounted IMU (if drawn)."""
+        parts = []
+        if self.outliers:
+            parts.append(f"outliers {self.outliers:.1%}")
+        if self.outage_s:
+            parts.append(f"outage {self.outage_s:.0f} s")
+        if self.slip:
+            parts.append(f"slip {self.slip:.2%}")
+        if self.mounting is not None:
+            angles = ", ".join(f"{a:.0f}" for a in self.mounting)
+            parts.append(f"IMU at ({angles})°" + (" estimated" if self.mounting_estimated else ""))
+        return "".join(f", {part}" for part in parts)
 
 
 @contextlib.contextmanager
@@ -102,7 +126,7 @@ def shapes(
     arm = (draw(_rounded(-1.5, 1.5, 2)), draw(_rounded(-0.5, 0.5, 2))) if car else (
         draw(_rounded(-0.3, 0.3, 2)), 0.0
     )  # fmt: skip
-    return Shape(
+    fields = dict(
         vehicle=vehicle,
         route=route,
         length_m=draw(_rounded(*lengths, 0)),
@@ -119,4 +143,20 @@ def shapes(
         time_offset_s=draw(_rounded(-0.05, 0.05, 3)),
         lever_arm=arm,
         seed=draw(st.integers(0, 2**16)),
+    )
+    return Shape(**fields, **_defect_axes(draw, car, fields["imu"]))
+
+
+def _defect_axes(draw: st.DrawFn, car: bool, imu: bool) -> dict:
+    """Outliers, an outage, slow slip, a mounted IMU: each in some of the shapes."""
+    mounting = None
+    if imu and draw(st.booleans()):
+        yaw = draw(st.sampled_from([0.0, 90.0, 180.0, -90.0])) + draw(_rounded(-10.0, 10.0, 0))
+        mounting = (draw(_rounded(-10.0, 10.0, 0)), draw(_rounded(-10.0, 10.0, 0)), yaw)
+    return dict(
+        outliers=draw(st.sampled_from([0.0, 0.0, 0.0, 0.002, 0.01])),
+        outage_s=draw(st.sampled_from([0.0, 0.0, 1.0])) * draw(_rounded(10.0, 60.0, 0)),
+        slip=draw(st.sampled_from([0.0, 0.0, 1.0])) * draw(_rounded(0.0005, 0.003, 4)),
+        mounting=mounting,
+        mounting_estimated=mounting is not None and car and draw(st.booleans()),
     )

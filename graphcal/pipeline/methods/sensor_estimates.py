@@ -212,7 +212,9 @@ class DownWeightedFixes:
         if weights is None or data.sample_index is None:
             return cls(np.zeros(0, int), np.zeros(0), np.zeros(0), total)
         per_row = log_weights(data, weights, len(times))
-        rows = np.flatnonzero(per_row < DOWN_WEIGHTED)
+        fix_rows = np.zeros(len(times), bool)
+        fix_rows[data.sample_index[fixes]] = True
+        rows = np.flatnonzero((per_row < DOWN_WEIGHTED) & fix_rows)
         return cls(rows, times[rows], per_row[rows], total)
 
     def summary(self) -> str:
