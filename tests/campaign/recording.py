@@ -72,6 +72,7 @@ class Motion:
     rev_r: np.ndarray
     rate_l: np.ndarray
     rate_r: np.ndarray
+    slip: np.ndarray  # rad, the reference point's sideslip (a car's tyre slip angle)
     spans: list[tuple[float, float]]  # (start, end) [s] of each drive, parked ends included
 
 
@@ -84,7 +85,7 @@ def _one_drive(shape: Shape, index: int) -> dict[str, np.ndarray]:
             max_curvature=twin.HIGHWAY_CURVATURE,
         )  # fmt: skip
         fields = ("t", "x", "y", "yaw", "yaw_rate", "ay", "rev_l", "rev_r", "rate_l", "rate_r")
-        return {name: np.asarray(getattr(drive, name), float) for name in fields}
+        return {name: np.asarray(getattr(drive, name), float) for name in (*fields, "slip")}
     robot = twin.simulate_robot(shape.length_m, seed, THETA_TRUE[shape.vehicle])
     rate_l, rate_r = robot.omega_l / (2 * np.pi), robot.omega_r / (2 * np.pi)
     return {
@@ -92,7 +93,7 @@ def _one_drive(shape: Shape, index: int) -> dict[str, np.ndarray]:
         "yaw_rate": robot.yaw_rate, "ay": robot.ay,
         "rev_l": twin._cumtrapz(rate_l, twin.ROBOT_DT),
         "rev_r": twin._cumtrapz(rate_r, twin.ROBOT_DT),
-        "rate_l": rate_l, "rate_r": rate_r,
+        "rate_l": rate_l, "rate_r": rate_r, "slip": np.zeros(len(robot.t)),
     }  # fmt: skip
 
 
@@ -106,7 +107,7 @@ def _parked(drive: dict[str, np.ndarray], park: float) -> dict[str, np.ndarray]:
         if name == "t":
             end = values[-1] + park
             out[name] = np.concatenate([[0.0, park - eps], values + park, [end + eps, end + park]])
-        elif name in ("yaw_rate", "ay", "rate_l", "rate_r"):
+        elif name in ("yaw_rate", "ay", "rate_l", "rate_r", "slip"):
             out[name] = np.concatenate([[0.0, 0.0], values, [0.0, 0.0]])
         else:
             out[name] = np.concatenate([values[:1], values[:1], values, values[-1:], values[-1:]])
@@ -247,6 +248,8 @@ def write_recording(shape: Shape, directory: Path) -> Path:
     if shape.heading:
         noisy = np.degrees(yaw) + HEADING_NOISE * rng.standard_normal(len(kept))[kept]
         gnss["heading"] = np.mod(90.0 - noisy, 360.0)
+    if shape.sideslip:  # the rear axle's, the wheels' reference point's
+        gnss["beta"] = at(tg, m.slip)
     pd.DataFrame(gnss).to_csv(directory / "gnss.csv", index=False, float_format="%.10f")
 
     # Wheels: stamped time_offset_s late
@@ -301,6 +304,8 @@ def manifest_text(shape: Shape) -> str:
     ]
     if shape.heading:
         lines += ['heading = "heading"', 'heading_unit = "deg"', 'heading_convention = "compass"']
+    if shape.sideslip:
+        lines += ['sideslip = "beta"', 'sideslip_unit = "rad"']
     lines += ["", "[wheels]", 'file = "wheels.csv"', 'time = "t"']
     lines += ['rear_left = "rl"', 'rear_right = "rr"', f'kind = "{shape.wheels}"']
     if shape.wheels == "ticks":

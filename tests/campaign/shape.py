@@ -25,7 +25,8 @@ class Shape:
     (the wheels go on); ``slip``: the amplitude of a slow wheel slip (the rotations scaled
     by 1 + slip · sin, over minutes: none on average); ``mounting``: the IMU's (roll, pitch,
     yaw) [deg] in the vehicle (its three axes logged in its own frame; the manifest gives
-    the angles, or ``"estimate"`` with ``mounting_estimated``)."""
+    the angles, or ``"estimate"`` with ``mounting_estimated``); ``sideslip``: the fixes log
+    the rear axle's sideslip (a car's tyre slip angle)."""
 
     vehicle: str
     route: str
@@ -48,6 +49,7 @@ class Shape:
     slip: float = 0.0
     mounting: tuple[float, float, float] | None = None
     mounting_estimated: bool = False
+    sideslip: bool = False
 
     def label(self) -> str:
         """The shape in one short line."""
@@ -76,6 +78,8 @@ class Shape:
         if self.mounting is not None:
             angles = ", ".join(f"{a:.0f}" for a in self.mounting)
             parts.append(f"IMU at ({angles})°" + (" estimated" if self.mounting_estimated else ""))
+        if self.sideslip:
+            parts.append("sideslip logged")
         return "".join(f", {part}" for part in parts)
 
 
@@ -148,7 +152,8 @@ def shapes(
 
 
 def _defect_axes(draw: st.DrawFn, car: bool, imu: bool) -> dict:
-    """Outliers, an outage, slow slip, a mounted IMU: each in some of the shapes."""
+    """Outliers, an outage, slow slip, a mounted IMU, a logged sideslip: each in some of the
+    shapes."""
     mounting = None
     if imu and draw(st.booleans()):
         yaw = draw(st.sampled_from([0.0, 90.0, 180.0, -90.0])) + draw(_rounded(-10.0, 10.0, 0))
@@ -159,4 +164,5 @@ def _defect_axes(draw: st.DrawFn, car: bool, imu: bool) -> dict:
         slip=draw(st.sampled_from([0.0, 0.0, 1.0])) * draw(_rounded(0.0005, 0.003, 4)),
         mounting=mounting,
         mounting_estimated=mounting is not None and car and draw(st.booleans()),
+        sideslip=car and draw(st.booleans()),
     )
