@@ -324,6 +324,84 @@ EXAMPLES = [
         id="sixteen-ticks-one-per-interval",  # seed 24's shape 15: every positive rotation
         # one tick, the intervals around it none: no resolution found
     ),
+    pytest.param(
+        _yard(
+            "skid-steer",
+            length_m=240.0,
+            gnss_rate=0.5,
+            noise_sigma=0.66,
+            noise_tau_s=37.0,
+            heading=True,
+            wheels="angular_speed",
+            park_s=5.0,
+            time_offset_s=0.02,
+            lever_arm=(-0.19, 0.0),
+            seed=1560,
+            outliers=0.002,
+            outage_s=59.0,
+        ),
+        id="sparse-fixes-one-outlier",  # seed 34's shape 13: a fix 37 m off at 0.5 Hz, the
+        # track interpolated towards it: a 37 m chord for 3 m of wheels, refused as a unit
+        # mistake ("the positions travel 2.68x the distance the wheel rotations imply")
+    ),
+    pytest.param(
+        _shape(
+            length_m=1047.0,
+            gnss_rate=20.0,
+            noise_sigma=1.97,
+            noise_tau_s=23.0,
+            heading=True,
+            wheels="ticks",
+            ticks=852,
+            park_s=7.0,
+            time_offset_s=0.0,
+            lever_arm=(-1.47, 0.0),
+            seed=1631,
+            slip=0.0006,
+            mounting=(0.0, 1.0, 182.0),
+            mounting_estimated=True,
+        ),
+        id="mounted-imu-estimated-parked-ends",  # seed 34's shape 6: the campaign's cars
+        # went from parked to 5 m/s in a millisecond; the IMU felt it otherwise than the
+        # wheels' bins: the mounting "only to ±0.8°", refused (the cars now start from rest)
+    ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=193.0,
+            gnss_rate=20.0,
+            noise_sigma=0.5,
+            heading=True,
+            imu=False,
+            park_s=5.0,
+            time_offset_s=0.0,
+            lever_arm=(0.3, 0.0),
+            seed=57222,
+            outliers=0.002,
+            outage_s=32.0,
+            slip=0.0015,
+        ),
+        id="outlier-at-a-windows-end",  # seed 34's shape 107: a fix 36 m off at the last
+        # sample of a 2 s window, whose clean test stopped one sample short: refused as a
+        # unit mistake
+    ),
+    pytest.param(
+        _yard(
+            "skid-steer",
+            length_m=115.0,
+            noise_sigma=1.89,
+            imu=False,
+            wheels="angular_speed",
+            park_s=1.0,
+            time_offset_s=0.045,
+            lever_arm=(-0.2, 0.0),
+            seed=15642,
+            outage_s=60.0,
+        ),
+        id="chord-noise-fitted-below-zero",  # seed 34's shape 108: 10 Hz fixes of 1.9 m,
+        # 31 pairs of blocks 0.75 m apart: their noise fitted below 0, the chords taken as
+        # noiseless, "the wheels travel 0.553x the distance of the GNSS track", refused
+    ),
 ]
 
 

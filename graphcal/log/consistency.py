@@ -116,7 +116,10 @@ def position_problem(
     if masked is None:
         masked, _, outlying = inconsistent_samples(log, nominal=nominal)
         masked = masked | outlying
-    clean = np.add.reduceat(masked.astype(int), ends)[: len(wheels)] == 0
+    # A window's chord ends at its last sample: clean takes both ends (a 20 Hz robot's fix
+    # 36 m off at a window's end read a 36 m chord for 1.7 m of wheels).
+    flagged = np.concatenate([[0], np.cumsum(masked.astype(int))])
+    clean = flagged[ends[1:] + 1] - flagged[ends[:-1]] == 0
     usable = clean & (wheels >= RATIO_MIN_WINDOW_REVS * nominal[0])
     if wheels[usable].sum() < RATIO_MIN_REVS * nominal[0]:
         return None
@@ -274,7 +277,9 @@ def _heading_jumps(
         turned = np.concatenate([[0.0], np.cumsum(wheel_yaw)])[headings]
         measured_turn, wheel_turn = np.diff(log.psi[headings]), np.diff(turned)
     scale = wheel_turn_scale(measured_turn, wheel_turn)
-    yaw_excess = np.abs(measured_turn - scale * wheel_turn)
+    # A heading is an angle: the turn it measures is known up to whole turns (across a gap
+    # of a robot's fixes the log read a 1° turn as 359°).
+    yaw_excess = np.abs(np.angle(np.exp(1j * (measured_turn - scale * wheel_turn))))
     step_excess = yaw_excess  # per step, for the notes
     if len(headings) < n:
         step_excess = np.zeros(n - 1)
@@ -351,7 +356,7 @@ def screen(log, *, nominal: np.ndarray = THETA_NOMINAL):
     if log.masked is not None:
         mask = mask | log.masked
         notes = [*log.mask_notes, *notes]
-    problem = position_problem(log, mask | outlying, nominal=nominal)
+    problem = position_problem(log, _back_to_the_fix_before(log, mask | outlying), nominal=nominal)
     if problem is not None:
         raise ValueError(problem)
     changes = {}
@@ -360,6 +365,21 @@ def screen(log, *, nominal: np.ndarray = THETA_NOMINAL):
     if outlying.any():
         changes["outlying"] = outlying
     return dataclasses.replace(log, **changes) if changes else log
+
+
+def _back_to_the_fix_before(log, flagged: np.ndarray) -> np.ndarray:
+    """``flagged (N,)`` with each run reaching back to the row after the last fix before it:
+    between sparse fixes the track is interpolated, so it runs towards a spike from the fix
+    before (a skid-steer robot's 0.5 Hz fixes, one 37 m off: the 2 s window before it read a
+    37 m chord for 3 m of wheels, and the distance check refused the recording)."""
+    fixes = np.flatnonzero(log.position_measured)
+    out = flagged.copy()
+    if len(fixes) == len(log) or not flagged.any():
+        return out
+    for a, _ in runs(flagged):
+        before = fixes[np.searchsorted(fixes, a) - 1] if np.searchsorted(fixes, a) else -1
+        out[before + 1 : a] = True
+    return out
 
 
 def _metres(distance: float, circumference: float) -> str:

@@ -85,7 +85,9 @@ def _one_drive(shape: Shape, index: int) -> dict[str, np.ndarray]:
             max_curvature=twin.HIGHWAY_CURVATURE,
         )  # fmt: skip
         fields = ("t", "x", "y", "yaw", "yaw_rate", "ay", "rev_l", "rev_r", "rate_l", "rate_r")
-        return {name: np.asarray(getattr(drive, name), float) for name in (*fields, "slip")}
+        return _from_rest(
+            {name: np.asarray(getattr(drive, name), float) for name in (*fields, "slip")}
+        )
     robot = twin.simulate_robot(shape.length_m, seed, THETA_TRUE[shape.vehicle])
     rate_l, rate_r = robot.omega_l / (2 * np.pi), robot.omega_r / (2 * np.pi)
     return {
@@ -95,6 +97,59 @@ def _one_drive(shape: Shape, index: int) -> dict[str, np.ndarray]:
         "rev_r": twin._cumtrapz(rate_r, twin.ROBOT_DT),
         "rate_l": rate_l, "rate_r": rate_r, "slip": np.zeros(len(robot.t)),
     }  # fmt: skip
+
+
+#: Acceleration [m/s²] of a car from rest to its drive's first speed, and braking from its
+#: last speed to rest (the twin's drives start and end at speed).
+START_STOP_ACCELERATION = 1.5
+
+
+def _ramp(drive: dict[str, np.ndarray], end: bool) -> dict[str, np.ndarray]:
+    """A straight run from rest to the drive's first sample (``end``: from its last sample
+    to rest) at :data:`START_STOP_ACCELERATION`, times from 0 at its first sample."""
+    k, step = (-1, -2) if end else (0, 1)
+    speed = float(
+        np.hypot(drive["x"][k] - drive["x"][step], drive["y"][k] - drive["y"][step])
+        / abs(drive["t"][k] - drive["t"][step])
+    )
+    duration = speed / START_STOP_ACCELERATION
+    tau = np.linspace(0.0, duration, max(3, int(duration * WHEEL_RATE)))[1:]
+    if end:  # distance from the last sample, and speed
+        along, v = (
+            speed * tau - 0.5 * START_STOP_ACCELERATION * tau**2,
+            speed - START_STOP_ACCELERATION * tau,
+        )
+    else:  # distance to the first sample (negative), and speed
+        tau = tau[::-1]
+        along, v = (
+            -(speed * tau - 0.5 * START_STOP_ACCELERATION * tau**2),
+            speed - START_STOP_ACCELERATION * tau,
+        )
+        tau = -tau
+    yaw = drive["yaw"][k]
+    zero = np.zeros(len(tau))
+    out = {
+        "t": drive["t"][k] + tau,
+        "x": drive["x"][k] + along * np.cos(yaw),
+        "y": drive["y"][k] + along * np.sin(yaw),
+        "yaw": np.full(len(tau), yaw), "yaw_rate": zero, "ay": zero, "slip": zero,
+    }  # fmt: skip
+    for side in ("l", "r"):
+        per_metre = drive[f"rate_{side}"][k] / speed
+        out[f"rev_{side}"] = drive[f"rev_{side}"][k] + along * per_metre
+        out[f"rate_{side}"] = v * per_metre
+    return out
+
+
+def _from_rest(drive: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """A car's ``drive`` with :func:`_ramp` from rest before it and to rest after it, its
+    times from 0 and its rotations from 0."""
+    first, last = _ramp(drive, end=False), _ramp(drive, end=True)
+    out = {name: np.concatenate([first[name], drive[name], last[name]]) for name in drive}
+    out["t"] = out["t"] - out["t"][0]
+    for side in ("l", "r"):
+        out[f"rev_{side}"] = out[f"rev_{side}"] - out[f"rev_{side}"][0]
+    return out
 
 
 def _parked(drive: dict[str, np.ndarray], park: float) -> dict[str, np.ndarray]:
