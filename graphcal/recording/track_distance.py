@@ -36,6 +36,9 @@ MIN_WINDOW_REVS = 0.5
 #: ``w²``, or no way to tell ``N`` from the slope).
 MIN_WINDOWS = 8
 MIN_SPREAD = 0.2
+#: Chord noise below this share of the pairs' mean w² does not matter: a fit of it below 0
+#: whose upper bound (2 standard errors) stays under that says none.
+NEGLIGIBLE_NOISE = 0.1
 #: Residuals beyond this many robust σ (an outlying fix) leave the fit, once.
 TRIM_SIGMAS = 4.0
 
@@ -111,22 +114,27 @@ def wheel_track_ratio(
 def _fit(w2: np.ndarray, g2: np.ndarray) -> tuple[float, float, float, bool]:
     """``(a, N, σ_a, fitted)`` of ``g² = a w² + N`` by least squares, ``N ≥ 0`` (noise adds
     to chords); ``N = 0`` where the ``w²`` are too alike to tell it from ``a``
-    (:data:`MIN_SPREAD`) or fitted below 0 (``fitted`` false: ``a`` then is an upper
-    bound). ``σ_a`` is the
+    (:data:`MIN_SPREAD`) or fitted below 0 without ruling out noise that matters
+    (:data:`NEGLIGIBLE_NOISE`; ``fitted`` false: ``a`` then is an upper bound). ``σ_a`` is the
     sandwich (heteroscedasticity-consistent) standard error: the scatter of a chord² grows
     with its length."""
     fitted = bool(np.std(w2) >= MIN_SPREAD * np.mean(w2))
     if fitted:
         a, noise = np.polyfit(w2, g2, 1)
+        lever = w2 - w2.mean()
         if noise >= 0:
-            lever = w2 - w2.mean()
             return float(a), float(noise), _sandwich(lever, g2 - a * w2 - noise, 2), True
-    # Through the origin: N too alike to tell from a, or fitted below 0 — noise the pairs
-    # could not tell apart, not none: a is then an upper bound too (a skid-steer robot's
-    # 10 Hz fixes of 1.9 m, 31 pairs of 0.75 m: N fitted below 0, the wheels read as
-    # travelling 0.553x the track, refused).
+        # Fitted below 0: none, if the fit rules out noise that matters beside the chords;
+        # else noise the pairs could not tell apart, and a an upper bound (a skid-steer
+        # robot's 10 Hz fixes of 1.9 m, 31 pairs of 0.75 m: N fitted below 0, the wheels
+        # read as travelling 0.553x the track, refused).
+        residual = g2 - a * w2 - noise
+        spread = np.sqrt(np.sum(residual**2) / max(len(w2) - 2, 1))
+        error = spread * np.sqrt(1.0 / len(w2) + w2.mean() ** 2 / np.sum(lever**2))
+        fitted = noise + 2.0 * error < NEGLIGIBLE_NOISE * np.mean(w2)
+    # through the origin: N too alike to tell from a (not fitted), or fitted below 0
     a = float(np.sum(w2 * g2) / np.sum(w2 * w2))
-    return a, 0.0, _sandwich(w2, g2 - a * w2, 1), False
+    return a, 0.0, _sandwich(w2, g2 - a * w2, 1), bool(fitted)
 
 
 def _sandwich(lever: np.ndarray, residual: np.ndarray, parameters: int) -> float:
