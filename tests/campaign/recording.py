@@ -197,13 +197,19 @@ def motion(shape: Shape) -> Motion:
 
 def _slipping(m: Motion, shape: Shape, rng: np.random.Generator) -> Motion:
     """``m`` with the wheels slipping slowly: their rates scaled by ``1 + slip · sin(2π t /
-    P + φ)``, P 60–300 s (none on average; theta stays the truth), rotations integrated."""
+    P + φ)``, P 60–300 s, less its mean over the distance driven (theta stays the truth),
+    rotations integrated."""
     if not shape.slip:
         return m
     period, phase = rng.uniform(60.0, 300.0), rng.uniform(0.0, 2.0 * np.pi)
-    scale = 1.0 + shape.slip * np.sin(2.0 * np.pi * m.t / period + phase)
+    slip = shape.slip * np.sin(2.0 * np.pi * m.t / period + phase)
     dt = np.diff(m.t)
     dt[dt > 1.0] = 0.0  # across a gap between drives the wheels are not turning
+    # None on average over the distance driven: a minute's drive on a five-minute sine
+    # slips by up to its amplitude throughout, which no log tells from c_e.
+    rate = 0.5 * (m.rate_l + m.rate_r)
+    weight = np.concatenate([[0.0], dt]) * rate
+    scale = 1.0 + slip - np.sum(weight * slip) / max(np.sum(weight), 1e-12)
 
     def extra(rate: np.ndarray) -> np.ndarray:
         return twin._cumtrapz(rate * (scale - 1.0), dt)
