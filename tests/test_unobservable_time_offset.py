@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 
 from graphcal.graph.solution.estimates import NuisanceEstimate
 from graphcal.pipeline.methods.sensor_estimates import sensor_estimates
@@ -21,3 +22,19 @@ def test_a_time_offset_without_information_gives_the_batches_a_valid_prior():
     assert np.all(np.isfinite(prior["time_offset_means"])), prior
     settings = dataclasses.replace(JointSettings(), **prior)  # raised ValueError before
     assert settings.time_offset_sigma == 0.5
+
+
+def test_an_offset_run_away_without_being_detected_gives_the_batches_a_valid_prior():
+    """Campaign seed 35's shape 56 (a differential robot, three drives, 5 Hz fixes sharing
+    1.5 m over 50 s): the time-offset rounds shifted a run's wheels by −1.4 s, the last solve
+    found that offset not observable, and its total reached the batches' settings: a
+    traceback. Not detected, it is not corrected, and the batches' prior is 0."""
+    from graphcal.pipeline.methods.sensor_estimates import SensorEstimate
+
+    ran_away = SensorEstimate("time_offset", -1.41, 0.45, 0.5, False)
+    prior = _batch_time_offset({"time_offset": ran_away}, 0.05)
+    assert prior["time_offset_means"] == (0.0,)
+    dataclasses.replace(JointSettings(), **prior)  # raised ValueError before
+    found = SensorEstimate("time_offset", 0.1234, 0.002, 0.5, True)  # detected: the rest
+    rest = _batch_time_offset({"time_offset": found}, 0.05)["time_offset_means"][0]
+    assert rest == pytest.approx(0.1234 - 0.1, abs=1e-9)

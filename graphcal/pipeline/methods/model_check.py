@@ -197,7 +197,10 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
     log = solved.solved_log
     weights = solved.corrected.fix_weights
     offsets = time_offsets(solved.estimated, log.runs)
-    value = np.array([0.0 if e is None else e.value for e in offsets])
+    # As the corrected log: an offset not detected is not corrected, and its estimate (one
+    # the drive does not show, run to −1.4 s through the time-offset rounds on a robot) is
+    # no prior mean
+    value = np.array([e.value if e is not None and e.detected else 0.0 for e in offsets])
     shift = np.array(
         [whole_samples(o, log.dt) for o in detected_offsets(solved.estimated, log.runs)]
     )

@@ -382,10 +382,12 @@ def models_sensors(settings: JointSettings) -> bool:
 
 def _batch_time_offset(estimated: dict[str, SensorEstimate], dt: float) -> dict:
     """The joint batches' time-offset prior: what the whole-log estimate of each run leaves
-    beyond the whole-sample shift of its log, with their largest σ (no variable if the
-    whole-log solve had none)."""
+    beyond the whole-sample shift of its log (0 where none was detected: the log is not
+    corrected for it, and an offset the drive does not show may lie anywhere — a robot's
+    ran to −1.4 s through the time-offset rounds, beyond what the settings take), with
+    their largest σ (no variable if the whole-log solve had none)."""
     found = [e for e in estimated.values() if run_of(e.name)[0] == "time_offset"]
     if not found:
         return {"time_offset_sigma": 0.0}
-    rest = [e.value - (whole_samples(e.value, dt) if e.detected else 0.0) for e in found]
+    rest = [e.value - whole_samples(e.value, dt) if e.detected else 0.0 for e in found]
     return {"time_offset_sigma": max(e.sigma for e in found), "time_offset_means": tuple(rest)}
