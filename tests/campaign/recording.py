@@ -261,11 +261,9 @@ def _imu_frame(shape: Shape, m: Motion, ti: np.ndarray, rng: np.random.Generator
     specific force (the speed's rate forward, the lateral acceleration, gravity up) and turn
     rate, rotated into the IMU's frame, with white noise per axis."""
     speed = 0.5 * (m.rate_l + m.rate_r) * THETA_TRUE[shape.vehicle][0]
-    along = np.interp(ti, m.t, speed)
-    window = max(1, round(0.5 * WHEEL_RATE))
-    smooth = np.convolve(along, np.ones(window) / window, mode="same")
+    forward = np.gradient(speed, m.t)  # the speed's own rate, as an accelerometer feels it
     force = np.column_stack(
-        [np.gradient(smooth, ti), np.interp(ti, m.t, m.ay), np.full(len(ti), GRAVITY)]
+        [np.interp(ti, m.t, forward), np.interp(ti, m.t, m.ay), np.full(len(ti), GRAVITY)]
     )
     turn = np.column_stack([np.zeros(len(ti)), np.zeros(len(ti)), np.interp(ti, m.t, m.yaw_rate)])
     matrix = _rotation(*shape.mounting)
