@@ -402,6 +402,25 @@ EXAMPLES = [
         # 31 pairs of blocks 0.75 m apart: their noise fitted below 0, the chords taken as
         # noiseless, "the wheels travel 0.553x the distance of the GNSS track", refused
     ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=134.0,
+            gnss_rate=1.0,
+            noise_sigma=1.88,
+            heading=True,
+            wheels="ticks",
+            ticks=75,
+            park_s=1.0,
+            time_offset_s=0.0,
+            lever_arm=(0.15, 0.0),
+            seed=2475,
+            outliers=0.002,
+        ),
+        id="chord-slope-judged-on-its-scale",  # seed 35's shape 173: 1 Hz fixes of 1.9 m,
+        # the chords' slope 6.0 ± 2.1 (2.1σ from the range), judged as log(ratio) with the
+        # σ at the estimate (4σ): "the wheels travel 0.407x", refused
+    ),
 ]
 
 
