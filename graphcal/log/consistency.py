@@ -376,9 +376,11 @@ def _back_to_the_fix_before(log, flagged: np.ndarray) -> np.ndarray:
     out = flagged.copy()
     if len(fixes) == len(log) or not flagged.any():
         return out
-    for a, _ in runs(flagged):
-        before = fixes[np.searchsorted(fixes, a) - 1] if np.searchsorted(fixes, a) else -1
-        out[before + 1 : a] = True
+    starts = np.array([a for a, _ in runs(flagged)])
+    at = np.searchsorted(fixes, starts)
+    before = np.where(at > 0, fixes[np.maximum(at - 1, 0)], -1)
+    for first, start in zip(before + 1, starts, strict=True):
+        out[first:start] = True
     return out
 
 

@@ -45,7 +45,7 @@ from graphcal.log.segments import SegmentData, gather_segments, spread
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.model import AY, BETA
 from graphcal.pipeline.methods.prepare import PreparedLog
-from graphcal.pipeline.methods.sensor_estimates import detected_offsets, time_offsets
+from graphcal.pipeline.methods.sensor_estimates import detected_offsets
 from graphcal.pipeline.methods.validation import position_errors
 from graphcal.pipeline.methods.whole_log import WholeLog
 from graphcal.pipeline.solvers.joint import solve_joint
@@ -196,14 +196,11 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
     segments = selected.subset(picked)
     log = solved.solved_log
     weights = solved.corrected.fix_weights
-    offsets = time_offsets(solved.estimated, log.runs)
     # As the corrected log: an offset not detected is not corrected, and its estimate (one
     # the drive does not show, run to −1.4 s through the time-offset rounds on a robot) is
     # no prior mean
-    value = np.array([e.value if e is not None and e.detected else 0.0 for e in offsets])
-    shift = np.array(
-        [whole_samples(o, log.dt) for o in detected_offsets(solved.estimated, log.runs)]
-    )
+    value = detected_offsets(solved.estimated, log.runs)
+    shift = np.array([whole_samples(o, log.dt) for o in value])
     shifted = shift_wheel_rotations(log, shift)
     # The folds weight the fixes as the whole log found them, and model slip as it decided:
     # a fold re-deciding either from half the segments costs 5–6 solves for what it knows.

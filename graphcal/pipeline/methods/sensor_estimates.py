@@ -206,14 +206,14 @@ class DownWeightedFixes:
         """From a solve's per-segment ``weights`` ``(S, K+1)`` over ``data`` gathered from a
         log with sample ``times``."""
         fixes = data.position_fixes()
-        total = int(fixes.sum())
-        if data.sample_index is not None:  # a fix two segments share counts once
-            total = len(np.unique(data.sample_index[fixes]))
-        if weights is None or data.sample_index is None:
+        if data.sample_index is None:
+            return cls(np.zeros(0, int), np.zeros(0), np.zeros(0), int(fixes.sum()))
+        fix_rows = np.zeros(len(times), bool)  # a fix two segments share counts once
+        fix_rows[data.sample_index[fixes]] = True
+        total = int(fix_rows.sum())
+        if weights is None:
             return cls(np.zeros(0, int), np.zeros(0), np.zeros(0), total)
         per_row = log_weights(data, weights, len(times))
-        fix_rows = np.zeros(len(times), bool)
-        fix_rows[data.sample_index[fixes]] = True
         rows = np.flatnonzero((per_row < DOWN_WEIGHTED) & fix_rows)
         return cls(rows, times[rows], per_row[rows], total)
 

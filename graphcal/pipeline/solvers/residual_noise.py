@@ -120,9 +120,10 @@ def residual_noise(
         if count < MIN_FEW_FIXES:
             continue
         part = residuals[..., columns]
-        rms = float(np.sqrt(np.mean(part[rows] ** 2)))
         if name == "position":
             rms = _position_rms(part, rows, directions, fast) * fitted_start_correction(rows, tied)
+        else:
+            rms = float(np.sqrt(np.mean(part[rows] ** 2)))
         # A heading's RMS is only ever raised to (with_noise_levels): from a few, too.
         if count >= MIN_NOISE_FIXES or name == "heading":
             out[name] = rms
@@ -130,7 +131,9 @@ def residual_noise(
         else:
             out["few_fixes"] = (count, rms)
     if "position" in out and data.sample_index is not None:
-        lags, gamma, pairs = travel_variogram(residuals[..., :2], used, data, tied)
+        lags, gamma, pairs = travel_variogram(
+            residuals[..., :2], used, data, tied, (directions, fast)
+        )
         fitted = drift_fit(lags, gamma, pairs)
         if fitted is not None:
             out["position_white"], out["position_drift"], out["fix_interval"] = fitted
@@ -240,28 +243,33 @@ def _position_rms(
 
 
 def travel_variogram(
-    residuals: np.ndarray, used: np.ndarray, data: SegmentData, tied: np.ndarray | None = None
+    residuals: np.ndarray,
+    used: np.ndarray,
+    data: SegmentData,
+    tied: np.ndarray | None = None,
+    travel: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`error_variogram` of the position ``residuals (S, K+1, 2)``: of their
     differences' component along the direction of travel from samples the track passes at
-    :data:`ALONG_TRACK_SPEED` or faster (:func:`travel_directions`), of both components from
-    the others, pooled (``pairs`` counts components)."""
-    directions, fast = travel_directions(data)
-    parts = [
-        error_variogram(residuals, used & fast, data, tied, directions=directions),
-        error_variogram(residuals, used & ~fast, data, tied),
-    ]
-    sums: dict[int, list[float]] = {}
-    for (lags, gamma, pairs), width in zip(parts, (1.0, 2.0), strict=True):
-        for step, g, n in zip(np.rint(lags / data.dt).astype(int), gamma, pairs, strict=True):
-            total = sums.setdefault(int(step), [0.0, 0.0])
-            total[0] += g * n * width
-            total[1] += n * width
-    steps = np.array(sorted(sums), int)
-    if not len(steps):
+    :data:`ALONG_TRACK_SPEED` or faster (``travel``: :func:`travel_directions`' directions
+    and fast samples, computed if not given), of both components from the others, pooled
+    (``pairs`` counts components)."""
+    directions, fast = travel_directions(data) if travel is None else travel
+    steps, weighted, counted = [], [], []
+    for (lags, gamma, pairs), width in (
+        (error_variogram(residuals, used & fast, data, tied, directions=directions), 1.0),
+        (error_variogram(residuals, used & ~fast, data, tied), 2.0),
+    ):
+        steps.append(np.rint(lags / data.dt).astype(int))
+        weighted.append(gamma * pairs * width)
+        counted.append(pairs * width)
+    step = np.concatenate(steps)
+    if not len(step):
         return np.zeros(0), np.zeros(0), np.zeros(0)
-    totals = np.array([sums[k] for k in steps])
-    return steps * data.dt, totals[:, 0] / totals[:, 1], totals[:, 1]
+    found = np.unique(step)
+    total = np.bincount(step, np.concatenate(counted))[found]
+    gamma = np.bincount(step, np.concatenate(weighted))[found] / total
+    return found * data.dt, gamma, total
 
 
 def error_variogram(
