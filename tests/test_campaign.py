@@ -11,6 +11,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 hypothesis = pytest.importorskip("hypothesis")
@@ -439,6 +440,25 @@ def test_a_skid_steer_robots_spins_are_not_heading_jumps(tmp_path: Path) -> None
     vehicle = graphcal.load_vehicle(tmp_path / "vehicle.toml")
     log, _ = graphcal.open_log(manifest, vehicle)
     assert not any("heading jumps" in note for note in log.mask_notes), log.mask_notes
+
+
+def test_a_course_of_positions_only_does_not_turn_towards_outlying_fixes(tmp_path: Path) -> None:
+    """Seed 35's shape 158 (a town car, 5 Hz fixes with 1 % of them 10–50 m off, no heading):
+    the course of the track, each segment's start heading, ran through the outliers and
+    turned by up to 2 rad for a second around each; a segment started there, its first solve
+    ran 300 m off, and the run ended "the information is singular", exit 2. Against the
+    wheels' yaw (nominal theta) the course may drift, but not jump."""
+    shape = _shape(gnss_rate=5.0, noise_sigma=0.2, noise_tau_s=7.0, outliers=0.01, seed=2511)
+    manifest = write_recording(shape, tmp_path)
+    vehicle = graphcal.load_vehicle(tmp_path / "vehicle.toml")
+    log, _ = graphcal.open_log(manifest, vehicle)
+    assert log.outlying is not None and log.outlying.sum() > 0
+    c_e, _, t_r, _ = vehicle.theta_nominal
+    wheel_yaw = np.cumsum(c_e * (log.n_rr - log.n_rl) / t_r)
+    second = round(1.0 / float(np.median(np.diff(log.t))))
+    change = np.abs((log.psi - wheel_yaw)[second:] - (log.psi - wheel_yaw)[:-second])
+    kept = ~log.masked[second:] & ~log.masked[:-second] if log.masked is not None else True
+    assert np.max(change[kept]) < 0.2  # rad over a second
 
 
 @pytest.mark.parametrize(

@@ -31,6 +31,7 @@ import dataclasses
 
 import numpy as np
 
+from graphcal.log.track import COURSE_MIN_REVS, course
 from graphcal.log.turns import fix_noise
 from graphcal.model import THETA_NOMINAL
 
@@ -364,7 +365,24 @@ def screen(log, *, nominal: np.ndarray = THETA_NOMINAL):
         changes.update(masked=mask, mask_notes=tuple(notes))
     if outlying.any():
         changes["outlying"] = outlying
+        if not log.heading_measured.any():  # the course ran through the spikes
+            changes["psi"] = _course_without(log, _back_to_the_fix_before(log, outlying), nominal)
     return dataclasses.replace(log, **changes) if changes else log
+
+
+def _course_without(log, flagged: np.ndarray, nominal: np.ndarray) -> np.ndarray:
+    """The heading [rad] of a log without a measured one — the course of its track minus the
+    sideslip — taken again on the track between the fixes not ``flagged (N,)``: a chord
+    reaching an outlying fix 10–50 m off turned a town car's course by up to 2 rad for a
+    second around each, a segment started there, and its first solve ran 300 m off."""
+    kept = log.position_measured & ~flagged
+    if kept.sum() < 2:
+        return log.psi
+    x = np.interp(log.t, log.t[kept], log.px[kept])
+    y = np.interp(log.t, log.t[kept], log.py[kept])
+    dt = float(np.median(np.diff(log.t)))
+    beta = 0.0 if log.beta is None else log.beta
+    return course(x, y, dt, min_distance=COURSE_MIN_REVS * nominal[0]) - beta
 
 
 def _back_to_the_fix_before(log, flagged: np.ndarray) -> np.ndarray:
