@@ -422,6 +422,29 @@ EXAMPLES = [
         # the chords' slope 6.0 ± 2.1 (2.1σ from the range), judged as log(ratio) with the
         # σ at the estimate (4σ): "the wheels travel 0.407x", refused
     ),
+    pytest.param(
+        _shape(
+            length_m=1268.0,
+            gnss_rate=20.0,
+            noise_sigma=0.97,
+            heading=True,
+            wheels="ticks",
+            ticks=657,
+            park_s=4.0,
+            time_offset_s=0.024,
+            lever_arm=(0.0, -0.23),
+            seed=19,
+            outage_s=50.0,
+            slip=0.0016,
+            mounting=(-1.0, -8.0, 97.0),
+            mounting_estimated=True,
+            sideslip=True,
+        ),
+        id="mounting-estimated-across-an-outage",  # seed 36's shape 57: the wheels scaled to
+        # metres by GNSS chords, one across the 50 s outage the straight line between its
+        # ends: 0.8 of their travel, the IMU's accelerations 1.25 times the wheels', the
+        # mounting "only to ±1.2°", refused (seed 35's shape 159 the same)
+    ),
 ]
 
 

@@ -47,7 +47,7 @@ from graphcal.recording.imu.frame import (
     to_vehicle,
     turn_axis,
 )
-from graphcal.recording.stream_grid import interval_means, wheel_rotations
+from graphcal.recording.stream_grid import interval_means, stream_gaps, wheel_rotations
 from graphcal.recording.streams import (
     PoseStream,
     StreamError,
@@ -117,7 +117,10 @@ class MountingEstimate:
 
 def _metres_per_revolution(pose: PoseStream, wheels: WheelStream) -> float | None:
     """The wheels' distance scale [m/rev]: the GNSS track's chords over the wheels'
-    revolutions, in :data:`SCALE_STEP_S` steps where the vehicle clearly moves."""
+    revolutions, in :data:`SCALE_STEP_S` steps where the vehicle clearly moves and neither
+    stream has a gap (a chord across a GNSS outage is the straight line between its ends,
+    not the path: a town car's 50 s outage scaled its wheels to 0.8 of their travel, its
+    accelerations read 1.25 times the wheels', and the mounting "only to ±1.2°")."""
     lo, hi = max(pose.t[0], wheels.t[0]), min(pose.t[-1], wheels.t[-1])
     edges = np.arange(lo, hi, SCALE_STEP_S)
     if len(edges) < 3:
@@ -127,6 +130,11 @@ def _metres_per_revolution(pose: PoseStream, wheels: WheelStream) -> float | Non
     )
     left, right = wheel_rotations(wheels, edges)
     revolutions = np.abs(0.5 * (left + right))[:-1]
+    gaps = np.array([*stream_gaps(pose.t), *stream_gaps(wheels.t)]).reshape(-1, 2)
+    across = ((edges[:-1, None] < gaps[:, 1]) & (edges[1:, None] > gaps[:, 0])).any(axis=1)
+    chords, revolutions = chords[~across], revolutions[~across]
+    if len(chords) < 2:
+        return None
     moving = chords > 0.2 * np.percentile(chords, 95)
     if not moving.any() or revolutions[moving].sum() <= 0:
         return None
