@@ -55,6 +55,9 @@ SLIP_LETTER = chr(gtsam.Symbol(keys.segment_slip(0)).chr())
 #: warm start's sample, :mod:`graphcal.pipeline.solvers.warm_start`): about 380 chunks in 32
 #: segments.
 SLIP_SCREEN_SEGMENTS = 32
+#: Cosines per minute of the screened log that the slow test (:class:`SlowSlipTest`)
+#: restricts slip to: variations whose half period is a minute or longer.
+SLOW_TERMS = 1.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +74,7 @@ class SlipTest:
     expected: float
     spread: float
     chunks: int
+    slow: SlowSlipTest | None = None
 
     @property
     def z(self) -> float:
@@ -80,14 +84,61 @@ class SlipTest:
         return scaled_chi2_deviate(self.statistic, self.expected, self.spread)
 
     def shown(self, alpha: float) -> bool:
-        """The log shows slip at false-alarm rate ``alpha``."""
-        return self.z > NormalDist().inv_cdf(1.0 - alpha)
+        """The log shows slip at false-alarm rate ``alpha``: the chunks' test or the slow
+        one (:class:`SlowSlipTest`) beyond its quantile of ``1 − alpha/2`` each."""
+        tests = 1 if self.slow is None else 2
+        limit = NormalDist().inv_cdf(1.0 - alpha / tests)
+        return self.z > limit or (self.slow is not None and self.slow.z > limit)
 
     def describe(self) -> str:
-        """``χ² lower by 216 with slip scales, 98 ± 11 without slip (z 10.4)``."""
-        return (
+        """``χ² lower by 216 with slip scales, 98 ± 11 without slip (z 10.4)``, and the
+        slow test's."""
+        line = (
             f"χ² lower by {self.statistic:.0f} with slip scales on {self.chunks} chunks, "
             f"{self.expected:.0f} ± {self.spread:.0f} without slip (z {self.z:.1f})"
+        )
+        return line if self.slow is None else f"{line}; {self.slow.describe()}"
+
+    def to_dict(self) -> dict:
+        """Plain data for ``calibration.json``."""
+        out = {
+            "chi2_drop": self.statistic,
+            "expected_without_slip": self.expected,
+            "sigma_without_slip": self.spread,
+            "z": self.z,
+            "chunks": self.chunks,
+        }
+        if self.slow is not None:
+            out["slow"] = self.slow.to_dict()
+        return out
+
+
+@dataclass(frozen=True)
+class SlowSlipTest:
+    """The same score test against slip that varies slowly over the log: the chunks' scales
+    restricted to :data:`SLOW_TERMS` ``per minute`` cosines of the log's time, each wheel's
+    mean and their difference (the constant of each is c_e's and c_d's, eliminated).
+
+    Attributes:
+        statistic, expected, spread: T over those directions and its null mean and σ.
+        terms: the directions tested.
+    """
+
+    statistic: float
+    expected: float
+    spread: float
+    terms: int
+
+    @property
+    def z(self) -> float:
+        """T's standard normal deviate under its null distribution (as :attr:`SlipTest.z`)."""
+        return scaled_chi2_deviate(self.statistic, self.expected, self.spread)
+
+    def describe(self) -> str:
+        """``slowly: 59 against 8 ± 4 (z 6.1)``."""
+        return (
+            f"slowly over the log: {self.statistic:.0f} against {self.expected:.0f} ± "
+            f"{self.spread:.0f} (z {self.z:.1f})"
         )
 
     def to_dict(self) -> dict:
@@ -97,7 +148,7 @@ class SlipTest:
             "expected_without_slip": self.expected,
             "sigma_without_slip": self.spread,
             "z": self.z,
-            "chunks": self.chunks,
+            "terms": self.terms,
         }
 
 
@@ -131,7 +182,7 @@ def with_slip_if_shown(
     screened = spread(len(data), SLIP_SCREEN_SEGMENTS)
     screen = build_segment_graph(weighted.take(screened), spec)
     at_solution = _moved(solved.result, screened, screen.values, shared_keys(spec))
-    test = _slip_test(screen, at_solution, spec, workers)
+    test = _slip_test(screen, at_solution, spec, workers, weighted.take(screened))
     if not test.shown(alpha):
         return solved, test
     with_slip, initial = screen, at_solution
@@ -143,11 +194,16 @@ def with_slip_if_shown(
 
 
 def _slip_test(
-    screen: BuiltGraph, at_solution: gtsam.Values, spec: SegmentGraphSpec, workers: int
+    screen: BuiltGraph,
+    at_solution: gtsam.Values,
+    spec: SegmentGraphSpec,
+    workers: int,
+    segments: SegmentData,
 ) -> SlipTest:
-    """The score test of the module docstring on ``screen`` (a graph with slip scales) at
-    ``at_solution``: every other variable eliminated down to the graph-wide ones and the
-    slip scales, then the graph-wide ones eliminated too."""
+    """The score test of the module docstring on ``screen`` (a graph with slip scales of
+    ``segments``) at ``at_solution``: every other variable eliminated down to the
+    graph-wide ones and the slip scales, then the graph-wide ones eliminated too; and the
+    slow test (:class:`SlowSlipTest`) on the same reduced system."""
     base = shared_keys(spec)
     slip = [int(k) for k in screen.values.keys() if chr(gtsam.Symbol(k).chr()) == SLIP_LETTER]
     screening = PartitionedGraph(screen.graph, at_solution, base + slip)
@@ -170,12 +226,56 @@ def _slip_test(
     noise = projection @ data[:n, :n] @ projection.T  # the score's covariance without slip
     ratio = np.linalg.solve(reduced, noise)
     chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
+    basis = _slow_basis(slip, screen.bounds, segments)
+    slow = None
+    if basis is not None:
+        statistic, expected, spread_ = _restricted(score, reduced, noise, basis)
+        slow = SlowSlipTest(statistic, expected, spread_, basis.shape[1])
     return SlipTest(
         statistic=float(score @ np.linalg.solve(reduced, score)),
         expected=float(np.trace(ratio)),
         spread=float(np.sqrt(2.0 * np.trace(ratio @ ratio))),
         chunks=chunks,
+        slow=slow,
     )
+
+
+def _restricted(
+    score: np.ndarray, reduced: np.ndarray, noise: np.ndarray, basis: np.ndarray
+) -> tuple[float, float, float]:
+    """The score test with the slip scales restricted to ``basis``'s columns ``(m, q)``:
+    T, its null mean and σ (as the full test's, on ``Bᵀ A B`` and ``Bᵀ H B``)."""
+    information = basis.T @ reduced @ basis
+    projected = basis.T @ score
+    ratio = np.linalg.solve(information, basis.T @ noise @ basis)
+    statistic = float(projected @ np.linalg.solve(information, projected))
+    return statistic, float(np.trace(ratio)), float(np.sqrt(2.0 * np.trace(ratio @ ratio)))
+
+
+def _slow_basis(slip: list[int], bounds: list[np.ndarray], data: SegmentData) -> np.ndarray | None:
+    """``(2 × len(slip), q)``: slip that varies slowly over the log, as the slip scales of
+    ``slip``'s chunks (keys in order, two scales each) — cosines ``cos(π j τ)`` of the
+    chunk's time ``τ`` in [0, 1] over the screened samples, ``j = 1 …``
+    :data:`SLOW_TERMS` per minute of it (at least 2), on the wheels' mean and on their
+    difference; ``None`` without sample rows or slip scales."""
+    if data.sample_index is None or not slip:
+        return None
+    middle = np.empty(len(slip))
+    for i, key in enumerate(slip):
+        segment = keys.segment_of(key)
+        chunk = int(gtsam.Symbol(key).index()) % keys.SEGMENT_STRIDE
+        edges = bounds[segment]
+        middle[i] = data.sample_index[segment, (edges[chunk] + edges[chunk + 1]) // 2]
+    span = float(np.ptp(middle))
+    if span <= 0:
+        return None
+    minutes = span * float(data.dt) / 60.0
+    terms = max(2, int(np.ceil(SLOW_TERMS * minutes)))
+    tau = (middle - middle.min()) / span
+    cosines = np.cos(np.pi * np.outer(tau, np.arange(1, terms + 1)))  # (chunks, terms)
+    mean = np.kron(cosines, np.array([[1.0], [1.0]]))  # rows: s_rl, s_rr of each chunk
+    difference = np.kron(cosines, np.array([[1.0], [-1.0]]))
+    return np.hstack([mean, difference]) / np.sqrt(2.0)
 
 
 def _released(solution: SolvedGraph) -> SolvedGraph:
