@@ -484,6 +484,34 @@ def test_a_course_of_positions_only_does_not_turn_towards_outlying_fixes(tmp_pat
     assert np.max(change[kept]) < 0.2  # rad over a second
 
 
+def test_a_straight_roads_warm_start_holds_what_its_segments_run_away_with(
+    tmp_path: Path,
+) -> None:
+    """Seed 37's shape 11 (a 2.1 km straight road, 2.5 Hz fixes, a heading): each 150 m
+    segment on its own ran t_r out of range (0.12 m), the warm start gave up, the tied log
+    was integrated with the nominal c_d, drifted 390 m from its fixes, and the run ended
+    "covariance: indeterminate", exit 2. Held at its prior, the rest of theta is a start."""
+    from graphcal.graph.construction import keys
+    from graphcal.graph.optimization.solve_options import SolveOptions
+    from graphcal.log.segments import gather_segments, split_segments
+    from graphcal.pipeline.solvers.joint_settings import JointSettings
+    from graphcal.pipeline.solvers.warm_start import warm_start
+
+    shape = _shape(
+        route="straight", length_m=2090.0, gnss_rate=2.5, noise_sigma=0.84, heading=True,
+        wheels="ticks", ticks=784, park_s=1.0, lever_arm=(0.65, 0.0), seed=784,
+    )  # fmt: skip
+    manifest = write_recording(shape, tmp_path)
+    vehicle = graphcal.load_vehicle(tmp_path / "vehicle.toml")
+    log, _ = graphcal.open_log(manifest, vehicle)
+    data = gather_segments(log, split_segments(log, 150.0))
+    start = warm_start(data, JointSettings().graph_spec(), SolveOptions(50, 1e-7))
+    assert start is not None
+    theta = start[keys.THETA]
+    assert abs(theta[0] - 1.99) < 0.01 and abs(theta[1] - 0.0008) < 0.0003  # the twin's
+    assert theta[2] == pytest.approx(vehicle.theta_nominal[2])
+
+
 @pytest.mark.parametrize(
     ("axes", "left_out", "held"),
     [(STRAIGHT_POSITIONS_ONLY, True, True), ({}, False, False)],
