@@ -200,10 +200,8 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     if check.without_slip:
         joint = dataclasses.replace(prepared.settings.joint, slip="off")
         left_out = prepared.left_out
-    elif check.theta_alone:  # from the noise levels found, not the profile's again
-        found = solved.corrected.settings.joint
-        found = dataclasses.replace(found, held_at_prior=prepared.settings.joint.held_at_prior)
-        joint, left_out = theta_alone(found), {}
+    elif check.theta_alone:
+        joint, left_out = theta_alone(prepared.settings.joint), {}
     else:
         return solved, check
     simpler = dataclasses.replace(
