@@ -224,31 +224,22 @@ def _slip_test(
     projection = np.hstack([-gain, np.eye(n - k)])
     score = projection @ gradient
     noise = projection @ data[:n, :n] @ projection.T  # the score's covariance without slip
-    ratio = np.linalg.solve(reduced, noise)
     chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
     basis = _slow_basis(slip, screen.bounds, segments)
     slow = None
-    if basis is not None:
-        statistic, expected, spread_ = _restricted(score, reduced, noise, basis)
-        slow = SlowSlipTest(statistic, expected, spread_, basis.shape[1])
-    return SlipTest(
-        statistic=float(score @ np.linalg.solve(reduced, score)),
-        expected=float(np.trace(ratio)),
-        spread=float(np.sqrt(2.0 * np.trace(ratio @ ratio))),
-        chunks=chunks,
-        slow=slow,
-    )
+    if basis is not None:  # the same test on B's directions: Bᵀ g, Bᵀ A B, Bᵀ H B
+        restricted = (basis.T @ score, basis.T @ reduced @ basis, basis.T @ noise @ basis)
+        slow = SlowSlipTest(*_score_test(*restricted), basis.shape[1])
+    return SlipTest(*_score_test(score, reduced, noise), chunks=chunks, slow=slow)
 
 
-def _restricted(
-    score: np.ndarray, reduced: np.ndarray, noise: np.ndarray, basis: np.ndarray
+def _score_test(
+    score: np.ndarray, information: np.ndarray, noise: np.ndarray
 ) -> tuple[float, float, float]:
-    """The score test with the slip scales restricted to ``basis``'s columns ``(m, q)``:
-    T, its null mean and σ (as the full test's, on ``Bᵀ A B`` and ``Bᵀ H B``)."""
-    information = basis.T @ reduced @ basis
-    projected = basis.T @ score
-    ratio = np.linalg.solve(information, basis.T @ noise @ basis)
-    statistic = float(projected @ np.linalg.solve(information, projected))
+    """T = gᵀ A⁻¹ g of a ``score`` g with ``information`` A, and its null mean tr(A⁻¹H) and
+    σ √(2 tr((A⁻¹H)²)) for the score's covariance ``noise`` H (module docstring)."""
+    ratio = np.linalg.solve(information, noise)
+    statistic = float(score @ np.linalg.solve(information, score))
     return statistic, float(np.trace(ratio)), float(np.sqrt(2.0 * np.trace(ratio @ ratio)))
 
 
