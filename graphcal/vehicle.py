@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from graphcal.errors import check_settings
-from graphcal.model import C_E, T_R, THETA_NOMINAL, THETA_PRIOR_SIGMAS, D
+from graphcal.model import C_E, PARAMETER_NAMES, T_R, THETA_NOMINAL, THETA_PRIOR_SIGMAS
 
 #: The paper's position noise [m] (§3.3) and heading sigma [rad] that, with it, gives the
 #: paper's pose weights W = [1, 1, 50]: 0.2 / sqrt(50) = 0.028 rad (1.6°).
@@ -42,6 +42,16 @@ PAPER_HEADING_SIGMA = PAPER_POSITION_SIGMA / math.sqrt(50.0)
 #: 10⁻⁷ s² of its nominal (0.1 µrad of yaw per m/s² of lateral acceleration and m of travel)
 #: while the solve's normal equations stay well conditioned.
 HELD_SIGMA_SCALE = 1e-4
+
+
+def held_prior_sigmas(sigmas, held: tuple[str, ...] | list[str]) -> np.ndarray:
+    """``(4,)`` theta prior ``sigmas`` with those of the parameters named in ``held``
+    (:data:`~graphcal.model.PARAMETER_NAMES`) :data:`HELD_SIGMA_SCALE` times as large: held
+    at the prior's mean."""
+    out = np.array(sigmas, dtype=float)
+    for name in held:
+        out[PARAMETER_NAMES.index(name)] *= HELD_SIGMA_SCALE
+    return out
 
 
 @dataclass(frozen=True)
@@ -138,10 +148,7 @@ class VehicleProfile:
     def solve_prior_sigmas(self) -> np.ndarray:
         """The theta prior's sigmas a solve uses: ``theta_prior_sigmas``, with d's
         :data:`HELD_SIGMA_SCALE` times as large when ``fix_d`` (held at its nominal)."""
-        sigmas = np.array(self.theta_prior_sigmas, dtype=float)
-        if self.fix_d:
-            sigmas[D] *= HELD_SIGMA_SCALE
-        return sigmas
+        return held_prior_sigmas(self.theta_prior_sigmas, ("d",) if self.fix_d else ())
 
     def size_scale(self) -> float:
         """The vehicle's size relative to the paper's car: nominal track / 1.55 m (1 for the

@@ -18,8 +18,8 @@ from graphcal.graph.solution.observability import (
     Observability,
     assess_observability,
 )
-from graphcal.model import PARAMETER_NAMES, THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
-from graphcal.vehicle import HELD_SIGMA_SCALE
+from graphcal.model import THETA_NOMINAL, THETA_PRIOR_SIGMAS, reference_sigmas
+from graphcal.vehicle import held_prior_sigmas
 
 #: Largest prior mean [s] of the wheels' time offset: the graph shifts the rotations to first
 #: order, which holds for tens of milliseconds, not for seconds.
@@ -153,10 +153,7 @@ class JointSettings:
         """``(4,)`` the theta prior's sigmas a solve uses: ``theta_prior_sigmas``, those of
         the parameters ``held_at_prior`` :data:`~graphcal.vehicle.HELD_SIGMA_SCALE` times as
         large. A held parameter's uncertainty is still its ``theta_prior_sigmas``'."""
-        sigmas = np.array(self.theta_prior_sigmas, dtype=float)
-        for name in self.held_at_prior:
-            sigmas[PARAMETER_NAMES.index(name)] *= HELD_SIGMA_SCALE
-        return sigmas
+        return held_prior_sigmas(self.theta_prior_sigmas, self.held_at_prior)
 
     def observability(self, covariance: np.ndarray) -> Observability:
         """What a solve's theta ``covariance`` (under this prior) says the data determined,

@@ -27,9 +27,9 @@ from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.solution.plausibility import ImplausibleTheta
 from graphcal.graph.solution.segment_solve import BuilderStart, solve_segment_graph
 from graphcal.log.segments import SegmentData, spread
-from graphcal.model import PARAMETER_NAMES, integrate
+from graphcal.model import integrate
 from graphcal.progress import say
-from graphcal.vehicle import HELD_SIGMA_SCALE
+from graphcal.vehicle import held_prior_sigmas
 
 #: Segments of the sample a warm start solves.
 WARM_START_SEGMENTS = 32
@@ -132,10 +132,9 @@ def _holding(spec: SegmentGraphSpec, names: tuple[str, ...]) -> SegmentGraphSpec
     and its positions 390 m from the fixes, and the solve never recovered (exit 2)."""
     if spec.theta_prior_sigmas is None:
         return spec
-    sigmas = np.array(spec.theta_prior_sigmas, float)
-    for name in names:
-        sigmas[PARAMETER_NAMES.index(name)] *= HELD_SIGMA_SCALE
-    return dataclasses.replace(spec, theta_prior_sigmas=sigmas)
+    return dataclasses.replace(
+        spec, theta_prior_sigmas=held_prior_sigmas(spec.theta_prior_sigmas, names)
+    )
 
 
 def coarse_theta(
