@@ -61,20 +61,13 @@ SLOW_TERMS = 1.0
 
 
 @dataclass(frozen=True)
-class SlipTest:
-    """The slip screen's statistic and its null distribution (module docstring).
-
-    Attributes:
-        statistic: T, how much one Gauss–Newton step with slip scales lowers χ².
-        expected, spread: T's mean and standard deviation without slip.
-        chunks: the chunks screened (two slip scales each).
-    """
+class ScoreStatistic:
+    """A score test's statistic T (how much one Gauss–Newton step with the tested slip
+    scales lowers χ²) and its null distribution's mean ``expected`` and σ ``spread``."""
 
     statistic: float
     expected: float
     spread: float
-    chunks: int
-    slow: SlowSlipTest | None = None
 
     @property
     def z(self) -> float:
@@ -82,6 +75,46 @@ class SlipTest:
         and σ (:func:`~graphcal.statistics.scaled_chi2_deviate`: few chunks give a skewed,
         heavy-tailed T; many, ``(T − E)/σ``)."""
         return scaled_chi2_deviate(self.statistic, self.expected, self.spread)
+
+    def statistics(self) -> dict:
+        """T, its null mean and σ and z, for ``calibration.json``."""
+        return {
+            "chi2_drop": self.statistic,
+            "expected_without_slip": self.expected,
+            "sigma_without_slip": self.spread,
+            "z": self.z,
+        }
+
+
+@dataclass(frozen=True)
+class SlowSlipTest(ScoreStatistic):
+    """The same score test against slip that varies slowly over the log: the chunks' scales
+    restricted to :data:`SLOW_TERMS` ``per minute`` cosines of the log's time, each wheel's
+    mean and their difference (the constant of each is c_e's and c_d's, eliminated);
+    ``terms``: the directions tested."""
+
+    terms: int
+
+    def describe(self) -> str:
+        """``slowly over the log: 59 against 8 ± 4 (z 6.1)``."""
+        return (
+            f"slowly over the log: {self.statistic:.0f} against {self.expected:.0f} ± "
+            f"{self.spread:.0f} (z {self.z:.1f})"
+        )
+
+    def to_dict(self) -> dict:
+        """Plain data for ``calibration.json``."""
+        return {**self.statistics(), "terms": self.terms}
+
+
+@dataclass(frozen=True)
+class SlipTest(ScoreStatistic):
+    """The slip screen's statistic over every chunk's scales and its null distribution
+    (module docstring); ``chunks``: the chunks screened (two slip scales each); ``slow``: the
+    slow test on the same reduced system."""
+
+    chunks: int
+    slow: SlowSlipTest | None = None
 
     def shown(self, alpha: float) -> bool:
         """The log shows slip at false-alarm rate ``alpha``: the chunks' test or the slow
@@ -101,55 +134,10 @@ class SlipTest:
 
     def to_dict(self) -> dict:
         """Plain data for ``calibration.json``."""
-        out = {
-            "chi2_drop": self.statistic,
-            "expected_without_slip": self.expected,
-            "sigma_without_slip": self.spread,
-            "z": self.z,
-            "chunks": self.chunks,
-        }
+        out = {**self.statistics(), "chunks": self.chunks}
         if self.slow is not None:
             out["slow"] = self.slow.to_dict()
         return out
-
-
-@dataclass(frozen=True)
-class SlowSlipTest:
-    """The same score test against slip that varies slowly over the log: the chunks' scales
-    restricted to :data:`SLOW_TERMS` ``per minute`` cosines of the log's time, each wheel's
-    mean and their difference (the constant of each is c_e's and c_d's, eliminated).
-
-    Attributes:
-        statistic, expected, spread: T over those directions and its null mean and σ.
-        terms: the directions tested.
-    """
-
-    statistic: float
-    expected: float
-    spread: float
-    terms: int
-
-    @property
-    def z(self) -> float:
-        """T's standard normal deviate under its null distribution (as :attr:`SlipTest.z`)."""
-        return scaled_chi2_deviate(self.statistic, self.expected, self.spread)
-
-    def describe(self) -> str:
-        """``slowly: 59 against 8 ± 4 (z 6.1)``."""
-        return (
-            f"slowly over the log: {self.statistic:.0f} against {self.expected:.0f} ± "
-            f"{self.spread:.0f} (z {self.z:.1f})"
-        )
-
-    def to_dict(self) -> dict:
-        """Plain data for ``calibration.json``."""
-        return {
-            "chi2_drop": self.statistic,
-            "expected_without_slip": self.expected,
-            "sigma_without_slip": self.spread,
-            "z": self.z,
-            "terms": self.terms,
-        }
 
 
 def with_slip_if_shown(
