@@ -396,10 +396,11 @@ def _back_to_the_fix_before(log, flagged: np.ndarray) -> np.ndarray:
         return out
     starts = np.array([a for a, _ in runs(flagged)])
     at = np.searchsorted(fixes, starts)
-    before = np.where(at > 0, fixes[np.maximum(at - 1, 0)], -1)
-    for first, start in zip(before + 1, starts, strict=True):
-        out[first:start] = True
-    return out
+    first = np.where(at > 0, fixes[np.maximum(at - 1, 0)], -1) + 1  # ≤ its run's start
+    cover = np.zeros(len(out) + 1, dtype=np.int64)
+    np.add.at(cover, first, 1)
+    np.add.at(cover, starts, -1)
+    return out | (np.cumsum(cover[:-1]) > 0)
 
 
 def _metres(distance: float, circumference: float) -> str:
