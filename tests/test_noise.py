@@ -10,7 +10,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.log.noise import heading_noise, position_noise, rate_wheel_noise
+from graphcal.log.noise import MIN_FIX_TRIPLES, heading_noise, position_noise, rate_wheel_noise
 from graphcal.log.quantization import quantization_sigma
 from graphcal.model import THETA_NOMINAL
 from graphcal.simulate.defects import degrade, parse_defects
@@ -163,6 +163,33 @@ def test_the_fixes_white_noise_is_read_from_their_second_differences(sigma, defe
     drive = simulate_drive(4.0, seed=3, noise=NoiseLevels(position=sigma))
     log = degrade(drive, parse_defects(defects), 3).measured
     assert position_noise(log, THETA_NOMINAL) == pytest.approx(sigma, rel=0.05)
+
+
+@pytest.mark.parametrize(("rate", "sigma"), [(50.0, 0.45), (0.5, 2.0)])
+def test_the_fixes_noise_is_read_from_fixes_at_uneven_times(tmp_path, rate, sigma):
+    """A robot's 50 Hz receiver on the 40 Hz log (intervals of 20 and 40 ms) and a 0.5 Hz
+    one whose fixes arrive ±25 ms about their grid: no two intervals alike, the noise read
+    all the same (``None`` before: only evenly spaced triples counted, and the first solve
+    weighted fixes of 0.45 m as the profile's 0.05 m and crept)."""
+    from campaign.recording import write_recording
+    from campaign.shape import Shape
+
+    from graphcal.pipeline.configuration.settings_file import load_vehicle
+    from graphcal.recording.open_log import open_log
+
+    shape = Shape(
+        vehicle="differential", route="yard", length_m=220.0, gnss_rate=rate,
+        noise_sigma=sigma, noise_tau_s=0.0, heading=False, imu=False, wheels="speed", ticks=0,
+        drives=1, gap_s=0.0, park_s=0.0, time_offset_s=0.0, lever_arm=(0.0, 0.0), seed=539,
+    )  # fmt: skip
+    manifest = write_recording(shape, tmp_path)
+    vehicle = load_vehicle(tmp_path / "vehicle.toml")
+    log, _ = open_log(manifest, vehicle)
+    fixes = log.t[log.position_measured] - log.fix_lag[log.position_measured]
+    spacing = np.diff(fixes)
+    alike = np.abs(np.diff(spacing)) <= 1e-3 * (spacing[1:] + spacing[:-1])
+    assert alike.sum() < MIN_FIX_TRIPLES  # too few evenly spaced triples to read them on
+    assert position_noise(log, vehicle.theta_nominal) == pytest.approx(sigma, rel=0.1)
 
 
 def test_a_first_solve_weights_fixes_far_noisier_than_the_settings_assume():

@@ -194,13 +194,23 @@ MIN_FIX_TRIPLES = 100
 #: A fix triple counts only where the wheels' odometry moves its second difference by less
 #: than this share of the fixes' median one: there the noise, not the motion, makes it.
 MOTION_SHARE = 0.5
+#: A fix triple counts only where its longer interval is at most this many times its shorter
+#: one (a fix left out between them, a 50 Hz receiver's on a 40 Hz log, is still a triple).
+MAX_INTERVAL_RATIO = 2.5
 
 
 def position_noise(log: DriveLog, nominal: np.ndarray) -> float | None:
     """White noise σ [m] per axis of the measured positions, from the second differences of
-    consecutive, evenly spaced usable fixes (not masked, not flagged) of one run, less the
-    motion the wheels' odometry (``nominal`` theta) puts in them, or ``None`` for fewer than
+    consecutive usable fixes (not masked, not flagged) of one run, less the motion the
+    wheels' odometry (``nominal`` theta) puts in them, or ``None`` for fewer than
     :data:`MIN_FIX_TRIPLES` triples.
+
+    Fixes need not be evenly spaced (a 50 Hz receiver on a 40 Hz log, a 0.5 Hz one whose
+    fixes arrive ±25 ms about their grid): a triple at times ``t0 < t1 < t2`` is combined as
+    ``h2 p0 − (h1 + h2) p1 + h1 p2`` (``h1 = t1 − t0``, ``h2 = t2 − t1``: zero for any motion
+    at constant velocity), scaled to the ``6 σ²`` per axis of ``[1, −2, 1]``; triples whose
+    two intervals differ more than :data:`MAX_INTERVAL_RATIO` times, or either spans a gap,
+    are left out.
 
     Without a heading the motion's direction in the fixes' frame is unknown, its size is not:
     ``|Δ²p|² − |Δ²q|²`` (``q`` the odometry's positions at the fixes' times) has median about
@@ -227,15 +237,24 @@ def position_noise(log: DriveLog, nominal: np.ndarray) -> float | None:
         for f in (np.cos, np.sin)
     ]
     spacing = np.diff(times)
+    before, after = spacing[:-1], spacing[1:]
     gap = GAP_INTERVALS * float(np.median(spacing))
-    even = np.abs(spacing[1:] - spacing[:-1]) <= 1e-3 * (spacing[1:] + spacing[:-1])
-    even &= (spacing[1:] <= gap) & (spacing[:-1] <= gap) & (spacing[:-1] > 0)
+    kept = (before > 0) & (after > 0) & (before <= gap) & (after <= gap)
+    kept &= np.maximum(before, after) <= MAX_INTERVAL_RATIO * np.minimum(before, after)
     if log.run is not None:
         run = np.asarray(log.run)[rows]
-        even &= run[:-2] == run[2:]
-    fix_second = np.hypot(*(np.diff(np.stack([log.px[rows], log.py[rows]]), 2, axis=1)))
-    motion = np.hypot(*(np.diff(np.stack(odometry), 2, axis=1)))
-    fix_second, motion = fix_second[even], motion[even]
+        kept &= run[:-2] == run[2:]
+    before, after = before[kept], after[kept]
+    # h2 p0 − (h1 + h2) p1 + h1 p2, scaled so that its coefficients' squares sum to 6
+    scale = np.sqrt(6.0 / (after**2 + (before + after) ** 2 + before**2))
+    coefficients = scale * np.stack([after, -(before + after), before])
+
+    def second(values: np.ndarray) -> np.ndarray:
+        triples = np.stack([values[:-2], values[1:-1], values[2:]])[:, kept]
+        return np.sum(coefficients * triples, axis=0)
+
+    fix_second = np.hypot(second(log.px[rows]), second(log.py[rows]))
+    motion = np.hypot(second(odometry[0]), second(odometry[1]))
     if len(fix_second) < MIN_FIX_TRIPLES:
         return None
     quiet = motion < MOTION_SHARE * float(np.median(fix_second))
