@@ -146,7 +146,11 @@ def test_cli_joint_method_end_to_end(drive, tmp_path, capsys):
         assert low < entry["value"] < high
         # The truth lies within 4 sigma of the recommended value (the interval is honest).
         assert abs(entry["value"] - truth) < 4 * entry["sigma"]
-        assert entry["cramer_rao_sigma"] == pytest.approx(entry["sigma"], rel=0.1)
+        # The data's own σ is the Cramér–Rao bound; the σ reported adds slow slip that no
+        # test can show (a drive's middle weighs more in a fit than its ends).
+        scale = doc["wheel_slip"]["sigma_scale_for_unseen_slip"][name]
+        assert entry["cramer_rao_sigma"] == pytest.approx(entry["sigma"] / scale, rel=0.1)
+        assert scale >= 1.0
     assert (out / "batch_intervals.png").is_file()
     theta = np.array([doc["theta"][n] for n in ("c_e", "c_d", "t_r", "d")])
     assert np.all(np.abs(theta - drive.theta_true) < [1e-3, 0.3e-3, 15e-3, 0.3e-3])

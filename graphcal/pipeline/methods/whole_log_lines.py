@@ -33,7 +33,14 @@ def slip_line(whole: JointCalibration, settings: JointSettings) -> str:
     test = whole.slip_test.describe()
     if whole.slip_modelled:
         return f"slow wheel slip found ({test}): modelled; σ includes it"
-    return f"no slow wheel slip ({test}; limit at a false-alarm rate of {settings.slip_alpha:g})"
+    line = f"no slow wheel slip ({test}; limit at a false-alarm rate of {settings.slip_alpha:g})"
+    scale = whole.slip_test.unseen_slip_scale()
+    if scale is None:
+        return line
+    return (
+        f"{line}; c_e's σ ×{scale[0]:.2f} for slow slip of {100 * settings.unseen_slip_sigma:g} % "
+        f"over {settings.unseen_slip_time:g} s that no test can show ([joint] unseen_slip_sigma)"
+    )
 
 
 def estimate_lines(

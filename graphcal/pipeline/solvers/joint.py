@@ -35,7 +35,7 @@ from graphcal.log.segments import SegmentData
 from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import ResidualNoise, residual_noise
 from graphcal.pipeline.solvers.robust import FirstRound, RoundsStart, solve_segment_graph_robust
-from graphcal.pipeline.solvers.slip_screen import SlipTest, with_slip_if_shown
+from graphcal.pipeline.solvers.slip_screen import SlipTest, UnseenSlip, with_slip_if_shown
 from graphcal.pipeline.solvers.warm_start import warm_start_solution
 from graphcal.progress import Progress, reports_progress, say
 
@@ -136,8 +136,9 @@ def solve_joint(
         solved = with_covariance(solved, options.label, options.workers)
     elif auto:
         slip = settings.graph_spec(slip=True)
+        unseen = UnseenSlip(settings.unseen_slip_sigma, settings.unseen_slip_time)
         solved, statistic = with_slip_if_shown(
-            solved, data, weights, slip, settings.slip_alpha, options
+            solved, data, weights, slip, settings.slip_alpha, options, unseen
         )
     observability = settings.observability(solved.covariance)
     calibration = JointCalibration(

@@ -59,6 +59,12 @@ class JointSettings:
         slip_alpha: with ``slip = "auto"``, the false-alarm rate of the slip screen's test
             (:mod:`graphcal.pipeline.solvers.slip_screen`): slip is modelled when adding it lowers
             χ² by more than the data's own noise would at this rate.
+        unseen_slip_sigma: relative σ of the slow variation of the wheels' effective
+            circumference (speed, load, tyre temperature) that a drive cannot show: where slip
+            is not modelled, theta's σ includes what it moves the solved theta by
+            (:func:`~graphcal.pipeline.solvers.slip_screen.unseen_slip_covariance`;
+            0.001 = 0.1 %; 0: the data's σ alone).
+        unseen_slip_time: its correlation time [s].
         time_offset_sigma: prior sigma [s] of the wheels' time offset against the pose,
             estimated with theta (0: not estimated).
         time_offset_mean: that prior's mean [s]: the offset left in the log's wheels after
@@ -119,6 +125,8 @@ class JointSettings:
     slip_sigma: float = 0.0015
     slip_time: float = 5.0
     slip_alpha: float = 1e-3
+    unseen_slip_sigma: float = 1e-3
+    unseen_slip_time: float = 120.0
     time_offset_sigma: float = 0.5
     time_offset_mean: float = 0.0
     lever_arm_sigma: float = 2.0
@@ -201,10 +209,12 @@ class JointSettings:
                 "fix_error_time": self.fix_error_time,
                 "slip_sigma": self.slip_sigma,
                 "slip_alpha": self.slip_alpha,
+                "unseen_slip_time": self.unseen_slip_time,
                 "max_sigma_ratio": self.max_sigma_ratio,
             },
             non_negative={
                 "smoothness_weight": self.smoothness_weight,
+                "unseen_slip_sigma": self.unseen_slip_sigma,
                 "tick_quantization": self.tick_quantization,
                 "time_offset_sigma": self.time_offset_sigma,
                 "lever_arm_sigma": self.lever_arm_sigma,

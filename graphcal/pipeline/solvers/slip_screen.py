@@ -46,8 +46,11 @@ from graphcal.graph.solution.covariance import with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.log.segments import SegmentData, spread
+from graphcal.model import PARAMETER_NAMES
 from graphcal.statistics import scaled_chi2_deviate
 
+#: Theta's dimension (c_e, c_d, t_r, d): the first rows of the graph-wide variables.
+THETA_SIZE = len(PARAMETER_NAMES)
 #: The key letter of the slip scales (:func:`graphcal.graph.construction.keys.segment_slip`).
 SLIP_LETTER = chr(gtsam.Symbol(keys.segment_slip(0)).chr())
 
@@ -115,6 +118,11 @@ class SlipTest(ScoreStatistic):
 
     chunks: int
     slow: SlowSlipTest | None = None
+    #: ``(4, 4)`` theta's covariance from slow slip of the wheels' effective circumference
+    #: that no test can show (:func:`unseen_slip_covariance`) on the screened segments, in
+    #: units of their own statistical σ (a correlation-like matrix, scaled to the whole
+    #: log's σ where it is used); ``None`` where none is assumed.
+    unseen_slip: np.ndarray | None = None
 
     def shown(self, alpha: float) -> bool:
         """The log shows slip at false-alarm rate ``alpha``: the chunks' test or the slow
@@ -132,11 +140,22 @@ class SlipTest(ScoreStatistic):
         )
         return line if self.slow is None else f"{line}; {self.slow.describe()}"
 
+    def unseen_slip_scale(self) -> np.ndarray | None:
+        """``(4,)`` how many times the data's σ of each parameter its σ with the unseen slip
+        is (:attr:`unseen_slip`; ``None`` without one)."""
+        if self.unseen_slip is None:
+            return None
+        return np.sqrt(1.0 + np.clip(np.diag(self.unseen_slip), 0.0, None))
+
     def to_dict(self) -> dict:
         """Plain data for ``calibration.json``."""
         out = {**self.statistics(), "chunks": self.chunks}
         if self.slow is not None:
             out["slow"] = self.slow.to_dict()
+        scale = self.unseen_slip_scale()
+        if scale is not None:
+            pairs = zip(PARAMETER_NAMES, scale, strict=True)
+            out["sigma_scale_for_unseen_slip"] = {name: float(v) for name, v in pairs}
         return out
 
 
@@ -147,9 +166,12 @@ def with_slip_if_shown(
     spec: SegmentGraphSpec,
     alpha: float,
     options: SolveOptions,
+    unseen: UnseenSlip | None = None,
 ) -> tuple[SolvedGraph, SlipTest]:
     """The solve with slip scales if the log shows slip, else ``solved``; both with their
-    covariance, and the statistic that decided (see the module docstring).
+    covariance, and the statistic that decided (see the module docstring). Without slip
+    shown, theta's covariance gains what ``unseen`` slow slip would move it by
+    (:func:`unseen_slip_covariance`).
 
     Args:
         solved: the solve without slip scales of ``data`` with the fix ``weights`` (``None``:
@@ -170,9 +192,9 @@ def with_slip_if_shown(
     screened = spread(len(data), SLIP_SCREEN_SEGMENTS)
     screen = build_segment_graph(weighted.take(screened), spec)
     at_solution = _moved(solved.result, screened, screen.values, shared_keys(spec))
-    test = _slip_test(screen, at_solution, spec, workers, weighted.take(screened))
+    test = _slip_test(screen, at_solution, spec, workers, weighted.take(screened), unseen)
     if not test.shown(alpha):
-        return solved, test
+        return _with_unseen_slip(solved, test), test
     with_slip, initial = screen, at_solution
     if len(screened) < len(data):
         with_slip = build_segment_graph(weighted, spec)
@@ -187,11 +209,13 @@ def _slip_test(
     spec: SegmentGraphSpec,
     workers: int,
     segments: SegmentData,
+    unseen: UnseenSlip | None = None,
 ) -> SlipTest:
     """The score test of the module docstring on ``screen`` (a graph with slip scales of
     ``segments``) at ``at_solution``: every other variable eliminated down to the
-    graph-wide ones and the slip scales, then the graph-wide ones eliminated too; and the
-    slow test (:class:`SlowSlipTest`) on the same reduced system."""
+    graph-wide ones and the slip scales, then the graph-wide ones eliminated too; the
+    slow test (:class:`SlowSlipTest`) on the same reduced system, and with ``unseen`` what
+    that slip would move theta by (:func:`unseen_slip_covariance`)."""
     base = shared_keys(spec)
     slip = [int(k) for k in screen.values.keys() if chr(gtsam.Symbol(k).chr()) == SLIP_LETTER]
     screening = PartitionedGraph(screen.graph, at_solution, base + slip)
@@ -218,7 +242,79 @@ def _slip_test(
     if basis is not None:  # the same test on B's directions: Bᵀ g, Bᵀ A B, Bᵀ H B
         restricted = (basis.T @ score, basis.T @ reduced @ basis, basis.T @ noise @ basis)
         slow = SlowSlipTest(*_score_test(*restricted), basis.shape[1])
-    return SlipTest(*_score_test(score, reduced, noise), chunks=chunks, slow=slow)
+    widened = None
+    if unseen is not None and unseen.sigma > 0:
+        # θ̂'s response to the slip scales, every other variable at its optimum: −I_θθ⁻¹ I_θs
+        response = -np.linalg.solve(information[:k, :k], data[:k, k:n])[:THETA_SIZE]
+        times, travel = _chunk_times_and_travel(slip, screen.bounds, segments)
+        sigma = np.sqrt(np.diag(np.linalg.inv(information[:k, :k]))[:THETA_SIZE])
+        unit = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
+        widened = unseen_slip_covariance(response, times, travel, unseen) * np.outer(unit, unit)
+    test = SlipTest(*_score_test(score, reduced, noise), chunks=chunks, slow=slow)
+    return dataclasses.replace(test, unseen_slip=widened)
+
+
+@dataclass(frozen=True)
+class UnseenSlip:
+    """Slow variation of the wheels' effective circumference that a drive cannot show:
+    relative σ (``[joint] unseen_slip_sigma``; 0.001 = 0.1 %) and correlation time [s]
+    (``[joint] unseen_slip_time``)."""
+
+    sigma: float
+    time: float
+
+
+def unseen_slip_covariance(
+    response: np.ndarray, times: np.ndarray, travel: np.ndarray, unseen: UnseenSlip
+) -> np.ndarray:
+    """``(4, 4)`` covariance [SI] of what slow slip moves the solved theta by, relative to
+    the theta that holds on average over the distance driven (docs/defects.md, "Slip no test
+    can see").
+
+    Both wheels' rotations of chunk ``j`` scaled by ``1 + m_j``, ``m`` a Gauss–Markov
+    process of ``unseen``'s σ and correlation time over the chunks' ``times`` [s], less its
+    mean over their ``travel`` (a constant scale is c_e's, c_d's and d's own); ``response``
+    ``(4, 2J)``: theta's change per slip scale of each chunk's two wheels (``−I_θθ⁻¹ I_θs``
+    of the screen's reduced system). A least-squares fit weighs a drive's middle more than
+    its ends (a slope fitted to positions); the truth weighs every metre alike, so slip that
+    varies over minutes moves c_e by up to a third of its amplitude while the data show
+    nothing a constant c_e would not explain."""
+    common = response[:, 0::2] + response[:, 1::2]  # both wheels of a chunk alike
+    weights = travel / max(float(travel.sum()), 1e-12)
+    # m less its travel-weighted mean: the response to m − (wᵀm)·1 is (R − (R·1) wᵀ) m
+    centred = common - np.outer(common.sum(axis=1), weights)
+    lag = np.abs(times[:, None] - times[None, :])
+    process = unseen.sigma**2 * np.exp(-lag / unseen.time)
+    return centred @ process @ centred.T
+
+
+def _chunk_times_and_travel(
+    slip: list[int], bounds: list[np.ndarray], data: SegmentData
+) -> tuple[np.ndarray, np.ndarray]:
+    """Each slip key's chunk: the time [s] of its middle sample and the rotations [rev] its
+    wheels turn on average (travel in wheel turns). Segments without their log's sample rows
+    are taken as hours apart (independent)."""
+    times, travel = np.empty(len(slip)), np.empty(len(slip))
+    for i, key in enumerate(slip):
+        segment = keys.segment_of(key)
+        chunk = int(gtsam.Symbol(key).index()) % keys.SEGMENT_STRIDE
+        a, b = int(bounds[segment][chunk]), int(bounds[segment][chunk + 1])
+        rows = data.sample_index[segment] if data.sample_index is not None else None
+        middle = (a + b) // 2 if rows is None else int(rows[(a + b) // 2])
+        times[i] = middle * float(data.dt) + (0.0 if rows is not None else 3600.0 * segment)
+        travel[i] = float(np.sum(np.abs(data.inputs[segment, a:b, :2]).mean(axis=1)))
+    return times, travel
+
+
+def _with_unseen_slip(solved: SolvedGraph, test: SlipTest) -> SolvedGraph:
+    """``solved`` with theta's covariance widened by ``test``'s unseen slip, scaled per
+    parameter from the screened segments' statistical σ to the whole log's (the same where
+    every segment is screened; on a long log's sample both shrink alike with its length)."""
+    if test.unseen_slip is None or solved.covariance is None:
+        return solved
+    sigma = np.sqrt(np.clip(np.diag(solved.covariance), 0.0, None))
+    added = test.unseen_slip * np.outer(sigma, sigma)
+    return dataclasses.replace(solved, covariance=solved.covariance + added)
 
 
 def _score_test(
