@@ -159,7 +159,8 @@ def test_the_ecu_circumference_is_undone_so_c_e_is_the_true_circumference(tmp_pa
     run = run_calibration(log, method="whole", workers=1)
     sigma = np.sqrt(run.covariance[0, 0])
     assert abs(run.theta[0] - 1.985) < 3 * sigma
-    assert sigma < 0.5e-3
+    # the data's σ (the σ reported also holds slow slip no test can show)
+    assert sigma / run.whole.slip_test.unseen_slip_scale()[0] < 0.5e-3
 
 
 def test_tick_counters_that_wrap_are_unwrapped(tmp_path):
