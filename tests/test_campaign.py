@@ -909,7 +909,7 @@ SLOW = [
         ),
         id="slow-slip-no-test-can-see",  # seed 39's shape 90: 0.13 % slip over a 2.9 km
         # straight road, both slip tests at z < 1: c_e +3.4σ "calibrated" (σ 0.235 mm, the
-        # data's own); with the slow slip no test can show in its σ (0.285 mm), +2.8σ
+        # data's own); with the slow slip no test can show in its σ (0.399 mm), +2.0σ
     ),
 ]
 

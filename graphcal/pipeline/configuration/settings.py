@@ -80,7 +80,7 @@ Every section and key, with the defaults::
     slip_sigma = 0.0015         # its relative scale per wheel and chunk (0.15 %)
     slip_time = 5.0             # s, its correlation time from chunk to chunk
     slip_alpha = 0.001          # auto: false-alarm rate of the test that decides it
-    unseen_slip_sigma = 0.001   # slow slip no test can show (0.1 %), in theta's σ; 0 = off
+    unseen_slip_sigma = 0.002   # slow slip no test can show (0.2 %), in theta's σ; 0 = off
     unseen_slip_time = 120.0    # s, its correlation time
     time_offset_sigma = 0.5     # s, prior of the wheels' time offset (estimated); 0 = off
     time_offset_mean = 0.0      # s, its prior mean (the offset known to remain in the log)

@@ -63,7 +63,7 @@ class JointSettings:
             circumference (speed, load, tyre temperature) that a drive cannot show: where slip
             is not modelled, theta's σ includes what it moves the solved theta by
             (:func:`~graphcal.pipeline.solvers.slip_screen.unseen_slip_covariance`;
-            0.001 = 0.1 %; 0: the data's σ alone).
+            0.002 = 0.2 %; 0: the data's σ alone).
         unseen_slip_time: its correlation time [s].
         time_offset_sigma: prior sigma [s] of the wheels' time offset against the pose,
             estimated with theta (0: not estimated).
@@ -125,7 +125,7 @@ class JointSettings:
     slip_sigma: float = 0.0015
     slip_time: float = 5.0
     slip_alpha: float = 1e-3
-    unseen_slip_sigma: float = 1e-3
+    unseen_slip_sigma: float = 2e-3
     unseen_slip_time: float = 120.0
     time_offset_sigma: float = 0.5
     time_offset_mean: float = 0.0

@@ -200,6 +200,7 @@ def with_slip_if_shown(
     test = _slip_test(screen, at_solution, spec, workers, weighted.take(screened), unseen)
     if not test.shown(alpha):
         return _with_unseen_slip(solved, test), test
+    test = dataclasses.replace(test, unseen_slip=None)  # modelled: the solve's σ holds it
     with_slip, initial = screen, at_solution
     if len(screened) < len(data):
         with_slip = build_segment_graph(weighted, spec)
@@ -270,7 +271,7 @@ def _slip_test(
 @dataclass(frozen=True)
 class UnseenSlip:
     """Slow variation of the wheels' effective circumference that a drive cannot show:
-    relative σ (``[joint] unseen_slip_sigma``; 0.001 = 0.1 %) and correlation time [s]
+    relative σ (``[joint] unseen_slip_sigma``; default 0.002 = 0.2 %) and correlation time [s]
     (``[joint] unseen_slip_time``)."""
 
     sigma: float
