@@ -911,6 +911,29 @@ SLOW = [
         # straight road, both slip tests at z < 1: c_e +3.4σ "calibrated" (σ 0.235 mm, the
         # data's own); with the slow slip no test can show in its σ (0.399 mm), +2.0σ
     ),
+    pytest.param(
+        _yard(
+            "skid-steer",
+            length_m=200.0,
+            gnss_rate=50.0,
+            noise_sigma=1.17,
+            noise_tau_s=59.0,
+            heading=True,
+            imu=False,
+            wheels="ticks",
+            ticks=16,
+            drives=3,
+            gap_s=60.0,
+            park_s=6.0,
+            time_offset_s=-0.047,
+            lever_arm=(0.1, 0.0),
+            seed=1248,
+        ),
+        id="fixes-sharing-their-error-over-a-minute",  # seed 38's shape 30 without its
+        # slip: 1.17 m over 59 s read with the 30 s fix_error_time as 0.83 m: c_e +4.3σ and
+        # t_r +4.0σ "calibrated" (over 10 recording seeds mean e/σ +2.3, +1.9); with 60 s
+        # 1.2 m, and neither determined by three 65 m drives
+    ),
 ]
 
 
@@ -929,6 +952,8 @@ C_E_UNDETERMINED = {
     "white-fixes-far-above-rtk",
     # 206 m of fixes sharing 1.9 m over 8 s: c_e's σ 23 mm (calibrated needs 4 mm)
     "weak-track-far-from-its-nominal",
+    # three 65 m drives whose 50 Hz fixes share 1.2 m over 59 s
+    "fixes-sharing-their-error-over-a-minute",
 }
 
 

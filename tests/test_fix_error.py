@@ -123,8 +123,8 @@ def _noise(**fields) -> ResidualNoise:
 
 def test_a_drift_is_modelled_with_the_settings_correlation_time():
     white, shared, time = slow_fix_error(_noise(), JointSettings(), DT)
-    assert time == 30.0
-    assert shared == pytest.approx(1.0)  # √(rate · τ)
+    assert time == JointSettings().fix_error_time == 60.0
+    assert shared == pytest.approx(np.sqrt(60.0 / 30.0))  # √(rate · τ)
     # the white part keeps what the error does within half a chunk (0.625 s): γ there
     assert white == pytest.approx(np.sqrt(0.04 + 0.625 / 30.0))
 
@@ -140,7 +140,7 @@ def test_residuals_of_a_solve_that_stopped_creeping_weight_the_fixes_white_at_th
     # from one that stopped creeping short of its minimum, its own unfinished fit — white.
     profile = JointSettings(position_sigma=0.05)
     converged = with_residual_noise(_noise(), profile, False, DT)
-    assert converged.fix_error_sigma == pytest.approx(1.0)
+    assert converged.fix_error_sigma == pytest.approx(np.sqrt(60.0 / 30.0))  # √(rate · τ)
     crept = with_residual_noise(_noise(), profile, False, DT, converged=False)
     assert crept.fix_error_sigma == 0.0
     assert pose_sigmas(crept.pose_weights, crept.position_sigma)[0] == pytest.approx(0.3)

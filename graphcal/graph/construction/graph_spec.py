@@ -99,7 +99,7 @@ class SegmentGraphSpec:
     heading_bias_sigma: float | None = None
     rear_slip_gain_sigma: float | None = None
     fix_error_sigma: float | None = None
-    fix_error_time: float = 30.0
+    fix_error_time: float = 60.0
     tie_segments: bool = False
 
     def for_runs(self, runs: int) -> SegmentGraphSpec:

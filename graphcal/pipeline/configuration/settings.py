@@ -91,7 +91,7 @@ Every section and key, with the defaults::
     fix_error = "auto"          # the fixes' slowly varying shared error (Gauss–Markov):
                                 # auto (when the residuals show it) | off
     fix_error_sigma = 0.0       # m per axis, when known; 0 = from the residuals
-    fix_error_time = 30.0       # s, its correlation time
+    fix_error_time = 60.0       # s, its correlation time
     robust_threshold = 5.0      # fixes beyond this many residual sigmas down-weighted; 0 = off
     heading_noise_from_log = true  # heading weight from the log's own heading noise
     wheel_noise_from_log = true    # wheel_noise raised to the recording's wheel rates' noise

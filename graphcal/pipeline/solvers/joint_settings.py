@@ -134,7 +134,7 @@ class JointSettings:
     rear_slip_gain_sigma: float = 0.01
     fix_error: str = "auto"
     fix_error_sigma: float = 0.0
-    fix_error_time: float = 30.0
+    fix_error_time: float = 60.0
     robust_threshold: float = 5.0
     heading_noise_from_log: bool = True
     wheel_noise_from_log: bool = True
