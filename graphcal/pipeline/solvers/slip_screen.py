@@ -308,16 +308,27 @@ def _chunk_times_and_travel(
     """Each slip key's chunk: the time [s] of its middle sample and the rotations [rev] its
     wheels turn on average (travel in wheel turns). Segments without their log's sample rows
     are taken as hours apart (independent)."""
-    times, travel = np.empty(len(slip)), np.empty(len(slip))
-    for i, key in enumerate(slip):
-        segment = keys.segment_of(key)
-        chunk = int(gtsam.Symbol(key).index()) % keys.SEGMENT_STRIDE
-        a, b = int(bounds[segment][chunk]), int(bounds[segment][chunk + 1])
-        rows = data.sample_index[segment] if data.sample_index is not None else None
-        middle = (a + b) // 2 if rows is None else int(rows[(a + b) // 2])
-        times[i] = middle * float(data.dt) + (0.0 if rows is not None else 3600.0 * segment)
-        travel[i] = float(np.sum(np.abs(data.inputs[segment, a:b, :2]).mean(axis=1)))
-    return times, travel
+    segments, starts, ends = _chunk_spans(slip, bounds)
+    middles = (starts + ends) // 2
+    if data.sample_index is not None:
+        times = data.sample_index[segments, middles] * float(data.dt)
+    else:
+        times = middles * float(data.dt) + 3600.0 * segments
+    turns = np.abs(data.inputs[..., :2]).mean(axis=-1)  # (S, K) each step's wheel turns
+    travelled = np.concatenate([np.zeros((len(turns), 1)), np.cumsum(turns, axis=1)], axis=1)
+    travel = travelled[segments, ends] - travelled[segments, starts]
+    return times.astype(float), travel
+
+
+def _chunk_spans(
+    slip: list[int], bounds: list[np.ndarray]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each slip key's segment and its chunk's first and end step (``(J,)`` each)."""
+    segments = np.array([keys.segment_of(key) for key in slip], dtype=int)
+    chunks = np.array([gtsam.Symbol(key).index() % keys.SEGMENT_STRIDE for key in slip], int)
+    starts = np.array([bounds[s][c] for s, c in zip(segments, chunks, strict=True)], int)
+    ends = np.array([bounds[s][c + 1] for s, c in zip(segments, chunks, strict=True)], int)
+    return segments, starts, ends
 
 
 def _with_unseen_slip(solved: SolvedGraph, test: SlipTest) -> SolvedGraph:
@@ -349,12 +360,8 @@ def _slow_basis(slip: list[int], bounds: list[np.ndarray], data: SegmentData) ->
     difference; ``None`` without sample rows or slip scales."""
     if data.sample_index is None or not slip:
         return None
-    middle = np.empty(len(slip))
-    for i, key in enumerate(slip):
-        segment = keys.segment_of(key)
-        chunk = int(gtsam.Symbol(key).index()) % keys.SEGMENT_STRIDE
-        edges = bounds[segment]
-        middle[i] = data.sample_index[segment, (edges[chunk] + edges[chunk + 1]) // 2]
+    segments, starts, ends = _chunk_spans(slip, bounds)
+    middle = data.sample_index[segments, (starts + ends) // 2].astype(float)
     span = float(np.ptp(middle))
     if span <= 0:
         return None
