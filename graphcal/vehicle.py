@@ -44,7 +44,9 @@ PAPER_HEADING_SIGMA = PAPER_POSITION_SIGMA / math.sqrt(50.0)
 HELD_SIGMA_SCALE = 1e-4
 
 
-def held_prior_sigmas(sigmas, held: tuple[str, ...] | list[str]) -> np.ndarray:
+def held_prior_sigmas(
+    sigmas: np.ndarray | tuple[float, ...] | list[float], held: tuple[str, ...] | list[str]
+) -> np.ndarray:
     """``(4,)`` theta prior ``sigmas`` with those of the parameters named in ``held``
     (:data:`~graphcal.model.PARAMETER_NAMES`) :data:`HELD_SIGMA_SCALE` times as large: held
     at the prior's mean."""

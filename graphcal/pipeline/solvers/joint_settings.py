@@ -61,7 +61,8 @@ class JointSettings:
             χ² by more than the data's own noise would at this rate.
         unseen_slip_sigma: relative σ of the slow variation of the wheels' effective
             circumference (speed, load, tyre temperature) that a drive cannot show: where slip
-            is not modelled, theta's σ includes what it moves the solved theta by
+            is not modelled (``slip = "auto"``: the slip screen's system gives it; ``"off"``
+            adds none), theta's σ includes what it moves the solved theta by
             (:func:`~graphcal.pipeline.solvers.slip_screen.unseen_slip_covariance`;
             0.002 = 0.2 %; 0: the data's σ alone).
         unseen_slip_time: its correlation time [s].

@@ -259,7 +259,8 @@ def _slip_test(
     widened = None
     if unseen is not None and unseen.sigma > 0:
         # θ̂'s response to the slip scales, every other variable at its optimum: −I_θθ⁻¹ I_θs
-        response = -np.linalg.solve(information[:k, :k], data[:k, k:n])[:THETA_SIZE]
+        # (the gain above: no prior ties theta to the slip scales)
+        response = -gain.T[:THETA_SIZE]
         times, travel = _chunk_times_and_travel(slip, screen.bounds, segments)
         sigma = np.sqrt(np.diag(np.linalg.inv(information[:k, :k]))[:THETA_SIZE])
         unit = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
