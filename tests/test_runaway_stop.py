@@ -37,6 +37,18 @@ def test_a_runaway_is_several_iterations_in_a_row_each_farther_out():
     assert [wandering.running_away(None, j) for j in judged] == [False] * 5
 
 
+def test_a_solve_out_of_range_that_creeps_back_is_a_runaway_one_that_returns_is_not():
+    # Campaign seed 40's shape 160: a first step took t_r to -0.05 m (0.55 m out of its
+    # range), whence it crept back by 0.1-1 % of the way per iteration for 50 iterations.
+    creeping = iter([0.55, 0.572, 0.531, 0.520, 0.516, 0.514])
+    watch = RunawayWatch(lambda _: next(creeping))
+    assert [watch.running_away(None) for _ in range(6)] == [False, False] + [True] * 4
+    # A solve that comes back does so in a few steps: never a runaway.
+    returning = iter([0.55, 0.3, 0.1, 0.0, 0.0])
+    back = RunawayWatch(lambda _: next(returning))
+    assert not any(back.running_away(None) for _ in range(5))
+
+
 def test_distance_beyond_the_plausible_range_in_its_widths():
     ranges = np.array([[0.5, 5.0], [-0.1, 0.1], [0.5, 3.0], [-0.05, 0.05]])
 

@@ -37,8 +37,11 @@ GAUSS_NEWTON_FIDELITY = 0.1
 CREEP_ITERATIONS = 3
 CREEP_SHARE = 0.1
 #: A solve runs away (:class:`RunawayWatch`) when this many iterations in a row each leave
-#: its graph-wide variables farther beyond their plausible range.
+#: its graph-wide variables beyond their plausible range and not :data:`RETURN_SHARE` nearer.
 RUNAWAY_ITERATIONS = 3
+#: An iteration out of range counts as running away unless it comes back by at least this
+#: share of its distance: a solve that returns does so in a few steps.
+RETURN_SHARE = 0.1
 
 
 @dataclass
@@ -71,11 +74,13 @@ class CreepWatch:
 @dataclass
 class RunawayWatch:
     """Whether a solve's graph-wide variables run out of their plausible range: ``beyond``
-    (``SolveOptions.runaway``; ``None``: never) farther out after each of
-    :data:`RUNAWAY_ITERATIONS` iterations in a row. Such a solve ended out of range and was
-    judged a runaway — after its 50 iterations: a 1.9 km straight road's t_r (prior
-    1.55 ± 0.2 m) left its range [0.5, 3] m at the third iteration (0.37 m) and crept on to
-    0.006 m, 10 s for a verdict the fifth iteration gives. Not counted where the solve
+    (``SolveOptions.runaway``; ``None``: never) out of it, and not :data:`RETURN_SHARE`
+    nearer than before, after each of :data:`RUNAWAY_ITERATIONS` iterations in a row. Such a
+    solve ended out of range and was judged a runaway — after its 50 iterations: a 1.9 km
+    straight road's t_r (prior 1.55 ± 0.2 m) left its range [0.5, 3] m at the third
+    iteration (0.37 m) and crept on to 0.006 m, 10 s for a verdict the fifth iteration
+    gives; a 2.9 km one's first step took t_r to −0.05 m, whence it crept back by 0.1–1 %
+    of the way per iteration for 50 (campaign seed 40's shape 160). Not counted where the solve
     runs far above its noise (:meth:`CreepWatch.above`): under weights far too tight, theta
     wanders where the misfit pulls it (a robot's t_r out and back in while its fixes of 1.7 m
     were weighted as 0.05 m); the creep watch stops such a solve for its noise to be read."""
@@ -93,7 +98,8 @@ class RunawayWatch:
             self.farther, self.last = 0, 0.0
             return False
         distance = float(self.beyond(values))
-        self.farther = self.farther + 1 if distance > self.last else 0  # (≥ 0 both)
+        returning = distance < (1.0 - RETURN_SHARE) * self.last  # (≥ 0 both)
+        self.farther = self.farther + 1 if distance > 0.0 and not returning else 0
         self.last = distance
         return self.farther >= RUNAWAY_ITERATIONS
 
