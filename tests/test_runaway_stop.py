@@ -96,3 +96,46 @@ def test_a_solve_stops_where_its_theta_runs_out_of_range(straight_road):
     wide = plausible_ranges(np.asarray(spec.theta, float), spec.theta_prior_sigmas)
     full = _solved(straight_road, BeyondPlausible(wide))
     assert full.status is not SolveStatus.RUNAWAY and full.iterations > stopped.iterations
+
+
+def _held_solves(monkeypatch, runaways):
+    """:func:`whole_log._holding_a_runaway` of t_r with a whole-log solve that raises each
+    of ``runaways`` (parameter names) in turn, then solves: the held names of each call."""
+    from types import SimpleNamespace
+
+    import graphcal.pipeline.methods.whole_log as whole_log
+    from graphcal.graph.solution.plausibility import ImplausibleTheta
+
+    held = []
+    pending = list(runaways)
+
+    def solve(prepared, settings, workers=1, start=None, rounds=4, solved=None, stop_if=None):
+        held.append(settings.held_at_prior)
+        if pending:
+            names = pending.pop(0)
+            raise ImplausibleTheta(f"{', '.join(names)} out of range", names)
+        return "solved"
+
+    monkeypatch.setattr(whole_log, "solve_with_time_offset", solve)
+    prepared = SimpleNamespace(
+        data=SimpleNamespace(has_heading=lambda: False), log=SimpleNamespace(dt=0.025)
+    )
+    runaway = ImplausibleTheta("t_r out of range", ("t_r",))
+    outcome = whole_log._holding_a_runaway(prepared, JointSettings(), runaway, workers=1)
+    return held, outcome
+
+
+def test_a_parameter_running_away_in_the_held_solve_is_held_with_the_others(monkeypatch):
+    # Campaign seed 41's shape 103 (17-tick wheels, fixes sharing 2 m): t_r ran out, then c_d
+    # in the solve holding t_r — exit 2 "check the units" for a recording that shows neither.
+    held, (runaway, settings, solved) = _held_solves(monkeypatch, [("c_d",)])
+    assert held == [("t_r",), ("c_d", "t_r")]
+    assert runaway.names == settings.held_at_prior == ("c_d", "t_r")
+    assert solved == "solved"
+
+
+def test_a_held_parameter_out_of_range_is_not_held_again(monkeypatch):
+    from graphcal.graph.solution.plausibility import ImplausibleTheta
+
+    with pytest.raises(ImplausibleTheta, match="t_r out of range"):
+        _held_solves(monkeypatch, [("t_r",)])

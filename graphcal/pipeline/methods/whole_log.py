@@ -45,7 +45,7 @@ from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.log.timing import wheel_lag_from_turns, whole_samples
-from graphcal.model import wheel_lateral_acceleration
+from graphcal.model import PARAMETER_NAMES, wheel_lateral_acceleration
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.methods.agreement import (
     Agreement,
@@ -280,16 +280,20 @@ def _holding_runaways(
     out of their plausible range are held at their prior (:func:`_holding_a_runaway`,
     recorded in ``held``) and the settings holding them returned; a runaway whose held solve
     shows far noisier fixes is solved again free under their noise, once
-    (``noisier_judged``: that was done)."""
+    (``noisier_judged``: that was done; a runaway that then shows far noisier fixes again
+    stays held: fixes of 2 m that the solves read as 0.05, 0.38 and 2.4 m, one after the other,
+    do not say a parameter the data determine went out of range — exit 2 "check the units"
+    before, nothing calibrated now, campaign seed 41's shape 103)."""
     start, rounds = free.start, free.rounds
     try:
         return settings, solve_with_time_offset(
             prepared, settings.joint, workers, start, rounds, free.solved, free.stop_if
         )
     except ImplausibleTheta as runaway:
-        holding = settings.joint.holding(runaway.names)
         shift = None if start is None else start.shift
-        outcome = _holding_a_runaway(prepared, holding, runaway, workers, shift)
+        runaway, holding, outcome = _holding_a_runaway(
+            prepared, settings.joint, runaway, workers, shift
+        )
         if not any(data_determine(outcome[0], holding, runaway.names)):
             held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
             if rounds > 1:  # kept held: its time-offset rounds, going on from it
@@ -298,8 +302,11 @@ def _holding_runaways(
             return dataclasses.replace(settings, joint=holding), outcome
         has_heading, dt = prepared.data.has_heading(), prepared.log.dt
         noise = with_noise_levels(outcome[0], holding, has_heading, dt)
-        if noisier_judged or not fixes_reweighted(holding, noise):
+        if not fixes_reweighted(holding, noise):
             raise runaway from None  # the data put it there: wrong units, not a weak direction
+        if noisier_judged:  # solved free under their noise, and still far noisier: held
+            held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
+            return dataclasses.replace(settings, joint=holding), outcome
         say(
             "  the fixes are far noisier than that solve weighted them: the free solve "
             "again under their own noise, before the runaway is judged"
@@ -331,13 +338,16 @@ def _holding_a_runaway(
     runaway: ImplausibleTheta,
     workers: int,
     shift: np.ndarray | None = None,
-) -> Solved:
-    """The whole-log solve under ``settings``, which hold the parameters that ran out of
-    their plausible range in a solve (``runaway``) at their prior, for
-    :func:`_holding_runaways` to judge whether the data determine them (then the data put
-    them there: wrong units, not a weak direction). One solve: its time-offset rounds only
-    where the runaway stays held (seed 29's shape 82 ran three, 165 s, before the solve was
-    dropped for the fixes' own noise).
+) -> tuple[ImplausibleTheta, JointSettings, Solved]:
+    """The whole-log solve under ``settings`` holding the parameters that ran out of their
+    plausible range in a solve (``runaway``) at their prior, for :func:`_holding_runaways`
+    to judge whether the data determine them (then the data put them there: wrong units,
+    not a weak direction): the runaway with every parameter held, the settings holding them
+    and the solve. One solve: its time-offset rounds only where the runaway stays held (seed
+    29's shape 82 ran three, 165 s, before the solve was dropped for the fixes' own noise);
+    a parameter that runs away in the held solve is held with the others, and that solved
+    again (a robot's 17-tick wheels under fixes sharing 2 m: t_r, then c_d ran out; exit 2
+    for "wrong units" before, campaign seed 41's shape 103).
 
     A direction the data barely determine drifts where the misfit pulls it under a weak
     prior (a 2 km straight road of fixes without heading drove t_r to 0.49 m, its prior
@@ -347,13 +357,25 @@ def _holding_a_runaway(
     <graphcal.pipeline.methods.noise_levels.REWEIGHTED>` times noisier than weighted, the
     free solve is repeated under them first (a delivery robot's fixes wandering by 0.74 m
     weighted as 0.05 m: c_e and t_r "determined" at χ²/dof 7.2)."""
-    them = "it" if len(runaway.names) == 1 else "them"
-    say(
-        f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
-        f"held at the prior, to see whether the data determine {them}"
-    )
     start = None if shift is None else StoppedAt(None, shift, None)
-    return solve_with_time_offset(prepared, settings, workers, start, 1)
+    while True:
+        them = "it" if len(runaway.names) == 1 else "them"
+        say(
+            f"{', '.join(runaway.names)} left the plausible range in a solve: solved again "
+            f"held at the prior, to see whether the data determine {them}"
+        )
+        holding = settings.holding(runaway.names)
+        # under fixes far noisier than weighted it stops creeping, for their noise to be read
+        changes = noise_levels_change(holding, prepared.data.has_heading(), prepared.log.dt)
+        try:
+            solved = solve_with_time_offset(prepared, holding, workers, start, 1, stop_if=changes)
+            return runaway, holding, solved
+        except ImplausibleTheta as more:
+            names = set(runaway.names) | set(more.names)
+            if names == set(runaway.names):
+                raise  # a held parameter out of range: what holds it did not
+            both = tuple(name for name in PARAMETER_NAMES if name in names)
+            runaway = ImplausibleTheta(str(more), both)
 
 
 def _wheel_lag(prepared: PreparedLog) -> np.ndarray:
