@@ -11,6 +11,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import graphcal.pipeline.methods.runaways as runaways
 import graphcal.pipeline.methods.whole_log as whole_log
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.pipeline.solvers.joint_settings import TOLERANCE
@@ -34,13 +35,13 @@ def test_a_solve_under_far_wrong_fix_weights_only_reads_their_noise(monkeypatch)
     drive = simulate_drive(2.0, seed=2)
     log = _wandering(drive.measured, sigma=1.5, tau=30.0, seed=2)
     solves = []
-    original = whole_log.solve_with_time_offset
+    original = runaways.solve_with_time_offset
 
     def recorded(prepared, settings, workers=1, start=None, rounds=4, solved=None, stop_if=None):
         solves.append((settings.tolerance, rounds, solved is None))
         return original(prepared, settings, workers, start, rounds, solved, stop_if)
 
-    monkeypatch.setattr(whole_log, "solve_with_time_offset", recorded)
+    monkeypatch.setattr(runaways, "solve_with_time_offset", recorded)
     run = run_calibration(log, method="whole", workers=1)
     assert run.whole is not None
     # the first solve (one round, stopped to read the noise), the one under the fixes' RMS

@@ -98,16 +98,16 @@ def test_a_solve_stops_where_its_theta_runs_out_of_range(straight_road):
     assert full.status is not SolveStatus.RUNAWAY and full.iterations > stopped.iterations
 
 
-def _held_solves(monkeypatch, runaways):
-    """:func:`whole_log._holding_a_runaway` of t_r with a whole-log solve that raises each
-    of ``runaways`` (parameter names) in turn, then solves: the held names of each call."""
+def _held_solves(monkeypatch, in_turn):
+    """:func:`runaways._holding_a_runaway` of t_r with a whole-log solve that raises each
+    of ``in_turn`` (parameter names) in turn, then solves: the held names of each call."""
     from types import SimpleNamespace
 
-    import graphcal.pipeline.methods.whole_log as whole_log
+    import graphcal.pipeline.methods.runaways as runaways
     from graphcal.graph.solution.plausibility import ImplausibleTheta
 
     held = []
-    pending = list(runaways)
+    pending = list(in_turn)
 
     def solve(prepared, settings, workers=1, start=None, rounds=4, solved=None, stop_if=None):
         held.append(settings.held_at_prior)
@@ -116,12 +116,12 @@ def _held_solves(monkeypatch, runaways):
             raise ImplausibleTheta(f"{', '.join(names)} out of range", names)
         return "solved"
 
-    monkeypatch.setattr(whole_log, "solve_with_time_offset", solve)
+    monkeypatch.setattr(runaways, "solve_with_time_offset", solve)
     prepared = SimpleNamespace(
         data=SimpleNamespace(has_heading=lambda: False), log=SimpleNamespace(dt=0.025)
     )
     runaway = ImplausibleTheta("t_r out of range", ("t_r",))
-    outcome = whole_log._holding_a_runaway(prepared, JointSettings(), runaway, workers=1)
+    outcome = runaways._holding_a_runaway(prepared, JointSettings(), runaway, workers=1)
     return held, outcome
 
 
