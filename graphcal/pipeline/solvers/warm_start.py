@@ -42,6 +42,14 @@ WARM_START_ITERATIONS = 10
 #: city drive's 44 segments: 3 iterations, not 4, the whole-log solve's 2 and its theta the
 #: same).
 WARM_START_TOLERANCE = 1e-2
+#: A warm start whose theta lies farther than this many prior σ from where it started (the
+#: nominal theta or the coarse search's) is not used: short segments on their own, each
+#: with its own start heading fitted from positions, fit noise with theta (a robot's six
+#: 19 m segments of 5 Hz fixes of 0.5 m put t_r at 0.08 m, its prior 0.2 ± 0.025 m; the
+#: whole-log solve from there crept 50 iterations into a minimum at χ²/dof 4.8, exit 3 —
+#: from the nominal, 29 iterations, χ²/dof 1.06, every parameter within 1σ; campaign seed
+#: 41's shape 188).
+WARM_START_PRIOR_SPAN = 3.0
 #: Logs with fewer selected segments than this start from the nominal theta: the sample would
 #: not save a whole-log iteration's worth.
 WARM_START_MIN_SEGMENTS = 3 * WARM_START_SEGMENTS
@@ -127,7 +135,24 @@ def warm_start_solution(
     except GraphcalError:
         return (None if coarse is None else {keys.THETA: coarse}), None
     shared = {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}
+    start_theta = np.asarray(spec.theta, float) if coarse is None else coarse
+    if _far_from(shared[keys.THETA], start_theta, spec.theta_prior_sigmas):
+        say(
+            "  start: the segments on their own put theta beyond "
+            f"{WARM_START_PRIOR_SPAN:g} prior σ: from the "
+            + ("nominal theta" if coarse is None else "coarse search's theta")
+        )
+        return (None if coarse is None else {keys.THETA: coarse}), None
     return shared, solved.result if len(sample) == len(data) else None
+
+
+def _far_from(theta: np.ndarray, start: np.ndarray, sigmas: np.ndarray | None) -> bool:
+    """Whether ``theta`` lies beyond :data:`WARM_START_PRIOR_SPAN` of the prior ``sigmas``
+    from ``start`` in any parameter (never without a prior)."""
+    if sigmas is None:
+        return False
+    span = WARM_START_PRIOR_SPAN * np.abs(np.asarray(sigmas, float))
+    return bool(np.any(np.abs(np.asarray(theta, float) - start) > span))
 
 
 def _holding(spec: SegmentGraphSpec, names: tuple[str, ...]) -> SegmentGraphSpec:
