@@ -24,7 +24,7 @@ from graphcal.pipeline.end_to_end.trust import (
 )
 from graphcal.pipeline.methods.agreement import Agreement, segment_agreement
 from graphcal.pipeline.methods.validation import position_error_spread, position_errors
-from graphcal.statistics import chi2_survival
+from graphcal.statistics import chi2_survival, student_t_quantile
 
 CLEAN = dict(
     solve=SolveOutcome(SolveStatus.CONVERGED, 4, 30),
@@ -201,7 +201,9 @@ def test_validation_worse_by_its_segments_paired_differences():
     noisy = nominal + np.array([0.004, 0.015, -0.346, 0.632, 0.25])
     assert np.mean(noisy) > np.mean(nominal) and not validates_worse(noisy, nominal)
     assert not validates_worse(nominal - 0.1, nominal)
-    assert validates_worse(np.array([1.01, 1.0]), np.array([1.0, 0.99]))  # two: any amount
+    assert validates_worse(np.array([1.01, 1.0]), np.array([1.0, 0.99]))  # both 0.01 m worse
+    # two segments' scatter: Student's t₁ (14 standard errors at the normal 2σ's rate)
+    assert not validates_worse(np.array([3.9, 2.9]), np.array([3.4, 3.06]))
     assert validates_worse(1.01, 1.0) and not validates_worse(np.array([np.nan]), 1.0)
     # the calibration's own σ moving its validation error by 0.01 m: 0.01 m worse is not
     assert not validates_worse(1.01, 1.0, theta_spread=0.01)
@@ -209,6 +211,32 @@ def test_validation_worse_by_its_segments_paired_differences():
     assert not validates_worse(nominal + 0.02, nominal, theta_spread=0.05)
     trust = assess_trust(**{**CLEAN, "validation": ValidationErrors(noisy, nominal)})
     assert trust.trusted
+
+
+def test_validation_worse_from_few_segments_takes_students_t():
+    """A scatter read from three segments is itself uncertain: 3 standard errors worse is
+    within Student's t₂ (4.5 at the normal 2σ's false-alarm rate), from 30 segments not
+    (t₂₉ 2.1). Campaign seed 42's shape 14: a robot's three validation segments under fixes
+    of 1.7 m, 3.39 m against 3.22 m, "not to be trusted" (there from two segments)."""
+    rng = np.random.default_rng(1)
+    for n, worse in ((3, False), (30, True)):
+        scatter = rng.standard_normal(n)
+        scatter = (scatter - scatter.mean()) / scatter.std(ddof=1)  # unit sample σ
+        nominal = np.full(n, 3.0)
+        calibrated = nominal + 0.1 * scatter + 3.0 * 0.1 / np.sqrt(n)  # 3 standard errors
+        assert validates_worse(calibrated, nominal) == worse
+
+
+def test_students_t_quantiles():
+    # t₂ in closed form, (2p − 1) / √(2p(1 − p)); t₁₀ and t₃₀ from tables
+    p = 0.97725
+    assert student_t_quantile(p, 2) == pytest.approx(
+        (2 * p - 1) / np.sqrt(2 * p * (1 - p)), rel=0.01
+    )
+    assert student_t_quantile(0.975, 10) == pytest.approx(2.228, rel=0.002)
+    assert student_t_quantile(0.975, 30) == pytest.approx(2.042, rel=0.001)
+    assert student_t_quantile(0.975, np.inf) == pytest.approx(1.960, rel=1e-3)
+    assert student_t_quantile(0.975, 1) == pytest.approx(12.706, rel=1e-3)  # Cauchy
 
 
 @pytest.mark.parametrize("offset", [0.0, 3.0])
