@@ -229,30 +229,3 @@ def test_the_model_check_judges_slip_apart_from_the_other_terms(without_slip, ch
     assert check.to_dict()["chosen"] == chosen
     assert check.theta_alone == (chosen == "theta alone")
     assert ("with them but slip" in check.line()) == (without_slip is not None)
-
-
-def test_the_simpler_model_starts_under_the_noise_the_first_solve_found():
-    """Where the model check chooses theta alone (or no slip), its solve starts under the
-    noise levels the defect model's solve read from its residuals, not the profile's again
-    (campaign seed 41's shape 197: 50 Hz fixes sharing 1 m, weighted again as 0.05 m, the
-    noise read solve after solve as the first time, 52 s; 2.4 s so); what that solve set
-    for itself (a parameter held at its prior, the time-offset prior) is judged anew."""
-    from graphcal.pipeline.end_to_end.run import _with_noise_found
-
-    profile = Settings().joint
-    found = dataclasses.replace(
-        profile,
-        position_sigma=0.075,
-        fix_error_sigma=0.98,
-        wheel_noise=6.3e-4,
-        held_at_prior=("t_r",),
-        time_offset_means=(0.05,),
-    )
-    start = _with_noise_found(profile, found)
-    assert (start.position_sigma, start.fix_error_sigma, start.wheel_noise) == (
-        0.075,
-        0.98,
-        6.3e-4,
-    )
-    assert start.held_at_prior == profile.held_at_prior
-    assert start.time_offset_means == profile.time_offset_means

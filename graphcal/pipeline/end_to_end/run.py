@@ -57,7 +57,6 @@ from graphcal.pipeline.methods.model_check import ModelCheck, check_model, theta
 from graphcal.pipeline.methods.prepare import PreparedLog, prepare_log
 from graphcal.pipeline.methods.staged import run_staged
 from graphcal.pipeline.methods.whole_log import WholeLog, models_sensors, solve_whole_log
-from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import Progress, reports_progress, say
 
 METHODS = ("staged", "joint", "whole")
@@ -198,34 +197,17 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     if check is None:
         return solved, None
     say(check.line())
-    found = _with_noise_found(prepared.settings.joint, solved.corrected.settings.joint)
     if check.without_slip:
-        joint, left_out = dataclasses.replace(found, slip="off"), prepared.left_out
+        joint = dataclasses.replace(prepared.settings.joint, slip="off")
+        left_out = prepared.left_out
     elif check.theta_alone:
-        joint, left_out = theta_alone(found), {}
+        joint, left_out = theta_alone(prepared.settings.joint), {}
     else:
         return solved, check
     simpler = dataclasses.replace(
         prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out=left_out
     )
     return solve_whole_log(simpler, workers), check
-
-
-def _with_noise_found(settings: JointSettings, found: JointSettings) -> JointSettings:
-    """``found`` (the settings a whole-log solve of the log under ``settings`` ended with:
-    the noise levels its residuals showed) with what that solve set for itself
-    (``held_at_prior``, the time-offset prior, the rear slip) back at ``settings``': the
-    simpler model's solve starts under the noise found, not the profile's (a robot's 50 Hz
-    fixes sharing 1 m, weighted again as 0.05 m: a first solve creeping at χ²/dof 16 and
-    the noise read again, solve after solve, as the first time; campaign seed 41's shape
-    197), and judges its own runaways."""
-    return dataclasses.replace(
-        found,
-        held_at_prior=settings.held_at_prior,
-        time_offset_means=settings.time_offset_means,
-        rear_slip_modelled=settings.rear_slip_modelled,
-        tolerance=settings.tolerance,
-    )
 
 
 def _recommended(solved: WholeLog) -> MethodResult:
