@@ -42,8 +42,8 @@ WARM_START_ITERATIONS = 10
 #: city drive's 44 segments: 3 iterations, not 4, the whole-log solve's 2 and its theta the
 #: same).
 WARM_START_TOLERANCE = 1e-2
-#: A warm start whose theta lies farther than this many prior σ from where it started (the
-#: nominal theta or the coarse search's) is not used: short segments on their own, each
+#: A warm start whose theta lies farther than this many prior σ from the nominal is not
+#: used (the start is the nominal or the coarse search's theta): short segments on their own, each
 #: with its own start heading fitted from positions, fit noise with theta (a robot's six
 #: 19 m segments of 5 Hz fixes of 0.5 m put t_r at 0.08 m, its prior 0.2 ± 0.025 m; the
 #: whole-log solve from there crept 50 iterations into a minimum at χ²/dof 4.8, exit 3 —
@@ -135,8 +135,7 @@ def warm_start_solution(
     except GraphcalError:
         return (None if coarse is None else {keys.THETA: coarse}), None
     shared = {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}
-    start_theta = np.asarray(spec.theta, float) if coarse is None else coarse
-    if _far_from(shared[keys.THETA], start_theta, spec.theta_prior_sigmas):
+    if _far_from(shared[keys.THETA], np.asarray(spec.theta, float), spec.theta_prior_sigmas):
         say(
             "  start: the segments on their own put theta beyond "
             f"{WARM_START_PRIOR_SPAN:g} prior σ: from the "
