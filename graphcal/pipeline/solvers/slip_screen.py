@@ -251,7 +251,8 @@ def _slip_test(
     score = projection @ gradient
     noise = projection @ data[:n, :n] @ projection.T  # the score's covariance without slip
     chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
-    basis = _slow_basis(slip, screen.bounds, segments)
+    spans = _chunk_spans(slip, screen.bounds)
+    basis = _slow_basis(spans, segments)
     slow = None
     if basis is not None:  # the same test on B's directions: Bᵀ g, Bᵀ A B, Bᵀ H B
         restricted = (basis.T @ score, basis.T @ reduced @ basis, basis.T @ noise @ basis)
@@ -261,7 +262,7 @@ def _slip_test(
         # θ̂'s response to the slip scales, every other variable at its optimum: −I_θθ⁻¹ I_θs
         # (the gain above: no prior ties theta to the slip scales)
         response = -gain.T[:THETA_SIZE]
-        times, travel = _chunk_times_and_travel(slip, screen.bounds, segments)
+        times, travel = _chunk_times_and_travel(spans, segments)
         sigma = np.sqrt(np.diag(np.linalg.inv(information[:k, :k]))[:THETA_SIZE])
         unit = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
         widened = unseen_slip_covariance(response, times, travel, unseen) * np.outer(unit, unit)
@@ -304,12 +305,13 @@ def unseen_slip_covariance(
 
 
 def _chunk_times_and_travel(
-    slip: list[int], bounds: list[np.ndarray], data: SegmentData
+    spans: tuple[np.ndarray, np.ndarray, np.ndarray], data: SegmentData
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Each slip key's chunk: the time [s] of its middle sample and the rotations [rev] its
-    wheels turn on average (travel in wheel turns). Segments without their log's sample rows
-    are taken as hours apart (independent)."""
-    segments, starts, ends = _chunk_spans(slip, bounds)
+    """Each slip key's chunk (its ``spans``, :func:`_chunk_spans`): the time [s] of its
+    middle sample and the rotations [rev] its wheels turn on average (travel in wheel
+    turns). Segments without their log's sample rows are taken as hours apart
+    (independent)."""
+    segments, starts, ends = spans
     middles = (starts + ends) // 2
     if data.sample_index is not None:
         times = data.sample_index[segments, middles] * float(data.dt)
@@ -353,15 +355,17 @@ def _score_test(
     return statistic, float(np.trace(ratio)), float(np.sqrt(2.0 * np.trace(ratio @ ratio)))
 
 
-def _slow_basis(slip: list[int], bounds: list[np.ndarray], data: SegmentData) -> np.ndarray | None:
-    """``(2 × len(slip), q)``: slip that varies slowly over the log, as the slip scales of
-    ``slip``'s chunks (keys in order, two scales each) — cosines ``cos(π j τ)`` of the
-    chunk's time ``τ`` in [0, 1] over the screened samples, ``j = 1 …``
-    :data:`SLOW_TERMS` per minute of it (at least 2), on the wheels' mean and on their
-    difference; ``None`` without sample rows or slip scales."""
-    if data.sample_index is None or not slip:
+def _slow_basis(
+    spans: tuple[np.ndarray, np.ndarray, np.ndarray], data: SegmentData
+) -> np.ndarray | None:
+    """``(2 J, q)``: slip that varies slowly over the log, as the slip scales of the ``J``
+    chunks of ``spans`` (:func:`_chunk_spans`; keys in order, two scales each) — cosines
+    ``cos(π j τ)`` of the chunk's time ``τ`` in [0, 1] over the screened samples,
+    ``j = 1 …`` :data:`SLOW_TERMS` per minute of it (at least 2), on the wheels' mean and
+    on their difference; ``None`` without sample rows or slip scales."""
+    segments, starts, ends = spans
+    if data.sample_index is None or len(segments) == 0:
         return None
-    segments, starts, ends = _chunk_spans(slip, bounds)
     middle = data.sample_index[segments, (starts + ends) // 2].astype(float)
     span = float(np.ptp(middle))
     if span <= 0:
