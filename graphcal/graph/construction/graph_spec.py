@@ -12,6 +12,11 @@ from graphcal.factors import CONTINUITY_SIGMAS
 from graphcal.graph.construction import keys
 from graphcal.log.segments import SegmentData
 
+#: Default correlation time [s] of the fixes' shared error (``[joint] fix_error_time``): the
+#: residuals show only its drift rate, and a shorter time claims it averages out sooner than
+#: a receiver's minute-long wander does (docs/method.md, "Fixes whose errors wander together").
+FIX_ERROR_TIME = 60.0
+
 
 @dataclass(frozen=True)
 class CorrectionPrior:
@@ -99,7 +104,7 @@ class SegmentGraphSpec:
     heading_bias_sigma: float | None = None
     rear_slip_gain_sigma: float | None = None
     fix_error_sigma: float | None = None
-    fix_error_time: float = 60.0
+    fix_error_time: float = FIX_ERROR_TIME
     tie_segments: bool = False
 
     def for_runs(self, runs: int) -> SegmentGraphSpec:

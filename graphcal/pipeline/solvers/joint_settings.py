@@ -12,7 +12,11 @@ import numpy as np
 
 from graphcal.errors import check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
-from graphcal.graph.construction.graph_spec import CorrectionPrior, SegmentGraphSpec
+from graphcal.graph.construction.graph_spec import (
+    FIX_ERROR_TIME,
+    CorrectionPrior,
+    SegmentGraphSpec,
+)
 from graphcal.graph.solution.observability import (
     DEFAULT_MAX_SIGMA_RATIO,
     Observability,
@@ -135,7 +139,7 @@ class JointSettings:
     rear_slip_gain_sigma: float = 0.01
     fix_error: str = "auto"
     fix_error_sigma: float = 0.0
-    fix_error_time: float = 60.0
+    fix_error_time: float = FIX_ERROR_TIME
     robust_threshold: float = 5.0
     heading_noise_from_log: bool = True
     wheel_noise_from_log: bool = True
