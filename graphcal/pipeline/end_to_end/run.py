@@ -53,7 +53,12 @@ from graphcal.pipeline.end_to_end.calibration_run import (
     validated_run,
 )
 from graphcal.pipeline.methods.batch_study import joint_batch_study
-from graphcal.pipeline.methods.model_check import ModelCheck, check_model, theta_alone
+from graphcal.pipeline.methods.model_check import (
+    ModelCheck,
+    check_model,
+    theta_alone,
+    with_the_other_model,
+)
 from graphcal.pipeline.methods.prepare import PreparedLog, prepare_log
 from graphcal.pipeline.methods.staged import run_staged
 from graphcal.pipeline.methods.whole_log import WholeLog, models_sensors, solve_whole_log
@@ -207,7 +212,10 @@ def _solve_checked(prepared: PreparedLog, workers: int) -> tuple[WholeLog, Model
     simpler = dataclasses.replace(
         prepared, settings=dataclasses.replace(prepared.settings, joint=joint), left_out=left_out
     )
-    return solve_whole_log(simpler, workers), check
+    chosen = solve_whole_log(simpler, workers)
+    if check.theta_alone:
+        chosen = with_the_other_model(chosen, solved)
+    return chosen, check
 
 
 def _recommended(solved: WholeLog) -> MethodResult:
