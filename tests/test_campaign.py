@@ -934,6 +934,24 @@ SLOW = [
         # t_r +4.0σ "calibrated" (over 10 recording seeds mean e/σ +2.3, +1.9); with 60 s
         # 1.2 m, and neither determined by three 65 m drives
     ),
+    pytest.param(
+        _shape(
+            length_m=1852.0,
+            noise_sigma=0.47,
+            imu=False,
+            wheels="angular_speed",
+            time_offset_s=0.018,
+            lever_arm=(-1.0, 0.27),
+            seed=41030,
+            outliers=0.002,
+            outage_s=59.0,
+            slip=0.0028,
+        ),
+        id="lateral-acceleration-from-a-creeping-solve",  # seed 43's shape 192: a_y from
+        # the wheels derived again with a first solve's theta that had crept under far too
+        # tight fix weights (c_e -1.7 m, t_r 0.56 m): 252 m/s² in turns, d pinned at its
+        # nominal with σ 0.006 mm·s²/m, -199σ "calibrated"
+    ),
 ]
 
 

@@ -12,7 +12,11 @@ Top-down, :func:`solve_whole_log` runs:
 2. the noise its residuals show (:func:`~graphcal.pipeline.methods.noise_levels.with_noise_levels`:
    the fixes' white noise and the error they share, the heading's, the wheels') and, for a
    log whose lateral acceleration comes from the wheels (and whose d is estimated), that
-   acceleration derived again with the solved theta; then time-offset rounds
+   acceleration derived again with the solved theta — from a solution: after a first solve
+   stopped under far wrong fix weights, with the next solve's theta, and the log solved
+   again (a creeping first solve's c_e −1.7 m, t_r 0.56 m made a_y 252 m/s² in turns,
+   which pinned d at σ 0.006 mm·s²/m, 199σ from the truth; campaign seed 43's shape 192);
+   then time-offset rounds
    (:func:`~graphcal.pipeline.methods.time_offset_rounds.solve_with_time_offset`: the
    wheels shifted by whole samples while the solve finds an offset) under the noise found
    (a profile's RTK 0.05 m on fixes of 1.9 m put a delivery robot's wheels 350 ms late);
@@ -40,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, gather_segments
@@ -167,7 +172,10 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     joint = with_noise_levels(whole, settings.joint, has_heading, prepared.log.dt)
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
-    if rederive:  # a_y derived with the nominal theta: again with the solved one
+    # a_y derived with the nominal theta: again with a solved one (not a misweighted stop's)
+    later = rederive and whole.outcome.status is SolveStatus.MISWEIGHTED
+    rederive = rederive and not later
+    if rederive:
         prepared = _with_lateral_acceleration(prepared, whole.theta)
     reweighted = fixes_reweighted(settings.joint, joint)
     again = joint is not settings.joint or rederive
@@ -185,10 +193,12 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
         prepared, settings, held, workers, free
     )
     settings = _with_tolerance(settings, tolerance)
+    if later:
+        prepared = _with_lateral_acceleration(prepared, whole.theta)
     arm_left_out = "lever_arm" in left_out and "lever_arm" not in prepared.left_out
-    if reweighted or arm_left_out:
+    if reweighted or arm_left_out or later:
         settings, (whole, values, data, offset) = _noise_judged_again(
-            prepared, settings, held, workers, (whole, values, data, offset), reweighted
+            prepared, settings, held, workers, (whole, values, data, offset), reweighted, later
         )
     log, validation = prepared.log, prepared.validation
     whole = judged_with_what_is_held(whole, settings.joint, held)
@@ -224,18 +234,20 @@ def _noise_judged_again(
     workers: int,
     solved: Solved,
     reweighted: bool,
+    changed: bool = False,
 ) -> tuple[Settings, Solved]:
     """The noise judged again where the ``solved`` it was judged from differs: it fitted far
     wrong fix weights (``reweighted``: the heading's and the wheels' noise, under the fixes'
     own), or a lever arm it held was left out since (the fixes' too: a 0.38 m arm across a
     straight road, not observable, took a fifth of their residuals' variance — 0.228 m kept
     as the profile's 0.2 m, within tolerance, then 0.256 m without it: χ²/dof 1.67, "not to
-    be trusted"); the log solved again, with its time-offset rounds, if the noise changed or
-    ``solved`` only read it (:data:`NOISE_READING_TOLERANCE`)."""
+    be trusted"); the log solved again, with its time-offset rounds, if the noise changed,
+    ``solved`` only read it (:data:`NOISE_READING_TOLERANCE`) or the log ``changed`` since
+    (its a_y derived again)."""
     whole, values, _, offset = solved
     has_heading, dt = prepared.data.has_heading(), prepared.log.dt
     joint = with_noise_levels(whole, settings.joint, has_heading, dt, fixes=not reweighted)
-    if joint is settings.joint and not reweighted:
+    if joint is settings.joint and not reweighted and not changed:
         return settings, solved
     settings = dataclasses.replace(settings, joint=joint)
     start = StoppedAt(values, offset, rounds_start(whole))
