@@ -26,7 +26,7 @@ Theta alone is chosen on evidence that a short log gives only roughly: where its
 differs from the defect model's, that difference is part of theta's uncertainty
 (:func:`with_the_other_model`). Six 150 m segments under fixes sharing 1.9 m of error over
 a minute predicted 0.517 m with theta alone and 0.636 m with a lever arm the solve had found
-at 3.4σ (paired over the segments, t 2.3 on 5 degrees of freedom); theta alone, blind to
+at 3.4σ; theta alone, blind to
 the 0.36 m arm, put c_e 25 mm from the truth with σ 6.4 mm (3.9σ), 8.1 mm from the defect
 model's c_e; with that difference σ is 10.4 mm (2.4σ; campaign seed 43's shape 38).
 
