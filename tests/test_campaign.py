@@ -445,6 +445,30 @@ EXAMPLES = [
         # ends: 0.8 of their travel, the IMU's accelerations 1.25 times the wheels', the
         # mounting "only to ±1.2°", refused (seed 35's shape 159 the same)
     ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=199.0,
+            gnss_rate=50.0,
+            noise_sigma=1.83,
+            noise_tau_s=8.0,
+            heading=True,
+            imu=False,
+            wheels="ticks",
+            ticks=1379,
+            drives=3,
+            gap_s=25.0,
+            park_s=4.0,
+            time_offset_s=-0.015,
+            lever_arm=(-0.22, 0.0),
+            seed=487,
+            outliers=0.01,
+            slip=0.0028,
+        ),
+        id="a-noisy-course-wrapping-by-a-turn",  # seed 44's shape 101: a robot's course
+        # over 3–5 m chords of fixes sharing 1.8 m wrapped by ±5–6.7 rad where the wheels
+        # turned 0.03–0.55 rad: a right heading in degrees refused as "0.0157x the track"
+    ),
 ]
 
 

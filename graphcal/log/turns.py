@@ -8,6 +8,7 @@ compares with speed × yaw rate in them. Both an import (:mod:`graphcal.recordin
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -187,6 +188,16 @@ class TrackTurns:
         window's ends: a heading's noise is small beside a clear turn, an integrated yaw
         rate has none), NaN where masked."""
         return _window_turns(yaw, self.usable, self.ends)
+
+    def sized_as_the_wheels(self) -> TrackTurns:
+        """These turns, only those whose size the wheels (nominal θ) confirm within a factor
+        :data:`WHEEL_TURN_SLACK`: what an angle's unit is judged on. A course over short
+        chords of a slow robot's noisy fixes can wrap by about a turn: ±5–6.7 rad where
+        the wheels turned 0.03–0.55 rad refused a right heading in degrees as "0.0157x the
+        track" (campaign seed 44's shape 101, 50 Hz fixes sharing 1.8 m over 8 s)."""
+        with np.errstate(invalid="ignore"):
+            sized = np.abs(self.track) < WHEEL_TURN_SLACK * np.abs(self.wheels)
+        return dataclasses.replace(self, turning=self.turning & sized)
 
     def scale(self, turns: np.ndarray) -> tuple[float, int] | None:
         """Median of |turns| / |the track's turns| over the clear turns, and the window of

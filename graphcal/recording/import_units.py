@@ -60,7 +60,9 @@ _ANGLE_UNIT_KEYS = {
 
 def _check_angle_scale(angle, quantity: str, stream, times, turns, usable, grid) -> None:
     """One line if ``angle`` [rad as declared: the heading, or the yaw rate's integral] turns
-    far more or less than the GNSS track in its clear turns (a unit mistake)."""
+    far more or less than the GNSS track in its clear turns whose size the wheels confirm
+    (a unit mistake)."""
+    turns = turns.sized_as_the_wheels()
     turned = turns.turns_of(angle)
     found = turns.scale(turned)
     if found is None or 1 / ANGLE_SCALE_LIMIT <= found[0] <= ANGLE_SCALE_LIMIT:
