@@ -139,3 +139,44 @@ def test_a_held_parameter_out_of_range_is_not_held_again(monkeypatch):
 
     with pytest.raises(ImplausibleTheta, match="t_r out of range"):
         _held_solves(monkeypatch, [("t_r",)])
+
+
+def test_a_held_solve_that_crept_under_too_tight_weights_is_no_verdict_on_units(monkeypatch):
+    """Campaign seed 44's shape 162 (a robot's fixes sharing 0.23 m over 46 s): t_r ran
+    out, the solve holding it crept at χ²/dof 26 under weights far too tight and stopped,
+    and t_r read as determined there was refused as wrong units (exit 2). Such a held solve
+    is no solution: the free solve runs again under the noise it shows."""
+    from types import SimpleNamespace
+
+    import graphcal.pipeline.methods.runaways as runaways
+    from graphcal.graph.solution.plausibility import ImplausibleTheta
+    from graphcal.pipeline.configuration.configure import configure_settings
+
+    free_solves = []
+
+    def solve(prepared, settings, workers=1, start=None, rounds=4, solved=None, stop_if=None):
+        free_solves.append(settings.held_at_prior)
+        if len(free_solves) == 1:
+            raise ImplausibleTheta("t_r out of range", ("t_r",))
+        return "solved free again"
+
+    crept = SimpleNamespace(outcome=SimpleNamespace(status=SolveStatus.MISWEIGHTED))
+
+    def holding(prepared, settings, runaway, workers, shift=None):
+        return runaway, settings.holding(runaway.names), (crept, None, None, None)
+
+    monkeypatch.setattr(runaways, "solve_with_time_offset", solve)
+    monkeypatch.setattr(runaways, "_holding_a_runaway", holding)
+    monkeypatch.setattr(runaways, "data_determine", lambda whole, settings, names: [True])
+    monkeypatch.setattr(runaways, "with_noise_levels", lambda whole, settings, *a, **k: settings)
+    prepared = SimpleNamespace(
+        data=SimpleNamespace(has_heading=lambda: False), log=SimpleNamespace(dt=0.025)
+    )
+    settings = configure_settings()
+    _, solved = runaways.holding_runaways(prepared, settings, {}, workers=1)
+    assert solved == "solved free again" and free_solves == [(), ()]
+    # a held solve that is a solution, with the data determining t_r: the units
+    crept.outcome.status = SolveStatus.CONVERGED
+    free_solves.clear()
+    with pytest.raises(ImplausibleTheta, match="t_r out of range"):
+        runaways.holding_runaways(prepared, settings, {}, workers=1)
