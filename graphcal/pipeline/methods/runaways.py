@@ -94,9 +94,10 @@ def holding_runaways(
         if noisier_judged:  # solved free under their noise, and still far noisier: held
             held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
             return dataclasses.replace(settings, joint=holding), outcome
+        why = "stopped creeping under" if crept else "shows the fixes far noisier than"
         say(
-            "  the fixes are far noisier than that solve weighted them: the free solve "
-            "again under their own noise, before the runaway is judged"
+            f"  the held solve {why} the weights it took: the free solve again under the "
+            "noise its residuals show, before the runaway is judged"
         )
         joint = dataclasses.replace(noise, held_at_prior=settings.joint.held_at_prior)
         settings = dataclasses.replace(settings, joint=joint)
