@@ -976,6 +976,25 @@ SLOW = [
         # tight fix weights (c_e -1.7 m, t_r 0.56 m): 252 m/s² in turns, d pinned at its
         # nominal with σ 0.006 mm·s²/m, -199σ "calibrated"
     ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=100.0,
+            noise_sigma=1.01,
+            noise_tau_s=6.0,
+            imu=False,
+            wheels="ticks",
+            ticks=28,
+            drives=3,
+            gap_s=53.0,
+            park_s=6.0,
+            lever_arm=(0.0, 0.0),
+            seed=28,
+        ),
+        id="damping-that-rejects-every-other-step",  # seed 45's shape 61: the last solve
+        # alternated λ 1e-8 (rejected) and 1e-7 (accepted) for 50 iterations, χ²/dof 0.5595
+        # at its limit, exit 3; with the gain ratio's damping 15 iterations to 0.55
+    ),
 ]
 
 
@@ -996,6 +1015,8 @@ C_E_UNDETERMINED = {
     "weak-track-far-from-its-nominal",
     # three 65 m drives whose 50 Hz fixes share 1.2 m over 59 s
     "fixes-sharing-their-error-over-a-minute",
+    # three drives, 100 m in all, of 10 Hz fixes sharing 1 m over 6 s: c_e's σ 15 mm
+    "damping-that-rejects-every-other-step",
 }
 
 
@@ -1025,13 +1046,14 @@ def test_the_summary_sets_values_beyond_3_sigma_beside_what_honest_errors_give()
     assert "chance 1" in script.beyond_line([0.0] * 10)
 
 
-def test_a_warm_start_the_short_segments_pull_far_from_the_prior_is_not_used(
+def test_a_warm_start_holds_what_the_short_segments_pull_far_from_the_prior(
     tmp_path: Path,
 ) -> None:
     """Seed 41's shape 188 (a robot's 120 m, 5 Hz fixes of 0.5 m, positions only): its six
     19 m segments on their own put t_r at 0.08 m (prior 0.2 ± 0.025 m); the whole-log solve
     from there crept 50 iterations into a minimum at χ²/dof 4.8, "not to be trusted". From
     the nominal theta: χ²/dof 1.06, every parameter within 1σ of the truth."""
+    from graphcal.graph.construction import keys
     from graphcal.graph.optimization.solve_options import SolveOptions
     from graphcal.pipeline.configuration.configure import configure_settings
     from graphcal.pipeline.methods.prepare import prepare_log
@@ -1049,4 +1071,8 @@ def test_a_warm_start_the_short_segments_pull_far_from_the_prior_is_not_used(
     prepared = prepare_log(log, settings, fall_back_to_all=True)
     spec = prepared.settings.joint.graph_spec()
     assert spec.tied(prepared.data).any()  # a short tied log: theta from its segments untied
-    assert warm_start(prepared.data, spec, SolveOptions(50, 1e-7)) is None  # the nominal's
+    start = warm_start(prepared.data, spec, SolveOptions(50, 1e-7))
+    assert start is not None
+    theta = start[keys.THETA]
+    assert theta[2] == pytest.approx(vehicle.theta_nominal[2], abs=1e-6)  # held, not 0.08 m
+    assert abs(theta[0] - 0.503) < 0.005  # the rest from the segments: c_e within 1 %

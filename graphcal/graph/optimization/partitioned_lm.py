@@ -175,7 +175,7 @@ class _Solve:
         # its linearization predicted its decrease well.
         next_undamped = gauss_newton_next(self.undamped, self.damping.lam, ratio)
         if not self.undamped:
-            self.damping.decrease()
+            self.damping.decrease(ratio)
         self.undamped = self.gauss_newton and next_undamped
         return _Iteration(new_error, None, how)
 

@@ -130,7 +130,7 @@ def _levenberg_marquardt(
             judgement = judge_step(error, new_error, predicted, damping, relative_error_tol)
             if judgement.verdict is Verdict.ACCEPT:
                 values = candidate
-                damping.decrease()
+                damping.decrease(judgement.gain_ratio)
                 break
             if judgement.verdict is Verdict.AT_MINIMUM:
                 new_error = error  # no step lowers the error: at the minimum
