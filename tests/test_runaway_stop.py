@@ -14,7 +14,7 @@ from graphcal.graph.construction.graph_spec import shared_keys
 from graphcal.graph.optimization.levenberg_marquardt import RUNAWAY_ITERATIONS, RunawayWatch
 from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.partitioned_lm import optimize
-from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveOutcome, SolveStatus
 from graphcal.graph.solution.plausibility import BeyondPlausible, plausible_ranges
 from graphcal.log.segments import gather_segments, select_segments, split_segments
 from graphcal.pipeline.solvers.joint_settings import JointSettings
@@ -160,7 +160,7 @@ def test_a_held_solve_that_crept_under_too_tight_weights_is_no_verdict_on_units(
             raise ImplausibleTheta("t_r out of range", ("t_r",))
         return "solved free again"
 
-    crept = SimpleNamespace(outcome=SimpleNamespace(status=SolveStatus.MISWEIGHTED))
+    crept = SimpleNamespace(outcome=SolveOutcome(SolveStatus.MISWEIGHTED, 12, 50))
 
     def holding(prepared, settings, runaway, workers, shift=None):
         return runaway, settings.holding(runaway.names), (crept, None, None, None)
@@ -176,7 +176,7 @@ def test_a_held_solve_that_crept_under_too_tight_weights_is_no_verdict_on_units(
     _, solved = runaways.holding_runaways(prepared, settings, {}, workers=1)
     assert solved == "solved free again" and free_solves == [(), ()]
     # a held solve that is a solution, with the data determining t_r: the units
-    crept.outcome.status = SolveStatus.CONVERGED
+    crept.outcome = SolveOutcome(SolveStatus.CONVERGED, 12, 50)
     free_solves.clear()
     with pytest.raises(ImplausibleTheta, match="t_r out of range"):
         runaways.holding_runaways(prepared, settings, {}, workers=1)

@@ -77,11 +77,17 @@ class SolveOutcome:
         return self.status is not SolveStatus.ITERATION_LIMIT
 
     @property
+    def crept(self) -> bool:
+        """The solve stopped creeping under weights far too tight for its residuals
+        (:attr:`SolveStatus.MISWEIGHTED`): not a minimum, a point to read the noise at."""
+        return self.status is SolveStatus.MISWEIGHTED
+
+    @property
     def message(self) -> str:
         """One line: how the solve ended."""
         if self.status is SolveStatus.ITERATION_LIMIT:
             return f"stopped at its iteration limit ({self.max_iterations}) without converging"
-        if self.status is SolveStatus.MISWEIGHTED:
+        if self.crept:
             return f"stopped after {self.iterations} iteration(s) creeping under too tight weights"
         if self.status is SolveStatus.RUNAWAY:
             return (

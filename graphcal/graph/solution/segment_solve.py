@@ -24,7 +24,7 @@ from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.partitioned_lm import optimize_partitioned
 from graphcal.graph.optimization.solve import degrees_of_freedom, solve_lm
-from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.covariance import partitioned_marginals, whole_graph_marginals
 from graphcal.graph.solution.estimates import SolvedGraph
@@ -120,7 +120,7 @@ def solve_segment_graph(
         )
         if spec.estimate_theta:
             theta = np.asarray(partitioned.shared_values.atVector(keys.THETA))
-            if outcome.status is not SolveStatus.MISWEIGHTED:  # not a solution: no verdict
+            if not outcome.crept:  # not a solution: no verdict
                 check_plausible(
                     theta,
                     label,
@@ -162,7 +162,7 @@ def _solve_whole_graph(
     marginal, nuisance = None, {}
     if spec.estimate_theta:
         theta = np.asarray(result.atVector(keys.THETA))
-        if outcome.status is not SolveStatus.MISWEIGHTED:  # not a solution: no verdict
+        if not outcome.crept:  # not a solution: no verdict
             check_plausible(
                 theta,
                 label,

@@ -11,7 +11,6 @@ from collections.abc import Callable
 import numpy as np
 
 from graphcal.factors import pose_sigmas
-from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.pipeline.solvers.joint import JointCalibration
 from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.pipeline.solvers.residual_noise import CORRELATED_ERRORS, ResidualNoise, honest_sigma
@@ -69,7 +68,7 @@ def with_noise_levels(
     under it (a robot's 1.7 m white fixes read from such residuals as 4.5 m shared and
     1.8 m white: the solve under that was indeterminate, exit 2).
     """
-    converged = whole.outcome.status is not SolveStatus.MISWEIGHTED
+    converged = not whole.outcome.crept
     return with_residual_noise(whole.noise, settings, has_heading, dt, fixes, converged)
 
 

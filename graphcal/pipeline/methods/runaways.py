@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.graph.solution.plausibility import ImplausibleTheta
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.configuration.settings import Settings
@@ -88,7 +87,7 @@ def holding_runaways(
         # units by (a robot's fixes sharing 0.23 m over 46 s: χ²/dof 26, its fixes read as
         # 0.094 m, t_r "determined" out of range: exit 2 "check the units", campaign seed
         # 44's shape 162): solved free again under the noise it shows, as far noisier fixes
-        crept = outcome[0].outcome.status is SolveStatus.MISWEIGHTED
+        crept = outcome[0].outcome.crept
         if not fixes_reweighted(holding, noise) and not crept:
             raise runaway from None  # the data put it there: wrong units, not a weak direction
         if noisier_judged:  # solved free under their noise, and still far noisier: held

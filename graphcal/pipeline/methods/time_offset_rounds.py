@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.pipeline.methods.prepare import PreparedLog
@@ -142,7 +141,7 @@ def _whole_log_solve(
     )
     chi2 = result.chi2_per_dof
     fit = "" if chi2 is None else f", χ²/dof {chi2:.2f}"
-    if result.outcome.status is SolveStatus.MISWEIGHTED:
+    if result.outcome.crept:
         fit += " (stopped: it crept under weights far too tight for its residuals)"
     say(f"  {result.iterations} iterations{fit}")
     return result, values

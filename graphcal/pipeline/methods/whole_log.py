@@ -44,7 +44,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, gather_segments
@@ -173,7 +172,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
     # a_y derived with the nominal theta: again with a solved one (not a misweighted stop's)
-    later = rederive and whole.outcome.status is SolveStatus.MISWEIGHTED
+    later = rederive and whole.outcome.crept
     rederive = rederive and not later
     if rederive:
         prepared = _with_lateral_acceleration(prepared, whole.theta)

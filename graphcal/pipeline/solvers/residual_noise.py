@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from graphcal.graph.optimization.solve_options import SolveStatus
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.log.segments import SegmentData
 
@@ -109,7 +108,7 @@ def residual_noise(
     if weights is not None:
         used &= weights >= 1.0
     headings = data.headings_measured()
-    out: dict = {"unfinished": solved.outcome.status is SolveStatus.MISWEIGHTED}
+    out: dict = {"unfinished": solved.outcome.crept}
     tied = solved.built.spec.tied(data)  # the graph's trajectories
     directions, fast = travel_directions(data)
     for name, rows, columns in (

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
-from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.solution.covariance import covariance_from_information, with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
@@ -216,7 +216,7 @@ def solve_segment_graph_robust(
             start=first if initial is None else ValuesStart(initial),
             covariance=False,
         )
-        if solved.outcome.status is not SolveStatus.MISWEIGHTED:
+        if not solved.outcome.crept:
             return solved
         if reweights is not None and reweights(solved, segments):
             return solved
