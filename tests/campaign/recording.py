@@ -197,8 +197,8 @@ def motion(shape: Shape) -> Motion:
 
 def _slipping(m: Motion, shape: Shape, rng: np.random.Generator) -> Motion:
     """``m`` with the wheels slipping slowly: their rates scaled by ``1 + slip · sin(2π t /
-    P + φ)``, P 60–300 s, less its mean over the distance driven (theta stays the truth),
-    rotations integrated."""
+    P + φ)``, P 60–300 s, less its mean over the distance driven where fixes see the
+    vehicle (theta stays the truth), rotations integrated."""
     if not shape.slip:
         return m
     period, phase = rng.uniform(60.0, 300.0), rng.uniform(0.0, 2.0 * np.pi)
@@ -206,9 +206,11 @@ def _slipping(m: Motion, shape: Shape, rng: np.random.Generator) -> Motion:
     dt = np.diff(m.t)
     dt[dt > 1.0] = 0.0  # across a gap between drives the wheels are not turning
     # None on average over the distance driven: a minute's drive on a five-minute sine
-    # slips by up to its amplitude throughout, which no log tells from c_e.
+    # slips by up to its amplitude throughout, which no log tells from c_e. Nor the slip of
+    # an outage, where no fix sees the distance: 0.17 % over a 56 s outage moved the mean of
+    # the rest by 0.09 %, c_e by 1.8 mm (seed 45's shape 58, its σ 0.54 mm).
     rate = 0.5 * (m.rate_l + m.rate_r)
-    weight = np.concatenate([[0.0], dt]) * rate
+    weight = np.concatenate([[0.0], dt]) * rate * _fixes_kept(m.t, m, shape)
     scale = 1.0 + slip - np.sum(weight * slip) / max(np.sum(weight), 1e-12)
 
     def extra(rate: np.ndarray) -> np.ndarray:
