@@ -127,7 +127,8 @@ def solve_joint(
     head = options
     if stop_if is not None:
         head = dataclasses.replace(options, misweighted_chi2=MISWEIGHTED_CHI2)
-    first = _first_start(data, settings.graph_spec(), head, start, same_segments)
+    held = settings.held_names()
+    first = _first_start(data, settings.graph_spec(), head, start, same_segments, held)
     solved, weights, noise, stopped = _robust_solve(
         data, settings, options, head, first, rounds_start, stop_if
     )
@@ -165,11 +166,13 @@ def _first_start(
     options: SolveOptions,
     start: gtsam.Values | None,
     same_segments: bool,
+    held: tuple[str, ...] = (),
 ) -> BuilderStart:
     """Where :func:`solve_joint` starts: a warm start's (graph-wide variables, and its
-    solution where it solved every segment), or ``start``'s."""
+    solution where it solved every segment; the parameters ``held`` at their prior), or
+    ``start``'s."""
     if start is None:
-        shared, solution = warm_start_solution(data, spec, options)
+        shared, solution = warm_start_solution(data, spec, options, held)
     else:
         shared = {k: np.asarray(start.atVector(k)) for k in shared_keys(spec) if start.exists(k)}
         solution = start if same_segments else None

@@ -155,6 +155,14 @@ class JointSettings:
         """``(4,)`` the parameters a tight prior holds at ``theta_initial`` (``fix_d``)."""
         return np.array([False, False, False, self.fix_d])
 
+    def held_names(self) -> tuple[str, ...]:
+        """The parameters a solve holds at their prior: ``held_at_prior``, and d with
+        ``fix_d``."""
+        return (
+            *self.held_at_prior,
+            *(("d",) if self.fix_d and "d" not in self.held_at_prior else ()),
+        )
+
     def holding(self, names: list[str] | tuple[str, ...]) -> JointSettings:
         """These settings with the parameters ``names`` held at ``theta_initial`` too
         (:meth:`solve_prior_sigmas`): what the data do not determine stays where the prior

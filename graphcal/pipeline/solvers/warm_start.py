@@ -67,14 +67,14 @@ COARSE_MIN_GAIN = 0.5
 
 
 def warm_start(
-    data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions
+    data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions, held: tuple[str, ...] = ()
 ) -> dict[int, np.ndarray] | None:
     """:func:`warm_start_solution`'s graph-wide variables alone."""
-    return warm_start_solution(data, spec, options)[0]
+    return warm_start_solution(data, spec, options, held)[0]
 
 
 def warm_start_solution(
-    data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions
+    data: SegmentData, spec: SegmentGraphSpec, options: SolveOptions, held: tuple[str, ...] = ()
 ) -> tuple[dict[int, np.ndarray] | None, gtsam.Values | None]:
     """The graph-wide variables (theta, time offset, lever arm, by key) solved on
     :data:`WARM_START_SEGMENTS` of ``data``'s segments spread over the log, each on its own
@@ -87,7 +87,8 @@ def warm_start_solution(
     starts from the nominal theta with each segment's odometry moved onto its fixes (a
     robot's start heading from 2 Hz fixes of 1 m noise left its solve at χ²/dof 7 after 100
     iterations). The sample is solved as ``options``
-    say, without a line per iteration.
+    say, without a line per iteration; the parameters ``held`` (at their prior already) are
+    never judged far from it.
 
     Also returns the sample's solution where the sample is every segment of ``data`` (a
     shorter log whose segments the whole solve ties): a start for every variable of the tied
@@ -123,11 +124,11 @@ def warm_start_solution(
     )
     start = BuilderStart.warm(None if coarse is None else {keys.THETA: coarse})
     try:
-        solved = _solved_sample(data.take(sample), spec, quiet, start)
+        solved = _solved_sample(data.take(sample), spec, quiet, start, held)
     except GraphcalError:
         return (None if coarse is None else {keys.THETA: coarse}), None
     shared = {key: np.asarray(solved.result.atVector(key)) for key in shared_keys(spec)}
-    if _far_from(shared[keys.THETA], np.asarray(spec.theta, float), spec.theta_prior_sigmas):
+    if _far_names(shared[keys.THETA], np.asarray(spec.theta, float), spec.theta_prior_sigmas, held):
         say(
             "  start: the segments on their own put theta beyond "
             f"{WARM_START_PRIOR_SPAN:g} prior σ: from the "
@@ -138,7 +139,11 @@ def warm_start_solution(
 
 
 def _solved_sample(
-    sample: SegmentData, spec: SegmentGraphSpec, options: SolveOptions, start: BuilderStart
+    sample: SegmentData,
+    spec: SegmentGraphSpec,
+    options: SolveOptions,
+    start: BuilderStart,
+    held: tuple[str, ...],
 ) -> SolvedGraph:
     """The warm start's ``sample`` solved untied; where the segments on their own run a
     parameter out of its plausible range, or end it beyond :data:`WARM_START_PRIOR_SPAN`
@@ -151,28 +156,29 @@ def _solved_sample(
     except ImplausibleTheta as runaway:
         held = runaway.names
     else:
-        held = _far_names(solved.theta, np.asarray(spec.theta, float), spec.theta_prior_sigmas)
-        if not held:
+        theta, sigmas = np.asarray(spec.theta, float), spec.theta_prior_sigmas
+        far = _far_names(solved.theta, theta, sigmas, held)
+        if not far:
             return solved
+        held = far
     return solve_segment_graph(
         sample, _holding(untied, held), options, start=start, covariance=False
     )
 
 
-def _far_names(theta: np.ndarray, start: np.ndarray, sigmas: np.ndarray | None) -> tuple[str, ...]:
+def _far_names(
+    theta: np.ndarray, start: np.ndarray, sigmas: np.ndarray | None, held: tuple[str, ...] = ()
+) -> tuple[str, ...]:
     """The parameters of ``theta`` beyond :data:`WARM_START_PRIOR_SPAN` of the prior
-    ``sigmas`` from ``start`` (none without a prior)."""
+    ``sigmas`` from ``start``, of those not ``held`` already (a held parameter's σ is
+    10⁻⁴ of its prior's: held again, GTSAM takes it as a constraint and fails; none without
+    a prior)."""
     if sigmas is None:
         return ()
     span = WARM_START_PRIOR_SPAN * np.abs(np.asarray(sigmas, float))
     far = np.abs(np.asarray(theta, float) - start) > span
-    return tuple(name for name, out in zip(PARAMETER_NAMES, far, strict=True) if out)
-
-
-def _far_from(theta: np.ndarray, start: np.ndarray, sigmas: np.ndarray | None) -> bool:
-    """Whether ``theta`` lies beyond :data:`WARM_START_PRIOR_SPAN` of the prior ``sigmas``
-    from ``start`` in any parameter (never without a prior)."""
-    return bool(_far_names(theta, start, sigmas))
+    names = zip(PARAMETER_NAMES, far, strict=True)
+    return tuple(name for name, out in names if out and name not in held)
 
 
 def _holding(spec: SegmentGraphSpec, names: tuple[str, ...]) -> SegmentGraphSpec:
