@@ -44,6 +44,19 @@ def _yard(vehicle: str, **axes) -> Shape:
     return _shape(vehicle=vehicle, route="yard", **axes)
 
 
+def _prepared(shape: Shape, directory: Path):
+    """``shape``'s recording written to ``directory``, imported and prepared for the joint
+    solve with its vehicle's profile (as ``graphcal calibrate`` does); and the profile."""
+    from graphcal.pipeline.configuration.configure import configure_settings
+    from graphcal.pipeline.methods.prepare import prepare_log
+
+    manifest = write_recording(shape, directory)
+    vehicle = graphcal.load_vehicle(directory / "vehicle.toml")
+    log, _ = graphcal.open_log(manifest, vehicle)
+    settings = configure_settings(vehicle=directory / "vehicle.toml")
+    return prepare_log(log, settings, fall_back_to_all=True), vehicle
+
+
 #: Three 1.5 km drives on a straight road, 5 Hz fixes of 0.26 m, no heading, an antenna
 #: 0.38 m to the side: neither the arm nor t_r shows.
 STRAIGHT_POSITIONS_ONLY = dict(
@@ -547,8 +560,6 @@ def test_a_warm_start_of_a_solve_holding_a_parameter_does_not_hold_it_again(
     "cannot update information with constrained noise model", a traceback."""
     from graphcal.graph.construction import keys
     from graphcal.graph.optimization.solve_options import SolveOptions
-    from graphcal.pipeline.configuration.configure import configure_settings
-    from graphcal.pipeline.methods.prepare import prepare_log
     from graphcal.pipeline.solvers.warm_start import warm_start
 
     shape = _yard(
@@ -556,11 +567,7 @@ def test_a_warm_start_of_a_solve_holding_a_parameter_does_not_hold_it_again(
         imu=False, drives=3, gap_s=25.0, park_s=0.0, lever_arm=(0.26, 0.0), seed=12,
         outage_s=29.0,
     )  # fmt: skip
-    manifest = write_recording(shape, tmp_path)
-    vehicle = graphcal.load_vehicle(tmp_path / "vehicle.toml")
-    log, _ = graphcal.open_log(manifest, vehicle)
-    settings = configure_settings(vehicle=tmp_path / "vehicle.toml")
-    prepared = prepare_log(log, settings, fall_back_to_all=True)
+    prepared, vehicle = _prepared(shape, tmp_path)
     joint = prepared.settings.joint.holding(("t_r",))
     start = warm_start(
         prepared.data, joint.graph_spec(), SolveOptions(50, 1e-7), joint.held_names()
@@ -581,13 +588,7 @@ def test_what_a_drive_of_positions_only_cannot_show_is_decided_before_solving(
     both are decided before any solve (the arm judged from the wheels' turn, not the course
     of the noisy fixes, which made it look showable: ±0.14 m at best; t_r held where the
     drive barely turns). The quick tier's 0.6 km town drive keeps both."""
-    from graphcal.pipeline.configuration.configure import configure_settings
-    from graphcal.pipeline.methods.prepare import prepare_log
-
-    manifest = write_recording(_shape(**axes), tmp_path)
-    vehicle = graphcal.load_vehicle(tmp_path / "vehicle.toml")
-    log, _ = graphcal.open_log(manifest, vehicle)
-    prepared = prepare_log(log, configure_settings(vehicle=tmp_path / "vehicle.toml"), True)
+    prepared, _ = _prepared(_shape(**axes), tmp_path)
     assert ("lever_arm" in prepared.left_out) == left_out, prepared.left_out
     assert ("t_r" in prepared.held) == held, prepared.held
 
@@ -1088,8 +1089,6 @@ def test_a_warm_start_holds_what_the_short_segments_pull_far_from_the_prior(
     the nominal theta: χ²/dof 1.06, every parameter within 1σ of the truth."""
     from graphcal.graph.construction import keys
     from graphcal.graph.optimization.solve_options import SolveOptions
-    from graphcal.pipeline.configuration.configure import configure_settings
-    from graphcal.pipeline.methods.prepare import prepare_log
     from graphcal.pipeline.solvers.warm_start import warm_start
 
     shape = _yard(
@@ -1097,11 +1096,7 @@ def test_a_warm_start_holds_what_the_short_segments_pull_far_from_the_prior(
         imu=True, wheels="speed", park_s=8.0, lever_arm=(0.09, 0.0), seed=48496,
         outliers=0.002,
     )  # fmt: skip
-    manifest = write_recording(shape, tmp_path)
-    vehicle = graphcal.load_vehicle(tmp_path / "vehicle.toml")
-    log, _ = graphcal.open_log(manifest, vehicle)
-    settings = configure_settings(vehicle=tmp_path / "vehicle.toml")
-    prepared = prepare_log(log, settings, fall_back_to_all=True)
+    prepared, vehicle = _prepared(shape, tmp_path)
     spec = prepared.settings.joint.graph_spec()
     assert spec.tied(prepared.data).any()  # a short tied log: theta from its segments untied
     start = warm_start(prepared.data, spec, SolveOptions(50, 1e-7))

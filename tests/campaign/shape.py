@@ -23,10 +23,11 @@ class Shape:
     counter's resolution [ticks/rev] when ``wheels == "ticks"`` (else 0). ``outliers``: the
     share of fixes 10–50 m off; ``outage_s``: the fixes stop that long amid the first drive
     (the wheels go on); ``slip``: the amplitude of a slow wheel slip (the rotations scaled
-    by 1 + slip · sin, over minutes: none on average); ``mounting``: the IMU's (roll, pitch,
-    yaw) [deg] in the vehicle (its three axes logged in its own frame; the manifest gives
-    the angles, or ``"estimate"`` with ``mounting_estimated``); ``sideslip``: the fixes log
-    the rear axle's sideslip (a car's tyre slip angle)."""
+    by 1 + slip · sin, over minutes: none on average where the fixes see it);
+    ``mounting``: the IMU's (roll, pitch, yaw) [deg] in the vehicle (its three axes logged
+    in its own frame; the manifest gives the angles, or ``"estimate"`` with
+    ``mounting_estimated``); ``sideslip``: the fixes log the rear axle's sideslip (a car's
+    tyre slip angle)."""
 
     vehicle: str
     route: str
