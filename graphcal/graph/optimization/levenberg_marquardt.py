@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-#: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow.
+#: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow (its λ
+#: factor 10 is the most an accepted step lowers λ by: :class:`Damping`).
 LAMBDA_INITIAL = 1e-5
 LAMBDA_FACTOR = 10.0
 LAMBDA_UPPER_BOUND = 1e5
@@ -107,8 +108,9 @@ class RunawayWatch:
 @dataclass
 class Damping:
     """The damping λ, updated by the gain ratio ρ (Nielsen's rule, as Ceres and MINPACK's
-    successors use it): after an accepted step λ × max(1/3, 1 − (2ρ − 1)³) (a step its
-    linearization predicted well lowers λ threefold, a poor one keeps it); after a rejected
+    successors use it, with GTSAM's tenth as its floor instead of Nielsen's third): after an
+    accepted step λ × max(1/:data:`LAMBDA_FACTOR`, 1 − (2ρ − 1)³) (a step its linearization
+    predicted exactly lowers λ tenfold, as GTSAM's; one of ρ ½ keeps it); after a rejected
     one λ × ν, ν doubling from 2 with each rejection in a row (up to
     :data:`LAMBDA_UPPER_BOUND`). GTSAM's ×10 / ÷10 rejects every other step where the
     graph is nearly degenerate along a direction its linearization mispredicts: a differential
@@ -128,8 +130,8 @@ class Damping:
         self.nu *= 2.0
 
     def decrease(self, gain_ratio: float = 1.0) -> None:
-        """λ × max(1/3, 1 − (2ρ − 1)³) after an accepted step of ``gain_ratio`` ρ, at least
-        :data:`LAMBDA_LOWER_BOUND`; ν back to 2."""
+        """λ × max(1/:data:`LAMBDA_FACTOR`, 1 − (2ρ − 1)³) after an accepted step of
+        ``gain_ratio`` ρ, at least :data:`LAMBDA_LOWER_BOUND`; ν back to 2."""
         factor = max(1.0 / LAMBDA_FACTOR, 1.0 - (2.0 * gain_ratio - 1.0) ** 3)
         self.lam = max(self.lam * factor, LAMBDA_LOWER_BOUND)
         self.nu = 2.0

@@ -352,7 +352,10 @@ def _score_test(
     σ √(2 tr((A⁻¹H)²)) for the score's covariance ``noise`` H (module docstring)."""
     ratio = np.linalg.solve(information, noise)
     statistic = float(score @ np.linalg.solve(information, score))
-    return statistic, float(np.trace(ratio)), float(np.sqrt(2.0 * np.trace(ratio @ ratio)))
+    # tr((A⁻¹H)²) ≥ 0 for A positive definite and H semidefinite; a degenerate system's
+    # rounding (a garbled log of the loader's fuzz test) can dip below: no spread, not NaN
+    spread = float(np.sqrt(max(2.0 * float(np.trace(ratio @ ratio)), 0.0)))
+    return statistic, float(np.trace(ratio)), spread
 
 
 def _slow_basis(

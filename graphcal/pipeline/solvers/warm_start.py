@@ -154,15 +154,16 @@ def _solved_sample(
     try:
         solved = solve_segment_graph(sample, untied, options, start=start, covariance=False)
     except ImplausibleTheta as runaway:
-        held = runaway.names
+        hold = tuple(name for name in runaway.names if name not in held)
+        if not hold:
+            raise
     else:
         theta, sigmas = np.asarray(spec.theta, float), spec.theta_prior_sigmas
-        far = _far_names(solved.theta, theta, sigmas, held)
-        if not far:
+        hold = _far_names(solved.theta, theta, sigmas, held)
+        if not hold:
             return solved
-        held = far
     return solve_segment_graph(
-        sample, _holding(untied, held), options, start=start, covariance=False
+        sample, _holding(untied, hold), options, start=start, covariance=False
     )
 
 
