@@ -125,7 +125,12 @@ def test_a_drift_is_modelled_with_the_settings_correlation_time():
     white, shared, time = slow_fix_error(_noise(), JointSettings(), DT)
     assert time == JointSettings().fix_error_time == 60.0
     assert shared == pytest.approx(np.sqrt(60.0 / 30.0))  # √(rate · τ)
-    # the white part keeps what the error does within half a chunk (0.625 s): γ there
+    # the white part keeps what the error does within half a chunk (0.625 s), the share of it
+    # beyond white noise (γ there less 0.04) once for the 25 fixes of that half chunk
+    assert white == pytest.approx(np.sqrt(0.04 + 25 * 0.625 / 30.0))
+    # fixes one per half chunk or fewer: each its own share
+    sparse = _noise(fix_interval=1.0)
+    white, _, _ = slow_fix_error(sparse, JointSettings(), DT)
     assert white == pytest.approx(np.sqrt(0.04 + 0.625 / 30.0))
 
 

@@ -9,11 +9,11 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-import pytest
 
 import graphcal.pipeline.methods.runaways as runaways
 import graphcal.pipeline.methods.whole_log as whole_log
 from graphcal.pipeline.end_to_end.run import run_calibration
+from graphcal.pipeline.end_to_end.trust import MAX_CHI2_PER_DOF
 from graphcal.pipeline.solvers.joint_settings import TOLERANCE
 from graphcal.simulate.drive import simulate_drive
 
@@ -53,7 +53,9 @@ def test_a_solve_under_far_wrong_fix_weights_only_reads_their_noise(monkeypatch)
     assert solves[-1] == (TOLERANCE, whole_log.OFFSET_ROUNDS, True)
     assert run.settings.joint.tolerance == TOLERANCE
     assert run.settings.joint.fix_error_sigma > 0.5  # the error they share, read and modelled
-    assert run.whole.chi2_per_dof == pytest.approx(1.0, abs=0.25)
+    # the fit within the noise model (below 1: 40 fixes a second weighted for the error they
+    # share within a chunk, not as 20 independent ones)
+    assert 0.2 < run.whole.chi2_per_dof <= MAX_CHI2_PER_DOF
     calibrated = run.observability.calibrated
     sigma = np.sqrt(np.diag(run.covariance))
     assert calibrated.any()
