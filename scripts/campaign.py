@@ -2,6 +2,7 @@
 each recorded by the independent twin and calibrated with ``graphcal calibrate``.
 
     python scripts/campaign.py --n 30 --seed 0 --jobs 1 --car-km 1 3
+    python scripts/campaign.py --n 200 --seed 43 --only 194 --recording-seeds 16
 
 Per shape: the exit status, each parameter's verdict and error / σ against the truth, and
 the invariants it broke (``tests/campaign/invariants.py``: exit 0 or one line naming a real
@@ -171,21 +172,37 @@ def main(argv: list[str] | None = None) -> int:
         metavar="INDEX",
         help="run only these shapes of the draw (0-based, as the table numbers them)",
     )
+    parser.add_argument(
+        "--recording-seeds",
+        type=int,
+        metavar="N",
+        help="record each shape N times, with recording seeds 0 … N−1 (its noise drawn anew; "
+        "with --only: whether one shape's σ are honest, from the mean (e/σ)² over N)",
+    )
     args = parser.parse_args(argv)
-    if args.n < 1 or args.jobs < 1:
-        parser.error("--n and --jobs must be at least 1")
+    if args.n < 1 or args.jobs < 1 or (args.recording_seeds or 1) < 1:
+        parser.error("--n, --jobs and --recording-seeds must be at least 1")
     drawn = list(enumerate(draw_shapes(args.n, args.seed, tuple(args.car_km), tuple(args.robot_m))))
     if args.only:
         if not all(0 <= i < args.n for i in args.only):
             parser.error(f"--only: each index must be in 0 … {args.n - 1}")
         drawn = [drawn[i] for i in args.only]
+    names = [f"shape{i:03d}" for i, _ in drawn]
+    if args.recording_seeds:
+        drawn = [
+            (i, dataclasses.replace(shape, seed=k))
+            for i, shape in drawn
+            for k in range(args.recording_seeds)
+        ]
+        names = [f"shape{i:03d}_seed{shape.seed}" for i, shape in drawn]
     base = args.keep or Path(tempfile.mkdtemp(prefix="campaign_"))
     try:
         with ThreadPoolExecutor(max_workers=args.jobs) as pool:
             rows = list(
                 pool.map(
-                    lambda ix: run_shape(ix[1], base / f"shape{ix[0]:03d}", args.timeout),
-                    drawn,
+                    lambda shape, name: run_shape(shape, base / name, args.timeout),
+                    [shape for _, shape in drawn],
+                    names,
                 )
             )
     finally:

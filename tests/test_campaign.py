@@ -1029,6 +1029,27 @@ SLOW = [
         # alternated λ 1e-8 (rejected) and 1e-7 (accepted) for 50 iterations, χ²/dof 0.5595
         # at its limit, exit 3; with the gain ratio's damping 15 iterations to 0.55
     ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=250.0,
+            gnss_rate=50.0,
+            noise_sigma=0.74,
+            noise_tau_s=35.0,
+            heading=True,
+            imu=False,
+            drives=3,
+            gap_s=25.0,
+            park_s=0.0,
+            lever_arm=(0.26, 0.0),
+            seed=4178,
+            outage_s=29.0,
+        ),
+        id="fixes-sharing-their-error-within-a-chunk",  # seed 43's shape 194: what the
+        # error did within half a chunk weighted as white at each of the 25 fixes there:
+        # t_r -3.4σ "calibrated" (mean (e/σ)² 2.86 over 16 recording seeds; 0.85 counted
+        # once per half chunk)
+    ),
 ]
 
 
@@ -1051,6 +1072,8 @@ C_E_UNDETERMINED = {
     "fixes-sharing-their-error-over-a-minute",
     # three drives, 100 m in all, of 10 Hz fixes sharing 1 m over 6 s: c_e's σ 15 mm
     "damping-that-rejects-every-other-step",
+    # 250 m in three drives whose 50 Hz fixes share 0.74 m over 35 s
+    "fixes-sharing-their-error-within-a-chunk",
 }
 
 
