@@ -152,22 +152,70 @@ class WholeLog:
 
 
 def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
-    """The whole-log procedure of the module docstring on ``prepared``.
+    """The whole-log procedure of the module docstring on ``prepared``, step by step.
 
     Raises:
         CalibrationFailed: if a solve fails or gives an implausible theta.
     """
-    settings, held = prepared.settings, dict(prepared.held)
+    held = dict(prepared.held)  # what each solve holds at its prior, and why
+    settings, solved = _first_solve(prepared, held, workers)  # steps 0 and 1
+    prepared, settings, solved, left_out = _solved_under_found_noise(  # step 2
+        prepared, settings, held, solved, workers
+    )
+    whole, values, data, offset = solved
+    whole = judged_with_what_is_held(whole, settings.joint, held)  # step 3
+    log = prepared.log
+    estimated = _with_total_offset(  # step 4
+        sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
+    )
+    estimated.update(not_estimated(left_out))
+    estimated = measured_from(estimated, log.position_reference())
+    down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
+    lines = estimate_lines(estimated, log, length_unit(settings.vehicle.theta_nominal[2]))
+    report_whole_log(whole, lines, down_weighted, settings.joint)
+    weights = prepared.fix_weights  # step 5
+    if whole.fix_weights is not None:
+        weights = log_weights(data, whole.fix_weights, len(log.t))
+    corrected = _corrected(prepared, log, settings, weights, estimated, prepared.validation)
+    solved_log = WholeLog(whole, estimated, down_weighted, log, corrected)
+    systems = segment_systems(solved_log.batch_data(), solved_log.batch_settings(), values, workers)
+    del values, solved  # the whole log's solution, most of the memory of a long log
+    agreement = segment_agreement(systems, len(prepared.selected))
+    say(agreement_line(agreement))
+    return dataclasses.replace(
+        solved_log,
+        whole=with_agreement(whole, agreement, settings.joint),
+        systems=systems,
+        agreement=agreement,
+    )
+
+
+def _first_solve(
+    prepared: PreparedLog, held: dict[str, str], workers: int
+) -> tuple[Settings, Solved]:
+    """Steps 0 and 1: the wheels shifted by the lag of their turns, and the joint solve under
+    the settings' noise levels. It stops at its first robust round where another solve
+    certainly follows: a_y derived again, or noise levels its residuals change."""
+    settings = prepared.settings
     first = StoppedAt(None, _wheel_lag(prepared), None)
-    has_heading = prepared.data.has_heading()
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
-    # The first solve stops at its first robust round where the next is certain: a_y derived
-    # again, or noise levels its residuals change.
-    changes = noise_levels_change(settings.joint, has_heading, prepared.log.dt)
+    changes = noise_levels_change(settings.joint, prepared.data.has_heading(), prepared.log.dt)
     stop_if = (lambda noise: True) if rederive else changes
-    settings, (whole, values, data, offset) = holding_runaways(
+    return holding_runaways(
         prepared, settings, held, workers, FreeSolve(first, rounds=1, stop_if=stop_if)
     )
+
+
+def _solved_under_found_noise(
+    prepared: PreparedLog, settings: Settings, held: dict[str, str], first: Solved, workers: int
+) -> tuple[PreparedLog, Settings, Solved, dict[str, float]]:
+    """Step 2: the noise the first solve's residuals show, a lever arm it did not see left
+    out, a_y derived again with its theta; the log solved again under them with its
+    time-offset rounds (or, after far wrong fix weights, only to read the noise at), and the
+    noise judged once more where that solve differs. The log as solved (its a_y derived
+    again), the settings, the solve and the variables left out of the graph."""
+    whole, values, _, offset = first
+    has_heading = prepared.data.has_heading()
     joint = with_noise_levels(whole, settings.joint, has_heading, prepared.log.dt)
     joint, left_out = without_an_unseen_lever_arm(whole, joint, prepared)
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
@@ -188,42 +236,16 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
         rounds = 1
         settings = _with_tolerance(settings, max(tolerance, NOISE_READING_TOLERANCE))
     free = FreeSolve(start, None if again else (whole, values), rounds=rounds)
-    settings, (whole, values, data, offset) = holding_runaways(
-        prepared, settings, held, workers, free
-    )
+    settings, solved = holding_runaways(prepared, settings, held, workers, free)
     settings = _with_tolerance(settings, tolerance)
     if later:
-        prepared = _with_lateral_acceleration(prepared, whole.theta)
+        prepared = _with_lateral_acceleration(prepared, solved[0].theta)
     arm_left_out = "lever_arm" in left_out and "lever_arm" not in prepared.left_out
     if reweighted or arm_left_out or later:
-        settings, (whole, values, data, offset) = _noise_judged_again(
-            prepared, settings, held, workers, (whole, values, data, offset), reweighted, later
+        settings, solved = _noise_judged_again(
+            prepared, settings, held, workers, solved, reweighted, later
         )
-    log, validation = prepared.log, prepared.validation
-    whole = judged_with_what_is_held(whole, settings.joint, held)
-    estimated = _with_total_offset(
-        sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
-    )
-    estimated.update(not_estimated(left_out))
-    estimated = measured_from(estimated, log.position_reference())
-    down_weighted = DownWeightedFixes.from_solve(data, whole.fix_weights, log.t)
-    lines = estimate_lines(estimated, log, length_unit(settings.vehicle.theta_nominal[2]))
-    report_whole_log(whole, lines, down_weighted, settings.joint)
-    weights = prepared.fix_weights
-    if whole.fix_weights is not None:
-        weights = log_weights(data, whole.fix_weights, len(log.t))
-    corrected = _corrected(prepared, log, settings, weights, estimated, validation)
-    solved = WholeLog(whole, estimated, down_weighted, log, corrected)
-    systems = segment_systems(solved.batch_data(), solved.batch_settings(), values, workers)
-    del values  # the whole log's solution, most of the memory of a long log
-    agreement = segment_agreement(systems, len(prepared.selected))
-    say(agreement_line(agreement))
-    return dataclasses.replace(
-        solved,
-        whole=with_agreement(whole, agreement, settings.joint),
-        systems=systems,
-        agreement=agreement,
-    )
+    return prepared, settings, solved, left_out
 
 
 def _noise_judged_again(
