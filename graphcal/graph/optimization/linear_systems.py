@@ -4,6 +4,7 @@ damping rows and the decrease a step's linearization predicts."""
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass
 
 import gtsam
 import numpy as np
@@ -49,14 +50,31 @@ def add_damping(
         system.add(gtsam.JacobianFactor(key, np.diag(r), np.zeros(dim), unit_noise(dim)))
 
 
-def augmented_hessian(
+@dataclass(frozen=True)
+class SharedBlock:
+    """An augmented Hessian on the shared keys a system touches: ``block`` at the rows and
+    columns ``index`` of the ``(n+1, n+1)`` augmented Hessian on all of them (the last index
+    is ``n``, the right-hand side). A part of a graph whose shared keys include every slip
+    scale of a log touches its own few: 32 segments' dense systems on 1,229 shared
+    dimensions were 390 MB, sent between processes and summed."""
+
+    index: np.ndarray
+    block: np.ndarray
+
+    def add_to(self, total: np.ndarray) -> np.ndarray:
+        """``total`` ``(n+1, n+1)`` with this block added in place; returned."""
+        total[np.ix_(self.index, self.index)] += self.block
+        return total
+
+
+def shared_block(
     linear: gtsam.GaussianFactorGraph, keys: list[int], dims: dict[int, int]
-) -> np.ndarray:
-    """``[AᵀA Aᵀb; bᵀA bᵀb]`` of ``linear`` on ``keys`` (zero blocks for keys it lacks)."""
+) -> SharedBlock:
+    """``[AᵀA Aᵀb; bᵀA bᵀb]`` of ``linear`` on the ``keys`` it has, placed among all of
+    ``keys`` (:class:`SharedBlock`)."""
     n = sum(dims[k] for k in keys)
-    out = np.zeros((n + 1, n + 1))
     if linear.size() == 0:
-        return out
+        return SharedBlock(np.array([n]), np.zeros((1, 1)))
     in_linear = set(linear.keyVector())
     present = [k for k in keys if k in in_linear]
     ordering = gtsam.Ordering()
@@ -67,8 +85,15 @@ def augmented_hessian(
     index = np.concatenate(
         [np.arange(starts[k], starts[k] + dims[k]) for k in present] + [np.array([n])]
     ).astype(int)
-    out[np.ix_(index, index)] = hessian
-    return out
+    return SharedBlock(index, hessian)
+
+
+def augmented_hessian(
+    linear: gtsam.GaussianFactorGraph, keys: list[int], dims: dict[int, int]
+) -> np.ndarray:
+    """``[AᵀA Aᵀb; bᵀA bᵀb]`` of ``linear`` on ``keys`` (zero blocks for keys it lacks)."""
+    n = sum(dims[k] for k in keys)
+    return shared_block(linear, keys, dims).add_to(np.zeros((n + 1, n + 1)))
 
 
 def predicted_decrease(

@@ -10,10 +10,11 @@ import numpy as np
 
 from graphcal.graph.optimization.levenberg_marquardt import Damping, raised_scale
 from graphcal.graph.optimization.linear_systems import (
+    SharedBlock,
     add_damping,
-    augmented_hessian,
     hessian_diagonal_by_key,
     predicted_decrease,
+    shared_block,
     vector_values,
 )
 from graphcal.graph.optimization.partition import GraphPart
@@ -55,11 +56,11 @@ class PartGroup:
         """Each part's error at its values."""
         return [float(p.graph.error(p.values)) for p in self.parts]
 
-    def eliminate(self, lam: float | None) -> list[tuple[np.ndarray, np.ndarray]]:
+    def eliminate(self, lam: float | None) -> list[tuple[SharedBlock, np.ndarray]]:
         """Linearize every part, damp its local keys by ``λ · scale`` (``None``: undamped)
-        and eliminate them; per part, its reduced system as an augmented Hessian
-        ``(n+1, n+1)`` on the shared keys and its Hessian diagonal on them ``(n,)`` (zeros
-        when undamped: only damping needs it)."""
+        and eliminate them; per part, its reduced system as the block of the augmented
+        Hessian on the shared keys it touches and its Hessian diagonal on them ``(n,)``
+        (zeros when undamped: only damping needs it)."""
         out = []
         self._eliminated = []
         n = sum(self.dims[k] for k in self.shared)
@@ -72,7 +73,7 @@ class PartGroup:
             gaps = linear_gaps(part.graph, linear, links, self.dims)
             add_damping(linear, self.dims, root)  # the linear system is not kept: damp it
             bayes_net, reduced = linear.eliminatePartialSequential(gtsam.KeyVector(part.local))
-            out.append((augmented_hessian(reduced, self.shared, self.dims), shared_diagonal))
+            out.append((shared_block(reduced, self.shared, self.dims), shared_diagonal))
             self._eliminated.append(_Eliminated(bayes_net, gradient, root, gaps))
         return out
 

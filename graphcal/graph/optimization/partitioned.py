@@ -30,6 +30,7 @@ import gtsam
 import numpy as np
 
 from graphcal.graph.optimization.linear_systems import (
+    SharedBlock,
     augmented_hessian,
     hessian_diagonal_by_key,
     predicted_decrease,
@@ -136,7 +137,9 @@ class PartitionedGraph:
         with the shared factors added: the augmented Hessian on the shared keys, their
         Hessian diagonal and the shared factors' linearization."""
         reduced = self.workers.eliminate(lam)
-        total = sum((r for r, _ in reduced), np.zeros((self.n + 1, self.n + 1)))
+        total = np.zeros((self.n + 1, self.n + 1))
+        for block, _ in reduced:
+            block.add_to(total)
         diagonal = sum((d for _, d in reduced), np.zeros(self.n))
         shared_linear = self.shared_graph.linearize(self.shared_values)
         total = total + augmented_hessian(shared_linear, self.shared, self.dims)
@@ -171,11 +174,13 @@ class PartitionedGraph:
         variables' ``information`` there (``None``: not known)."""
         self._error, self._information = error, information
 
-    def part_systems(self) -> tuple[list[np.ndarray], np.ndarray]:
+    def part_systems(self) -> tuple[list[SharedBlock], np.ndarray]:
         """At the current values, undamped: each part's linearized system eliminated down to
-        the shared keys, as an augmented Hessian ``(n+1, n+1)`` in part order, and the shared
-        factors' own augmented Hessian. The system of any subset of parts is the sum of its
-        members' and the shared one (:mod:`graphcal.graph.solution.reduced_systems`)."""
+        the shared keys, as the block of the augmented Hessian ``(n+1, n+1)`` on the shared
+        keys it touches (:class:`~graphcal.graph.optimization.linear_systems.SharedBlock`),
+        in part order, and the shared factors' own augmented Hessian. The system of any
+        subset of parts is the sum of its members' and the shared one
+        (:mod:`graphcal.graph.solution.reduced_systems`)."""
         reduced = self.workers.eliminate(None)
         self.workers.release()
         shared_linear = self.shared_graph.linearize(self.shared_values)

@@ -129,5 +129,5 @@ def reduced_systems(
         owner = min(owners)
         if not 0 <= owner < segment_count:
             raise ValueError(f"segment {owner} outside 0..{segment_count - 1}")
-        segments[owner] += system
+        system.add_to(segments[owner])
     return ReducedSystems(tuple(partitioned.shared), partitioned.shared_vector(), segments, shared)

@@ -240,7 +240,9 @@ def _slip_test(
         reason = exception_reason(exc)
         raise CalibrationFailed(f"joint solve failed: {reason}") from exc
     n = screening.n
-    data = sum(parts, np.zeros_like(priors))
+    data = np.zeros_like(priors)
+    for part in parts:  # each touches its own segment's scales
+        part.add_to(data)
     total = data + priors
     k = sum(screening.dims[key] for key in base)  # the graph-wide variables come first
     information, gradient = total[:n, :n], total[:n, n]
