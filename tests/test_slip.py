@@ -114,3 +114,32 @@ def test_a_log_tied_into_chains_is_screened_whole():
     np.testing.assert_array_equal(_screened(data, tied), np.arange(len(data)))
     untied = dataclasses.replace(tied, tie_segments=False)
     assert len(_screened(data, untied)) == SLIP_SCREEN_SEGMENTS
+
+
+def test_the_slow_slip_test_on_a_long_logs_sample_is_over_what_its_chunks_resolve():
+    """A 200 km log's screen: 32 segments of 14 chunks spread over 6 hours, 360 cosines per
+    wheel sum and difference at 896 scales. Sampled so sparsely the cosines are nearly
+    collinear: the test's null mean read 59,995 ± 0. Its basis is an orthonormal one of what
+    the chunks resolve, and the test's null distribution over it is finite and positive."""
+    from types import SimpleNamespace
+
+    from graphcal.pipeline.solvers.slip_screen import _score_test, _slow_basis
+
+    segments = np.repeat(np.arange(32), 14)
+    starts = np.tile(np.arange(14) * 50, 32)
+    samples = np.arange(32)[:, None] * 27_000 + np.arange(701)[None, :]  # 6 h at 40 Hz
+    basis = _slow_basis(
+        (segments, starts, starts + 50), SimpleNamespace(sample_index=samples, dt=0.025)
+    )
+    assert basis is not None
+    assert np.allclose(basis.T @ basis, np.eye(basis.shape[1]), atol=1e-9)
+    assert basis.shape[1] < 2 * 360  # the cosines the sparse chunks cannot tell apart: merged
+    rng = np.random.default_rng(0)
+    root = rng.standard_normal((2 * len(segments), 2 * len(segments)))
+    noise = root @ root.T / len(segments)  # the data's information on the scales
+    information = noise + 1e-2 * np.eye(len(noise))  # with their prior
+    score = rng.multivariate_normal(np.zeros(len(noise)), noise)
+    restricted = (basis.T @ score, basis.T @ information @ basis, basis.T @ noise @ basis)
+    _, expected, spread = _score_test(*restricted)
+    assert 0 < expected <= basis.shape[1]
+    assert spread > 0

@@ -66,6 +66,9 @@ SLIP_SCREEN_TIED_SEGMENTS = 3 * SLIP_SCREEN_SEGMENTS
 #: Cosines per minute of the screened log that the slow test (:class:`SlowSlipTest`)
 #: restricts slip to: variations whose half period is a minute or longer.
 SLOW_TERMS = 1.0
+#: The slow test keeps the directions of its cosines that the screened chunks resolve:
+#: singular values of their sampled basis above this share of the largest.
+RESOLVED = 1e-6
 
 
 @dataclass(frozen=True)
@@ -367,7 +370,8 @@ def _slow_basis(
     chunks of ``spans`` (:func:`_chunk_spans`; keys in order, two scales each) — cosines
     ``cos(π j τ)`` of the chunk's time ``τ`` in [0, 1] over the screened samples,
     ``j = 1 …`` :data:`SLOW_TERMS` per minute of it (at least 2), on the wheels' mean and
-    on their difference; ``None`` without sample rows or slip scales."""
+    on their difference, as an orthonormal basis of the directions the chunks resolve
+    (:data:`RESOLVED`); ``None`` without sample rows or slip scales."""
     segments, starts, ends = spans
     if data.sample_index is None or len(segments) == 0:
         return None
@@ -381,7 +385,11 @@ def _slow_basis(
     cosines = np.cos(np.pi * np.outer(tau, np.arange(1, terms + 1)))  # (chunks, terms)
     mean = np.kron(cosines, np.array([[1.0], [1.0]]))  # rows: s_rl, s_rr of each chunk
     difference = np.kron(cosines, np.array([[1.0], [-1.0]]))
-    return np.hstack([mean, difference]) / np.sqrt(2.0)
+    # The test depends on the span alone: an orthonormal basis of what the chunks resolve
+    # (a long log's screened segments, spread over hours, sample 594 cosines at 902 scales:
+    # ill-conditioned, its null mean read 59,995 ± 0)
+    left, singular, _ = np.linalg.svd(np.hstack([mean, difference]), full_matrices=False)
+    return left[:, singular > RESOLVED * singular[0]]
 
 
 def _released(solution: SolvedGraph) -> SolvedGraph:
