@@ -200,7 +200,7 @@ def _first_solve(
     first = StoppedAt(None, _wheel_lag(prepared), None)
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
     changes = noise_levels_change(settings.joint, prepared.data.has_heading(), prepared.log.dt)
-    stop_if = (lambda noise: True) if rederive else changes
+    stop_if = _always if rederive else changes
     return holding_runaways(
         prepared, settings, held, workers, FreeSolve(first, rounds=1, stop_if=stop_if)
     )
@@ -228,14 +228,16 @@ def _solved_under_found_noise(
     again = joint is not settings.joint or rederive
     settings = dataclasses.replace(settings, joint=joint)  # the fixes' own noise
     start = StoppedAt(values, offset, rounds_start(whole))
-    rounds, tolerance = OFFSET_ROUNDS, settings.joint.tolerance
+    rounds, tolerance, stop_if = OFFSET_ROUNDS, settings.joint.tolerance, None
     if reweighted:  # fitted under far wrong fix weights: no start for the right ones
         start = StoppedAt(None, offset, None)
-        # The noise is judged again after this solve: a point to read it at, its time-offset
-        # rounds under the noise that follows.
-        rounds = 1
+        # The noise is judged again after this solve: a point to read it at — its first
+        # robust round, without the slip screen (the misfit of an error the fixes share not
+        # modelled yet reads as slip: a robot's 10 s solve with slip scales, then dropped);
+        # its time-offset rounds under the noise that follows.
+        rounds, stop_if = 1, _always
         settings = _with_tolerance(settings, max(tolerance, NOISE_READING_TOLERANCE))
-    free = FreeSolve(start, None if again else (whole, values), rounds=rounds)
+    free = FreeSolve(start, None if again else (whole, values), rounds=rounds, stop_if=stop_if)
     settings, solved = holding_runaways(prepared, settings, held, workers, free)
     settings = _with_tolerance(settings, tolerance)
     if later:
@@ -246,6 +248,11 @@ def _solved_under_found_noise(
             prepared, settings, held, workers, solved, reweighted, later
         )
     return prepared, settings, solved, left_out
+
+
+def _always(noise: object) -> bool:
+    """A solve's ``stop_if`` that always ends it at its first robust round."""
+    return True
 
 
 def _noise_judged_again(
