@@ -22,19 +22,18 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from graphcal.simulate.defect_effects import gauss_markov
+
 #: The process is drawn on a grid this coarse [s] and interpolated: slip over minutes.
 GRID_S = 1.0
 
 
 def slip_process(t: np.ndarray, sigma: float, time: float, rng: np.random.Generator) -> np.ndarray:
-    """A stationary Gauss–Markov process of ``sigma`` and correlation ``time`` [s] at ``t``."""
+    """A stationary Gauss–Markov process of ``sigma`` and correlation ``time`` [s] at ``t``
+    (the simulator's, :func:`graphcal.simulate.defect_effects.gauss_markov`, on the coarse
+    grid, interpolated)."""
     grid = np.arange(t[0], t[-1] + GRID_S, GRID_S)
-    phi = np.exp(-GRID_S / time)
-    steps = sigma * np.sqrt(1.0 - phi**2) * rng.standard_normal(len(grid))
-    values = np.empty(len(grid))
-    values[0] = sigma * rng.standard_normal()
-    for k in range(1, len(grid)):  # a loop over the coarse grid, not the samples
-        values[k] = phi * values[k - 1] + steps[k]
+    values = gauss_markov(len(grid), GRID_S, sigma, time, rng)[:, 0]
     return np.interp(t, grid, values)
 
 
