@@ -18,7 +18,13 @@ import numpy as np
 
 from graphcal.log.checks import fail
 from graphcal.log.drive_log import COLUMNS, DriveLog
-from graphcal.log.turns import lateral_acceleration_scale, looks_like_g, track_turns, turning
+from graphcal.log.turns import (
+    TURN_MIN_COUNT,
+    lateral_acceleration_scale,
+    looks_like_g,
+    track_turns,
+    turning,
+)
 
 
 def _columns(log: DriveLog) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -92,3 +98,51 @@ def check_lateral_acceleration_units(log: DriveLog, nominal: np.ndarray) -> None
         f"{start:.1f}–{end:.1f} s), apparently in g",
         "multiply the column by 9.81 (ay in m/s², positive to the left)",
     )
+
+
+#: Largest ratio of one rear wheel's rotations to the other's where the track runs straight
+#: (c_d moves it by c_d / c_e: 0.1 % for the paper's car): beyond it, one wheel's scale is off.
+STRAIGHT_WHEEL_RATIO = 1.1
+#: Largest turn [rad] of the track in a window still taken as straight.
+STRAIGHT_TRACK_TURN = 0.05
+
+
+def check_wheel_ratio(log: DriveLog, nominal: np.ndarray) -> None:
+    """One line if one rear wheel turns more than :data:`STRAIGHT_WHEEL_RATIO` times the
+    other where the track runs straight (the median over the track's straight windows of
+    :func:`~graphcal.log.turns.track_turns`): a wheel's unit, tick count or circumference is
+    off. Judged before the turns' directions, which such wheels turn one way only and would
+    call swapped."""
+    columns, excluded = _columns(log)
+    fixed = None if log.measured is None else log.measured[:, 0]
+    turns = track_turns(columns, excluded, nominal, fixed)
+    starts = turns.ends[:-1]
+    left = np.add.reduceat(log.n_rl, starts)
+    right = np.add.reduceat(log.n_rr, starts)
+    with np.errstate(invalid="ignore"):
+        straight = (
+            np.isfinite(turns.track)
+            & (np.abs(turns.track) < STRAIGHT_TRACK_TURN)
+            & (left > 0)
+            & (right > 0)
+        )
+    if straight.sum() < TURN_MIN_COUNT:
+        return
+    ratio = float(np.median(left[straight] / right[straight]))
+    if max(ratio, 1.0 / ratio) <= STRAIGHT_WHEEL_RATIO:
+        return
+    # the wheel whose distance (nominal c_e) departs further from the track's is off
+    chords = turns.chords[straight]
+    scales = {
+        name: float(np.median(rotations[straight] * nominal[0] / chords))
+        for name, rotations in (("n_rl", left), ("n_rr", right))
+    }
+    off = max(scales, key=lambda name: abs(np.log(scales[name])))
+    other = "n_rr" if off == "n_rl" else "n_rl"
+    what = (
+        f"where the track (px, py) runs straight, {off} travels {scales[off]:.2f}x its "
+        f"distance and {other} {scales[other]:.2f}x (nominal c_e; median of "
+        f"{int(straight.sum())} straight stretches): {off}'s scale is off"
+    )
+    fix = f"check {off}'s unit, ticks per revolution or circumference (rev per sample)"
+    raise fail(log.source, off, None, what, fix)

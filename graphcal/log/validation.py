@@ -26,10 +26,12 @@ from graphcal.log.checks import (
 from graphcal.log.consistency import MAX_MASKED_SHARE, screen
 from graphcal.log.drive_log import DriveLog, DriveLogError, travelled_along_path
 from graphcal.log.flags import marked_samples, measured_components, run_column
+from graphcal.log.heading_travel import check_heading_against_travel
 from graphcal.log.track import fill_track
 from graphcal.log.turn_checks import (
     check_lateral_acceleration_units,
     check_turn_directions,
+    check_wheel_ratio,
 )
 from graphcal.model import THETA_NOMINAL
 
@@ -50,9 +52,10 @@ def validate_frame(
     Checks, in order: repeated or missing columns, non-numeric values, NaN/inf, time
     non-increasing, not in seconds or non-uniform, heading apparently in degrees, implausible
     sideslip or lateral acceleration, negative or implausible wheel rotations, positions
-    against the wheels, (a CSV's: an import checks its streams) wheels, track and heading
-    turning different ways or a lateral acceleration in g
-    (:mod:`graphcal.log.turn_checks`) and, when ``min_distance`` [m] is given, a log
+    against the wheels, (a CSV's: an import checks its streams) one wheel's scale off, wheels,
+    track and heading turning different ways or a lateral acceleration in g
+    (:mod:`graphcal.log.turn_checks`), the heading pointing away from the direction of
+    travel (:mod:`graphcal.log.heading_travel`) and, when ``min_distance`` [m] is given, a log
     too short for one segment.
 
     ``reverses`` (``VehicleProfile.reverses``): wheels turning backwards are motion (a robot
@@ -98,9 +101,7 @@ def validate_frame(
     )
     check_heading_units(log, nominal=nominal, origins=origins)
     log = _screened(log, source, nominal, origins)
-    if origins is None:  # an import checked its streams against each other, in their terms
-        check_turn_directions(log, nominal)
-        check_lateral_acceleration_units(log, nominal)
+    _check_columns_against_each_other(log, nominal, origins)
     if min_distance > 0:
         distance = log.travelled_distance(nominal[0])[-1]
         if distance < min_distance:
@@ -113,6 +114,19 @@ def validate_frame(
                 origins=origins,
             )
     return log
+
+
+def _check_columns_against_each_other(
+    log: DriveLog, nominal: np.ndarray, origins: Mapping[str, ColumnOrigin] | None
+) -> None:
+    """The wheels, track and heading against each other: one wheel's scale, the turns'
+    directions and ``ay``'s unit for a CSV (an import checked its streams against each
+    other, in their terms), and the heading against the direction of travel for both."""
+    if origins is None:
+        check_wheel_ratio(log, nominal)
+        check_turn_directions(log, nominal)
+        check_lateral_acceleration_units(log, nominal)
+    check_heading_against_travel(log, nominal, origins)
 
 
 def _screened(

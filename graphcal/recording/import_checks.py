@@ -6,11 +6,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from graphcal.log.track import COURSE_WINDOW_S
+from graphcal.log.heading_travel import (
+    HEADING_OFFSET_ERROR,
+    HEADING_OFFSET_SIGMAS,
+    HEADING_OFFSET_WARNING,
+    heading_offset,
+)
 from graphcal.log.turns import (
     TURN_MIN_AGREEMENT,
     TURN_WINDOW_S,
-    grid_course,
     track_directions,
     turn_agreement,
     turn_directions,
@@ -44,7 +48,7 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     check_units(resampled, recording, nominal)
     check_turning(resampled, recording, nominal)
     warnings = []
-    found = _heading_offset(c, usable, dt, nominal, resampled.measured)
+    found = heading_offset(c, usable, dt, nominal, resampled.measured)
     if found is not None and recording.pose.heading is not None:
         offset, sigma = found
         beyond = abs(offset) - HEADING_OFFSET_SIGMAS * sigma  # certainly beyond this
@@ -82,23 +86,8 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
 #: to be refused (a short, noisy recording tells little).
 WHEEL_SCALE_RANGE = (0.8, 1.25)
 WHEEL_SCALE_SIGMAS = 3.0
-#: Mean heading offset from the direction of travel [rad] that warns (3°) or is refused (15°),
-#: when the offset lies beyond it by more than :data:`HEADING_OFFSET_SIGMAS` of its own
-#: standard error: the course of noisy fixes is noisy (a robot's 1 Hz fixes of 1.9 m, 1 m
-#: apart, give a course of any direction; their median offset, −27°, refused a valid heading).
-HEADING_OFFSET_WARNING = np.radians(3.0)
-HEADING_OFFSET_ERROR = np.radians(15.0)
-HEADING_OFFSET_SIGMAS = 3.0
 #: Share of the longest stream the overlap should cover.
 MIN_OVERLAP_OF_LONGEST = 0.5
-#: Speed, in wheel revolutions per second (nominal c_e: 3 m/s for the paper's car, 0.4 m/s
-#: for a robot's 0.27 m wheels), above which the direction of travel is compared with the
-#: heading (forwards only: reversing travels against it).
-HEADING_CHECK_REVS_PER_S = 1.5
-#: Standard error of a normal sample's median over its mean's: sqrt(π/2).
-MEDIAN_EFFICIENCY = float(np.sqrt(np.pi / 2.0))
-
-
 def _check_wheel_scale(
     c: dict, usable: np.ndarray, resampled: Resampled, recording, nominal
 ) -> None:
@@ -162,30 +151,6 @@ def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
         "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
         "the time units, and the vehicle's c_e (--vehicle)"
     )
-
-
-def _heading_offset(
-    c: dict, usable: np.ndarray, dt: float, nominal, measured: np.ndarray | None = None
-) -> tuple[float, float] | None:
-    """Median of heading + sideslip − direction of travel [rad] while moving forwards, and
-    its standard error [rad] (the differences' circular spread over the independent courses
-    among them: one per :data:`~graphcal.log.track.COURSE_WINDOW_S` chord, at most one per
-    fix, ``measured`` ``(N, 2)`` marking the samples with one); or None."""
-    track = grid_course(c, dt, nominal)
-    speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
-    forwards = (c["n_rl"] > 0) & (c["n_rr"] > 0)  # not a spin on the spot
-    moving = usable & forwards & (speed > HEADING_CHECK_REVS_PER_S * nominal[0])
-    if moving.sum() < 10.0 / dt:
-        return None
-    difference = np.angle(np.exp(1j * (c["psi"] + c["beta"] - track)))[moving]
-    independent = moving.sum() * dt / COURSE_WINDOW_S
-    if measured is not None:
-        independent = min(independent, float(measured[moving, 0].sum()))
-    resultant = float(np.abs(np.mean(np.exp(1j * difference))))
-    if resultant <= 0.0 or independent < 1.0:
-        return float(np.median(difference)), np.inf
-    spread = np.sqrt(-2.0 * np.log(resultant))  # circular standard deviation
-    return float(np.median(difference)), MEDIAN_EFFICIENCY * spread / np.sqrt(independent)
 
 
 def _check_imu_signs(
