@@ -13,6 +13,7 @@ import pandas as pd
 import pytest
 
 from graphcal.cli import main
+from graphcal.log.validation import validate_frame
 from graphcal.simulate.drive import simulate_drive
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -129,6 +130,50 @@ def test_a_small_constant_heading_offset_passes(city, tmp_path, capsys):
     path = tmp_path / "offset.csv"
     city.assign(psi=city["psi"] + np.radians(5.0)).to_csv(path, index=False)
     assert main(["check", str(path)]) == 0
+
+
+def test_a_lateral_acceleration_of_the_other_sign_is_named(city, tmp_path, capsys):
+    # calibrated with exit 0 before, d of the other sign (-1.55 where the truth is +1.56)
+    check_error(
+        city.assign(ay=-city["ay"]), tmp_path, capsys, "column 'ay'", "other sign", "negate"
+    )
+
+
+def test_axes_scaled_differently_are_named(city, tmp_path, capsys):
+    # x 1.3x y (longitude without cos(latitude)): "calibrated" c_e 2.2885 m (truth 1.985)
+    error = check_error(city.assign(px=city["px"] * 1.3), tmp_path, capsys, "scaled differently")
+    stretch = float(re.search(r"is ([0-9.]+)x as long", error).group(1))
+    assert stretch == pytest.approx(1.3, rel=0.03)
+    assert "cos(latitude)" in error
+
+
+def test_wheels_that_never_turn_the_vehicle_are_named(city, tmp_path, capsys):
+    # n_rr a copy of n_rl: 32 s of solves, then exit 3 with nothing named
+    error = check_error(city.assign(n_rr=city["n_rl"]), tmp_path, capsys, "barely turn")
+    assert "equal in 100% of the rows" in error
+
+
+def _cruise(speed: np.ndarray, rotation: float) -> pd.DataFrame:
+    """A straight drive at ``speed`` [m/s] per 40 Hz row, fixes of 0.2 m, both wheels
+    reporting ``rotation`` [rev] every row."""
+    n, dt = len(speed), 0.025
+    x = np.concatenate([[0.0], np.cumsum(speed[:-1] * dt)])
+    noise = np.random.default_rng(0).normal(0.0, 0.2, (2, n))
+    rows = {"t": np.arange(n) * dt, "px": x + noise[0], "py": noise[1], "psi": np.zeros(n)}
+    rows |= {"n_rl": np.full(n, rotation), "n_rr": np.full(n, rotation)}
+    return pd.DataFrame(rows | {"beta": np.zeros(n), "ay": np.zeros(n)})
+
+
+def test_frozen_wheels_are_masked_and_tick_counts_repeating_in_a_cruise_are_not():
+    # Both wheels repeating one value while the vehicle speeds up from 12.5 to 20 m/s: a
+    # stale message (the sample drive's middle third frozen ran 48 s of solves, exit 3).
+    cruise, rotation = np.full(3600, 12.5), 12.5 * 0.025 / 2.0  # 90 s, tick counts alike
+    log = validate_frame(_cruise(cruise, rotation), "cruise.csv")
+    assert log.masked is None or not log.masked.any()
+    speeding_up = np.concatenate([cruise, np.linspace(12.5, 20.0, 1200)])  # then 30 s
+    stale = validate_frame(_cruise(speeding_up, rotation), "stale.csv")
+    assert not stale.masked[:3900].any() and stale.masked[4100:4700].all()  # 15 m/s at 4000
+    assert any("wheels frozen" in note for note in stale.mask_notes)
 
 
 def test_calibrate_stops_at_the_same_line_and_writes_nothing(city, tmp_path, capsys):

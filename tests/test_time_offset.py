@@ -7,8 +7,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from graphcal.log.timing import shift_wheel_rotations, wheel_lag_from_turns
-from graphcal.model import THETA_NOMINAL
+from graphcal.log.timing import (
+    coarse_wheel_lag,
+    on_the_pose_clock,
+    shift_wheel_rotations,
+    wheel_lag_from_turns,
+)
+from graphcal.model import THETA_NOMINAL, step_increments
 from graphcal.simulate.defects import degrade, parse_defects
 from graphcal.simulate.drive import simulate_drive
 
@@ -71,3 +76,37 @@ def test_each_run_has_its_own_lag(clean):
     found = wheel_lag_from_turns(joined, THETA_NOMINAL)
     np.testing.assert_allclose(found, [0.0, 0.25], atol=on_time.dt + 1e-9)
     assert found[1] - found[0] > 0.2
+
+
+@pytest.mark.parametrize("latency", [-18.0, 10.0])
+def test_clocks_seconds_apart_are_found_and_the_rows_left_without_wheels_masked(clean, latency):
+    """Wheels logged on a clock 18 s off the pose's (GPS time against UTC) or 10 s late:
+    found to the sample from their turns before any solve (searched within ±1 s they were
+    not, and a 10 s lag ran 37 s of solves to exit 2 blaming the wheels' units), then the
+    rotations taken that much later and the rows whose interval left the log masked."""
+    log = shift_wheel_rotations(clean.measured, -latency)  # read `latency` earlier
+    found = wheel_lag_from_turns(log, THETA_NOMINAL)
+    assert abs(found[0] - latency) <= log.dt + 1e-9
+    on_clock, shift = on_the_pose_clock(log, THETA_NOMINAL)
+    np.testing.assert_array_equal(shift, found)
+    masked = np.flatnonzero(on_clock.masked)
+    assert len(masked) == pytest.approx(abs(latency) / log.dt, abs=1)
+    assert (masked[0] == 0) if latency < 0 else (masked[-1] == len(log.t) - 1)
+    assert "clock shift" in on_clock.mask_notes[-1]
+
+
+def test_a_small_lag_is_left_to_the_solve_and_a_steady_turn_claims_none(clean):
+    small = degrade(clean, parse_defects("latency=0.35"), 1).measured
+    kept, shift = on_the_pose_clock(small, THETA_NOMINAL)
+    assert kept is small and not shift.any()
+    # turning at one rate throughout, the turns fit at every lag alike: no clock is claimed
+    n = len(clean.measured.t)
+    steady = dataclasses.replace(
+        clean.measured,
+        psi=0.01 * np.arange(n),
+        n_rl=np.full(n, 0.10),
+        n_rr=np.full(n, 0.10 + 0.01 * THETA_NOMINAL[2] / THETA_NOMINAL[0]),
+    )
+    turned = np.concatenate([[0.0], np.cumsum(step_increments(steady.inputs, THETA_NOMINAL)[1])])
+    heading = np.ones(n, bool)
+    assert coarse_wheel_lag(turned, steady.psi, heading, steady.dt, 0, n - 1) == 0

@@ -181,7 +181,7 @@ def inconsistent_samples(
     frozen = _frozen_fixes(log, wheels, rows, same, fixes, notes, nominal)
     spikes, outlying = _position_spikes(log, wheels, fixes, frozen, margin, notes, nominal)
     turns = _heading_jumps(log, margin, frozen | spikes, notes, nominal)
-    mask = frozen | spikes | turns
+    mask = frozen | spikes | turns | _frozen_wheels(log, notes, nominal)
     return mask, notes, outlying & ~mask
 
 
@@ -213,6 +213,45 @@ def _frozen_fixes(
                 f"wheels travelled {_metres(along[last] - along[first], nominal[0])} m: a held fix"
             )
     return frozen
+
+
+def _frozen_wheels(log, notes: list[str], nominal: np.ndarray) -> np.ndarray:
+    """Samples where both wheels repeat one rotation for :data:`FROZEN_WHEELS_MIN_S` and,
+    over windows of :data:`FROZEN_WHEELS_WINDOW_S` within that (chords beyond ten times the
+    fixes' noise), the track moves more than :data:`FROZEN_WHEELS_MISMATCH` off the wheels'
+    distance (nominal c_e), from the first such window to the last: a stale message repeated
+    (tick counts repeat in a steady cruise, where the track keeps their pace), ``(N,)``; one
+    note per span."""
+    frozen = np.zeros(len(log), dtype=bool)
+    same = (np.diff(log.n_rl) == 0) & (np.diff(log.n_rr) == 0) & (log.n_rl[1:] != 0)
+    width = max(1, round(FROZEN_WHEELS_WINDOW_S / log.dt))
+    least = 10.0 * fix_noise({"px": log.px, "py": log.py})
+    for a, b in runs(same):  # rows a..b+1 hold one rotation
+        if log.t[b + 1] - log.t[a] < FROZEN_WHEELS_MIN_S:
+            continue
+        ends = np.arange(a, b + 2, width)
+        chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
+        wheels = 0.5 * (log.n_rl[a] + log.n_rr[a]) * nominal[0] * np.diff(ends)
+        off = (chords > least) & (np.abs(chords / wheels - 1.0) > FROZEN_WHEELS_MISMATCH)
+        if not off.any():
+            continue
+        first, last = np.flatnonzero(off)[[0, -1]]  # stale from the first window off to the last
+        rows = slice(ends[first], ends[last + 1] + 1)
+        frozen[rows] = True
+        worst = float(np.max(np.abs(chords[off] / wheels[off] - 1.0)))
+        notes.append(
+            f"wheels frozen at t = {log.t[rows.start]:.1f}–{log.t[rows.stop - 1]:.1f} s (n_rl, "
+            f"n_rr repeat one value where the track moves up to {worst:.0%} off their "
+            "distance): a stale signal"
+        )
+    return frozen
+
+
+#: Both wheels repeating one rotation this long [s] are frozen over the windows of
+#: :data:`FROZEN_WHEELS_WINDOW_S` [s] where the track's distance is this share off theirs.
+FROZEN_WHEELS_MIN_S = 5.0
+FROZEN_WHEELS_WINDOW_S = 2.0
+FROZEN_WHEELS_MISMATCH = 0.2
 
 
 def _position_spikes(

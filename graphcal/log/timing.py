@@ -152,7 +152,16 @@ def wheel_lag_from_turns(
         if len(a) < MIN_TURN_WINDOWS:
             continue
         measured = wrap_angle(log.psi[b] - log.psi[a])
-        shifts = np.arange(-reach, reach + 1)
+        # A clock off by seconds (GPS time against UTC: 18 s) is found on coarse bins first.
+        centre = coarse_wheel_lag(turned, log.psi, heading, dt, first, last, max_lag)
+        if centre:
+            keep = (a + centre - reach >= first) & (b + centre + reach <= last)
+            a, b, measured = a[keep], b[keep], measured[keep]
+            clear = masked[b + centre + reach] - masked[a + centre - reach] == 0
+            a, b, measured = a[clear], b[clear], measured[clear]
+            if len(a) < MIN_TURN_WINDOWS:
+                continue
+        shifts = centre + np.arange(-reach, reach + 1)
         correlation = np.zeros(len(shifts))
         for i, shift in enumerate(shifts):  # one pass per shift: a 200 km log's windows
             wheels = turned[b + shift] - turned[a + shift]  # at once would take 0.5 GB
@@ -167,3 +176,79 @@ def wheel_lag_from_turns(
         between = 0.5 * (below - above) / curvature if curvature < 0 else 0.0
         lags[r] = np.round(shifts[best] + between) * dt + 0.0  # never -0.0
     return lags
+
+
+#: Bins [s] over which :func:`coarse_wheel_lag` compares turns, the widest lag [s] it looks
+#: for, and by how much the correlation at its lag must exceed that at every lag more than
+#: two bins away (a robot circling at a steady rate turns alike at every lag).
+COARSE_BIN_S = 0.5
+MAX_COARSE_LAG_S = 30.0
+COARSE_DISTINCT = 0.1
+
+
+def coarse_wheel_lag(
+    turned: np.ndarray,
+    psi: np.ndarray,
+    heading: np.ndarray,
+    dt: float,
+    first: int,
+    last: int,
+    fine_lag: float = MAX_LAG_S,
+) -> int:
+    """How late the wheels are [samples], by whole bins of :data:`COARSE_BIN_S` within
+    ±:data:`MAX_COARSE_LAG_S`, when it is more than ``fine_lag`` [s] (else 0): the lag at
+    which the wheels' heading ``turned`` ``(N+1,)`` [rad] turns as the measured heading
+    ``psi`` (rows ``heading`` measured and usable) did, over rows ``first``–``last`` — a
+    distinct peak of the correlation (:data:`MIN_TURN_CORRELATION`,
+    :data:`COARSE_DISTINCT`)."""
+    width = max(1, round(COARSE_BIN_S / dt))
+    edges = np.arange(first, last + 1, width)
+    reach = int(MAX_COARSE_LAG_S / (width * dt))
+    if len(edges) < 2 * reach + MIN_TURN_WINDOWS:
+        return 0
+    gaps = np.concatenate([[0], np.cumsum(~heading)])
+    clean = gaps[edges[1:] + 1] - gaps[edges[:-1]] == 0
+    measured = np.where(clean, wrap_angle(np.diff(psi[edges])), 0.0)
+    wheels = np.where(clean, np.diff(turned[edges]), 0.0)
+    n = len(measured)
+    lags = np.arange(-reach, reach + 1)
+    correlation = np.zeros(len(lags))
+    for i, lag in enumerate(lags):  # the wheels' bin j + lag against the heading's bin j
+        m = measured[max(0, -lag) : n - max(0, lag)]
+        w = wheels[max(0, lag) : n - max(0, -lag)]
+        norm = float(np.linalg.norm(m) * np.linalg.norm(w))
+        correlation[i] = float(m @ w) / norm if norm > 0 else 0.0
+    best = int(np.argmax(correlation))
+    others = np.abs(lags - lags[best]) > 2
+    distinct = correlation[best] - np.max(correlation[others], initial=-1.0) >= COARSE_DISTINCT
+    if correlation[best] < MIN_TURN_CORRELATION or not distinct:
+        return 0
+    if abs(lags[best]) * width * dt <= fine_lag:
+        return 0
+    return int(lags[best] * width)
+
+
+def on_the_pose_clock(log: DriveLog, theta: np.ndarray) -> tuple[DriveLog, np.ndarray]:
+    """``log`` with each run's wheels taken as late as their clock is behind the pose's, where
+    that is more than :data:`MAX_LAG_S` (:func:`wheel_lag_from_turns`; ``theta`` only shapes
+    the turns): whole samples, exact; the rows whose shifted interval leaves their run
+    masked (no segment spans them). Returns the log and each run's shift [s] ``(runs,)``
+    (0 where the clocks agree within :data:`MAX_LAG_S`, which the solve's time offset takes)."""
+    lag = wheel_lag_from_turns(log, theta)
+    shift = np.where(np.abs(lag) > MAX_LAG_S, lag, 0.0)
+    if not shift.any():
+        return log, shift
+    shifted = shift_wheel_rotations(log, shift)
+    masked = np.zeros(len(log.t), bool) if log.masked is None else log.masked.copy()
+    run = log.run_of(np.arange(len(log.t)))
+    notes = list(log.mask_notes)
+    for r in np.flatnonzero(shift):
+        rows = np.flatnonzero(run == r)
+        count = min(len(rows), int(np.ceil(abs(shift[r]) / log.dt - 1e-9)))
+        left = rows[-count:] if shift[r] > 0 else rows[:count]
+        masked[left] = True
+        notes.append(
+            f"t = {log.t[left[0]]:.1f}–{log.t[left[-1]]:.1f} s: no wheel data after the wheels' "
+            f"clock shift of {shift[r]:+.1f} s"
+        )
+    return dataclasses.replace(shifted, masked=masked, mask_notes=tuple(notes)), shift

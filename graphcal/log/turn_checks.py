@@ -20,6 +20,8 @@ from graphcal.log.checks import fail
 from graphcal.log.drive_log import COLUMNS, DriveLog
 from graphcal.log.turns import (
     TURN_MIN_COUNT,
+    WHEEL_TURN_SLACK,
+    lateral_acceleration_agreement,
     lateral_acceleration_scale,
     looks_like_g,
     track_turns,
@@ -35,6 +37,45 @@ def _columns(log: DriveLog) -> tuple[dict[str, np.ndarray], np.ndarray]:
         if flags is not None:
             excluded |= flags
     return {name: getattr(log, name) for name in COLUMNS}, excluded
+
+
+def check_wheels_turn(log: DriveLog, nominal: np.ndarray) -> None:
+    """One line if the wheels (nominal θ) barely turn where the track (or the heading, if
+    logged) turns clearly: in
+    :data:`STILL_WHEELS_SHARE` of its clear turns (at least
+    :data:`~graphcal.log.turns.TURN_MIN_COUNT`) by less than a
+    :data:`~graphcal.log.turns.WHEEL_TURN_SLACK`-th of it — one column a copy of the
+    other, or two wheels of one side."""
+    columns, excluded = _columns(log)
+    fixed = None if log.measured is None else log.measured[:, 0]
+    turns = track_turns(columns, excluded, nominal, fixed)
+    reference, clear = turns.track, turns.track_turning
+    if int(log.heading_measured.sum()) >= 2:  # a heading's turns hold no fix noise
+        reference = turns.turns_of(log.psi)
+        with np.errstate(invalid="ignore"):
+            clear = np.abs(reference) > STILL_WHEELS_TURN
+    if clear.sum() < TURN_MIN_COUNT:
+        return
+    still = np.abs(turns.wheels[clear]) < np.abs(reference[clear]) / WHEEL_TURN_SLACK
+    if still.mean() < STILL_WHEELS_SHARE:
+        return
+    same = float(np.mean(log.n_rl == log.n_rr))
+    turning = "track (px, py)" if reference is turns.track else "heading (psi)"
+    what = (
+        f"the wheels (n_rl, n_rr) barely turn where the {turning} turns: in "
+        f"{still.mean():.0%} of its {int(clear.sum())} clear turns by under "
+        f"1/{WHEEL_TURN_SLACK:g} of its turn (the two columns equal in {same:.0%} of the rows)"
+    )
+    fix = (
+        "check that they are the rear left and the rear right wheel (not one copied, not one side)"
+    )
+    raise fail(log.source, None, None, what, fix)
+
+
+#: Share of the track's clear turns in which still wheels are refused; with a heading, its
+#: turns [rad] over a window that count as clear.
+STILL_WHEELS_SHARE = 0.75
+STILL_WHEELS_TURN = 0.3
 
 
 def check_turn_directions(log: DriveLog, nominal: np.ndarray) -> None:
@@ -79,11 +120,19 @@ def check_turn_directions(log: DriveLog, nominal: np.ndarray) -> None:
 
 def check_lateral_acceleration_units(log: DriveLog, nominal: np.ndarray) -> None:
     """One line if ``ay`` is apparently in g: about 1/9.81 of speed × yaw rate of the track
-    in its clear turns (:func:`~graphcal.log.turns.track_turns`). A log
-    without a lateral acceleration (``ay`` all 0) or hardly turning is not judged."""
+    in its clear turns (:func:`~graphcal.log.turns.track_turns`), or of the other sign (to
+    the right in left turns: d then comes out of the other sign). A log without a lateral
+    acceleration (``ay`` all 0) or hardly turning is not judged."""
     columns, excluded = _columns(log)
     fixed = None if log.measured is None else log.measured[:, 0]
     turns = track_turns(columns, excluded, nominal, fixed)
+    agreement = lateral_acceleration_agreement(log.ay, turns)
+    if agreement is not None and agreement < 1.0 - AY_SIGN_SHARE:
+        what = (
+            f"the lateral acceleration points against speed × yaw rate of the track (px, py) in "
+            f"{1.0 - agreement:.0%} of its turns, apparently of the other sign"
+        )
+        raise fail(log.source, "ay", None, what, "negate the column (ay positive to the left)")
     found = lateral_acceleration_scale(log.ay, turns, log.dt)
     if found is None or not looks_like_g(found[0]):
         return
@@ -98,6 +147,11 @@ def check_lateral_acceleration_units(log: DriveLog, nominal: np.ndarray) -> None
         f"{start:.1f}–{end:.1f} s), apparently in g",
         "multiply the column by 9.81 (ay in m/s², positive to the left)",
     )
+
+
+#: Share of the clear turns in which ``ay`` must point against the track's speed × yaw rate
+#: to be refused as of the other sign.
+AY_SIGN_SHARE = 0.75
 
 
 #: Largest ratio of one rear wheel's rotations to the other's where the track runs straight
@@ -146,3 +200,88 @@ def check_wheel_ratio(log: DriveLog, nominal: np.ndarray) -> None:
     )
     fix = f"check {off}'s unit, ticks per revolution or circumference (rev per sample)"
     raise fail(log.source, off, None, what, fix)
+
+
+#: A track stretched along one direction by more than this factor against the other (the
+#: wheels' distance along straight windows as the ruler), beyond
+#: :data:`TRACK_STRETCH_SIGMAS` of the fit's own standard error, is refused: positions whose
+#: axes were scaled differently (longitude in degrees times 111 km, without cos(latitude)).
+TRACK_STRETCH = 1.05
+TRACK_STRETCH_SIGMAS = 3.0
+#: Windows whose directions (modulo 180°) align this closely (the length of their mean
+#: doubled-angle vector) cannot tell one axis from the other.
+STRETCH_MAX_ALIGNMENT = 0.8
+
+
+def track_stretch(
+    dx: np.ndarray, dy: np.ndarray, travelled: np.ndarray
+) -> tuple[float, float, float] | None:
+    """How far a track is stretched along one direction against the other: from straight
+    windows' displacements ``dx``, ``dy`` [m] over the wheels' travel [m] along them, the
+    fit (chord / travel)² = A cos²φ + B sin²φ + 2 C cos φ sin φ (the metric the positions'
+    axes give distance; a wrong c_e scales it evenly): the square root of its eigenvalues'
+    ratio, its standard error and the stretched direction [rad]; ``None`` when the
+    directions do not tell (fewer than :data:`~graphcal.log.turns.TURN_MIN_COUNT` windows,
+    or all one way)."""
+    if len(dx) < TURN_MIN_COUNT:
+        return None
+    phi = np.arctan2(dy, dx)
+    if abs(np.mean(np.exp(2j * phi))) > STRETCH_MAX_ALIGNMENT:  # (nearly) all one way
+        return None
+    c, s = np.cos(phi), np.sin(phi)
+    design = np.column_stack([c * c, s * s, 2.0 * c * s])
+    observed = (dx * dx + dy * dy) / (travelled * travelled)
+    coefficients, *_ = np.linalg.lstsq(design, observed, rcond=None)
+    residual = observed - design @ coefficients
+    dof = len(observed) - 3
+    normal = design.T @ design
+    if dof < 1 or np.linalg.cond(normal) > 1e6:
+        return None
+    covariance = float(residual @ residual) / dof * np.linalg.inv(normal)
+
+    def stretch(k: np.ndarray) -> tuple[float, float]:
+        values, vectors = np.linalg.eigh(np.array([[k[0], k[2]], [k[2], k[1]]]))
+        if values[0] <= 0.0:
+            return np.nan, 0.0
+        return float(np.sqrt(values[1] / values[0])), float(np.arctan2(*vectors[::-1, 1]))
+
+    value, direction = stretch(coefficients)
+    if not np.isfinite(value):
+        return None
+    gradient = np.array([(stretch(coefficients + h)[0] - value) / 1e-7 for h in 1e-7 * np.eye(3)])
+    return value, float(np.sqrt(max(gradient @ covariance @ gradient, 0.0))), direction
+
+
+def check_track_stretch(log: DriveLog, nominal: np.ndarray) -> None:
+    """One line if the track is stretched along one direction against the other
+    (:func:`track_stretch` over the track's straight windows of
+    :func:`~graphcal.log.turns.track_turns`, by more than :data:`TRACK_STRETCH` certainly):
+    a calibration would take it for c_e and t_r."""
+    columns, excluded = _columns(log)
+    fixed = None if log.measured is None else log.measured[:, 0]
+    turns = track_turns(columns, excluded, nominal, fixed)
+    starts, ends = turns.ends[:-1], turns.ends[1:]
+    wheels = np.add.reduceat(0.5 * (log.n_rl + log.n_rr), starts) * nominal[0]
+    with np.errstate(invalid="ignore"):
+        straight = (
+            np.isfinite(turns.track) & (np.abs(turns.track) < STRAIGHT_TRACK_TURN) & (wheels > 0)
+        )
+    dx = (log.px[ends] - log.px[starts])[straight]
+    dy = (log.py[ends] - log.py[starts])[straight]
+    found = track_stretch(dx, dy, wheels[straight])
+    if found is None:
+        return
+    stretch, sigma, direction = found
+    if stretch - TRACK_STRETCH_SIGMAS * sigma <= TRACK_STRETCH:
+        return
+    along = np.degrees(direction) % 180.0
+    what = (
+        f"the track (px, py) is {stretch:.3g}x as long against the wheels' distance along "
+        f"{along:.0f}° from the x axis as across it (straight stretches): the axes are scaled "
+        "differently"
+    )
+    fix = (
+        "check the conversion to metres (from longitude in degrees, east metres are "
+        "111,320 m × cos(latitude) per degree)"
+    )
+    raise fail(log.source, None, None, what, fix)

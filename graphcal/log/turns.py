@@ -178,10 +178,11 @@ class TrackTurns:
     ends: np.ndarray  # first grid row of each window, and the last window's end
     track: np.ndarray  # the track's turn [rad] in each window (NaN where masked)
     chords: np.ndarray  # [m]
-    turning: np.ndarray  # windows that turn clearly while moving
+    turning: np.ndarray  # windows that turn clearly while moving, the wheels too
     usable: np.ndarray  # grid rows not masked
     wheels: np.ndarray  # the wheels' turn [rad] in each window (nominal θ)
     wheel_ay: np.ndarray  # mean of the wheels' speed × yaw rate [m/s²] in each window
+    track_turning: np.ndarray  # windows in which the track turns clearly, whatever the wheels
 
     def turns_of(self, yaw: np.ndarray) -> np.ndarray:
         """The turn [rad] of another signal's ``yaw`` in each window (its values at the
@@ -292,11 +293,12 @@ def track_turns(
         agree = (np.sign(wheels) == np.sign(track)) & (
             np.abs(wheels) > TURN_MIN_YAW / WHEEL_TURN_SLACK
         )
-        turning = np.isfinite(track) & (np.abs(track) > clear) & (chords > least) & agree
+        track_turning = np.isfinite(track) & (np.abs(track) > clear) & (chords > least)
+    turning = track_turning & agree
     speed = 0.5 * (c["n_rl"] + c["n_rr"]) * nominal[0] / dt
     rate = (c["n_rr"] - c["n_rl"]) * nominal[0] / nominal[2] / dt
     wheel_ay = np.add.reduceat(speed * rate, ends[:-1]) / np.diff(np.append(ends[:-1], n))
-    return TrackTurns(ends, track, chords, turning, usable, wheels, wheel_ay)
+    return TrackTurns(ends, track, chords, turning, usable, wheels, wheel_ay, track_turning)
 
 
 def lateral_acceleration_scale(
@@ -315,17 +317,36 @@ def lateral_acceleration_scale(
     place of the track's: fixes whose errors wander together over tens of seconds bend the
     track's course by more than a robot's turns (a differential robot's 50 Hz fixes of
     1.8 m over 26 s: its valid lateral acceleration 0.185× the track's, refused)."""
+    means, expected = _window_lateral_accelerations(ay, turns, reference)
+    found = turns.scale(means / np.where(expected == 0, 1.0, expected) * turns.track)
+    if found is None:
+        return None
+    ratio, k = found
+    return ratio, k, float(means[k]), float(expected[k])
+
+
+def lateral_acceleration_agreement(ay: np.ndarray, turns: TrackTurns) -> float | None:
+    """Share of the track's clear ``turns`` in which a lateral acceleration ``ay`` [m/s², one
+    per grid sample] points the way speed × yaw rate of the track does (to the left in a
+    left turn); ``None`` if there are too few turns (or ``ay`` is all 0)."""
+    means, expected = _window_lateral_accelerations(ay, turns, None)
+    judged = turns.turning & (expected != 0) & (means != 0)
+    if judged.sum() < TURN_MIN_COUNT:
+        return None
+    return float(np.mean(np.sign(means[judged]) == np.sign(expected[judged])))
+
+
+def _window_lateral_accelerations(
+    ay: np.ndarray, turns: TrackTurns, reference: np.ndarray | None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean ``ay`` in each window of ``turns`` and the track's speed × yaw rate there
+    [m/s²] (0 where undefined), as :func:`lateral_acceleration_scale` compares them."""
     sums = np.add.reduceat(ay, turns.ends[:-1])
     counts = np.diff(np.append(turns.ends[:-1], len(ay)))
     turned = turns.track if reference is None else reference
     with np.errstate(invalid="ignore", divide="ignore"):
         expected = turns.wheel_ay * np.nan_to_num(turned) / turns.wheels
-    expected = np.where(np.isfinite(expected), expected, 0.0)
-    found = turns.scale(sums / counts / np.where(expected == 0, 1.0, expected) * turns.track)
-    if found is None:
-        return None
-    ratio, k = found
-    return ratio, k, float(sums[k] / counts[k]), float(expected[k])
+    return sums / counts, np.where(np.isfinite(expected), expected, 0.0)
 
 
 def looks_like_g(ratio: float) -> bool:

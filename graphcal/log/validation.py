@@ -30,8 +30,10 @@ from graphcal.log.heading_travel import check_heading_against_travel
 from graphcal.log.track import fill_track
 from graphcal.log.turn_checks import (
     check_lateral_acceleration_units,
+    check_track_stretch,
     check_turn_directions,
     check_wheel_ratio,
+    check_wheels_turn,
 )
 from graphcal.model import THETA_NOMINAL
 
@@ -124,6 +126,8 @@ def _check_columns_against_each_other(
     other, in their terms), and the heading against the direction of travel for both."""
     if origins is None:
         check_wheel_ratio(log, nominal)
+        check_track_stretch(log, nominal)
+        check_wheels_turn(log, nominal)
         check_turn_directions(log, nominal)
         check_lateral_acceleration_units(log, nominal)
     check_heading_against_travel(log, nominal, origins)

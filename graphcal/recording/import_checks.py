@@ -88,6 +88,8 @@ WHEEL_SCALE_RANGE = (0.8, 1.25)
 WHEEL_SCALE_SIGMAS = 3.0
 #: Share of the longest stream the overlap should cover.
 MIN_OVERLAP_OF_LONGEST = 0.5
+
+
 def _check_wheel_scale(
     c: dict, usable: np.ndarray, resampled: Resampled, recording, nominal
 ) -> None:

@@ -12,7 +12,7 @@ import numpy as np
 
 from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
-from graphcal.pipeline.methods.prepare import PreparedLog
+from graphcal.pipeline.methods.prepare import PreparedLog, runs_label
 from graphcal.pipeline.methods.sensor_estimates import detected_offsets, sensor_estimates
 from graphcal.pipeline.solvers.joint import JointCalibration, solve_joint
 from graphcal.pipeline.solvers.joint_settings import JointSettings
@@ -108,11 +108,6 @@ def solve_with_time_offset(
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
         whole, values = _whole_log_solve(data, settings, workers, values, rounds_start(whole))
     return whole, values, data, shift
-
-
-def runs_label(runs: int) -> str:
-    """`` (runs 0–3)`` after a list of one value per run; empty for one run."""
-    return "" if runs == 1 else f" (runs 0–{runs - 1})"
 
 
 def _whole_log_solve(

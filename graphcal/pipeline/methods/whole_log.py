@@ -66,7 +66,7 @@ from graphcal.pipeline.methods.noise_levels import (
     noise_levels_change,
     with_noise_levels,
 )
-from graphcal.pipeline.methods.prepare import PreparedLog
+from graphcal.pipeline.methods.prepare import PreparedLog, runs_label
 from graphcal.pipeline.methods.runaways import FreeSolve, holding_runaways
 from graphcal.pipeline.methods.sensor_estimates import (
     DownWeightedFixes,
@@ -84,7 +84,6 @@ from graphcal.pipeline.methods.time_offset_rounds import (
     Solved,
     StoppedAt,
     rounds_start,
-    runs_label,
 )
 from graphcal.pipeline.methods.whole_log_lines import estimate_lines, report_whole_log
 from graphcal.pipeline.solvers.joint import JointCalibration
@@ -165,6 +164,8 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     whole, values, data, offset = solved
     whole = judged_with_what_is_held(whole, settings.joint, held)  # step 3
     log = prepared.log
+    if prepared.clock_shift is not None:  # the wheels' clock, seconds off, shifted first
+        offset = offset + prepared.clock_shift
     estimated = _with_total_offset(  # step 4
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
     )
