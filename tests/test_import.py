@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import shutil
+import tomllib
 
 import numpy as np
 import pandas as pd
@@ -393,6 +394,19 @@ def test_a_heading_offset_warns_or_is_refused(recording, tmp_path, capsys, degre
         assert "warning: the heading differs from the direction of travel by -5.0°" in (
             capsys.readouterr().out
         )
+
+
+def test_one_wheel_off_scale_is_named_not_called_swapped(recording, tmp_path, capsys):
+    # rear_left 1.5x: its wheels turn right in most turns, and the import called them swapped
+    wheels = pd.read_csv(recording / "wheels.csv")
+    manifest = tomllib.loads((recording / "manifest.toml").read_text())
+    left = manifest["wheels"]["rear_left"]
+    wheels[left] = wheels[left] * 1.5
+    wheels.to_csv(recording / "wheels.csv", index=False, float_format="%.17g")
+    args = ["import", str(recording / "manifest.toml"), "--out", str(tmp_path / "d.csv")]
+    err = _one_line_exit_2(args, capsys)
+    assert "rear_left travels 1.5" in err and "rear_left's scale is off" in err
+    assert "swapped" not in err
 
 
 def test_slow_gnss_is_fixes_at_their_times_and_short_overlap_is_warned_about(recording):

@@ -161,18 +161,18 @@ STRAIGHT_WHEEL_RATIO = 1.1
 STRAIGHT_TRACK_TURN = 0.05
 
 
-def check_wheel_ratio(log: DriveLog, nominal: np.ndarray) -> None:
-    """One line if one rear wheel turns more than :data:`STRAIGHT_WHEEL_RATIO` times the
-    other where the track runs straight (the median over the track's straight windows of
-    :func:`~graphcal.log.turns.track_turns`): a wheel's unit, tick count or circumference is
-    off. Judged before the turns' directions, which such wheels turn one way only and would
-    call swapped."""
-    columns, excluded = _columns(log)
-    fixed = None if log.measured is None else log.measured[:, 0]
+def wheel_off_scale(
+    columns: dict[str, np.ndarray], excluded: np.ndarray, nominal, fixed: np.ndarray | None
+) -> tuple[str, dict[str, float], int] | None:
+    """The rear wheel (``"n_rl"`` or ``"n_rr"``) whose scale is off where one turns more than
+    :data:`STRAIGHT_WHEEL_RATIO` times the other on the track's straight windows (the median
+    over the windows of :func:`~graphcal.log.turns.track_turns` of the grid's drive-log
+    ``columns``): the one whose distance (nominal c_e) departs further from the track's;
+    with each wheel's distance over the track's and the windows' count. ``None`` if neither."""
     turns = track_turns(columns, excluded, nominal, fixed)
     starts = turns.ends[:-1]
-    left = np.add.reduceat(log.n_rl, starts)
-    right = np.add.reduceat(log.n_rr, starts)
+    left = np.add.reduceat(columns["n_rl"], starts)
+    right = np.add.reduceat(columns["n_rr"], starts)
     with np.errstate(invalid="ignore"):
         straight = (
             np.isfinite(turns.track)
@@ -181,22 +181,34 @@ def check_wheel_ratio(log: DriveLog, nominal: np.ndarray) -> None:
             & (right > 0)
         )
     if straight.sum() < TURN_MIN_COUNT:
-        return
+        return None
     ratio = float(np.median(left[straight] / right[straight]))
     if max(ratio, 1.0 / ratio) <= STRAIGHT_WHEEL_RATIO:
-        return
-    # the wheel whose distance (nominal c_e) departs further from the track's is off
+        return None
     chords = turns.chords[straight]
     scales = {
         name: float(np.median(rotations[straight] * nominal[0] / chords))
         for name, rotations in (("n_rl", left), ("n_rr", right))
     }
     off = max(scales, key=lambda name: abs(np.log(scales[name])))
+    return off, scales, int(straight.sum())
+
+
+def check_wheel_ratio(log: DriveLog, nominal: np.ndarray) -> None:
+    """One line if one rear wheel's scale is off (:func:`wheel_off_scale`): its unit, tick
+    count or circumference. Judged before the turns' directions, which such wheels turn one
+    way only and would call swapped."""
+    columns, excluded = _columns(log)
+    fixed = None if log.measured is None else log.measured[:, 0]
+    found = wheel_off_scale(columns, excluded, nominal, fixed)
+    if found is None:
+        return
+    off, scales, count = found
     other = "n_rr" if off == "n_rl" else "n_rl"
     what = (
         f"where the track (px, py) runs straight, {off} travels {scales[off]:.2f}x its "
-        f"distance and {other} {scales[other]:.2f}x (nominal c_e; median of "
-        f"{int(straight.sum())} straight stretches): {off}'s scale is off"
+        f"distance and {other} {scales[other]:.2f}x (nominal c_e; median of {count} straight "
+        f"stretches): {off}'s scale is off"
     )
     fix = f"check {off}'s unit, ticks per revolution or circumference (rev per sample)"
     raise fail(log.source, off, None, what, fix)

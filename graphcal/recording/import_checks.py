@@ -12,6 +12,7 @@ from graphcal.log.heading_travel import (
     HEADING_OFFSET_WARNING,
     heading_offset,
 )
+from graphcal.log.turn_checks import wheel_off_scale
 from graphcal.log.turns import (
     TURN_MIN_AGREEMENT,
     TURN_WINDOW_S,
@@ -46,6 +47,7 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     usable = ~resampled.masked
     _check_wheel_scale(c, usable, resampled, recording, nominal)
     check_units(resampled, recording, nominal)
+    _check_one_wheel(c, usable, resampled, recording, nominal)
     check_turning(resampled, recording, nominal)
     warnings = []
     found = heading_offset(c, usable, dt, nominal, resampled.measured)
@@ -116,6 +118,26 @@ def _check_wheel_scale(
             f"distance of the GNSS track (with the nominal c_e = {nominal[0]:g} m); "
             f"{_speed_unit_hint(wheels, ratio)}"
         )
+
+
+def _check_one_wheel(c: dict, usable: np.ndarray, resampled: Resampled, recording, nominal) -> None:
+    """One line if one rear wheel's scale is off against the other's and the GNSS track's
+    (:func:`~graphcal.log.turn_checks.wheel_off_scale`), before the turns' directions would
+    call such wheels swapped."""
+    fixed = None if resampled.measured is None else resampled.measured[:, 0]
+    found = wheel_off_scale(c, ~usable, nominal, fixed)
+    if found is None:
+        return
+    off, scales, count = found
+    names = {"n_rl": "rear_left", "n_rr": "rear_right"}
+    other = "n_rr" if off == "n_rl" else "n_rl"
+    wheels = provenance_of(recording.wheels)
+    raise StreamError(
+        f"{wheels.at((names[off],))}: where the GNSS track runs straight, {names[off]} travels "
+        f"{scales[off]:.2f}x its distance and {names[other]} {scales[other]:.2f}x (the nominal "
+        f"c_e; median of {count} straight stretches): {names[off]}'s scale is off; check its "
+        "column, unit, ticks per revolution or circumference"
+    )
 
 
 def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
