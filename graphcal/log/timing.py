@@ -228,27 +228,27 @@ def coarse_wheel_lag(
     return int(lags[best] * width)
 
 
-def on_the_pose_clock(log: DriveLog, theta: np.ndarray) -> tuple[DriveLog, np.ndarray]:
-    """``log`` with each run's wheels taken as late as their clock is behind the pose's, where
-    that is more than :data:`MAX_LAG_S` (:func:`wheel_lag_from_turns`; ``theta`` only shapes
-    the turns): whole samples, exact; the rows whose shifted interval leaves their run
-    masked (no segment spans them). Returns the log and each run's shift [s] ``(runs,)``
-    (0 where the clocks agree within :data:`MAX_LAG_S`, which the solve's time offset takes)."""
+def masked_for_the_clock_lag(log: DriveLog, theta: np.ndarray) -> tuple[DriveLog, np.ndarray]:
+    """``log`` with the rows masked that a shift of its wheels by their clock's lag behind
+    the pose's leaves without wheel data, where that lag is more than :data:`MAX_LAG_S`
+    (:func:`wheel_lag_from_turns`; ``theta`` only shapes the turns): its last rows for late
+    wheels, its first for early ones, so that no segment spans them; and each run's lag [s]
+    ``(runs,)`` (0 where the clocks agree within :data:`MAX_LAG_S`). The wheels are not
+    shifted here: the whole-log solve shifts them by the lag found again, and reports it."""
     lag = wheel_lag_from_turns(log, theta)
-    shift = np.where(np.abs(lag) > MAX_LAG_S, lag, 0.0)
-    if not shift.any():
-        return log, shift
-    shifted = shift_wheel_rotations(log, shift)
+    lag = np.where(np.abs(lag) > MAX_LAG_S, lag, 0.0)
+    if not lag.any():
+        return log, lag
     masked = np.zeros(len(log.t), bool) if log.masked is None else log.masked.copy()
     run = log.run_of(np.arange(len(log.t)))
     notes = list(log.mask_notes)
-    for r in np.flatnonzero(shift):
+    for r in np.flatnonzero(lag):
         rows = np.flatnonzero(run == r)
-        count = min(len(rows), int(np.ceil(abs(shift[r]) / log.dt - 1e-9)))
-        left = rows[-count:] if shift[r] > 0 else rows[:count]
+        count = min(len(rows), int(np.ceil(abs(lag[r]) / log.dt - 1e-9)))
+        left = rows[-count:] if lag[r] > 0 else rows[:count]
         masked[left] = True
         notes.append(
-            f"t = {log.t[left[0]]:.1f}–{log.t[left[-1]]:.1f} s: no wheel data after the wheels' "
-            f"clock shift of {shift[r]:+.1f} s"
+            f"t = {log.t[left[0]]:.1f}–{log.t[left[-1]]:.1f} s: no wheel data once the wheels "
+            f"are shifted by their clock's lag of {lag[r]:+.1f} s"
         )
-    return dataclasses.replace(shifted, masked=masked, mask_notes=tuple(notes)), shift
+    return dataclasses.replace(log, masked=masked, mask_notes=tuple(notes)), lag

@@ -267,7 +267,7 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
         errors = []
         for f in (0, 1):
             train = gather_segments(source, segments.subset(fold == f), weights)
-            held = gather_segments(log, segments.subset(fold != f))
+            held = gather_segments(source, segments.subset(fold != f))  # its wheels too
             errors.append(_held_apart_error(train, held, model, workers, start))
         return float(np.mean(errors))
 

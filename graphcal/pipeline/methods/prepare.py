@@ -16,7 +16,7 @@ from graphcal.log.excitation import lever_arm_sigma
 from graphcal.log.noise import heading_noise, position_noise
 from graphcal.log.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.log.segments import SegmentData, Segments, gather_segments
-from graphcal.log.timing import on_the_pose_clock
+from graphcal.log.timing import masked_for_the_clock_lag
 from graphcal.model import step_increments
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.methods.noise_levels import REWEIGHTED
@@ -59,7 +59,6 @@ class PreparedLog:
     warnings: tuple[str, ...]
     left_out: dict[str, float] = dataclasses.field(default_factory=dict)
     held: dict[str, str] = dataclasses.field(default_factory=dict)
-    clock_shift: np.ndarray | None = None
 
 
 def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> PreparedLog:
@@ -69,7 +68,7 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
     Raises:
         NoUsableSegments: no segment passes the selection, or the log is too short.
     """
-    log, clock_shift = _on_the_pose_clock(log, settings)
+    log = _masked_for_the_clock_lag(log, settings)
     segments, yaw, selected, validation_segments = select(log, settings, fall_back_to_all)
     settings = _with_detected_ticks(log, settings)
     settings = _with_wheel_noise(log, settings)
@@ -99,7 +98,6 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
         warnings=_mask_warnings(log),
         left_out=left_out,
         held=held,
-        clock_shift=clock_shift,
     )
 
 
@@ -108,21 +106,20 @@ def runs_label(runs: int) -> str:
     return "" if runs == 1 else f" (runs 0–{runs - 1})"
 
 
-def _on_the_pose_clock(log: DriveLog, settings: Settings) -> tuple[DriveLog, np.ndarray]:
-    """``log`` with its wheels on the pose's clock where their turns show it seconds off
-    (:func:`~graphcal.log.timing.on_the_pose_clock`), if the wheels' time offset is
-    estimated; and each run's shift [s]."""
+def _masked_for_the_clock_lag(log: DriveLog, settings: Settings) -> DriveLog:
+    """``log`` with the rows masked that its wheels leave when shifted by their clock's lag,
+    if it is seconds (:func:`~graphcal.log.timing.masked_for_the_clock_lag`) and the wheels'
+    time offset is estimated (the first solve shifts them)."""
     if not settings.joint.time_offset_sigma:
-        return log, np.zeros(log.runs)
-    log, shift = on_the_pose_clock(log, settings.vehicle.theta_nominal)
-    if shift.any():
-        shown = ", ".join(f"{s:+.1f}" for s in shift)
+        return log
+    log, lag = masked_for_the_clock_lag(log, settings.vehicle.theta_nominal)
+    if lag.any():
+        shown = ", ".join(f"{s:+.1f}" for s in lag)
         say(
             f"wheels {shown} s late against the pose{runs_label(log.runs)} (their turns match "
-            "the heading's that much later: clocks apart, such as GPS time and UTC by 18 s): "
-            "their rotations taken that much later"
+            "the heading's that much later: clocks apart, such as GPS time and UTC by 18 s)"
         )
-    return log, shift
+    return log
 
 
 def _with_observable_lever_arm(

@@ -164,8 +164,6 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     whole, values, data, offset = solved
     whole = judged_with_what_is_held(whole, settings.joint, held)  # step 3
     log = prepared.log
-    if prepared.clock_shift is not None:  # the wheels' clock, seconds off, shifted first
-        offset = offset + prepared.clock_shift
     estimated = _with_total_offset(  # step 4
         sensor_estimates(whole.nuisance, settings.joint.max_sigma_ratio), offset
     )
