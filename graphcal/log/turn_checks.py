@@ -21,6 +21,7 @@ from graphcal.log.drive_log import COLUMNS, DriveLog
 from graphcal.log.turns import (
     TURN_MIN_COUNT,
     WHEEL_TURN_SLACK,
+    TrackTurns,
     lateral_acceleration_agreement,
     lateral_acceleration_scale,
     looks_like_g,
@@ -39,16 +40,21 @@ def _columns(log: DriveLog) -> tuple[dict[str, np.ndarray], np.ndarray]:
     return {name: getattr(log, name) for name in COLUMNS}, excluded
 
 
-def check_wheels_turn(log: DriveLog, nominal: np.ndarray) -> None:
+def log_turns(log: DriveLog, nominal: np.ndarray) -> TrackTurns:
+    """The track's turns of ``log`` (:func:`~graphcal.log.turns.track_turns`, the masked and
+    outlying samples left out), which the checks below share."""
+    columns, excluded = _columns(log)
+    fixed = None if log.measured is None else log.measured[:, 0]
+    return track_turns(columns, excluded, nominal, fixed)
+
+
+def check_wheels_turn(log: DriveLog, turns: TrackTurns) -> None:
     """One line if the wheels (nominal θ) barely turn where the track (or the heading, if
     logged) turns clearly: in
     :data:`STILL_WHEELS_SHARE` of its clear turns (at least
     :data:`~graphcal.log.turns.TURN_MIN_COUNT`) by less than a
     :data:`~graphcal.log.turns.WHEEL_TURN_SLACK`-th of it — one column a copy of the
     other, or two wheels of one side."""
-    columns, excluded = _columns(log)
-    fixed = None if log.measured is None else log.measured[:, 0]
-    turns = track_turns(columns, excluded, nominal, fixed)
     reference, clear = turns.track, turns.track_turning
     if int(log.heading_measured.sum()) >= 2:  # a heading's turns hold no fix noise
         reference = turns.turns_of(log.psi)
@@ -118,14 +124,11 @@ def check_turn_directions(log: DriveLog, nominal: np.ndarray) -> None:
     raise fail(log.source, None, None, what, "exchange the columns of one pair")
 
 
-def check_lateral_acceleration_units(log: DriveLog, nominal: np.ndarray) -> None:
+def check_lateral_acceleration_units(log: DriveLog, turns: TrackTurns) -> None:
     """One line if ``ay`` is apparently in g: about 1/9.81 of speed × yaw rate of the track
     in its clear turns (:func:`~graphcal.log.turns.track_turns`), or of the other sign (to
     the right in left turns: d then comes out of the other sign). A log without a lateral
     acceleration (``ay`` all 0) or hardly turning is not judged."""
-    columns, excluded = _columns(log)
-    fixed = None if log.measured is None else log.measured[:, 0]
-    turns = track_turns(columns, excluded, nominal, fixed)
     agreement = lateral_acceleration_agreement(log.ay, turns)
     if agreement is not None and agreement < 1.0 - AY_SIGN_SHARE:
         what = (
@@ -162,14 +165,13 @@ STRAIGHT_TRACK_TURN = 0.05
 
 
 def wheel_off_scale(
-    columns: dict[str, np.ndarray], excluded: np.ndarray, nominal, fixed: np.ndarray | None
+    columns: dict[str, np.ndarray], turns: TrackTurns, nominal
 ) -> tuple[str, dict[str, float], int] | None:
     """The rear wheel (``"n_rl"`` or ``"n_rr"``) whose scale is off where one turns more than
     :data:`STRAIGHT_WHEEL_RATIO` times the other on the track's straight windows (the median
     over the windows of :func:`~graphcal.log.turns.track_turns` of the grid's drive-log
     ``columns``): the one whose distance (nominal c_e) departs further from the track's;
     with each wheel's distance over the track's and the windows' count. ``None`` if neither."""
-    turns = track_turns(columns, excluded, nominal, fixed)
     starts = turns.ends[:-1]
     left = np.add.reduceat(columns["n_rl"], starts)
     right = np.add.reduceat(columns["n_rr"], starts)
@@ -194,13 +196,11 @@ def wheel_off_scale(
     return off, scales, int(straight.sum())
 
 
-def check_wheel_ratio(log: DriveLog, nominal: np.ndarray) -> None:
+def check_wheel_ratio(log: DriveLog, turns: TrackTurns, nominal: np.ndarray) -> None:
     """One line if one rear wheel's scale is off (:func:`wheel_off_scale`): its unit, tick
     count or circumference. Judged before the turns' directions, which such wheels turn one
     way only and would call swapped."""
-    columns, excluded = _columns(log)
-    fixed = None if log.measured is None else log.measured[:, 0]
-    found = wheel_off_scale(columns, excluded, nominal, fixed)
+    found = wheel_off_scale(_columns(log)[0], turns, nominal)
     if found is None:
         return
     off, scales, count = found
@@ -271,14 +271,11 @@ def track_stretch(
     return value, float(np.sqrt(max(gradient @ covariance @ gradient, 0.0))), direction
 
 
-def check_track_stretch(log: DriveLog, nominal: np.ndarray) -> None:
+def check_track_stretch(log: DriveLog, turns: TrackTurns, nominal: np.ndarray) -> None:
     """One line if the track is stretched along one direction against the other
     (:func:`track_stretch` over the track's straight windows of
     :func:`~graphcal.log.turns.track_turns`, by more than :data:`TRACK_STRETCH` certainly):
     a calibration would take it for c_e and t_r."""
-    columns, excluded = _columns(log)
-    fixed = None if log.measured is None else log.measured[:, 0]
-    turns = track_turns(columns, excluded, nominal, fixed)
     starts, ends = turns.ends[:-1], turns.ends[1:]
     wheels = np.add.reduceat(0.5 * (log.n_rl + log.n_rr), starts) * nominal[0]
     with np.errstate(invalid="ignore"):

@@ -34,6 +34,7 @@ from graphcal.log.turn_checks import (
     check_turn_directions,
     check_wheel_ratio,
     check_wheels_turn,
+    log_turns,
 )
 from graphcal.model import THETA_NOMINAL
 
@@ -125,11 +126,12 @@ def _check_columns_against_each_other(
     directions and ``ay``'s unit for a CSV (an import checked its streams against each
     other, in their terms), and the heading against the direction of travel for both."""
     if origins is None:
-        check_wheel_ratio(log, nominal)
-        check_track_stretch(log, nominal)
-        check_wheels_turn(log, nominal)
+        turns = log_turns(log, nominal)
+        check_wheel_ratio(log, turns, nominal)
+        check_track_stretch(log, turns, nominal)
+        check_wheels_turn(log, turns)
         check_turn_directions(log, nominal)
-        check_lateral_acceleration_units(log, nominal)
+        check_lateral_acceleration_units(log, turns)
     check_heading_against_travel(log, nominal, origins)
 
 

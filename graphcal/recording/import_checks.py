@@ -17,6 +17,7 @@ from graphcal.log.turns import (
     TURN_MIN_AGREEMENT,
     TURN_WINDOW_S,
     track_directions,
+    track_turns,
     turn_agreement,
     turn_directions,
 )
@@ -125,7 +126,7 @@ def _check_one_wheel(c: dict, usable: np.ndarray, resampled: Resampled, recordin
     (:func:`~graphcal.log.turn_checks.wheel_off_scale`), before the turns' directions would
     call such wheels swapped."""
     fixed = None if resampled.measured is None else resampled.measured[:, 0]
-    found = wheel_off_scale(c, ~usable, nominal, fixed)
+    found = wheel_off_scale(c, track_turns(c, ~usable, nominal, fixed), nominal)
     if found is None:
         return
     off, scales, count = found
