@@ -14,6 +14,8 @@ import pytest
 from graphcal.cli import main
 from graphcal.evaluation import Truth, evaluate
 from graphcal.log.segments import split_segments
+from graphcal.log.timing import wheel_lag_from_turns
+from graphcal.model import THETA_NOMINAL
 from graphcal.pipeline.end_to_end.run import run_calibration
 from graphcal.recording.importer import import_recording
 from graphcal.recording.stream_grid import interval_means, wheel_rotations
@@ -407,6 +409,35 @@ def test_one_wheel_off_scale_is_named_not_called_swapped(recording, tmp_path, ca
     err = _one_line_exit_2(args, capsys)
     assert "rear_left travels 1.5" in err and "rear_left's scale is off" in err
     assert "swapped" not in err
+
+
+def test_a_heading_flipped_over_a_span_of_10_hz_fixes_is_named(recording, capsys, tmp_path):
+    # Windows that needed a heading at every row never judged 10 Hz fixes on the 40 Hz grid:
+    # the flip ran 50 s of solves to exit 2 blaming the wheels' units.
+    gnss = pd.read_csv(recording / "gnss.csv")
+    middle = np.zeros(len(gnss), bool)
+    middle[len(gnss) // 3 : 2 * len(gnss) // 3] = True
+    gnss["heading"] = np.where(middle, (gnss["heading"] + 180.0) % 360.0, gnss["heading"])
+    gnss.to_csv(recording / "gnss.csv", index=False, float_format="%.17g")
+    args = ["import", str(recording / "manifest.toml"), "--out", str(tmp_path / "d.csv")]
+    err = _one_line_exit_2(args, capsys)
+    assert "gnss.csv: column 'heading'" in err and "away from the direction of travel" in err
+
+
+def test_an_imported_wheel_clock_18_s_off_and_frozen_wheel_speeds_are_found(recording):
+    """The wheels' clock 18 s behind the GNSS's (GPS time against UTC), found on the
+    imported grid whose heading holds 10 Hz fixes; and 100 Hz speeds frozen for a stretch,
+    which resampling leaves repeating within 1e-5, masked."""
+    wheels = pd.read_csv(recording / "wheels.csv")
+    late = wheels.assign(t=wheels["t"] + 18.0)
+    late.to_csv(recording / "wheels.csv", index=False, float_format="%.17g")
+    log = import_recording(recording / "manifest.toml").log
+    assert wheel_lag_from_turns(log, THETA_NOMINAL)[0] == pytest.approx(18.0, abs=log.dt)
+    a, b = len(wheels) // 3, len(wheels) // 3 + 3000  # 30 s at 100 Hz
+    wheels.loc[a:b, ["rl", "rr"]] = wheels.loc[a, ["rl", "rr"]].to_numpy()
+    wheels.to_csv(recording / "wheels.csv", index=False, float_format="%.17g")
+    log = import_recording(recording / "manifest.toml").log
+    assert any("wheels frozen" in note for note in log.mask_notes)
 
 
 def test_slow_gnss_is_fixes_at_their_times_and_short_overlap_is_warned_about(recording):

@@ -109,8 +109,8 @@ def test_a_small_lag_is_left_to_the_solve_and_a_steady_turn_claims_none(clean):
         n_rr=np.full(n, 0.10 + 0.01 * THETA_NOMINAL[2] / THETA_NOMINAL[0]),
     )
     turned = np.concatenate([[0.0], np.cumsum(step_increments(steady.inputs, THETA_NOMINAL)[1])])
-    heading = np.ones(n, bool)
-    assert coarse_wheel_lag(turned, steady.psi, heading, steady.dt, 0, n - 1) == 0
+    usable = np.ones(n, bool)
+    assert coarse_wheel_lag(turned, steady.psi, usable, steady.dt, 0, n - 1) == 0
 
 
 @pytest.mark.slow

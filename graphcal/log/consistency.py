@@ -223,7 +223,9 @@ def _frozen_wheels(log, notes: list[str], nominal: np.ndarray) -> np.ndarray:
     (tick counts repeat in a steady cruise, where the track keeps their pace), ``(N,)``; one
     note per span."""
     frozen = np.zeros(len(log), dtype=bool)
-    same = (np.diff(log.n_rl) == 0) & (np.diff(log.n_rr) == 0) & (log.n_rl[1:] != 0)
+    same = log.n_rl[1:] != 0
+    for n in (log.n_rl, log.n_rr):  # within an import's resampling jitter
+        same &= np.abs(np.diff(n)) <= FROZEN_WHEELS_RTOL * np.abs(n[1:])
     width = max(1, round(FROZEN_WHEELS_WINDOW_S / log.dt))
     least = 10.0 * fix_noise({"px": log.px, "py": log.py})
     for a, b in runs(same):  # rows a..b+1 hold one rotation
@@ -247,11 +249,11 @@ def _frozen_wheels(log, notes: list[str], nominal: np.ndarray) -> np.ndarray:
     return frozen
 
 
-#: Both wheels repeating one rotation this long [s] are frozen over the windows of
-#: :data:`FROZEN_WHEELS_WINDOW_S` [s] where the track's distance is this share off theirs.
+#: Stale wheels (:func:`_frozen_wheels`): a repeat's length [s], windows [s], mismatch.
 FROZEN_WHEELS_MIN_S = 5.0
 FROZEN_WHEELS_WINDOW_S = 2.0
 FROZEN_WHEELS_MISMATCH = 0.2
+FROZEN_WHEELS_RTOL = 1e-4  # a repeat (a frozen 100 Hz speed resampled varies by 1e-5)
 
 
 def _position_spikes(

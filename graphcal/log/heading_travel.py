@@ -77,13 +77,18 @@ def heading_offset(
 
 
 def window_offsets(
-    c: Mapping[str, np.ndarray], judged: np.ndarray, nominal, fixed: np.ndarray | None = None
+    c: Mapping[str, np.ndarray],
+    usable: np.ndarray,
+    heading: np.ndarray,
+    nominal,
+    fixed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The heading's offset [rad] from the direction of travel in consecutive windows of
     travel (:data:`SPAN_WINDOW_SIGMAS` of the fixes' noise): the angle from the wheels'
-    displacement along heading + sideslip (nominal c_e) to the fixes' displacement over the
-    window, NaN where a window holds a sample not ``judged`` or moves less than half its
-    length; and the windows' first rows, with the last window's end."""
+    displacement along heading + sideslip (nominal c_e; the grid's heading, filled between
+    sparse ones) to the fixes' displacement over the window, NaN where a window holds a
+    sample not ``usable``, no measured ``heading`` or moves less than half its length; and
+    the windows' first rows, with the last window's end."""
     ds = 0.5 * (c["n_rl"] + c["n_rr"]) * float(nominal[0])  # signed: reversing goes back
     travelled = np.concatenate([[0.0], np.cumsum(np.abs(ds))[:-1]])
     length = max(SPAN_WINDOW_REVS * float(nominal[0]), SPAN_WINDOW_SIGMAS * fix_noise(c, fixed))
@@ -94,7 +99,8 @@ def window_offsets(
     step = ds * np.exp(1j * (c["psi"] + c["beta"]))
     reckoned = np.add.reduceat(step, ends[:-1])[: len(ends) - 1]
     fixes = np.diff(c["px"][ends]) + 1j * np.diff(c["py"][ends])
-    clean = np.add.reduceat((~judged).astype(int), ends[:-1])[: len(ends) - 1] == 0
+    clean = np.add.reduceat((~usable).astype(int), ends[:-1])[: len(ends) - 1] == 0
+    clean &= np.add.reduceat(heading.astype(int), ends[:-1])[: len(ends) - 1] > 0
     moved = np.abs(reckoned) >= 0.5 * length
     with np.errstate(invalid="ignore", divide="ignore"):
         offsets = np.angle(reckoned / fixes)
@@ -102,13 +108,17 @@ def window_offsets(
 
 
 def heading_off_span(
-    c: Mapping[str, np.ndarray], judged: np.ndarray, nominal, fixed: np.ndarray | None = None
+    c: Mapping[str, np.ndarray],
+    usable: np.ndarray,
+    heading: np.ndarray,
+    nominal,
+    fixed: np.ndarray | None = None,
 ) -> tuple[int, int, float] | None:
     """The first span where the heading points elsewhere than the rest of the log says
     (:data:`SPAN_OFFSET_ERROR`, :data:`SPAN_SCATTER_MULTIPLE`, :data:`SPAN_MIN_WINDOWS`):
     its first and last rows and its offset from the log's own [rad]; ``None`` if there is
     none."""
-    offsets, ends = window_offsets(c, judged, nominal, fixed)
+    offsets, ends = window_offsets(c, usable, heading, nominal, fixed)
     valid = np.flatnonzero(np.isfinite(offsets))
     if len(valid) < 2 * SPAN_MIN_WINDOWS:
         return None
@@ -138,10 +148,11 @@ def check_heading_against_travel(
     if int(log.heading_measured.sum()) < 2:
         return
     c = {name: getattr(log, name) for name in COLUMNS}
-    judged = log.heading_measured.copy()
+    usable = np.ones(len(log.t), bool)
     for flags in (log.masked, log.outlying):
         if flags is not None:
-            judged &= ~flags
+            usable &= ~flags
+    judged = log.heading_measured & usable
     fixed = None if log.measured is None else log.measured[:, 0]
     dt = float(log.t[1] - log.t[0])
     found = heading_offset(c, judged, dt, nominal, log.measured) if origins is None else None
@@ -158,7 +169,7 @@ def check_heading_against_travel(
                 "IMU's yaw has an arbitrary zero) or leave it out (psi empty: positions only)"
             )
             raise fail(log.source, "psi", None, what, fix, origins)
-    span = heading_off_span(c, judged, nominal, fixed)
+    span = heading_off_span(c, usable, log.heading_measured, nominal, fixed)
     if span is None:
         return
     first, last, angle = span

@@ -125,9 +125,8 @@ def wheel_lag_from_turns(
     lags = np.zeros(log.runs)
     dt = log.dt
     reach = int(np.floor(max_lag / dt))
-    heading = log.heading_measured & np.isfinite(log.psi)
-    if log.masked is not None:
-        heading &= ~log.masked
+    usable = np.isfinite(log.psi) if log.masked is None else np.isfinite(log.psi) & ~log.masked
+    heading = log.heading_measured & usable
     if reach < 1 or heading.sum() < MIN_TURN_WINDOWS:
         return lags
     _, turn = step_increments(log.inputs, theta)
@@ -153,7 +152,7 @@ def wheel_lag_from_turns(
             continue
         measured = wrap_angle(log.psi[b] - log.psi[a])
         # A clock off by seconds (GPS time against UTC: 18 s) is found on coarse bins first.
-        centre = coarse_wheel_lag(turned, log.psi, heading, dt, first, last, max_lag)
+        centre = coarse_wheel_lag(turned, log.psi, usable, dt, first, last, max_lag)
         if centre:
             keep = (a + centre - reach >= first) & (b + centre + reach <= last)
             a, b, measured = a[keep], b[keep], measured[keep]
@@ -189,7 +188,7 @@ COARSE_DISTINCT = 0.1
 def coarse_wheel_lag(
     turned: np.ndarray,
     psi: np.ndarray,
-    heading: np.ndarray,
+    usable: np.ndarray,
     dt: float,
     first: int,
     last: int,
@@ -197,8 +196,9 @@ def coarse_wheel_lag(
 ) -> int:
     """How late the wheels are [samples], by whole bins of :data:`COARSE_BIN_S` within
     ±:data:`MAX_COARSE_LAG_S`, when it is more than ``fine_lag`` [s] (else 0): the lag at
-    which the wheels' heading ``turned`` ``(N+1,)`` [rad] turns as the measured heading
-    ``psi`` (rows ``heading`` measured and usable) did, over rows ``first``–``last`` — a
+    which the wheels' heading ``turned`` ``(N+1,)`` [rad] turns as the heading ``psi`` did
+    (the grid's, filled between sparse measured ones; bins with a row not ``usable`` left
+    out), over rows ``first``–``last`` — a
     distinct peak of the correlation (:data:`MIN_TURN_CORRELATION`,
     :data:`COARSE_DISTINCT`)."""
     width = max(1, round(COARSE_BIN_S / dt))
@@ -206,7 +206,7 @@ def coarse_wheel_lag(
     reach = int(MAX_COARSE_LAG_S / (width * dt))
     if len(edges) < 2 * reach + MIN_TURN_WINDOWS:
         return 0
-    gaps = np.concatenate([[0], np.cumsum(~heading)])
+    gaps = np.concatenate([[0], np.cumsum(~usable)])
     clean = gaps[edges[1:] + 1] - gaps[edges[:-1]] == 0
     measured = np.where(clean, wrap_angle(np.diff(psi[edges])), 0.0)
     wheels = np.where(clean, np.diff(turned[edges]), 0.0)
