@@ -133,7 +133,7 @@ def test_a_small_constant_heading_offset_passes(city, tmp_path, capsys):
 
 
 def test_a_lateral_acceleration_of_the_other_sign_is_named(city, tmp_path, capsys):
-    # calibrated with exit 0 before, d of the other sign (-1.55 where the truth is +1.56)
+    # the sample drive calibrated with exit 0 before, d -1.55 where its truth is +1.50
     check_error(
         city.assign(ay=-city["ay"]), tmp_path, capsys, "column 'ay'", "other sign", "negate"
     )
