@@ -228,17 +228,15 @@ def coarse_wheel_lag(
     return int(lags[best] * width)
 
 
-def masked_for_the_clock_lag(log: DriveLog, theta: np.ndarray) -> tuple[DriveLog, np.ndarray]:
-    """``log`` with the rows masked that a shift of its wheels by their clock's lag behind
-    the pose's leaves without wheel data, where that lag is more than :data:`MAX_LAG_S`
-    (:func:`wheel_lag_from_turns`; ``theta`` only shapes the turns): its last rows for late
-    wheels, its first for early ones, so that no segment spans them; and each run's lag [s]
-    ``(runs,)`` (0 where the clocks agree within :data:`MAX_LAG_S`). The wheels are not
-    shifted here: the whole-log solve shifts them by the lag found again, and reports it."""
-    lag = wheel_lag_from_turns(log, theta)
+def masked_for_the_clock_lag(log: DriveLog, lag: np.ndarray) -> DriveLog:
+    """``log`` with the rows masked that a shift of its wheels by each run's ``lag`` [s]
+    ``(runs,)`` (:func:`wheel_lag_from_turns`) leaves without wheel data, where the lag is
+    more than :data:`MAX_LAG_S` (clocks apart): the run's last rows for late wheels, its
+    first for early ones, so that no segment spans them. The wheels are not shifted here:
+    the whole-log solve shifts them by the lag, as any, and reports it."""
     lag = np.where(np.abs(lag) > MAX_LAG_S, lag, 0.0)
     if not lag.any():
-        return log, lag
+        return log
     masked = np.zeros(len(log.t), bool) if log.masked is None else log.masked.copy()
     run = log.run_of(np.arange(len(log.t)))
     notes = list(log.mask_notes)
@@ -251,4 +249,4 @@ def masked_for_the_clock_lag(log: DriveLog, theta: np.ndarray) -> tuple[DriveLog
             f"t = {log.t[left[0]]:.1f}–{log.t[left[-1]]:.1f} s: no wheel data once the wheels "
             f"are shifted by their clock's lag of {lag[r]:+.1f} s"
         )
-    return dataclasses.replace(log, masked=masked, mask_notes=tuple(notes)), lag
+    return dataclasses.replace(log, masked=masked, mask_notes=tuple(notes))

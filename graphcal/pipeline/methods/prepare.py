@@ -16,7 +16,7 @@ from graphcal.log.excitation import lever_arm_sigma
 from graphcal.log.noise import heading_noise, position_noise
 from graphcal.log.quantization import quantization_sigma, ticks_per_revolution
 from graphcal.log.segments import SegmentData, Segments, gather_segments
-from graphcal.log.timing import masked_for_the_clock_lag
+from graphcal.log.timing import MAX_LAG_S, masked_for_the_clock_lag, wheel_lag_from_turns
 from graphcal.model import step_increments
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.methods.noise_levels import REWEIGHTED
@@ -59,6 +59,7 @@ class PreparedLog:
     warnings: tuple[str, ...]
     left_out: dict[str, float] = dataclasses.field(default_factory=dict)
     held: dict[str, str] = dataclasses.field(default_factory=dict)
+    wheel_lag: np.ndarray | None = None
 
 
 def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> PreparedLog:
@@ -68,7 +69,8 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
     Raises:
         NoUsableSegments: no segment passes the selection, or the log is too short.
     """
-    log = _masked_for_the_clock_lag(log, settings)
+    wheel_lag = _wheel_lag(log, settings)
+    log = masked_for_the_clock_lag(log, wheel_lag)
     segments, yaw, selected, validation_segments = select(log, settings, fall_back_to_all)
     settings = _with_detected_ticks(log, settings)
     settings = _with_wheel_noise(log, settings)
@@ -98,6 +100,7 @@ def prepare_log(log: DriveLog, settings: Settings, fall_back_to_all: bool) -> Pr
         warnings=_mask_warnings(log),
         left_out=left_out,
         held=held,
+        wheel_lag=wheel_lag,
     )
 
 
@@ -106,20 +109,21 @@ def runs_label(runs: int) -> str:
     return "" if runs == 1 else f" (runs 0–{runs - 1})"
 
 
-def _masked_for_the_clock_lag(log: DriveLog, settings: Settings) -> DriveLog:
-    """``log`` with the rows masked that its wheels leave when shifted by their clock's lag,
-    if it is seconds (:func:`~graphcal.log.timing.masked_for_the_clock_lag`) and the wheels'
-    time offset is estimated (the first solve shifts them)."""
+def _wheel_lag(log: DriveLog, settings: Settings) -> np.ndarray:
+    """Each run's lag [s] of the wheels behind the measured heading's turns, in whole samples
+    (:func:`~graphcal.log.timing.wheel_lag_from_turns`), where the wheels' time offset is
+    estimated; else none. Seconds of it (clocks apart, such as GPS time and UTC by 18 s)
+    are said here: the log is masked for them before it is cut."""
     if not settings.joint.time_offset_sigma:
-        return log
-    log, lag = masked_for_the_clock_lag(log, settings.vehicle.theta_nominal)
-    if lag.any():
+        return np.zeros(log.runs)
+    lag = wheel_lag_from_turns(log, settings.vehicle.theta_nominal)
+    if np.any(np.abs(lag) > MAX_LAG_S):
         shown = ", ".join(f"{s:+.1f}" for s in lag)
         say(
             f"wheels {shown} s late against the pose{runs_label(log.runs)} (their turns match "
             "the heading's that much later: clocks apart, such as GPS time and UTC by 18 s)"
         )
-    return log
+    return lag
 
 
 def _with_observable_lever_arm(

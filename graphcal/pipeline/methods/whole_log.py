@@ -47,7 +47,7 @@ import numpy as np
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
 from graphcal.log.segments import SegmentData, gather_segments
-from graphcal.log.timing import wheel_lag_from_turns, whole_samples
+from graphcal.log.timing import whole_samples
 from graphcal.model import wheel_lateral_acceleration
 from graphcal.pipeline.configuration.settings import Settings
 from graphcal.pipeline.methods.agreement import (
@@ -306,13 +306,13 @@ def _with_lateral_acceleration(prepared: PreparedLog, theta: np.ndarray) -> Prep
 
 def _wheel_lag(prepared: PreparedLog) -> np.ndarray:
     """Each run's whole-sample shift [s] for the wheels before the first solve: the lag
-    at which their turns fit the measured heading's
-    (:func:`~graphcal.log.timing.wheel_lag_from_turns`), where the wheels' time offset is
+    at which their turns fit the measured heading's (found as the log was prepared,
+    :func:`~graphcal.log.timing.wheel_lag_from_turns`), where the wheels' time offset is
     estimated; else none."""
-    log, joint = prepared.log, prepared.settings.joint
-    if not joint.time_offset_sigma:
+    log = prepared.log
+    lag = prepared.wheel_lag
+    if lag is None or not prepared.settings.joint.time_offset_sigma:
         return np.zeros(log.runs)
-    lag = wheel_lag_from_turns(log, prepared.settings.vehicle.theta_nominal)
     if lag.any():
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in lag)
         say(
