@@ -162,9 +162,10 @@ def wheel_lag_from_turns(
                 continue
         shifts = centre + np.arange(-reach, reach + 1)
         correlation = np.zeros(len(shifts))
+        measured_norm = float(np.sqrt(measured @ measured))
         for i, shift in enumerate(shifts):  # one pass per shift: a 200 km log's windows
             wheels = turned[b + shift] - turned[a + shift]  # at once would take 0.5 GB
-            norm = float(np.linalg.norm(wheels) * np.linalg.norm(measured))
+            norm = float(np.sqrt(wheels @ wheels)) * measured_norm
             correlation[i] = float(wheels @ measured) / norm if norm > 0 else 0.0
         best = int(np.argmax(np.abs(correlation)))
         if abs(correlation[best]) < MIN_TURN_CORRELATION or best in (0, len(shifts) - 1):
