@@ -217,7 +217,7 @@ def coarse_wheel_lag(
     for i, lag in enumerate(lags):  # the wheels' bin j + lag against the heading's bin j
         m = measured[max(0, -lag) : n - max(0, lag)]
         w = wheels[max(0, lag) : n - max(0, -lag)]
-        norm = float(np.linalg.norm(m) * np.linalg.norm(w))
+        norm = float(np.sqrt((m @ m) * (w @ w)))
         correlation[i] = float(m @ w) / norm if norm > 0 else 0.0
     best = int(np.argmax(correlation))
     others = np.abs(lags - lags[best]) > 2
