@@ -107,9 +107,12 @@ def test_one_wheel_off_scale_is_named_not_called_swapped(city, tmp_path, capsys,
     assert "swapped" not in error
 
 
-def test_a_heading_off_the_direction_of_travel_is_named(city, tmp_path, capsys):
-    frame = city.assign(psi=city["psi"] + np.radians(30.0))
-    check_error(frame, tmp_path, capsys, "column 'psi'", "by +30° on average", "zero")
+@pytest.mark.parametrize("degrees", [30.0, 180.0])
+def test_a_heading_off_the_direction_of_travel_is_named(city, tmp_path, capsys, degrees):
+    # 180° off: the differences split at ±π, whose plain median read +172°
+    frame = city.assign(psi=city["psi"] + np.radians(degrees))
+    error = check_error(frame, tmp_path, capsys, "column 'psi'", "on average", "zero")
+    assert f"by {np.degrees(np.angle(np.exp(1j * np.radians(degrees)))):+.0f}°" in error
 
 
 def test_a_heading_flipped_over_a_span_is_named_with_the_span(city, tmp_path, capsys):

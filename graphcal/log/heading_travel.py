@@ -71,9 +71,19 @@ def heading_offset(
         independent = min(independent, float(measured[moving, 0].sum()))
     resultant = float(np.abs(np.mean(np.exp(1j * difference))))
     if resultant <= 0.0 or independent < 1.0:
-        return float(np.median(difference)), np.inf
+        return circular_median(difference), np.inf
     spread = np.sqrt(-2.0 * np.log(resultant))  # circular standard deviation
-    return float(np.median(difference)), MEDIAN_EFFICIENCY * spread / np.sqrt(independent)
+    return circular_median(difference), MEDIAN_EFFICIENCY * spread / np.sqrt(independent)
+
+
+def circular_median(angles: np.ndarray) -> float:
+    """The median [rad] of ``angles`` about their circular mean, wrapped to (−π, π]: angles
+    around ±π (a heading off by 180°) split between the two ends, whose plain median falls
+    anywhere between them."""
+    centre = float(np.angle(np.mean(np.exp(1j * angles))))
+    return float(
+        np.angle(np.exp(1j * (centre + np.median(np.angle(np.exp(1j * (angles - centre)))))))
+    )
 
 
 def window_offsets(
@@ -122,7 +132,7 @@ def heading_off_span(
     valid = np.flatnonzero(np.isfinite(offsets))
     if len(valid) < 2 * SPAN_MIN_WINDOWS:
         return None
-    usual = float(np.angle(np.mean(np.exp(1j * np.median(offsets[valid])))))
+    usual = circular_median(offsets[valid])
     away = np.angle(np.exp(1j * (offsets[valid] - usual)))
     scatter = 1.4826 * float(np.median(np.abs(away)))
     off = np.abs(away) > max(SPAN_OFFSET_ERROR, SPAN_SCATTER_MULTIPLE * scatter)
@@ -159,9 +169,10 @@ def check_heading_against_travel(
     if found is not None:
         offset, sigma = found
         if abs(offset) - HEADING_OFFSET_SIGMAS * sigma > HEADING_OFFSET_ERROR:
+            shown = np.degrees(offset) if np.degrees(offset) > -179.5 else 180.0  # (−180, 180]
             what = (
                 f"the heading differs from the direction of travel (px, py) by "
-                f"{np.degrees(offset):+.0f}° on average"
+                f"{shown:+.0f}° on average"
             )
             fix = (
                 "check the heading's zero and convention (psi is counter-clockwise from the "
