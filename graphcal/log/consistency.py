@@ -217,13 +217,12 @@ def _frozen_fixes(
 
 def _frozen_wheels(log, notes: list[str], nominal: np.ndarray) -> np.ndarray:
     """Samples where both wheels repeat one rotation for :data:`FROZEN_WHEELS_MIN_S` and,
-    over windows of :data:`FROZEN_WHEELS_WINDOW_S` within that (chords beyond ten times the
-    fixes' noise), the track moves more than :data:`FROZEN_WHEELS_MISMATCH` off the wheels'
-    distance (nominal c_e), from the first such window to the last: a stale message repeated
-    (tick counts repeat in a steady cruise, where the track keeps their pace), ``(N,)``; one
-    note per span."""
-    frozen = np.zeros(len(log), dtype=bool)
-    same = log.n_rl[1:] != 0
+    over windows of :data:`FROZEN_WHEELS_WINDOW_S` within that (the chord and the wheels'
+    distance, nominal c_e, beyond ten times the fixes' noise), the track moves more than
+    :data:`FROZEN_WHEELS_MISMATCH` off the wheels, from the first such window to the last: a
+    stale message (tick counts repeat in a steady cruise, where the track keeps their pace),
+    ``(N,)``; one note per span."""
+    frozen, same = np.zeros(len(log), dtype=bool), log.n_rl[1:] != 0
     for n in (log.n_rl, log.n_rr):  # within an import's resampling jitter
         same &= np.abs(np.diff(n)) <= FROZEN_WHEELS_RTOL * np.abs(n[1:])
     width = max(1, round(FROZEN_WHEELS_WINDOW_S / log.dt))
@@ -233,12 +232,13 @@ def _frozen_wheels(log, notes: list[str], nominal: np.ndarray) -> np.ndarray:
             continue
         ends = np.arange(a, b + 2, width)
         chords = np.hypot(np.diff(log.px[ends]), np.diff(log.py[ends]))
-        wheels = 0.5 * (log.n_rl[a] + log.n_rr[a]) * nominal[0] * np.diff(ends)
-        off = (chords > least) & (np.abs(chords / wheels - 1.0) > FROZEN_WHEELS_MISMATCH)
+        wheels = np.abs(0.5 * (log.n_rl[a] + log.n_rr[a]) * nominal[0] * np.diff(ends))
+        judged = (chords > least) & (wheels > least)  # reversing counts; a spin travels none
+        off = judged & (np.abs(chords / np.maximum(wheels, least) - 1.0) > FROZEN_WHEELS_MISMATCH)
         if not off.any():
             continue
-        first, last = np.flatnonzero(off)[[0, -1]]  # stale from the first window off to the last
-        rows = slice(ends[first], ends[last + 1] + 1)
+        first, last = np.flatnonzero(off)[[0, -1]]
+        rows = slice(ends[first], ends[last + 1] + 1)  # from the first window off to the last
         frozen[rows] = True
         worst = float(np.max(np.abs(chords[off] / wheels[off] - 1.0)))
         notes.append(
