@@ -43,6 +43,10 @@ def test_heading_is_unwrapped_on_load(frame, tmp_path):
     truth = np.linspace(0, 20, len(frame))  # several turns
     frame["psi"] = (truth + np.pi) % (2 * np.pi) - np.pi
     frame["n_rr"] = frame["n_rl"] + (truth[1] - truth[0]) * 1.55 / 2.0
+    # the track turns with the heading (the checks compare them), on circles of the wheels'
+    step = 0.5 * (frame["n_rl"] + frame["n_rr"]).to_numpy() * 2.0
+    frame["px"] = np.concatenate([[0.0], np.cumsum(step * np.cos(truth))[:-1]])
+    frame["py"] = np.concatenate([[0.0], np.cumsum(step * np.sin(truth))[:-1]])
     log = load_drive_log(write(frame, tmp_path))
     np.testing.assert_allclose(log.psi, truth, atol=1e-9)
 

@@ -424,6 +424,20 @@ def test_a_heading_flipped_over_a_span_of_10_hz_fixes_is_named(recording, capsys
     assert "gnss.csv: column 'heading'" in err and "away from the direction of travel" in err
 
 
+def test_an_imu_clock_18_s_off_is_named_with_the_time_offset_that_fixes_it(
+    recording, tmp_path, capsys
+):
+    # its turns, 18 s apart from the track's, read as a yaw rate in the wrong unit (1e-5x)
+    imu = pd.read_csv(recording / "imu.csv")
+    imu.assign(t=imu["t"] + 18.0).to_csv(recording / "imu.csv", index=False, float_format="%.17g")
+    args = ["import", str(recording / "manifest.toml"), "--out", str(tmp_path / "d.csv")]
+    err = _one_line_exit_2(args, capsys)
+    assert "imu.csv" in err and "18.0 s earlier" in err and "time_offset = -18.0" in err
+    manifest = recording / "manifest.toml"
+    manifest.write_text(manifest.read_text().replace("[imu]\n", "[imu]\ntime_offset = -18.0\n"))
+    assert main(args) == 0
+
+
 def test_an_imported_wheel_clock_18_s_off_and_frozen_wheel_speeds_are_found(recording):
     """The wheels' clock 18 s behind the GNSS's (GPS time against UTC), found on the
     imported grid whose heading holds 10 Hz fixes; and 100 Hz speeds frozen for a stretch,

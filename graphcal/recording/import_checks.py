@@ -12,6 +12,7 @@ from graphcal.log.heading_travel import (
     HEADING_OFFSET_WARNING,
     heading_offset,
 )
+from graphcal.log.timing import coarse_wheel_lag
 from graphcal.log.turn_checks import wheel_off_scale
 from graphcal.log.turns import (
     TURN_MIN_AGREEMENT,
@@ -47,6 +48,7 @@ def check_recording(resampled: Resampled, recording: Recording, nominal: np.ndar
     dt = float(c["t"][1] - c["t"][0])
     usable = ~resampled.masked
     _check_wheel_scale(c, usable, resampled, recording, nominal)
+    _check_imu_clock(c, usable, dt, resampled, recording)
     check_units(resampled, recording, nominal)
     _check_one_wheel(c, usable, resampled, recording, nominal)
     check_turning(resampled, recording, nominal)
@@ -176,6 +178,25 @@ def _speed_unit_hint(wheels: Provenance, ratio: float) -> str:
         "check [wheels] kind, speed_unit, circumference (the ECU's) or ticks_per_revolution, "
         "the time units, and the vehicle's c_e (--vehicle)"
     )
+
+
+def _check_imu_clock(c: dict, usable: np.ndarray, dt: float, resampled, recording) -> None:
+    """One line if the IMU's yaw rate turns as the heading (or the track's course) did
+    seconds earlier or later (:func:`~graphcal.log.timing.coarse_wheel_lag` on its integral):
+    its clock is off the GNSS's, and the line gives the manifest's ``time_offset`` that
+    puts it right (before the units' check, to which such turns look tiny)."""
+    imu = recording.imu
+    if imu is None or imu.yaw_rate is None:
+        return
+    values = interval_means(imu.t, imu.yaw_rate, c["t"] + resampled.overlap[0])
+    turned = np.concatenate([[0.0], np.cumsum(values[:-1] * dt)])
+    lag = coarse_wheel_lag(turned, c["psi"], usable, dt, 0, len(turned) - 1) * dt
+    if lag:
+        raise StreamError(
+            f"{provenance_of(imu).at(('yaw_rate',))}: the IMU's yaw rate turns as the heading "
+            f"did {abs(lag):.1f} s {'earlier' if lag > 0 else 'later'}: its clock is off the "
+            f"GNSS's; set time_offset = {-lag:+.1f} in its section (s added to its time)"
+        )
 
 
 def _check_imu_signs(
