@@ -1050,6 +1050,26 @@ SLOW = [
         # t_r -3.4σ "calibrated" (mean (e/σ)² 2.86 over 16 recording seeds; 0.85 counted
         # once per half chunk)
     ),
+    pytest.param(
+        _yard(
+            "differential",
+            length_m=210.0,
+            gnss_rate=5.0,
+            noise_sigma=1.03,
+            noise_tau_s=43.0,
+            heading=False,
+            imu=False,
+            park_s=4.0,
+            time_offset_s=-0.038,
+            lever_arm=(0.05, 0.0),
+            seed=7916,
+            outliers=0.01,
+            outage_s=37.0,
+        ),
+        id="runaway-judged-under-white-weights",  # seed 53's shape 68: t_r ran out in a
+        # solve under 1.69 m white weights, its held solve read 1.2 m shared over 60 s, and
+        # t_r was judged determined by that white-weighted solve: exit 2 "check the units"
+    ),
 ]
 
 
@@ -1074,6 +1094,8 @@ C_E_UNDETERMINED = {
     "damping-that-rejects-every-other-step",
     # 250 m in three drives whose 50 Hz fixes share 0.74 m over 35 s
     "fixes-sharing-their-error-within-a-chunk",
+    # 210 m of 5 Hz fixes sharing 1 m over 43 s, no heading: c_e weakly determined
+    "runaway-judged-under-white-weights",
 }
 
 

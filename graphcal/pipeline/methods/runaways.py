@@ -88,12 +88,22 @@ def holding_runaways(
         # 0.094 m, t_r "determined" out of range: exit 2 "check the units", campaign seed
         # 44's shape 162): solved free again under the noise it shows, as far noisier fixes
         crept = outcome[0].outcome.crept
-        if not fixes_reweighted(holding, noise) and not crept:
+        # nor is one under white weights where its residuals show an error the fixes share
+        # (a robot's 5 Hz fixes sharing 1 m over 43 s, weighted as 1.69 m white: t_r
+        # "determined" at 0.006 m, exit 2 "check the units", campaign seed 53's shape 68)
+        shared = noise.fix_error_sigma > 0.0 and not holding.fix_error_sigma
+        if not fixes_reweighted(holding, noise) and not crept and not shared:
             raise runaway from None  # the data put it there: wrong units, not a weak direction
         if noisier_judged:  # solved free under their noise, and still far noisier: held
             held.update(dict.fromkeys(runaway.names, RUNAWAY_REASON))
             return dataclasses.replace(settings, joint=holding), outcome
-        why = "stopped creeping under" if crept else "shows the fixes far noisier than"
+        why = (
+            "stopped creeping under"
+            if crept
+            else "shows an error the fixes share beyond"
+            if shared
+            else "shows the fixes far noisier than"
+        )
         say(
             f"  the held solve {why} the weights it took: the free solve again under the "
             "noise its residuals show, before the runaway is judged"
