@@ -164,6 +164,13 @@ STRAIGHT_WHEEL_RATIO = 1.1
 STRAIGHT_TRACK_TURN = 0.05
 
 
+def _straight_windows(turns: TrackTurns, forwards: np.ndarray) -> np.ndarray:
+    """The windows of ``turns`` in which the track runs straight (a turn under
+    :data:`STRAIGHT_TRACK_TURN`) and the wheels go ``forwards``."""
+    with np.errstate(invalid="ignore"):
+        return np.isfinite(turns.track) & (np.abs(turns.track) < STRAIGHT_TRACK_TURN) & forwards
+
+
 def wheel_off_scale(
     columns: dict[str, np.ndarray], turns: TrackTurns, nominal
 ) -> tuple[str, dict[str, float], int] | None:
@@ -172,16 +179,9 @@ def wheel_off_scale(
     over the windows of :func:`~graphcal.log.turns.track_turns` of the grid's drive-log
     ``columns``): the one whose distance (nominal c_e) departs further from the track's;
     with each wheel's distance over the track's and the windows' count. ``None`` if neither."""
-    starts = turns.ends[:-1]
-    left = np.add.reduceat(columns["n_rl"], starts)
-    right = np.add.reduceat(columns["n_rr"], starts)
-    with np.errstate(invalid="ignore"):
-        straight = (
-            np.isfinite(turns.track)
-            & (np.abs(turns.track) < STRAIGHT_TRACK_TURN)
-            & (left > 0)
-            & (right > 0)
-        )
+    left = np.add.reduceat(columns["n_rl"], turns.ends[:-1])
+    right = np.add.reduceat(columns["n_rr"], turns.ends[:-1])
+    straight = _straight_windows(turns, (left > 0) & (right > 0))
     if straight.sum() < TURN_MIN_COUNT:
         return None
     ratio = float(np.median(left[straight] / right[straight]))
@@ -278,10 +278,7 @@ def check_track_stretch(log: DriveLog, turns: TrackTurns, nominal: np.ndarray) -
     a calibration would take it for c_e and t_r."""
     starts, ends = turns.ends[:-1], turns.ends[1:]
     wheels = np.add.reduceat(0.5 * (log.n_rl + log.n_rr), starts) * nominal[0]
-    with np.errstate(invalid="ignore"):
-        straight = (
-            np.isfinite(turns.track) & (np.abs(turns.track) < STRAIGHT_TRACK_TURN) & (wheels > 0)
-        )
+    straight = _straight_windows(turns, wheels > 0)
     dx = (log.px[ends] - log.px[starts])[straight]
     dy = (log.py[ends] - log.py[starts])[straight]
     found = track_stretch(dx, dy, wheels[straight])

@@ -34,6 +34,7 @@ from graphcal.graph.optimization.linear_systems import (
     augmented_hessian,
     hessian_diagonal_by_key,
     predicted_decrease,
+    shared_block,
     split_by_key,
     vector_values,
 )
@@ -142,7 +143,7 @@ class PartitionedGraph:
             block.add_to(total)
         diagonal = sum((d for _, d in reduced), np.zeros(self.n))
         shared_linear = self.shared_graph.linearize(self.shared_values)
-        total = total + augmented_hessian(shared_linear, self.shared, self.dims)
+        shared_block(shared_linear, self.shared, self.dims).add_to(total)  # in place
         own = hessian_diagonal_by_key(shared_linear, {k: self.dims[k] for k in self.shared})
         diagonal = diagonal + np.concatenate([own[k] for k in self.shared] or [np.zeros(0)])
         return total, diagonal, shared_linear
