@@ -6,6 +6,7 @@ function of its arguments, so the output of a run does not depend on ``workers``
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
 import time
@@ -59,14 +60,15 @@ def map_tasks(
             report(len(results))
         return results
     chunk = max(1, total // (workers * 8))
-    pool = ProcessPoolExecutor(max_workers=workers, initializer=quiet_worker)
+    ctrl_c = multiprocessing.RawValue("b", 0)  # set by a worker that Ctrl-C ends
+    pool = ProcessPoolExecutor(max_workers=workers, initializer=quiet_worker, initargs=(ctrl_c,))
     try:
         for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
             raise_if_interrupted()  # a Ctrl-C dropped while the pool forked its workers
             results.append(result)
             report(len(results))
     except BrokenProcessPool:
-        if _ended_by_ctrl_c(pool):  # the pool broke first, the parent's SIGINT comes next
+        if _ended_by_ctrl_c(pool, ctrl_c):  # the pool broke first, the parent's SIGINT next
             _abandon(pool)
             raise KeyboardInterrupt from None
         _abandon(pool)
@@ -93,26 +95,43 @@ def _abandon(pool: ProcessPoolExecutor) -> None:
     pool.shutdown(wait=False, cancel_futures=True)
 
 
-def _ended_by_ctrl_c(pool: ProcessPoolExecutor) -> bool:
+def _ended_by_ctrl_c(pool: ProcessPoolExecutor, ctrl_c: Any) -> bool:
     """Whether a worker of the broken ``pool`` died of SIGINT (Ctrl-C reached it before the
     parent noticed its own: under load the pool's breakage can come first, and the run
-    must still end as an interrupt, exit 130, not a crash). Waits up to a few seconds for
-    the workers to end: their exit codes are known only then."""
+    must still end as an interrupt, exit 130, not a crash): its flag ``ctrl_c`` set
+    (:func:`quiet_worker`), or its exit code. The flag is what tells where the workers'
+    exit codes are gone — a host process that reaps its children as they end (SIGCHLD
+    ignored, as under the full test suite) leaves none to read. Waits up to a few seconds
+    for the workers to end."""
     processes = list((getattr(pool, "_processes", None) or {}).values())
     deadline = time.monotonic() + WORKER_EXIT_WAIT
     for process in processes:
         process.join(timeout=max(0.0, deadline - time.monotonic()))
+    if ctrl_c.value:
+        return True
     return any(process.exitcode == -signal.SIGINT for process in processes)
 
 
-def quiet_worker() -> None:
+def quiet_worker(ctrl_c: Any = None) -> None:
     """A worker process says nothing: its progress is the parent's to report
     (:func:`graphcal.progress.silence`), and its Ctrl-C ends it without a word: the terminal
     sends SIGINT to every process of the command, and the parent alone says ``graphcal:
     interrupted`` (workers that raised KeyboardInterrupt printed ~140 lines of tracebacks,
-    and the parent saw a broken pipe, not the interrupt: exit 1)."""
+    and the parent saw a broken pipe, not the interrupt: exit 1). With a shared ``ctrl_c``
+    flag the worker sets it first, then dies of the signal as before (a worker inside a long
+    GTSAM call does so when the call returns; on the parent's own Ctrl-C it is killed)."""
     silence()
+    if ctrl_c is None:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+    else:
+        signal.signal(signal.SIGINT, lambda signum, frame: _die_of_ctrl_c(ctrl_c))
+
+
+def _die_of_ctrl_c(ctrl_c: Any) -> None:
+    """Set the pool's ``ctrl_c`` flag, then end of SIGINT (exit code −SIGINT)."""
+    ctrl_c.value = 1
     signal.signal(signal.SIGINT, signal.SIG_DFL)
+    os.kill(os.getpid(), signal.SIGINT)
 
 
 def _with(function: Callable[..., R], tasks: Iterable[tuple[Any, ...]]):
