@@ -121,3 +121,26 @@ def test_no_verdict_hinges_on_how_wide_the_prior_was_set(source):
         run = run_calibration(log, dataclasses.replace(base, joint=joint), "whole")
         verdicts.append(run.verdicts())
     assert verdicts[1] == verdicts[0] == verdicts[2], verdicts
+
+
+def test_the_model_checks_folds_started_from_the_solution_predict_as_from_theta():
+    """The folds of the model check start from the whole log's solution of their segments,
+    their wheel corrections moved with the check's whole-sample shift of the wheels: the
+    optimum is each fold's either way, so the check predicts what it predicted from the
+    whole log's theta alone, and chooses the same model."""
+    from graphcal.pipeline.methods.model_check import check_model
+    from graphcal.pipeline.methods.prepare import prepare_log
+    from graphcal.pipeline.methods.whole_log import solve_whole_log
+
+    settings = configure_settings()
+    log, _ = open_log(CAR / "drive.csv", settings.vehicle, min_distance=settings.segments.length)
+    prepared = prepare_log(log, settings, fall_back_to_all=True)
+    solved = solve_whole_log(prepared, workers=1)
+    assert solved.check_start is not None
+    from_solution = check_model(prepared, solved, workers=1)
+    from_theta = check_model(prepared, dataclasses.replace(solved, check_start=None), workers=1)
+    assert from_solution is not None and from_theta is not None
+    assert "time offset" in from_solution.found  # its wheels shifted: corrections moved
+    assert from_solution.chosen == from_theta.chosen
+    for name in ("defect_model_error", "theta_alone_error"):
+        assert getattr(from_solution, name) == pytest.approx(getattr(from_theta, name), rel=0.01)

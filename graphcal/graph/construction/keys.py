@@ -27,6 +27,11 @@ import gtsam
 
 #: Positions per segment in a packed index (chunks or steps of one segment).
 SEGMENT_STRIDE = 1 << 24
+#: Letters of the variables that belong to one segment (a packed index); a segment graph's
+#: other variables are graph-wide.
+SEGMENT_LETTERS = frozenset("pcseh")
+#: Bits of a key below its letter (GTSAM's ``Symbol``).
+INDEX_BITS = 56
 
 
 def theta(slice_index: int = 0) -> int:

@@ -19,8 +19,10 @@ it, c_e 3.8σ off on a 3 km drive); the other sensor terms are the segments' own
 biases, slip) or shift its wheels (a time offset), and both thetas are judged on the same
 uncorrected segments. When theta alone predicts them better (by more than
 :data:`MARGIN`), the simpler model is the right one for this recording and the run
-calibrates with it (:class:`ModelCheck`). A longer log is checked on :data:`CHECK_SEGMENTS`
-segments spread over it: a model's fit does not need every segment.
+calibrates with it (:class:`ModelCheck`). A longer log is checked on
+:data:`~graphcal.pipeline.methods.whole_log.CHECK_SEGMENTS` segments spread over it: a model's
+fit does not need every segment. Each fold's solve starts from the whole log's solution of
+its segments: the optimum is the fold's either way.
 
 Theta alone is chosen on evidence that a short log gives only roughly: where its theta
 differs from the defect model's, that difference is part of theta's uncertainty
@@ -47,23 +49,27 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed
-from graphcal.graph.construction.keys import LEVER_ARM, REAR_SLIP_GAIN, THETA
+from graphcal.graph.construction.keys import (
+    LEVER_ARM,
+    REAR_SLIP_GAIN,
+    THETA,
+    TIME_OFFSET,
+)
+from graphcal.graph.construction.moved_values import renumbered, with_corrections_shifted
 from graphcal.log.drive_log import DriveLog
-from graphcal.log.segments import SegmentData, gather_segments, spread
+from graphcal.log.segments import SegmentData, gather_segments
 from graphcal.log.timing import shift_wheel_rotations, whole_samples
 from graphcal.model import AY, BETA, PARAMETER_NAMES
 from graphcal.pipeline.methods.prepare import PreparedLog
 from graphcal.pipeline.methods.sensor_estimates import detected_offsets
 from graphcal.pipeline.methods.validation import position_errors
-from graphcal.pipeline.methods.whole_log import WholeLog
+from graphcal.pipeline.methods.whole_log import WholeLog, check_segments
 from graphcal.pipeline.solvers.joint import solve_joint
 from graphcal.pipeline.solvers.joint_settings import JointSettings, without_sensor_terms
 from graphcal.progress import muted, say
 
 #: Groups of consecutive segments, alternately in the two folds.
 GROUPS = 4
-#: Segments the check uses at most, spread over the log.
-CHECK_SEGMENTS = 64
 #: Segments a check needs at least (one per fold).
 MIN_SEGMENTS = 2
 #: Theta alone is chosen when it predicts the held-apart segments better than the defect
@@ -234,8 +240,7 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
     if not found or len(selected) < MIN_SEGMENTS:
         return None
     settings = solved.corrected.settings.joint
-    picked = spread(len(selected), CHECK_SEGMENTS)
-    segments = selected.subset(picked)
+    segments = selected.subset(check_segments(len(selected)))
     log = solved.solved_log
     weights = solved.corrected.fix_weights
     # As the corrected log: an offset not detected is not corrected, and its estimate (one
@@ -254,33 +259,61 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
         slip="on" if solved.whole.slip_modelled else "off",
     )
     fold = folds(len(segments))
-    # Each fold's solve starts at the whole log's theta, not at a warm start of its own: the
-    # optimum is the fold's either way, and the real robot's folds took 4 iterations each
-    # from χ²/dof 14,000–30,000.
-    start = gtsam.Values()
-    start.insert(THETA, np.asarray(solved.whole.theta, float))
     say(f"model check: {len(segments)} segments in 2 folds ({', '.join(found)} found)")
 
-    def cross_validated(model: JointSettings, source: DriveLog) -> float:
+    def cross_validated(model: JointSettings, source: DriveLog, moved: np.ndarray) -> float:
         """Mean error [m] of each fold's segments predicted by ``model`` calibrated from the
-        other fold's, taken from ``source``."""
+        other fold's, taken from ``source`` (its wheels shifted by ``moved`` [s])."""
         errors = []
         for f in (0, 1):
             train = gather_segments(source, segments.subset(fold == f), weights)
             held = gather_segments(source, segments.subset(fold != f))  # its wheels too
-            errors.append(_held_apart_error(train, held, model, workers, start))
+            members = np.flatnonzero(fold == f)
+            start, own = _fold_start(solved, members, train, moved, value - shift)
+            errors.append(_held_apart_error(train, held, model, workers, start, own))
         return float(np.mean(errors))
 
     check = ModelCheck(
         found,
-        cross_validated(full, shifted),
-        cross_validated(theta_alone(settings), log),
+        cross_validated(full, shifted, shift),
+        cross_validated(theta_alone(settings), log, np.zeros_like(shift)),
         len(segments),
     )
     if not check.theta_alone or "slow wheel slip" not in found or len(found) == 1:
         return check
     no_slip = dataclasses.replace(full, slip="off")
-    return dataclasses.replace(check, without_slip_error=cross_validated(no_slip, shifted))
+    return dataclasses.replace(check, without_slip_error=cross_validated(no_slip, shifted, shift))
+
+
+def _fold_start(
+    solved: WholeLog,
+    members: np.ndarray,
+    train: SegmentData,
+    moved: np.ndarray,
+    offsets: np.ndarray,
+) -> tuple[gtsam.Values, bool]:
+    """Where a fold of the checked segments ``members`` (indices among them) starts: the
+    whole log's solution of its segments (:attr:`WholeLog.check_start`), else its theta. The
+    optimum is the fold's either way; from theta alone, every pose and correction on the
+    nominal odometry, the real car's folds took 5–8 iterations, the real robot's 4 from
+    χ²/dof 14,000–30,000 (from a warm start of their own, more). The wheels' time offset
+    starts at ``offsets`` [s], each run's in the fold's frame (its wheels shifted by
+    ``moved`` [s]), and the wheel corrections move with the wheels where that shift is not
+    the whole log's (the real car's fold from the solution's −15.7 ms with its corrections
+    a sample off: 7 iterations from χ² 15,082). With whether it holds the segments'
+    variables (``train``: the fold's segments)."""
+    at = solved.check_start
+    if at is not None and at.values is not None:
+        lag = np.rint((np.asarray(moved, float) - np.asarray(at.shift, float)) / train.dt)
+        lag = np.broadcast_to(lag.astype(int), (train.runs,))
+        runs = np.zeros(len(train), int) if train.run is None else np.asarray(train.run, int)
+        start = with_corrections_shifted(renumbered(at.values, members), len(train), lag[runs])
+        if start.exists(TIME_OFFSET):
+            start.update(TIME_OFFSET, np.asarray(offsets, float))
+        return start, True
+    start = gtsam.Values()
+    start.insert(THETA, np.asarray(solved.whole.theta, float))
+    return start, False
 
 
 def _held_apart_error(
@@ -289,16 +322,21 @@ def _held_apart_error(
     settings: JointSettings,
     workers: int,
     start: gtsam.Values | None = None,
+    same_segments: bool = False,
 ) -> float:
     """Mean position error [m] of ``held`` dead-reckoned with theta calibrated from
     ``train`` under ``settings`` (every parameter its posterior), the fixes taken as
     the antenna's on the lever arm that solve found (none without one), the rear axle
     slipping at the gain it found (none without one); ``inf`` if that calibration fails.
-    ``start``: the graph-wide values the solve starts from (``None``: a warm start's)."""
+    ``start``: the values the solve starts from, of ``train``'s very segments (with
+    ``same_segments``; :func:`_fold_start`) or only graph-wide ones (``None``: a warm
+    start's)."""
     try:
         with muted():  # a fold's solve: its lines are not the user's concern
             fold = dataclasses.replace(settings, tolerance=FOLD_TOLERANCE)
-            solve, values = solve_joint(train, fold, workers, start=start)
+            solve, values = solve_joint(
+                train, fold, workers, start=start, same_segments=same_segments
+            )
     except CalibrationFailed:
         return float("inf")
     arm = np.asarray(values.atVector(LEVER_ARM)) if values.exists(LEVER_ARM) else None

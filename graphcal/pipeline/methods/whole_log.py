@@ -44,9 +44,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from graphcal.graph.construction.moved_values import renumbered
 from graphcal.graph.solution.reduced_systems import ReducedSystems
 from graphcal.log.drive_log import DriveLog
-from graphcal.log.segments import SegmentData, gather_segments
+from graphcal.log.segments import SegmentData, gather_segments, spread
 from graphcal.log.timing import whole_samples
 from graphcal.model import wheel_lateral_acceleration
 from graphcal.pipeline.configuration.settings import Settings
@@ -104,6 +105,10 @@ NOISE_READING_TOLERANCE = 1e-4
 #: the solve under it ends at the same theta in 13 iterations for 21 (campaign seed 54's
 #: shape 71).
 NOISE_READING_ITERATIONS = 15
+#: Segments the model check predicts at most, spread over the selected ones
+#: (:mod:`~graphcal.pipeline.methods.model_check`): a model's fit does not need every segment.
+#: The whole-log solution of these is kept (:attr:`WholeLog.check_start`).
+CHECK_SEGMENTS = 64
 
 
 @dataclass(frozen=True)
@@ -125,6 +130,9 @@ class WholeLog:
             linearized batches and the agreement test are solved from.
         agreement: whether groups of the segments agree within their σ
             (:mod:`graphcal.pipeline.methods.agreement`); theta's σ are scaled by it.
+        check_start: the solution's values of the :func:`check_segments`, renumbered in
+            their order, and its graph-wide variables, with its wheels' shift: where the
+            model check's folds start.
     """
 
     whole: JointCalibration
@@ -134,6 +142,7 @@ class WholeLog:
     corrected: PreparedLog
     systems: ReducedSystems | None = None
     agreement: Agreement | None = None
+    check_start: StoppedAt | None = None
 
     def batch_settings(self) -> JointSettings:
         """The joint settings of batches of this log: its fixes weighted as the solve found
@@ -185,6 +194,10 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     corrected = _corrected(prepared, log, settings, weights, estimated, prepared.validation)
     solved_log = WholeLog(whole, estimated, down_weighted, log, corrected)
     systems = segment_systems(solved_log.batch_data(), solved_log.batch_settings(), values, workers)
+    check_start = None
+    if settings.joint.model_check:
+        kept = renumbered(values, check_segments(len(prepared.selected)))
+        check_start = StoppedAt(kept, offset, None)
     del values, solved  # the whole log's solution, most of the memory of a long log
     agreement = segment_agreement(systems, len(prepared.selected))
     say(agreement_line(agreement))
@@ -193,7 +206,14 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
         whole=with_agreement(whole, agreement, settings.joint),
         systems=systems,
         agreement=agreement,
+        check_start=check_start,
     )
+
+
+def check_segments(count: int) -> np.ndarray:
+    """Indices of the segments of ``count`` selected ones the model check predicts:
+    :data:`CHECK_SEGMENTS` spread over them (every one of a shorter log)."""
+    return spread(count, CHECK_SEGMENTS)
 
 
 def _first_solve(
