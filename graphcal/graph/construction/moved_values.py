@@ -12,13 +12,10 @@ from graphcal.graph.construction import keys
 from graphcal.graph.optimization.values import copy_value
 
 
-def renumbered(
-    values: gtsam.Values, segments: Sequence[int] | np.ndarray, without: str = ""
-) -> gtsam.Values:
+def renumbered(values: gtsam.Values, segments: Sequence[int] | np.ndarray) -> gtsam.Values:
     """The variables of a segment graph's ``values`` that belong to its ``segments``, segment
     ``segments[i]``'s as segment ``i``'s, with its graph-wide variables as they are: the
-    values of a graph over those segments (of a solution, a start for it); those whose
-    letter is in ``without`` left out."""
+    values of a graph over those segments (of a solution, a start for it)."""
     where = {int(s): i for i, s in enumerate(segments)}
     every = np.asarray(values.keys(), dtype=np.uint64)
     letters = (every >> np.uint64(keys.INDEX_BITS)).astype(int)
@@ -26,7 +23,6 @@ def renumbered(
     per_segment = np.isin(letters, [ord(c) for c in keys.SEGMENT_LETTERS])
     segment = index // keys.SEGMENT_STRIDE
     taken = ~per_segment | np.isin(segment, list(where))  # a long log's others not looped
-    taken &= ~np.isin(letters, [ord(c) for c in without])
     out = gtsam.Values()
     for key, own, s in zip(every[taken], per_segment[taken], segment[taken], strict=True):
         target = keys.in_segment(int(key), where[int(s)]) if own else None
