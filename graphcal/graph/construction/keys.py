@@ -30,6 +30,8 @@ SEGMENT_STRIDE = 1 << 24
 #: Letters of the variables that belong to one segment (a packed index); a segment graph's
 #: other variables are graph-wide.
 SEGMENT_LETTERS = frozenset("pcseh")
+#: Letters of the Pose2 variables (every other variable is a vector).
+POSE_LETTERS = frozenset("px")
 #: Bits of a key below its letter (GTSAM's ``Symbol``).
 INDEX_BITS = 56
 

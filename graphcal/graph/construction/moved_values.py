@@ -9,7 +9,6 @@ import gtsam
 import numpy as np
 
 from graphcal.graph.construction import keys
-from graphcal.graph.optimization.values import copy_value
 
 
 def renumbered(values: gtsam.Values, segments: Sequence[int] | np.ndarray) -> gtsam.Values:
@@ -23,10 +22,13 @@ def renumbered(values: gtsam.Values, segments: Sequence[int] | np.ndarray) -> gt
     per_segment = np.isin(letters, [ord(c) for c in keys.SEGMENT_LETTERS])
     segment = index // keys.SEGMENT_STRIDE
     taken = ~per_segment | np.isin(segment, list(where))  # a long log's others not looped
+    pose = np.isin(letters, [ord(c) for c in keys.POSE_LETTERS])
     out = gtsam.Values()
-    for key, own, s in zip(every[taken], per_segment[taken], segment[taken], strict=True):
-        target = keys.in_segment(int(key), where[int(s)]) if own else None
-        copy_value(out, values, int(key), target)
+    rows = zip(every[taken], per_segment[taken], segment[taken], pose[taken], strict=True)
+    for key, own, s, is_pose in rows:  # by letter: a failed atPose2 costs 60 µs a key
+        key = int(key)
+        value = values.atPose2(key) if is_pose else values.atVector(key)
+        out.insert(keys.in_segment(key, where[int(s)]) if own else key, value)
     return out
 
 
