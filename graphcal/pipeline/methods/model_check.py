@@ -167,23 +167,6 @@ class ModelCheck:
         }
 
 
-def defects_found(solved: WholeLog) -> tuple[str, ...]:
-    """What the whole-log solve's defect model found: a time offset or lever arm detected,
-    slow wheel slip modelled."""
-    found = []
-    if detected_offsets(solved.estimated, solved.solved_log.runs).any():
-        found.append("time offset")
-    arm = [solved.estimated.get(f"lever_arm_{side}") for side in ("longitudinal", "lateral")]
-    if any(e is not None and e.detected for e in arm):
-        found.append("lever arm")
-    gain = solved.estimated.get("rear_slip_gain")
-    if gain is not None and gain.detected:
-        found.append("rear tyre slip")
-    if solved.whole.slip_modelled:
-        found.append("slow wheel slip")
-    return tuple(found)
-
-
 def with_the_other_model(chosen: WholeLog, other: WholeLog) -> WholeLog:
     """``chosen`` (the solve with theta alone) with theta's covariance widened by its
     difference ``Δ`` from ``other``'s theta (the defect model's): ``Σ + ΔΔᵀ``, and its
@@ -235,7 +218,7 @@ def check_model(prepared: PreparedLog, solved: WholeLog, workers: int) -> ModelC
     """Cross-validate the defect model against theta alone (module docstring) when the
     whole-log solve ``solved`` of ``prepared`` found a sensor term; ``None`` when it found
     none, or the log has too few segments to check."""
-    found = defects_found(solved)
+    found = solved.defects_found()
     selected = prepared.selected
     if not found or len(selected) < MIN_SEGMENTS:
         return None
@@ -307,7 +290,7 @@ def _fold_start(
     if at is not None and at.values is not None:
         lag = np.rint((np.asarray(moved, float) - np.asarray(at.shift, float)) / train.dt)
         lag = np.broadcast_to(lag.astype(int), (train.runs,))
-        runs = np.zeros(len(train), int) if train.run is None else np.asarray(train.run, int)
+        runs = [train.run_of(s) for s in range(len(train))]
         start = with_corrections_shifted(renumbered(at.values, members), len(train), lag[runs])
         if start.exists(TIME_OFFSET):
             start.update(TIME_OFFSET, np.asarray(offsets, float))

@@ -74,6 +74,7 @@ from graphcal.pipeline.methods.sensor_estimates import (
     SensorEstimate,
     component_names,
     correct_log,
+    detected_offsets,
     log_weights,
     measured_from,
     not_estimated,
@@ -144,6 +145,23 @@ class WholeLog:
     agreement: Agreement | None = None
     check_start: StoppedAt | None = None
 
+    def defects_found(self) -> tuple[str, ...]:
+        """What the defect model found: a time offset or lever arm detected, the rear tyres'
+        slip detected, slow wheel slip modelled (what the model check is run for)."""
+        found = []
+        if detected_offsets(self.estimated, self.solved_log.runs).any():
+            found.append("time offset")
+        sides = ("longitudinal", "lateral")
+        arm = [self.estimated.get(f"lever_arm_{side}") for side in sides]
+        if any(e is not None and e.detected for e in arm):
+            found.append("lever arm")
+        gain = self.estimated.get("rear_slip_gain")
+        if gain is not None and gain.detected:
+            found.append("rear tyre slip")
+        if self.whole.slip_modelled:
+            found.append("slow wheel slip")
+        return tuple(found)
+
     def batch_settings(self) -> JointSettings:
         """The joint settings of batches of this log: its fixes weighted as the solve found
         them (no robust rounds), its slip verdict, the rest of its time offset their prior,
@@ -195,7 +213,7 @@ def solve_whole_log(prepared: PreparedLog, workers: int) -> WholeLog:
     solved_log = WholeLog(whole, estimated, down_weighted, log, corrected)
     systems = segment_systems(solved_log.batch_data(), solved_log.batch_settings(), values, workers)
     check_start = None
-    if settings.joint.model_check:
+    if settings.joint.model_check and solved_log.defects_found():  # a check follows
         kept = renumbered(values, check_segments(len(prepared.selected)))
         check_start = StoppedAt(kept, offset, None)
     del values, solved  # the whole log's solution, most of the memory of a long log
