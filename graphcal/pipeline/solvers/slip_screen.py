@@ -39,9 +39,10 @@ from graphcal.graph.construction import keys
 from graphcal.graph.construction.builder import build_segment_graph
 from graphcal.graph.construction.built_graph import BuiltGraph
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
+from graphcal.graph.construction.moved_values import renumbered
 from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.solve_options import SolveOptions
-from graphcal.graph.optimization.values import copy_value
+from graphcal.graph.optimization.values import taken_from
 from graphcal.graph.solution.covariance import with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import ValuesStart, solve_segment_graph
@@ -199,7 +200,7 @@ def with_slip_if_shown(
     weighted = data if weights is None else dataclasses.replace(data, fix_weights=weights)
     screened = _screened(data, spec)
     screen = build_segment_graph(weighted.take(screened), spec)
-    at_solution = _moved(solved.result, screened, screen.values, shared_keys(spec))
+    at_solution = _moved(solved.result, screened, screen.values)
     test = _slip_test(screen, at_solution, spec, workers, weighted.take(screened), unseen)
     if not test.shown(alpha):
         return _with_unseen_slip(solved, test), test
@@ -207,7 +208,7 @@ def with_slip_if_shown(
     with_slip, initial = screen, at_solution
     if len(screened) < len(data):
         with_slip = build_segment_graph(weighted, spec)
-        initial = _moved(solved.result, np.arange(len(data)), with_slip.values, shared_keys(spec))
+        initial = _moved(solved.result, np.arange(len(data)), with_slip.values)
     final = solve_segment_graph(weighted, spec, options, start=ValuesStart(initial, with_slip))
     return dataclasses.replace(final, outcome=solved.outcome.then(final.outcome)), test
 
@@ -401,14 +402,7 @@ def _released(solution: SolvedGraph) -> SolvedGraph:
     return dataclasses.replace(solution, built=built, partitioned=None)
 
 
-def _moved(
-    result: gtsam.Values, segments: np.ndarray, values: gtsam.Values, shared: list[int]
-) -> gtsam.Values:
+def _moved(result: gtsam.Values, segments: np.ndarray, values: gtsam.Values) -> gtsam.Values:
     """``values`` of a graph over ``segments`` of ``result``'s graph, with ``result``'s value
     of every variable the two share (segment ``segments[i]``'s as segment ``i``'s)."""
-    moved = gtsam.Values(values)
-    for key in values.keys():
-        source = key if key in shared else keys.in_segment(key, segments[keys.segment_of(key)])
-        if result.exists(source):
-            copy_value(moved, result, source, key)
-    return moved
+    return taken_from(values, renumbered(result, segments))
