@@ -18,9 +18,8 @@ import gtsam
 import numpy as np
 
 from graphcal.errors import CalibrationFailed, GraphcalError, exception_reason
-from graphcal.graph.construction import keys
 from graphcal.graph.construction.built_graph import BuiltGraph
-from graphcal.graph.construction.graph_spec import SegmentGraphSpec
+from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
 from graphcal.graph.optimization.partitioned import PartitionedGraph
 from graphcal.graph.optimization.solve import Driver
 from graphcal.graph.solution.estimates import NuisanceEstimate, SolvedGraph
@@ -99,11 +98,22 @@ def with_covariance(solution: SolvedGraph, label: str, workers: int = 1) -> Solv
 def whole_graph_marginals(
     built: BuiltGraph, result: gtsam.Values, label: str
 ) -> tuple[np.ndarray, dict[str, NuisanceEstimate]]:
-    """Theta's marginal covariance and the nuisance estimates from GTSAM's marginals."""
-    extra = built.spec.nuisance_keys()
-    joint = marginal_covariance(
-        built.graph, result, [keys.THETA, *extra.values()], label, CalibrationFailed
-    )
+    """Theta's marginal covariance and the nuisance estimates from GTSAM's marginals; where
+    GTSAM's Cholesky of the whole graph fails, from the segments eliminated one part at a
+    time down to the shared variables (:func:`partitioned_marginals`).
+
+    The whole graph's information spans every scale at once: a parameter held at its nominal
+    (a prior :data:`~graphcal.vehicle.HELD_SIGMA_SCALE` times its own, information ~10¹²)
+    beside lateral positions a straight road's fixes sharing their error barely determine
+    (~10⁻⁴): a car's 2.1 km straight at 5 Hz, its fixes sharing 6 m, failed "indeterminate"
+    at a pivot; by parts the held parameter is met only in the small shared system."""
+    shared = shared_keys(built.spec)
+    try:
+        joint = marginal_covariance(built.graph, result, shared, label, CalibrationFailed)
+    except CalibrationFailed:
+        return partitioned_marginals(
+            PartitionedGraph(built.graph, result, shared), built.spec, label
+        )
     return joint[:4, :4], _nuisance(built.spec, result, joint)
 
 
