@@ -4,8 +4,8 @@ Each case writes a damaged copy of a valid log (random bytes, a truncated file, 
 scaled or garbled columns, deleted or duplicated rows) and runs the command line on it. The
 outcome must be exit 0 with finite output, or exit 2 with one line on stderr and no result
 file — never a traceback. CI runs ``FUZZ_CASES`` (default 144: 16 of each of the 9 kinds of
-damage, taken in turn) cases with a fixed seed; a longer run:
-``GRAPHCAL_FUZZ_CASES=5000 GRAPHCAL_FUZZ_SEED=7 python -m pytest tests/test_fuzz_loader.py``.
+damage, taken in turn) cases with a fixed seed; a longer run: ``GRAPHCAL_FUZZ_CASES=5000
+GRAPHCAL_FUZZ_SEED=7 python -m pytest -m slow tests/test_fuzz_loader.py``.
 """
 
 from __future__ import annotations
@@ -71,6 +71,7 @@ def valid(drive) -> pd.DataFrame:
 
 
 @pytest.mark.slow  # a sweep of hundreds of runs; the README's test command and CI run it
+@pytest.mark.ci
 def test_the_loader_never_fails_with_a_traceback(valid, tmp_path, capsys):
     rng = np.random.default_rng(FUZZ_SEED)
     text = valid.to_csv(index=False, float_format="%.17g")

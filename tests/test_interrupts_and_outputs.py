@@ -69,6 +69,7 @@ def _interrupted(arguments: list[str], after: float, cwd: Path) -> subprocess.Co
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.parametrize(("after", "method"), [(0.3, "joint"), (1.6, "joint"), (5.0, "staged")])
 def test_ctrl_c_during_calibrate_says_one_line_exits_130_and_writes_nothing(
     tmp_path, after, method
@@ -91,6 +92,7 @@ def test_ctrl_c_during_calibrate_says_one_line_exits_130_and_writes_nothing(
 
 
 @pytest.mark.slow
+@pytest.mark.ci
 @pytest.mark.parametrize("after", [0.3, 1.0])
 def test_ctrl_c_during_import_says_one_line_and_writes_nothing(tmp_path, after):
     run = _interrupted(["import", str(CAN_MANIFEST), "--out", "drive.csv"], after, tmp_path)

@@ -77,6 +77,7 @@ def test_the_real_car_calibrates_c_e_and_c_d_from_each_form(name, tmp_path):
     assert 2.010 < result["theta"]["c_e"] < 2.025
 
 
+@pytest.mark.ci
 @pytest.mark.parametrize(("name", "better"), list(CAR_PATHS.items()))
 def test_the_real_car_predicts_held_apart_windows(name, better):
     nominal, calibrated = _held_apart(CAR / name)
