@@ -88,16 +88,18 @@ from graphcal.pipeline.methods.time_offset_rounds import (
     rounds_start,
 )
 from graphcal.pipeline.methods.whole_log_lines import estimate_lines, report_whole_log
-from graphcal.pipeline.solvers.joint import NOISE_READING_TOLERANCE, JointCalibration
+from graphcal.pipeline.solvers.joint import JointCalibration
 from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import say
 from graphcal.units import length_unit
 
 #: A solve whose residuals only set the noise levels of the next one (it fitted under far
-#: wrong fix weights) stops at :data:`~graphcal.pipeline.solvers.joint.NOISE_READING_TOLERANCE`
-#: (fixes that share an error make such a solve creep: a robot's 50 Hz fixes sharing 1.4 m,
-#: 55 iterations to 1e-7, the last 45 lowering χ² by 2e-4 to 1e-7 each; campaign seed 41's
-#: shape 36), and after this many iterations at most: a robot's 50 Hz fixes sharing 1.2 m over 24 s,
+#: wrong fix weights) stops where an iteration lowers χ² by less than this share: the noise
+#: read there is the converged solve's to 0.01 %, and fixes that share an error make such a
+#: solve creep (a robot's 50 Hz fixes sharing 1.4 m: 55 iterations to 1e-7, the last 45
+#: lowering χ² by 2e-4 to 1e-7 each; campaign seed 41's shape 36).
+NOISE_READING_TOLERANCE = 1e-4
+#: ... and after this many iterations at most: a robot's 50 Hz fixes sharing 1.2 m over 24 s,
 #: weighted white, crept 50 iterations (χ² 30,848 → 18,084, theta drifting all the way
 #: towards the misfit's own minimum: t_r 0.18 → 0.13 m, 2σ of its prior); after 15 the
 #: white noise reads 0.508 m for 0.486, the error they share the same (1.9 m over 60 s), and

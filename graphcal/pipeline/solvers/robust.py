@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
-from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.solution.covariance import covariance_from_information, with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
@@ -70,12 +70,10 @@ class FirstRound:
         ends: ``ends(solved, weights)``: whether the rounds end after the first (a solve
             under other settings follows; :func:`solve_robust`'s ``stop_after_first``).
         options: the first solve's options (``SolveOptions.misweighted_chi2`` set: it may
-            stop creeping under too tight weights; a looser ``relative_error_tol``: it
-            stops where the noise its residuals show is read), or ``None``: every solve's.
+            stop creeping under too tight weights), or ``None``: every solve's.
         reweights: ``reweights(solved, segments)``: after a first solve that stopped
-            creeping or at its looser tolerance, whether the caller solves again under the
-            noise its residuals show (else that solve goes on to its minimum at every
-            solve's tolerance).
+            creeping, whether the caller solves again under the noise its residuals show
+            (else that solve goes on to its minimum).
     """
 
     ends: Callable[[SolvedGraph, np.ndarray | None], bool]
@@ -218,11 +216,7 @@ def solve_segment_graph_robust(
             start=first if initial is None else ValuesStart(initial),
             covariance=False,
         )
-        # stopped at a looser tolerance than every solve's (FirstRound.options): unfinished
-        loose = head.relative_error_tol > options.relative_error_tol
-        if not solved.outcome.crept and not (
-            loose and solved.outcome.status is SolveStatus.CONVERGED
-        ):
+        if not solved.outcome.crept:
             return solved
         if reweights is not None and reweights(solved, segments):
             return solved
