@@ -4,10 +4,17 @@ solve again; where the caller would not, it goes on to the minimum."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
-from graphcal.graph.optimization.levenberg_marquardt import CREEP_ITERATIONS, CreepWatch
+from graphcal.graph.optimization.levenberg_marquardt import (
+    CREEP_ITERATIONS,
+    FAR_OFF_CHI2,
+    CreepWatch,
+    noise_read,
+)
 from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.solution.segment_solve import solve_segment_graph
 from graphcal.log.segments import gather_segments, select_segments, split_segments
@@ -70,3 +77,38 @@ def test_a_creeping_first_solve_stops_only_for_a_caller_that_reweights(segments)
     assert went_on.final_error <= full.final_error * (1 + 1e-9)
     sigma = np.sqrt(np.diag(solve_segment_graph(data, spec, options).covariance))
     assert np.all(np.abs(went_on.theta - full.theta) < 1e-3 * sigma)
+
+
+def test_a_solve_far_from_its_weights_reads_its_noise_at_a_looser_tolerance():
+    # χ²/dof above FAR_OFF_CHI2: stops at the looser tolerance; near 1, or without one, never.
+    dof = 1000
+    far, near = 0.5 * 10.0 * dof, 0.5 * 1.2 * dof  # ½χ² at χ²/dof 10 and 1.2
+    assert noise_read(0.5e-3 * far, far * 1.0005, far, dof, 1e-3)
+    assert not noise_read(5e-3 * far, far * 1.005, far, dof, 1e-3)
+    assert not noise_read(0.5e-3 * near, near * 1.0005, near, dof, 1e-3)
+    assert not noise_read(0.5e-3 * far, far * 1.0005, far, dof, 0.0)
+    assert 2.0 * far / dof > FAR_OFF_CHI2 > 2.0 * near / dof
+
+
+def test_a_first_solve_under_far_too_tight_weights_stops_where_its_noise_is_read(segments):
+    data, spec, _ = segments
+    # The fixes and headings weighted as a third of their noise: χ²/dof about 9.
+    tight = dataclasses.replace(spec, tracking_sigmas=np.asarray(spec.tracking_sigmas) / 3.0)
+    options = SolveOptions(50, 1e-14, "noise read test")
+    reading = SolveOptions(50, 1e-14, "noise read test", noise_read_tolerance=1e-3)
+    full = solve_segment_graph(data, tight, options, covariance=False)
+    read = solve_segment_graph(data, tight, reading, covariance=False)
+    assert read.outcome.status is SolveStatus.NOISE_READ
+    assert read.outcome.iterations < full.outcome.iterations
+    assert read.final_error <= full.final_error * (1 + 1e-3)
+
+    def solved(reweights: bool):
+        first = FirstRound(lambda *_: reweights, reading, lambda *_: reweights)
+        return solve_segment_graph_robust(
+            data, tight, options, 0.0, covariance=False, first_round=first
+        )[0]
+
+    assert solved(reweights=True).outcome.status is SolveStatus.NOISE_READ
+    went_on = solved(reweights=False)  # no caller to reweight: on to the minimum
+    assert went_on.outcome.converged and went_on.outcome.status is not SolveStatus.NOISE_READ
+    assert went_on.final_error <= full.final_error * (1 + 1e-9)

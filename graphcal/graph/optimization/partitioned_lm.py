@@ -30,6 +30,7 @@ from graphcal.graph.optimization.levenberg_marquardt import (
     error_tolerance,
     gauss_newton_next,
     judge_step,
+    noise_read,
     raised_scale,
 )
 from graphcal.graph.optimization.linear_systems import predicted_decrease, vector_values
@@ -224,6 +225,9 @@ def optimize(
         graph.workers.release()
         before = solve.error
         stop = solve.finish(ended)
+        decrease, tolerance = before - solve.error, options.noise_read_tolerance
+        if stop is None and noise_read(decrease, before, solve.error, dof, tolerance):
+            stop = SolveStatus.NOISE_READ
         if stop is None and watch.creeping(before, solve.error):
             stop = SolveStatus.MISWEIGHTED
         judged = not watch.above(solve.error)

@@ -44,6 +44,10 @@ from graphcal.progress import Progress, reports_progress, say
 #: :class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`): a point to read
 #: the noise at, not a minimum to judge.
 MISWEIGHTED_CHI2 = 25.0
+#: ... and stops where an iteration lowers χ² by less than this share while its χ²/dof is
+#: far above 1 (:func:`~graphcal.graph.optimization.levenberg_marquardt.noise_read`): where
+#: the noise its residuals show is read. Where that noise changes nothing, it goes on.
+NOISE_READ_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -126,7 +130,9 @@ def solve_joint(
     # A solve whose noise is read again after it stops where it creeps under too tight weights
     head = options
     if stop_if is not None:
-        head = dataclasses.replace(options, misweighted_chi2=MISWEIGHTED_CHI2)
+        head = dataclasses.replace(
+            options, misweighted_chi2=MISWEIGHTED_CHI2, noise_read_tolerance=NOISE_READ_TOLERANCE
+        )
     held = settings.held_names()
     first = _first_start(data, settings.graph_spec(), head, start, same_segments, held)
     solved, weights, noise, stopped = _robust_solve(

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
-from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.solution.covariance import covariance_from_information, with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
@@ -69,11 +69,13 @@ class FirstRound:
     Attributes:
         ends: ``ends(solved, weights)``: whether the rounds end after the first (a solve
             under other settings follows; :func:`solve_robust`'s ``stop_after_first``).
-        options: the first solve's options (``SolveOptions.misweighted_chi2`` set: it may
-            stop creeping under too tight weights), or ``None``: every solve's.
-        reweights: ``reweights(solved, segments)``: after a first solve that stopped
-            creeping, whether the caller solves again under the noise its residuals show
-            (else that solve goes on to its minimum).
+        options: the first solve's options (``SolveOptions.misweighted_chi2`` and
+            ``noise_read_tolerance`` set: it may stop creeping under too tight weights, or
+            where its noise is read under weights far from its residuals), or ``None``:
+            every solve's.
+        reweights: ``reweights(solved, segments)``: after a first solve that stopped so,
+            whether the caller solves again under the noise its residuals show (else that
+            solve goes on to its minimum).
     """
 
     ends: Callable[[SolvedGraph, np.ndarray | None], bool]
@@ -216,7 +218,7 @@ def solve_segment_graph_robust(
             start=first if initial is None else ValuesStart(initial),
             covariance=False,
         )
-        if not solved.outcome.crept:
+        if not solved.outcome.crept and solved.outcome.status is not SolveStatus.NOISE_READ:
             return solved
         if reweights is not None and reweights(solved, segments):
             return solved
