@@ -93,6 +93,13 @@ class SolveOutcome:
         return self.status is SolveStatus.MISWEIGHTED
 
     @property
+    def stopped_for_noise(self) -> bool:
+        """The solve stopped short of its minimum at every solve's tolerance, where its
+        caller reads the noise (:attr:`SolveStatus.MISWEIGHTED` or
+        :attr:`SolveStatus.NOISE_READ`): its caller solves again, or it goes on."""
+        return self.status in (SolveStatus.MISWEIGHTED, SolveStatus.NOISE_READ)
+
+    @property
     def message(self) -> str:
         """One line: how the solve ended."""
         if self.status is SolveStatus.ITERATION_LIMIT:

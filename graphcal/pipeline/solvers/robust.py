@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
-from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
+from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.solution.covariance import covariance_from_information, with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
@@ -218,7 +218,7 @@ def solve_segment_graph_robust(
             start=first if initial is None else ValuesStart(initial),
             covariance=False,
         )
-        if not solved.outcome.crept and solved.outcome.status is not SolveStatus.NOISE_READ:
+        if not solved.outcome.stopped_for_noise:
             return solved
         if reweights is not None and reweights(solved, segments):
             return solved
