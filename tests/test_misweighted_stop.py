@@ -37,6 +37,15 @@ def test_a_creep_is_several_slow_iterations_in_a_row_far_above_the_noise():
     assert not any(CreepWatch(0.0, 100).creeping(e, 0.99 * e) for e in (1e6, 1e6, 1e6, 1e6))
 
 
+def _first_round_solved(data, spec, options, head, reweights: bool):
+    """A robust solve without rounds whose first solve runs under ``head``, its caller
+    solving again (``reweights``) or not."""
+    first = FirstRound(lambda *_: reweights, head, lambda *_: reweights)
+    return solve_segment_graph_robust(
+        data, spec, options, 0.0, covariance=False, first_round=first
+    )[0]
+
+
 @pytest.fixture(scope="module", params=["one-graph", "segment-by-segment"])
 def segments(request):
     """Segments and their joint graph's shape: a 1 km drive's, tied into one chain (one
@@ -64,10 +73,7 @@ def test_a_creeping_first_solve_stops_only_for_a_caller_that_reweights(segments)
     assert "creeping" in stopped.outcome.message
 
     def solved(reweights: bool):
-        first = FirstRound(lambda *_: reweights, watched, lambda *_: reweights)
-        return solve_segment_graph_robust(
-            data, spec, options, 0.0, covariance=False, first_round=first
-        )[0]
+        return _first_round_solved(data, spec, options, watched, reweights)
 
     kept = solved(reweights=True)  # the caller reads the noise at the stop
     assert kept.outcome.status is SolveStatus.MISWEIGHTED
@@ -103,10 +109,7 @@ def test_a_first_solve_under_far_too_tight_weights_stops_where_its_noise_is_read
     assert read.final_error <= full.final_error * (1 + 1e-3)
 
     def solved(reweights: bool):
-        first = FirstRound(lambda *_: reweights, reading, lambda *_: reweights)
-        return solve_segment_graph_robust(
-            data, tight, options, 0.0, covariance=False, first_round=first
-        )[0]
+        return _first_round_solved(data, tight, options, reading, reweights)
 
     assert solved(reweights=True).outcome.status is SolveStatus.NOISE_READ
     went_on = solved(reweights=False)  # no caller to reweight: on to the minimum
