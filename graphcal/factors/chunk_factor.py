@@ -25,8 +25,9 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk
+from graphcal.factors.chunk import CONTINUITY_SIGMAS, ChunkError, OdometryChunk, chunk_errors
 from graphcal.factors.chunk_batch import ChunkArguments, ChunkBatch
+from graphcal.factors.chunk_inputs import StackedChunks
 from graphcal.factors.poses import pose_sigmas
 
 
@@ -283,6 +284,38 @@ class ChunkOdometryFactor:
         if self.rear_slip_gain_key is not None:
             blocks.append(result.rear_slip_gain)
         return blocks
+
+    def theta_normal_equations(self, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``AᵀA (C, 4, 4)`` and ``Aᵀb (C, 4)`` of this factor's whitened linearization at
+        each theta of ``thetas (C, 4)`` (``b``: minus the whitened error) — the blocks of
+        GTSAM's ``augmentedHessian`` of :meth:`factor` linearized there — in one vectorized
+        evaluation of the chunk stacked ``C`` times. For a factor whose only variable is
+        theta: a held start, no end, no corrections, no defects (the paper's Step 1)."""
+        others = [k for k in self._slot_keys() if k is not None and k != self.theta_key]
+        if self.theta_key is None or others:
+            raise ValueError("theta_normal_equations needs a factor on theta alone")
+        thetas = np.asarray(thetas, float)
+        count, chunk = len(thetas), self.chunk
+
+        def stacked(array: np.ndarray | None) -> np.ndarray | None:
+            return None if array is None else np.broadcast_to(array, (count, *array.shape))
+
+        result = chunk_errors(
+            StackedChunks(
+                stacked(chunk.inputs), stacked(chunk.measured_poses), None, stacked(chunk.fractions)
+            ),
+            np.broadcast_to(self.start_state, (count, 3)),
+            thetas,
+        )
+        error, jacobian = result.error, result.theta
+        if self.rows is not None:
+            error, jacobian = error[:, self.rows], jacobian[:, self.rows]
+        whitened = jacobian / self.sigmas[:, None]
+        rhs = -error / self.sigmas
+        return (
+            np.einsum("cri,crj->cij", whitened, whitened),
+            np.einsum("cri,cr->ci", whitened, rhs),
+        )
 
     def __call__(
         self, factor: gtsam.CustomFactor, values: gtsam.Values, H: list | None

@@ -358,7 +358,7 @@ def _add_chunks(
             ),
             batch=batch,
         )
-        slots.append(ChunkFactorSlot(int(graph.size()), s, a, b, factor.rows))
+        slots.append(ChunkFactorSlot(int(graph.size()), s, a, b, factor.rows, factor))
         graph.add(factor.factor())
 
 

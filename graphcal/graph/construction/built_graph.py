@@ -3,12 +3,13 @@ its solutions (start states, corrections, fix residuals)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import gtsam
 import numpy as np
 
 from graphcal.factors import pose2_from_state, state_from_pose2
+from graphcal.factors.chunk_factor import ChunkOdometryFactor
 from graphcal.graph.construction import keys
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
 from graphcal.graph.optimization.partitioned import PartitionedGraph
@@ -19,14 +20,16 @@ from graphcal.model import lever_offset
 @dataclass(frozen=True)
 class ChunkFactorSlot:
     """Where a chunk factor sits: its index in the graph, its segment and its steps
-    ``first .. end`` (tracking the poses ``first+1 .. end``), and which rows of the full
-    tracking error it keeps (``None``: all; :attr:`OdometryChunk.residual_rows`)."""
+    ``first .. end`` (tracking the poses ``first+1 .. end``), which rows of the full
+    tracking error it keeps (``None``: all; :attr:`OdometryChunk.residual_rows`) and the
+    factor object itself (its measurements and sigmas, for evaluations outside GTSAM)."""
 
     index: int
     segment: int
     first: int
     end: int
     rows: np.ndarray | None = None
+    factor: ChunkOdometryFactor | None = field(default=None, repr=False, compare=False)
 
 
 @dataclass(frozen=True)
