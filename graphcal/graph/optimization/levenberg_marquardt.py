@@ -16,6 +16,8 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
+from graphcal.graph.optimization.solve_options import SolveStatus
+
 #: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow (its λ
 #: factor 10 is the most an accepted step lowers λ by: :class:`Damping`).
 LAMBDA_INITIAL = 1e-5
@@ -60,6 +62,22 @@ class CreepWatch:
     limit: float
     dof: int
     slow: int = 0
+    noise_read_tolerance: float = 0.0
+
+    @property
+    def watching(self) -> bool:
+        """Whether it watches at all (a limit or a noise-reading tolerance): only then does
+        it need :attr:`dof`."""
+        return self.limit > 0 or self.noise_read_tolerance > 0
+
+    def stopped(self, error: float, new_error: float) -> SolveStatus | None:
+        """After the iteration from ``error`` to ``new_error`` (½χ²): whether the solve
+        stops where its noise is read (:func:`noise_read` at ``noise_read_tolerance``) or
+        because it creeps (:meth:`creeping`, counted only when it does not stop so)."""
+        tolerance = self.noise_read_tolerance
+        if noise_read(error - new_error, error, new_error, self.dof, tolerance):
+            return SolveStatus.NOISE_READ
+        return SolveStatus.MISWEIGHTED if self.creeping(error, new_error) else None
 
     def above(self, error: float) -> bool:
         """The graph ``error`` (½χ²) is a χ²/dof above the limit (never without one)."""

@@ -30,7 +30,6 @@ from graphcal.graph.optimization.levenberg_marquardt import (
     error_tolerance,
     gauss_newton_next,
     judge_step,
-    noise_read,
     raised_scale,
 )
 from graphcal.graph.optimization.linear_systems import predicted_decrease, vector_values
@@ -216,7 +215,9 @@ def optimize(
     started = time.perf_counter()
     dof = max(1, graph.factor_dims() - graph.dim())
     solve = _Solve(graph, options.relative_error_tol, gauss_newton_first)
-    watch = CreepWatch(options.misweighted_chi2, dof)
+    watch = CreepWatch(
+        options.misweighted_chi2, dof, noise_read_tolerance=options.noise_read_tolerance
+    )
     runaway = RunawayWatch(options.runaway)
     iterations, stop = 0, None
     while iterations < options.max_iterations:
@@ -225,11 +226,8 @@ def optimize(
         graph.workers.release()
         before = solve.error
         stop = solve.finish(ended)
-        decrease, tolerance = before - solve.error, options.noise_read_tolerance
-        if stop is None and noise_read(decrease, before, solve.error, dof, tolerance):
-            stop = SolveStatus.NOISE_READ
-        if stop is None and watch.creeping(before, solve.error):
-            stop = SolveStatus.MISWEIGHTED
+        if stop is None:
+            stop = watch.stopped(before, solve.error)
         judged = not watch.above(solve.error)
         if stop is None and runaway.running_away(graph.shared_values, judged):
             stop = SolveStatus.RUNAWAY

@@ -16,7 +16,6 @@ from graphcal.graph.optimization.levenberg_marquardt import (
     Verdict,
     converged,
     judge_step,
-    noise_read,
     raised_scale,
 )
 from graphcal.graph.optimization.linear_systems import add_damping, hessian_diagonal_by_column
@@ -97,8 +96,10 @@ def _levenberg_marquardt(
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
     damping = Damping()
-    watch = CreepWatch(options.misweighted_chi2, 0)
-    if watch.limit > 0 or options.noise_read_tolerance > 0:
+    watch = CreepWatch(
+        options.misweighted_chi2, 0, noise_read_tolerance=options.noise_read_tolerance
+    )
+    if watch.watching:
         watch.dof = degrees_of_freedom(graph, values)
     runaway = RunawayWatch(options.runaway)
     iterations, stop = 0, None
@@ -141,11 +142,8 @@ def _levenberg_marquardt(
         decrease = error - new_error
         if stop is None and converged(decrease, error, relative_error_tol):
             stop = SolveStatus.CONVERGED
-        tolerance = options.noise_read_tolerance
-        if stop is None and noise_read(decrease, error, new_error, watch.dof, tolerance):
-            stop = SolveStatus.NOISE_READ
-        if stop is None and watch.creeping(error, new_error):
-            stop = SolveStatus.MISWEIGHTED
+        if stop is None:
+            stop = watch.stopped(error, new_error)
         if stop is None and runaway.running_away(values, not watch.above(new_error)):
             stop = SolveStatus.RUNAWAY
         error = new_error
