@@ -124,6 +124,25 @@ class SegmentGraphSpec:
             )
         return means
 
+    def held_start(self) -> SegmentGraphSpec:
+        """The paper's Step 1 graph under this spec's theta, prior and tracking sigmas: each
+        segment one chunk from its measured start (held), no wheel corrections, no sensor
+        terms (slip, time offset, lever arm, heading bias, rear slip gain, shared fix error),
+        no ties."""
+        return dataclasses.replace(
+            self,
+            start_prior_sigmas=None,
+            corrections=None,
+            chunk_steps=None,
+            tie_segments=False,
+            slip_sigma=None,
+            time_offset_sigma=None,
+            lever_arm_sigma=None,
+            heading_bias_sigma=None,
+            rear_slip_gain_sigma=None,
+            fix_error_sigma=None,
+        )
+
     def tied(self, data: SegmentData) -> np.ndarray:
         """``(S,)`` which segments of ``data`` start at the end of the one before in this
         graph (``tie_segments`` with free starts;

@@ -159,21 +159,10 @@ def _held_start_theta(
     :data:`WARM_START_PRIOR_SPAN` prior σ. Biased by the wheels' noise, as Step 1 is, but
     near enough for the whole-log solve's first Gauss–Newton step: the 24 km city drive's
     44 segments 1.3 s against 7 s untied, its whole-log solve 2 → 3 iterations."""
-    step1 = dataclasses.replace(
-        spec,
-        start_prior_sigmas=None,
-        corrections=None,
-        chunk_steps=None,
-        tie_segments=False,
-        slip_sigma=None,
-        time_offset_sigma=None,
-        lever_arm_sigma=None,
-        heading_bias_sigma=None,
-        rear_slip_gain_sigma=None,
-        fix_error_sigma=None,
-    )
     try:
-        solved = solve_segment_graph(data, step1, options, start=start, covariance=False)
+        solved = solve_segment_graph(
+            data, spec.held_start(), options, start=start, covariance=False
+        )
     except GraphcalError:  # a runaway (ImplausibleTheta) among them
         return None
     if _far_names(solved.theta, np.asarray(spec.theta, float), spec.theta_prior_sigmas, held):
