@@ -528,7 +528,7 @@ def test_chunk_factor_with_fixes_between_samples_and_missing_components(segment,
 
 
 @pytest.mark.parametrize("sparse", [False, True])
-def test_theta_normal_equations_are_gtsams_linearization_at_each_theta(segment, sparse, rng):
+def test_theta_systems_are_gtsams_linearization_at_each_theta(segment, sparse, rng):
     """A held-start chunk on theta alone (the paper's Step 1), evaluated at many thetas in
     one call: at each, GTSAM's augmented Hessian of the factor linearized there — with
     every sample tracked, and with fixes part-way through steps and headings missing."""
@@ -542,16 +542,17 @@ def test_theta_normal_equations_are_gtsams_linearization_at_each_theta(segment, 
     chunk = OdometryChunk(inputs, poses, float(poses[0, 2]), None, fractions, measured)
     factor = ChunkOdometryFactor(chunk, poses[0], T, noise=ChunkNoise(pose_sigmas()))
     thetas = THETA + rng.normal(0.0, 1.0, (5, 4)) * [2e-3, 1e-3, 2e-2, 1e-3]
-    hessian, rhs = factor.theta_normal_equations(thetas)
+    systems = factor.theta_augmented_hessians(thetas)
     gtsam_factor = factor.factor()
-    for theta, h, g in zip(thetas, hessian, rhs, strict=True):
+    for theta, system in zip(thetas, systems, strict=True):
         values = gtsam.Values()
         values.insert(T, theta)
         augmented = gtsam_factor.linearize(values).augmentedInformation()
+        h, g = system[:4, :4], system[:4, 4]
         np.testing.assert_allclose(h, augmented[:4, :4], rtol=1e-10)
         np.testing.assert_allclose(g, augmented[:4, 4], rtol=1e-10, atol=1e-12 * np.abs(g).max())
     with pytest.raises(ValueError, match="theta alone"):
-        ChunkOdometryFactor(chunk, X0, T).theta_normal_equations(thetas)
+        ChunkOdometryFactor(chunk, X0, T).theta_augmented_hessians(thetas)
 
 
 def test_a_fix_part_way_through_a_step_is_eq_1_with_the_rotation_scaled(segment):

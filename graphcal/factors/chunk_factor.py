@@ -285,15 +285,15 @@ class ChunkOdometryFactor:
             blocks.append(result.rear_slip_gain)
         return blocks
 
-    def theta_normal_equations(self, thetas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """``AᵀA (C, 4, 4)`` and ``Aᵀb (C, 4)`` of this factor's whitened linearization at
-        each theta of ``thetas (C, 4)`` (``b``: minus the whitened error) — the blocks of
-        GTSAM's ``augmentedHessian`` of :meth:`factor` linearized there — in one vectorized
+    def theta_augmented_hessians(self, thetas: np.ndarray) -> np.ndarray:
+        """``[AᵀA Aᵀb; bᵀA bᵀb] (C, 5, 5)`` of this factor's whitened linearization at each
+        theta of ``thetas (C, 4)`` (``b``: minus the whitened error) — GTSAM's
+        ``augmentedHessian`` of :meth:`factor` linearized there — in one vectorized
         evaluation of the chunk stacked ``C`` times. For a factor whose only variable is
         theta: a held start, no end, no corrections, no defects (the paper's Step 1)."""
         others = [k for k in self._slot_keys() if k is not None and k != self.theta_key]
         if self.theta_key is None or others:
-            raise ValueError("theta_normal_equations needs a factor on theta alone")
+            raise ValueError("theta_augmented_hessians needs a factor on theta alone")
         thetas = np.asarray(thetas, float)
         count, chunk = len(thetas), self.chunk
 
@@ -310,12 +310,8 @@ class ChunkOdometryFactor:
         error, jacobian = result.error, result.theta
         if self.rows is not None:
             error, jacobian = error[:, self.rows], jacobian[:, self.rows]
-        whitened = jacobian / self.sigmas[:, None]
-        rhs = -error / self.sigmas
-        return (
-            np.einsum("cri,crj->cij", whitened, whitened),
-            np.einsum("cri,cr->ci", whitened, rhs),
-        )
+        rows = np.concatenate([jacobian, -error[..., None]], axis=2) / self.sigmas[:, None]
+        return np.einsum("cri,crj->cij", rows, rows)
 
     def __call__(
         self, factor: gtsam.CustomFactor, values: gtsam.Values, H: list | None

@@ -16,6 +16,7 @@ import numpy as np
 
 from graphcal.errors import CalibrationFailed, check_settings
 from graphcal.factors import PAPER_POSE_WEIGHTS, pose_sigmas
+from graphcal.factors.chunk_factor import ChunkOdometryFactor
 from graphcal.graph.construction import keys
 from graphcal.graph.construction.builder import build_segment_graph
 from graphcal.graph.construction.built_graph import BuiltGraph
@@ -100,7 +101,7 @@ def held_start_batches(
     spread (a 24 km drive's batches one step from the whole log's solution were up to 0.29
     of their spread from their own solves; two steps, within 0.0014). Each segment is
     evaluated at the thetas of all the batches it is in at once
-    (:meth:`~graphcal.factors.ChunkOdometryFactor.theta_normal_equations`): the 24 km
+    (:meth:`~graphcal.factors.ChunkOdometryFactor.theta_augmented_hessians`): the 24 km
     drive's 900 member linearizations 3.5 → 1.2 s for the whole of Step 1."""
     spec = settings.graph_spec()
     if spec.start_prior_sigmas is not None:
@@ -111,48 +112,50 @@ def held_start_batches(
     graphs = [build_segment_graph(data.take([s]), alone) for s in range(len(data))]
     prior = _prior_graph(spec)
     prior_sigmas = spec.theta_prior_sigmas
+    factors = [_theta_factor(built) for built in graphs]
     first = ReducedSystems(
         (keys.THETA,),
         point,
-        np.array([_augmented_hessian(built.graph, built.values, point) for built in graphs]),
+        np.concatenate([factor.theta_augmented_hessians(point[None]) for factor in factors]),
         _augmented_hessian(prior, gtsam.Values(), point),
     )
     batches = np.asarray(batches, int)
     out = first.solve(batches).values
-    hessian, rhs = _members_at_batch_thetas(graphs, batches, out)
+    members = _members_at_batch_thetas(factors, batches, out)
     for b in range(len(batches)):
         if not np.all(np.isfinite(out[b])):
             continue
-        system = _augmented_hessian(prior, gtsam.Values(), out[b])
+        system = _augmented_hessian(prior, gtsam.Values(), out[b]) + members[b]
         try:
-            step = np.linalg.solve(system[:4, :4] + hessian[b], system[:4, 4] + rhs[b])
-            out[b] = out[b] + step
+            out[b] = out[b] + np.linalg.solve(system[:4, :4], system[:4, 4])
             check_plausible(out[b], "batch solve", spec.theta, prior_sigmas=prior_sigmas)
         except (np.linalg.LinAlgError, CalibrationFailed):
             out[b] = np.nan  # what a failed solve of its own gives
     return out
 
 
+def _theta_factor(built: BuiltGraph) -> ChunkOdometryFactor:
+    """The one chunk factor, on theta alone, of a held-start segment graph."""
+    if built.graph.size() != 1 or len(built.chunk_factors) != 1:
+        raise ValueError("a held-start segment graph is one chunk factor on theta")
+    return built.chunk_factors[0].factor
+
+
 def _members_at_batch_thetas(
-    graphs: list[BuiltGraph], batches: np.ndarray, thetas: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """``AᵀA (B, 4, 4)`` and ``Aᵀb (B, 4)`` of each batch's members (``graphs``: one
-    held-start segment graph each, a chunk factor on theta alone) linearized at the batch's
-    theta of ``thetas (B, 4)`` (zero for a batch whose theta is not finite): per segment,
-    one vectorized evaluation at the thetas of every batch it is in."""
-    hessian, rhs = np.zeros((len(batches), 4, 4)), np.zeros((len(batches), 4))
+    factors: list[ChunkOdometryFactor], batches: np.ndarray, thetas: np.ndarray
+) -> np.ndarray:
+    """``(B, 5, 5)``: the augmented Hessians of each batch's members (``factors``: one per
+    segment, on theta alone) linearized at the batch's theta of ``thetas (B, 4)``, summed
+    (zero for a batch whose theta is not finite): per segment, one vectorized evaluation at
+    the thetas of every batch it is in."""
+    out = np.zeros((len(batches), 5, 5))
     finite = np.all(np.isfinite(thetas), axis=1)
-    for s, built in enumerate(graphs):
-        if built.graph.size() != 1 or len(built.chunk_factors) != 1:
-            raise ValueError("a held-start segment graph is one chunk factor on theta")
+    for s, factor in enumerate(factors):
         times = np.sum(batches == s, axis=1) * finite  # a member once per draw of it
         rows = np.nonzero(times)[0]
-        if len(rows) == 0:
-            continue
-        h, g = built.chunk_factors[0].factor.theta_normal_equations(thetas[rows])
-        hessian[rows] += times[rows, None, None] * h
-        rhs[rows] += times[rows, None] * g
-    return hessian, rhs
+        if len(rows) > 0:
+            out[rows] += times[rows, None, None] * factor.theta_augmented_hessians(thetas[rows])
+    return out
 
 
 def _prior_graph(spec: SegmentGraphSpec) -> gtsam.NonlinearFactorGraph:
