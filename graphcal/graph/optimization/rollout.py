@@ -116,7 +116,8 @@ class LinearGap:
             step.at(key) if step.exists(key) else np.zeros(dim)
             for key, dim in zip(self.keys, self.dims, strict=True)
         ]
-        return self.sigmas * (self.a @ np.concatenate(parts) - self.b)
+        # elementwise, not BLAS: the same bits whatever the arrays' memory alignment
+        return self.sigmas * (np.sum(self.a * np.concatenate(parts), axis=1) - self.b)
 
 
 def linear_gaps(
@@ -134,7 +135,9 @@ def linear_gaps(
         factor_keys = tuple(factor.keys())
         sigmas = np.asarray(graph.at(link.factor).noiseModel().sigmas())[-3:]
         key_dims = tuple(dims[key] for key in factor_keys)
-        out.append(LinearGap(factor_keys, key_dims, a[-3:], b[-3:], sigmas))
+        # copies: a view would keep the factor's whole Jacobian (a chunk's ~150 rows) alive
+        # from the elimination to the step (80 of 145 MB of a 24 km graph's parts)
+        out.append(LinearGap(factor_keys, key_dims, a[-3:].copy(), b[-3:].copy(), sigmas))
     return out
 
 
