@@ -253,3 +253,24 @@ def test_validation_spread_is_the_scatter_of_the_error_under_theta_sigma(drive, 
     spread = position_error_spread(data, theta, np.diag(sigma**2))
     assert spread == pytest.approx(np.std(draws), rel=0.3)
     assert position_error_spread(data, theta, None) == 0.0
+
+
+def test_a_long_logs_validation_gives_each_segment_its_own_error(monkeypatch):
+    # The validation integrates BLOCK_SEGMENTS segments at a time (a 200 km log's 672 at once
+    # held ~120 MB a theta): each segment's error is the one it has alone, to the bit.
+    from pathlib import Path
+
+    from graphcal.log.load import load_drive_log
+    from graphcal.pipeline.methods import validation
+
+    log = load_drive_log(Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv")
+    data = gather_segments(log, split_segments(log, 20.0))
+    block = validation.BLOCK_SEGMENTS
+    assert len(data) > block
+    theta = np.array([1.985, 1.2e-3, 1.585, 1.5e-3])
+    blocked = position_errors(data, theta)
+    monkeypatch.setattr(validation, "BLOCK_SEGMENTS", len(data))
+    assert np.array_equal(blocked, position_errors(data, theta))
+    for i in (0, block, len(data) - 1):
+        alone = position_errors(data.take(np.array([i]), trim=False), theta)
+        assert alone[0] == blocked[i]

@@ -140,9 +140,10 @@ class SegmentData:
         k = int(self.n_steps[index])
         return self.poses[index, : k + 1], self.inputs[index, :k]
 
-    def take(self, index: np.ndarray) -> SegmentData:
-        """The segments at ``index`` (trimmed to their own longest length)."""
-        k = int(self.n_steps[index].max())
+    def take(self, index: np.ndarray, trim: bool = True) -> SegmentData:
+        """The segments at ``index``, trimmed to their own longest length (``trim``) or padded
+        as here (a sum over a row's padding gives the same bits as here)."""
+        k = int(self.n_steps[index].max()) if trim else self.inputs.shape[1]
 
         def rows(array: np.ndarray | None) -> np.ndarray | None:
             return None if array is None else array[index, : k + 1]
