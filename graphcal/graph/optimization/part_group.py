@@ -56,11 +56,17 @@ class PartGroup:
         """Each part's error at its values."""
         return [float(p.graph.error(p.values)) for p in self.parts]
 
-    def eliminate(self, lam: float | None) -> list[tuple[SharedBlock, np.ndarray]]:
+    def eliminate(
+        self, lam: float | None, keep: bool = True
+    ) -> list[tuple[SharedBlock, np.ndarray]]:
         """Linearize every part, damp its local keys by ``λ · scale`` (``None``: undamped)
         and eliminate them; per part, its reduced system as the block of the augmented
         Hessian on the shared keys it touches and its Hessian diagonal on them ``(n,)``
-        (zeros when undamped: only damping needs it)."""
+        (zeros when undamped: only damping needs it). With ``keep``, what :meth:`step`
+        needs is kept (each part's Bayes net, gradient and gaps); without, each part's is
+        dropped as soon as its reduced system is out — a pass that wants the reduced systems
+        alone (information, the segments' systems) then holds one part's at a time, not the
+        whole log's."""
         out = []
         self._eliminated = []
         n = sum(self.dims[k] for k in self.shared)
@@ -69,12 +75,14 @@ class PartGroup:
             shared_diagonal, root = np.zeros(n), {}
             if lam is not None:
                 shared_diagonal, root = self._damping(part, linear, Damping(lam))
-            gradient = linear.gradientAtZero()
-            gaps = linear_gaps(part.graph, linear, links, self.dims)
+            if keep:
+                gradient = linear.gradientAtZero()
+                gaps = linear_gaps(part.graph, linear, links, self.dims)
             add_damping(linear, self.dims, root)  # the linear system is not kept: damp it
             bayes_net, reduced = linear.eliminatePartialSequential(gtsam.KeyVector(part.local))
             out.append((shared_block(reduced, self.shared, self.dims), shared_diagonal))
-            self._eliminated.append(_Eliminated(bayes_net, gradient, root, gaps))
+            if keep:
+                self._eliminated.append(_Eliminated(bayes_net, gradient, root, gaps))
         return out
 
     def _damping(

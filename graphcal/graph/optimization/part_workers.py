@@ -38,9 +38,10 @@ class Eliminate:
     """Each part eliminated at damping ``lam`` (:meth:`PartGroup.eliminate`)."""
 
     lam: float | None
+    keep: bool = True
 
     def apply(self, group: PartGroup) -> list[tuple[np.ndarray, np.ndarray]]:
-        return group.eliminate(self.lam)
+        return group.eliminate(self.lam, self.keep)
 
 
 @dataclass(frozen=True)
@@ -232,9 +233,12 @@ class PartWorkers:
         """Each part's error at its values."""
         return self._ask(Errors())
 
-    def eliminate(self, lam: float | None) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Each part's reduced system and shared Hessian diagonal (:meth:`PartGroup.eliminate`)."""
-        return self._ask(Eliminate(lam))
+    def eliminate(
+        self, lam: float | None, keep: bool = True
+    ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Each part's reduced system and shared Hessian diagonal (:meth:`PartGroup.eliminate`;
+        without ``keep``, nothing is kept for a step)."""
+        return self._ask(Eliminate(lam, keep))
 
     def step(self, shared_step: dict[int, np.ndarray]) -> list[float]:
         """Each part's predicted decrease for the shared step (:meth:`PartGroup.step`)."""

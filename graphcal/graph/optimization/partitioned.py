@@ -133,11 +133,14 @@ class PartitionedGraph:
         graphs = [self.shared_graph, *(p.graph for p in self.parts)]
         return sum(g.at(i).dim() for g in graphs for i in range(g.size()))
 
-    def system(self, lam: float | None) -> tuple[np.ndarray, np.ndarray, gtsam.GaussianFactorGraph]:
+    def system(
+        self, lam: float | None, keep: bool = True
+    ) -> tuple[np.ndarray, np.ndarray, gtsam.GaussianFactorGraph]:
         """Every part eliminated to the shared keys at damping ``lam`` (``None``: undamped)
         with the shared factors added: the augmented Hessian on the shared keys, their
-        Hessian diagonal and the shared factors' linearization."""
-        reduced = self.workers.eliminate(lam)
+        Hessian diagonal and the shared factors' linearization; with ``keep``, the parts
+        keep what a step needs."""
+        reduced = self.workers.eliminate(lam, keep)
         total = np.zeros((self.n + 1, self.n + 1))
         for block, _ in reduced:
             block.add_to(total)
@@ -160,8 +163,7 @@ class PartitionedGraph:
         step, that of its last linearization (one step, of at most the solve's tolerance, before the
         current values); else computed at them."""
         if self._information is None:
-            total, _, _ = self.system(None)
-            self.workers.release()
+            total, _, _ = self.system(None, keep=False)
             self._information = total[:-1, :-1].copy()
         return self._information.copy()
 
@@ -182,8 +184,7 @@ class PartitionedGraph:
         in part order, and the shared factors' own augmented Hessian. The system of any
         subset of parts is the sum of its members' and the shared one
         (:mod:`graphcal.graph.solution.reduced_systems`)."""
-        reduced = self.workers.eliminate(None)
-        self.workers.release()
+        reduced = self.workers.eliminate(None, keep=False)
         shared_linear = self.shared_graph.linearize(self.shared_values)
         return [r for r, _ in reduced], augmented_hessian(shared_linear, self.shared, self.dims)
 
