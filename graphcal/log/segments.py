@@ -141,8 +141,8 @@ class SegmentData:
         return self.poses[index, : k + 1], self.inputs[index, :k]
 
     def take(self, index: np.ndarray, trim: bool = True) -> SegmentData:
-        """The segments at ``index``, trimmed to their own longest length (``trim``) or padded
-        as here (a sum over a row's padding gives the same bits as here)."""
+        """The segments at ``index``, trimmed to their own longest length (``trim``) or kept
+        padded to this data's longest (then a sum along a row gives the same bits as here)."""
         k = int(self.n_steps[index].max()) if trim else self.inputs.shape[1]
 
         def rows(array: np.ndarray | None) -> np.ndarray | None:
