@@ -61,8 +61,8 @@ def test_a_creeping_first_solve_stops_only_for_a_caller_that_reweights(segments)
     data, spec, one_graph = segments
     # Near its minimum every solve lowers its error slowly: with no χ²/dof too low to
     # watch, and a tolerance that keeps it iterating there, that is a creep.
-    options = SolveOptions(50, 1e-14, "creep test")
-    watched = SolveOptions(50, 1e-14, "creep test", misweighted_chi2=1e-9)
+    options = SolveOptions(50, 1e-14, "creep test", last_step_sigmas=0.0)
+    watched = SolveOptions(50, 1e-14, "creep test", misweighted_chi2=1e-9, last_step_sigmas=0.0)
     full = solve_segment_graph(data, spec, options, covariance=False)
     assert (full.partitioned is None) == one_graph
     assert full.outcome.converged and full.outcome.status is not SolveStatus.MISWEIGHTED
@@ -100,8 +100,10 @@ def test_a_first_solve_under_far_too_tight_weights_stops_where_its_noise_is_read
     data, spec, _ = segments
     # The fixes and headings weighted as a third of their noise: χ²/dof about 9.
     tight = dataclasses.replace(spec, tracking_sigmas=np.asarray(spec.tracking_sigmas) / 3.0)
-    options = SolveOptions(50, 1e-14, "noise read test")
-    reading = SolveOptions(50, 1e-14, "noise read test", noise_read_tolerance=1e-3)
+    options = SolveOptions(50, 1e-14, "noise read test", last_step_sigmas=0.0)
+    reading = SolveOptions(
+        50, 1e-14, "noise read test", noise_read_tolerance=1e-3, last_step_sigmas=0.0
+    )
     full = solve_segment_graph(data, tight, options, covariance=False)
     read = solve_segment_graph(data, tight, reading, covariance=False)
     assert read.outcome.status is SolveStatus.NOISE_READ

@@ -27,9 +27,9 @@ from graphcal.graph.optimization.levenberg_marquardt import (
     RunawayWatch,
     Verdict,
     converged,
-    error_tolerance,
     gauss_newton_next,
     judge_step,
+    last_step_tolerance,
     raised_scale,
 )
 from graphcal.graph.optimization.linear_systems import predicted_decrease, vector_values
@@ -67,9 +67,10 @@ class _Solve:
     """The state of one solve: the error at the current values, the damping and its scale
     on the shared keys, and whether the next step is undamped."""
 
-    def __init__(self, graph: PartitionedGraph, relative_error_tol: float, undamped: bool):
+    def __init__(self, graph: PartitionedGraph, options: SolveOptions, undamped: bool):
         self.graph = graph
-        self.tol = relative_error_tol
+        self.tol = options.relative_error_tol
+        self.step_sigmas = options.last_step_sigmas
         self.error = graph.error()
         self.shared_scale: np.ndarray | None = None
         self.damping = Damping()
@@ -137,10 +138,12 @@ class _Solve:
     def _judge(self, trial: _Trial) -> _Iteration | None:
         """Take, or reject, ``trial``; ``None`` to try again (damped, or damped more)."""
         graph, error = self.graph, self.error
-        # A Gauss–Newton step that lowers the error by at most the tolerance is the last;
-        # its undamped linearization gives the covariance. It is taken without evaluating
-        # the error: at that size its decrease is its prediction.
-        if self.undamped and abs(trial.predicted) <= error_tolerance(error, self.tol):
+        # A Gauss–Newton step that lowers the error by at most the tolerance, or moves no
+        # variable by more than ``last_step_sigmas`` of its σ, is the last; its undamped
+        # linearization gives the covariance. It is taken without evaluating the error: at
+        # that size its decrease is its prediction.
+        last = last_step_tolerance(error, self.tol, self.step_sigmas)
+        if self.undamped and abs(trial.predicted) <= last:
             return self._last_step(trial)  # (rounding: slightly below 0)
         errors = graph.workers.try_step()
         candidate_shared = graph.shared_values.retract(vector_values(trial.step))
@@ -193,7 +196,10 @@ def optimize(
     undamped Gauss–Newton steps; if one fails or is not accepted, the solve damps again
     and stays Levenberg–Marquardt (a log whose parameters are barely determined, such as
     t_r and d on a straight road, needs the damping). The solve stops when an undamped step
-    would lower the error by at most ``options.relative_error_tol`` of it. That step is taken
+    would lower the error by at most ``options.relative_error_tol`` of it, or move no
+    variable by more than ``options.last_step_sigmas`` of its σ
+    (:func:`~graphcal.graph.optimization.levenberg_marquardt.last_step_tolerance`).
+    That step is taken
     without evaluating the error (the error after it is the one predicted, exact to
     far below the tolerance), and its undamped linearization, a step this small from
     the solution, gives
@@ -214,7 +220,7 @@ def optimize(
     (a long log's solve shows it is moving; a short one prints nothing)."""
     started = time.perf_counter()
     dof = max(1, graph.factor_dims() - graph.dim())
-    solve = _Solve(graph, options.relative_error_tol, gauss_newton_first)
+    solve = _Solve(graph, options, gauss_newton_first)
     watch = CreepWatch(
         options.misweighted_chi2, dof, noise_read_tolerance=options.noise_read_tolerance
     )

@@ -39,6 +39,11 @@ class SolveOptions:
             iteration after iteration
             (:class:`~graphcal.graph.optimization.levenberg_marquardt.RunawayWatch`), for its
             caller to judge the runaway at once; ``None``: not watched.
+        last_step_sigmas: the part-by-part solve
+            (:mod:`~graphcal.graph.optimization.partitioned_lm`) also converges at a
+            Gauss–Newton step that moves no variable by more than this share of its σ
+            (:func:`~graphcal.graph.optimization.levenberg_marquardt.last_step_tolerance`);
+            0: at the relative tolerance alone (a minimum to compare with another solver's).
     """
 
     max_iterations: int = 50
@@ -49,6 +54,7 @@ class SolveOptions:
     misweighted_chi2: float = 0.0
     noise_read_tolerance: float = 0.0
     runaway: Callable[[gtsam.Values], float] | None = None
+    last_step_sigmas: float = 0.1
 
 
 class SolveStatus(enum.Enum):
