@@ -69,3 +69,26 @@ def test_wheel_corrections_stay_with_the_rotations_they_correct():
     unmoved = with_corrections_shifted(values, 1, np.array([0]))
     np.testing.assert_array_equal(corrections(unmoved), steps)
     np.testing.assert_array_equal(unmoved.atVector(keys.THETA), np.ones(4))
+
+
+def test_values_are_copied_and_sent_whatever_kind_their_letter_held_before():
+    # copy_value and portable read a key as the kind its letter held last (a failed read is
+    # slow): a letter holding both kinds is still read right.
+    from graphcal.graph.optimization.values import copy_value, portable, restore
+
+    source = gtsam.Values()
+    mixed = [gtsam.symbol("q", i) for i in range(4)]
+    for i, key in enumerate(mixed):
+        value = gtsam.Pose2(i, 2.0, 0.3) if i % 2 else np.array([i, 1.0])
+        source.insert(key, value)
+    target, sent = gtsam.Values(), gtsam.Values(source)
+    for key in mixed:
+        copy_value(target, source, key)
+        restore(sent, key, portable(source, key))
+    for i, key in enumerate(mixed):
+        if i % 2:
+            assert target.atPose2(key).equals(source.atPose2(key), 0.0)
+            assert sent.atPose2(key).equals(source.atPose2(key), 0.0)
+        else:
+            assert np.array_equal(target.atVector(key), source.atVector(key))
+            assert np.array_equal(sent.atVector(key), source.atVector(key))
