@@ -4,6 +4,7 @@ shifted by the whole samples of the offset it finds, until what is left is under
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -101,13 +102,33 @@ def solve_with_time_offset(
         rounded = np.where(again, [whole_samples(s, log.dt) for s in shift + found], shift)
         if np.array_equal(rounded, shift):
             break  # what is left is less than a sample: the graph's first order covers it
+        moved = np.rint(np.abs(rounded - shift) / log.dt)  # whole samples, each run
+        screened = _screened_before(whole, settings, moved <= 1)
         shift = rounded
         shown = ", ".join(f"{s * 1e3:+.1f}" for s in shift)
         again = f"wheels shifted by {shown} ms{runs_label(log.runs)}"
         say(f"{again}; solved again from the shifted log")
         data = gather_segments(shift_wheel_rotations(log, shift), selected, flagged)
-        whole, values = _whole_log_solve(data, settings, workers, values, rounds_start(whole))
+        round_settings = settings if screened is None else dataclasses.replace(settings, slip="on")
+        whole, values = _whole_log_solve(data, round_settings, workers, values, rounds_start(whole))
+        if screened is not None:
+            whole = dataclasses.replace(whole, slip_test=screened.slip_test, noise=screened.noise)
     return whole, values, data, shift
+
+
+def _screened_before(
+    whole: JointCalibration, settings: JointSettings, by_a_sample: np.ndarray
+) -> JointCalibration | None:
+    """``whole``, if the next round keeps its slip verdict: its slip screen found slip, and
+    no run's wheels move by more than a sample (``by_a_sample``, per run) — what the time
+    offset's first-order term already covered as the screen ran, so the screen would find
+    what it found. The next round then models slip from its start, with this screen's test
+    and residual noise (before slip was modelled), instead of solving without slip, screening
+    again and solving once more with it (the real robot's round after its one-sample shift:
+    3 iterations, the screen and 3 more)."""
+    if settings.slip != "auto" or not whole.slip_modelled or whole.slip_test is None:
+        return None
+    return whole if np.all(by_a_sample) else None
 
 
 def _whole_log_solve(
