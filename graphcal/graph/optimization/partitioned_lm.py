@@ -198,11 +198,10 @@ def optimize(
     t_r and d on a straight road, needs the damping). The solve stops when an undamped step
     would lower the error by at most ``options.relative_error_tol`` of it, or move no
     variable by more than ``options.last_step_sigmas`` of its σ
-    (:func:`~graphcal.graph.optimization.levenberg_marquardt.last_step_tolerance`).
-    That step is taken
-    without evaluating the error (the error after it is the one predicted, exact to
-    far below the tolerance), and its undamped linearization, a step this small from
-    the solution, gives
+    (:func:`~graphcal.graph.optimization.levenberg_marquardt.last_step_tolerance`). That
+    step is taken without evaluating the error (the error after it is the one predicted,
+    exact to far below the tolerance), and its undamped linearization, a step this small
+    from the solution, gives
     :meth:`~graphcal.graph.optimization.partitioned.PartitionedGraph.shared_information` without
     linearizing again (at the sample drive's tolerance, within 5e-5 of the covariance at the
     solution itself).
