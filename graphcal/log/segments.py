@@ -140,10 +140,9 @@ class SegmentData:
         k = int(self.n_steps[index])
         return self.poses[index, : k + 1], self.inputs[index, :k]
 
-    def take(self, index: np.ndarray, trim: bool = True) -> SegmentData:
-        """The segments at ``index``, trimmed to their own longest length (``trim``) or kept
-        padded to this data's longest (then a sum along a row gives the same bits as here)."""
-        k = int(self.n_steps[index].max()) if trim else self.inputs.shape[1]
+    def take(self, index: np.ndarray) -> SegmentData:
+        """The segments at ``index`` (trimmed to their own longest length)."""
+        k = int(self.n_steps[index].max())
 
         def rows(array: np.ndarray | None) -> np.ndarray | None:
             return None if array is None else array[index, : k + 1]
