@@ -160,8 +160,9 @@ class PartitionedGraph:
         """The shared variables' information matrix at the current values (every part's
         variables marginalized), in the order of :attr:`shared`. After
         :func:`graphcal.graph.optimization.partitioned_lm.optimize` stopped on a final Gauss–Newton
-        step, that of its last linearization (one step, of at most the solve's tolerance, before the
-        current values); else computed at them."""
+        step, that of its last linearization (one step before the current values, of at most
+        the solve's tolerance: no variable moved by more than ``last_step_sigmas`` of its σ);
+        else computed at them."""
         if self._information is None:
             total, _, _ = self.system(None, keep=False)
             self._information = total[:-1, :-1].copy()
