@@ -283,21 +283,52 @@ def wheel_rotation_jacobian(
             d p_k / d n_j = d v_j [cos, sin](course_j) + v_j [-sin, cos](course_j) d omega_j / 2
                             + d omega_j * J (p_k - p_{j+1}),  J = 90° rotation
     """
-    direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
     n_states, n_steps = states.shape[-2], inputs.shape[-2]
-    batch = np.broadcast_shapes(states.shape[:-2], inputs.shape[:-2], direct_x.shape[:-2])
+    after = after_mask(n_states, n_steps)  # (K+1, 2K): 1 where k > j
+    return carried_rotation_jacobian(states, inputs, theta, states[..., :2], after)
+
+
+def carried_rotation_jacobian(
+    states: np.ndarray,
+    inputs: np.ndarray,
+    theta: np.ndarray,
+    points: np.ndarray,
+    after: np.ndarray,
+) -> np.ndarray:
+    """d (point, heading) / d wheel rotations of ``M`` points the path carries: point ``m``
+    [m] moves and turns with the path after each step ``j`` where ``after[m, 2j]`` is 1
+    (:func:`wheel_rotation_jacobian`'s rows with ``p_k`` any point fixed to the vehicle
+    after step j, such as a fix part-way through a later step or an antenna off the axle:
+    the rest of the path turns about ``p_{j+1}``, and the point with it).
+
+    Args:
+        states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
+        inputs: ``(..., K, 4)``.
+        theta: ``(4,)`` or ``(..., 4)``.
+        points: ``(..., M, 2)`` [m].
+        after: ``(M, 2K)`` 0/1 float mask, each step's column repeated for the two wheels.
+
+    Returns:
+        ``(..., M, 3, K, 2)``: entry ``[m, :, j, :]`` is d [x, y, psi]_m / d [n_rl, n_rr]_j
+        through step j's motion and turn.
+    """
+    direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
+    n_points, n_steps = points.shape[-2], inputs.shape[-2]
+    batch = np.broadcast_shapes(
+        states.shape[:-2], inputs.shape[:-2], direct_x.shape[:-2], points.shape[:-2]
+    )
     # Written in place into the result, with the last two axes (step j, wheel) as one of
     # length 2K, so that numpy's inner loops run over 2K and not over the 2 wheels (2.1×
     # faster than broadcasting over a wheel axis of 2): this runs for every segment at every
     # linearization of a calibration.
-    after = _after_mask(n_states, n_steps)  # (K+1, 2K): 1 where k > j
     flat = (*batch, 1, 2 * n_steps)
     d_om = np.broadcast_to(domega_dn, (*batch, n_steps, 2)).reshape(flat)
-    out = np.empty((*batch, n_states, 3, 2 * n_steps))
-    # x row: direct_x - d omega * (py_k - py_j+1); y row: direct_y + d omega * (px_k - px_j+1)
+    out = np.empty((*batch, n_points, 3, 2 * n_steps))
+    # x row: direct_x - d omega * (y_m - py_j+1); y row: direct_y + d omega * (x_m - px_j+1)
     for row, (position, direct) in enumerate(((1, direct_x), (0, direct_y))):
-        p = np.broadcast_to(states[..., position], (*batch, n_states))
-        lever = p[..., :, None] - np.repeat(p[..., 1:], 2, axis=-1)[..., None, :]
+        q = np.broadcast_to(points[..., position], (*batch, n_points))
+        p = np.broadcast_to(states[..., 1:, position], (*batch, n_steps))
+        lever = q[..., :, None] - np.repeat(p, 2, axis=-1)[..., None, :]
         lever *= after
         target = out[..., row, :]
         np.multiply(d_om, lever, out=target)
@@ -305,13 +336,14 @@ def wheel_rotation_jacobian(
             np.negative(target, out=target)
         target += np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat) * after
     np.multiply(d_om, after, out=out[..., 2, :])
-    return out.reshape(*batch, n_states, 3, n_steps, 2)
+    return out.reshape(*batch, n_points, 3, n_steps, 2)
 
 
-def _after_mask(n_states: int, n_steps: int) -> np.ndarray:
-    """``(K+1, 2K)`` float mask, 1 where state k comes after step j (``k > j``), each step's
-    column repeated for the two wheels."""
-    mask = np.arange(n_states)[:, None] > np.arange(n_steps)[None, :]
+def after_mask(n_points: int, n_steps: int, first: int = 0) -> np.ndarray:
+    """``(M, 2K)`` float mask for :func:`carried_rotation_jacobian`: 1 where point m, carried
+    from state ``first + m`` on, comes after step j (``first + m > j``), each step's column
+    repeated for the two wheels."""
+    mask = np.arange(first, first + n_points)[:, None] > np.arange(n_steps)[None, :]
     return np.repeat(mask, 2, axis=-1).astype(float)
 
 
