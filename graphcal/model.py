@@ -323,18 +323,25 @@ def carried_rotation_jacobian(
     # linearization of a calibration.
     flat = (*batch, 1, 2 * n_steps)
     d_om = np.broadcast_to(domega_dn, (*batch, n_steps, 2)).reshape(flat)
+    # Positions from the path's start (metres, not a log's kilometres: no cancellation), then
+    # x row: direct_x + d omega * py_j+1 - d omega * y_m; y row: direct_y - d omega * px_j+1
+    # + d omega * x_m — the step's part (..., 1, 2K) apart from the point's, three passes over
+    # the (..., M, 2K) result per row.
+    origin = states[..., :1, :2]
+    q = np.broadcast_to(points - origin, (*batch, n_points, 2))
+    p = np.repeat(np.broadcast_to(states[..., 1:, :2] - origin, (*batch, n_steps, 2)), 2, axis=-2)
     out = np.empty((*batch, n_points, 3, 2 * n_steps))
-    # x row: direct_x - d omega * (y_m - py_j+1); y row: direct_y + d omega * (x_m - px_j+1)
-    for row, (position, direct) in enumerate(((1, direct_x), (0, direct_y))):
-        q = np.broadcast_to(points[..., position], (*batch, n_points))
-        p = np.broadcast_to(states[..., 1:, position], (*batch, n_steps))
-        lever = q[..., :, None] - np.repeat(p, 2, axis=-1)[..., None, :]
-        lever *= after
+    for row, (position, direct, sign) in enumerate(((1, direct_x, -1.0), (0, direct_y, 1.0))):
+        step = np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat) - sign * d_om * (
+            p[..., position].reshape(flat)
+        )
         target = out[..., row, :]
-        np.multiply(d_om, lever, out=target)
-        if row == 0:
-            np.negative(target, out=target)
-        target += np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat) * after
+        np.multiply(q[..., position, None], d_om, out=target)
+        if sign < 0:
+            np.subtract(step, target, out=target)
+        else:
+            target += step
+        target *= after
     np.multiply(d_om, after, out=out[..., 2, :])
     return out.reshape(*batch, n_points, 3, n_steps, 2)
 
