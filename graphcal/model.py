@@ -116,16 +116,17 @@ def _increment_jacobians(
     v = 0.5 * (n_rl * c_rl + n_rr * c_rr)
     omega = (n_rr * c_rr - n_rl * c_rl) / t_r
     n_sum, n_diff = n_rl + n_rr, n_rl - n_rr
-    dv_dn = np.stack(np.broadcast_arrays(0.5 * c_rl, 0.5 * c_rr), axis=-1)
-    domega_dn = np.stack(np.broadcast_arrays(-c_rl / t_r, c_rr / t_r), axis=-1)
-    zero = np.zeros_like(v)
-    dv_dtheta = np.stack(
-        np.broadcast_arrays(0.5 * n_sum, 0.25 * n_diff, zero, 0.5 * ay * n_diff), axis=-1
-    )
-    domega_dtheta = np.stack(
-        np.broadcast_arrays(-n_diff / t_r, -0.5 * n_sum / t_r, -omega / t_r, -ay * n_sum / t_r),
-        axis=-1,
-    )
+    # Filled column by column (np.stack of broadcast arrays: ~30 µs a call, four calls for
+    # each chunk block of every linearization)
+    shape = v.shape
+    dv_dn, domega_dn = np.empty((*shape, 2)), np.empty((*shape, 2))
+    dv_dn[..., 0], dv_dn[..., 1] = 0.5 * c_rl, 0.5 * c_rr
+    domega_dn[..., 0], domega_dn[..., 1] = -c_rl / t_r, c_rr / t_r
+    dv_dtheta, domega_dtheta = np.empty((*shape, 4)), np.empty((*shape, 4))
+    dv_dtheta[..., 0], dv_dtheta[..., 1] = 0.5 * n_sum, 0.25 * n_diff
+    dv_dtheta[..., 2], dv_dtheta[..., 3] = 0.0, 0.5 * ay * n_diff
+    domega_dtheta[..., 0], domega_dtheta[..., 1] = -n_diff / t_r, -0.5 * n_sum / t_r
+    domega_dtheta[..., 2], domega_dtheta[..., 3] = -omega / t_r, -ay * n_sum / t_r
     return v, omega, dv_dn, domega_dn, dv_dtheta, domega_dtheta
 
 
@@ -138,10 +139,15 @@ def _sideslip_stretch(inputs: np.ndarray) -> np.ndarray:
 
 def _prefix_sum(x: np.ndarray, axis: int) -> np.ndarray:
     """Cumulative sum with a leading zero along ``axis`` (length grows by one)."""
-    x = np.moveaxis(x, axis, -1)
-    out = np.zeros((*x.shape[:-1], x.shape[-1] + 1))
-    np.cumsum(x, axis=-1, out=out[..., 1:])
-    return np.moveaxis(out, -1, axis)
+    x = np.asarray(x)
+    axis %= x.ndim
+    shape = list(x.shape)
+    shape[axis] += 1
+    out = np.empty(shape)
+    head = (slice(None),) * axis
+    out[(*head, 0)] = 0.0
+    np.cumsum(x, axis=axis, out=out[(*head, slice(1, None))])
+    return out
 
 
 def integrate(start: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -197,7 +203,8 @@ def integrate_with_jacobians(
     dtravel = dv_dth * stretch[..., None]
     dpx = _prefix_sum(dtravel * c - vv * s * dcourse, -2)
     dpy = _prefix_sum(dtravel * s + vv * c * dcourse, -2)
-    d_theta = np.stack(np.broadcast_arrays(dpx, dpy, dpsi), axis=-2)
+    d_theta = np.empty((*np.broadcast_shapes(dpx.shape, dpsi.shape)[:-1], 3, 4))
+    d_theta[..., 0, :], d_theta[..., 1, :], d_theta[..., 2, :] = dpx, dpy, dpsi
     return states, d_start, d_theta
 
 
