@@ -216,44 +216,6 @@ def lever_offset(heading: np.ndarray | float, arm: np.ndarray) -> np.ndarray:
     return np.stack([cos * ahead - sin * left, sin * ahead + cos * left], axis=-1)
 
 
-def aligned_trajectory(
-    states: np.ndarray,
-    measured: np.ndarray,
-    weights: np.ndarray | None = None,
-    lever_arm: np.ndarray | None = None,
-) -> np.ndarray:
-    """``states (K+1, 3)`` turned and shifted as one rigid body to fit the positions of
-    ``measured (K+1, 3)`` in weighted least squares (weights ``(K+1,)``, default 1): the
-    2-D Procrustes solution, headings turned with the positions. With ``lever_arm``
-    ``[ahead, left]`` [m] the measured positions are of a point that far from the centre of
-    gravity (a GNSS antenna): that point's path is fitted, and the states moved with it. An
-    integrated path that starts at a measured pose inherits that pose's error (1.5° of
-    heading is 4 m of drift over 150 m); aligned, it is as close to the measurements as its
-    shape allows."""
-    w = np.ones(len(states)) if weights is None else np.asarray(weights, float)
-    total = float(w.sum())
-    if total <= 0:
-        return states
-    p = states[:, :2]
-    a = p
-    if lever_arm is not None:
-        a = p + lever_offset(states[:, 2], lever_arm)
-    b = measured[:, :2]
-    # Elementwise sums, not BLAS: the same bits whatever the arrays' memory alignment.
-    a_mean = np.sum(w[:, None] * a, axis=0) / total
-    b_mean = np.sum(w[:, None] * b, axis=0) / total
-    da, db = (a - a_mean) * w[:, None], b - b_mean
-    h = np.sum(da[:, :, None] * db[:, None, :], axis=0)  # Σ w (a − ā)ᵀ (b − b̄)
-    angle = float(np.arctan2(h[0, 1] - h[1, 0], h[0, 0] + h[1, 1]))
-    cos, sin = np.cos(angle), np.sin(angle)
-    out = np.empty_like(states)
-    dx, dy = p[:, 0] - a_mean[0], p[:, 1] - a_mean[1]  # the same motion for every point
-    out[:, 0] = cos * dx - sin * dy + b_mean[0]
-    out[:, 1] = sin * dx + cos * dy + b_mean[1]
-    out[:, 2] = states[:, 2] + angle
-    return out
-
-
 def _direct_rotation_effects(
     states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -290,8 +252,7 @@ def wheel_rotation_jacobian(
             d p_k / d n_j = d v_j [cos, sin](course_j) + v_j [-sin, cos](course_j) d omega_j / 2
                             + d omega_j * J (p_k - p_{j+1}),  J = 90° rotation
     """
-    n_states, n_steps = states.shape[-2], inputs.shape[-2]
-    after = after_mask(n_states, n_steps)  # (K+1, 2K): 1 where k > j
+    after = after_mask(states.shape[-2], inputs.shape[-2])  # (K+1, 2K): 1 where k > j
     return carried_rotation_jacobian(states, inputs, theta, states[..., :2], after)
 
 
@@ -302,16 +263,13 @@ def carried_rotation_jacobian(
     points: np.ndarray,
     after: np.ndarray,
 ) -> np.ndarray:
-    """d (point, heading) / d wheel rotations of ``M`` points the path carries: point ``m``
-    [m] moves and turns with the path after each step ``j`` where ``after[m, 2j]`` is 1
-    (:func:`wheel_rotation_jacobian`'s rows with ``p_k`` any point fixed to the vehicle
-    after step j, such as a fix part-way through a later step or an antenna off the axle:
-    the rest of the path turns about ``p_{j+1}``, and the point with it).
+    """d (point, heading) / d wheel rotations of ``M`` points the path carries, point ``m``
+    [m] moving with it after each step ``j`` where ``after[m, 2j]`` is 1: the rows of
+    :func:`wheel_rotation_jacobian` with ``p_k`` any point fixed to the vehicle then (a fix
+    part-way through a later step, an antenna off the axle).
 
     Args:
-        states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
-        inputs: ``(..., K, 4)``.
-        theta: ``(4,)`` or ``(..., 4)``.
+        states, inputs, theta: as :func:`wheel_rotation_jacobian`'s.
         points: ``(..., M, 2)`` [m].
         after: ``(M, 2K)`` 0/1 float mask, each step's column repeated for the two wheels.
 
@@ -324,16 +282,12 @@ def carried_rotation_jacobian(
     batch = np.broadcast_shapes(
         states.shape[:-2], inputs.shape[:-2], direct_x.shape[:-2], points.shape[:-2]
     )
-    # Written in place into the result, with the last two axes (step j, wheel) as one of
-    # length 2K, so that numpy's inner loops run over 2K and not over the 2 wheels (2.1×
-    # faster than broadcasting over a wheel axis of 2): this runs for every segment at every
-    # linearization of a calibration.
+    # In place, the axes (step j, wheel) as one of 2K: numpy's inner loops run over 2K, not
+    # 2 wheels (2.1× faster). Positions from the path's start (metres, not a log's
+    # kilometres: no cancellation); x = direct_x + dω py_j+1 − dω y_m, y = direct_y − dω
+    # px_j+1 + dω x_m: the step's part (..., 1, 2K) apart, three passes per row.
     flat = (*batch, 1, 2 * n_steps)
     d_om = np.broadcast_to(domega_dn, (*batch, n_steps, 2)).reshape(flat)
-    # Positions from the path's start (metres, not a log's kilometres: no cancellation), then
-    # x row: direct_x + d omega * py_j+1 - d omega * y_m; y row: direct_y - d omega * px_j+1
-    # + d omega * x_m — the step's part (..., 1, 2K) apart from the point's, three passes over
-    # the (..., M, 2K) result per row.
     origin = states[..., :1, :2]
     q = np.broadcast_to(points - origin, (*batch, n_points, 2))
     p = np.repeat(np.broadcast_to(states[..., 1:, :2] - origin, (*batch, n_steps, 2)), 2, axis=-2)
@@ -354,9 +308,8 @@ def carried_rotation_jacobian(
 
 
 def after_mask(n_points: int, n_steps: int, first: int = 0) -> np.ndarray:
-    """``(M, 2K)`` float mask for :func:`carried_rotation_jacobian`: 1 where point m, carried
-    from state ``first + m`` on, comes after step j (``first + m > j``), each step's column
-    repeated for the two wheels."""
+    """``(M, 2K)`` mask for :func:`carried_rotation_jacobian`: 1.0 where point m, carried from
+    state ``first + m`` on, comes after step j (``first + m > j``), twice (the wheels)."""
     mask = np.arange(first, first + n_points)[:, None] > np.arange(n_steps)[None, :]
     return np.repeat(mask, 2, axis=-1).astype(float)
 

@@ -135,7 +135,7 @@ def test_wheel_rotation_jacobian_of_a_batch_is_each_members(rng):
 
 
 def test_aligned_trajectory_moves_a_rigidly_moved_path_back(rng):
-    from graphcal.model import aligned_trajectory
+    from graphcal.alignment import aligned_trajectory
 
     inputs = random_inputs(rng, (200,))
     measured = integrate(np.array([12.0, -7.0, 2.5]), inputs, THETA)

@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import gtsam
 import numpy as np
 
+from graphcal.alignment import aligned_trajectory
 from graphcal.factors import (
     ChunkBatch,
     ChunkNoise,
@@ -61,7 +62,7 @@ from graphcal.graph.construction.chunking import chunk_bounds
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
 from graphcal.log.segments import SegmentData
 from graphcal.log.timing import rotation_rate_changes
-from graphcal.model import aligned_trajectory, integrate
+from graphcal.model import integrate
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ sample has no measured pose starts at the track there (:mod:`graphcal.log.track`
 position and a heading were measured within :data:`TRACK_START_S` of it (a fused pose at
 20 Hz on the 40 Hz grid: the track is the pose interpolated over 50 ms); otherwise (no
 heading logged, or none near) it starts where its dead-reckoned path fits the fixes best
-(rigidly, :func:`graphcal.model.aligned_trajectory`). A rigid fit forgives a heading drift
+(rigidly, :func:`graphcal.alignment.aligned_trajectory`). A rigid fit forgives a heading drift
 that a start at the measured pose shows: on the real car's minute of highway, nominal theta
 drifts 1.2 m on average over 300 m aligned, 4 m from the fused pose.
 """
@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from graphcal.alignment import aligned_trajectory
 from graphcal.log.segments import SegmentData
-from graphcal.model import aligned_trajectory, integrate, lever_offset, partial_steps
+from graphcal.model import integrate, lever_offset, partial_steps
 
 #: A segment starts at the track's pose [s] when a position fix and a heading were measured
 #: this close after its first sample (else it is fitted to its fixes rigidly).
