@@ -28,11 +28,10 @@ class SolveOptions:
             (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`): weights
             far tighter than the misfit, for a caller that reads the noise from the
             residuals and solves again under it.
-        noise_read_tolerance: > 0: while the χ²/dof is above
-            :data:`~graphcal.graph.optimization.levenberg_marquardt.FAR_OFF_CHI2` (weights
-            far from the residuals), the solve stops (:attr:`SolveStatus.NOISE_READ`) where an
-            iteration lowers the error by at most this fraction of it, for a caller that
-            reads the noise from the residuals and solves again under it.
+        noise_read_tolerance: > 0: the solve stops (:attr:`SolveStatus.NOISE_READ`) where
+            an iteration lowers the error by at most this fraction of it, for a caller that
+            reads the noise from the residuals and solves again where it changed (else goes
+            on from there).
         runaway: how far the iterate's graph-wide variables lie beyond their plausible
             range (0 inside; :class:`~graphcal.graph.solution.plausibility.BeyondPlausible`):
             the solve stops (:attr:`SolveStatus.RUNAWAY`) once they run farther out
@@ -70,9 +69,8 @@ class SolveStatus(enum.Enum):
     #: It crept at a χ²/dof far above any noise (``SolveOptions.misweighted_chi2``): not a
     #: minimum, a point to read the noise at.
     MISWEIGHTED = "misweighted"
-    #: Under weights far from its residuals (χ²/dof far above 1), an iteration lowered the
-    #: error by at most ``SolveOptions.noise_read_tolerance``: where the noise is read, a
-    #: minimum to that tolerance.
+    #: An iteration lowered the error by at most ``SolveOptions.noise_read_tolerance``:
+    #: where the noise is read, a minimum to that tolerance.
     NOISE_READ = "noise read"
     #: Its graph-wide variables ran out of their plausible range iteration after iteration
     #: (``SolveOptions.runaway``): not a minimum, a runaway to judge.
@@ -115,7 +113,7 @@ class SolveOutcome:
         if self.status is SolveStatus.NOISE_READ:
             return (
                 f"stopped after {self.iterations} iteration(s) where its noise is read "
-                "(weights far from its residuals)"
+                "for the next solve"
             )
         if self.status is SolveStatus.RUNAWAY:
             return (

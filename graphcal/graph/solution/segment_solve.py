@@ -65,10 +65,13 @@ class BuilderStart:
 @dataclass(frozen=True)
 class ValuesStart:
     """Start at ``values`` of every variable of the graph (e.g. an earlier solution's),
-    on ``built``, that graph already built (``None``: built here)."""
+    on ``built``, that graph already built (``None``: built here); with
+    ``gauss_newton_first``, the first step undamped (values a Gauss–Newton solve stopped at
+    short of its minimum)."""
 
     values: gtsam.Values
     built: BuiltGraph | None = None
+    gauss_newton_first: bool = False
 
 
 def solve_segment_graph(
@@ -102,7 +105,7 @@ def solve_segment_graph(
         options = dataclasses.replace(options, runaway=BeyondPlausible(ranges))
     if isinstance(start, ValuesStart):
         built = start.built if start.built is not None else build_segment_graph(data, spec)
-        values, gauss_newton_first = start.values, False
+        values, gauss_newton_first = start.values, start.gauss_newton_first
     else:
         built = build_segment_graph(data, spec, start.shared)
         values, gauss_newton_first = built.values, start.gauss_newton_first

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec
-from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.solve_options import SolveOptions, SolveStatus
 from graphcal.graph.solution.covariance import covariance_from_information, with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import BuilderStart, ValuesStart, solve_segment_graph
@@ -71,7 +71,7 @@ class FirstRound:
             under other settings follows; :func:`solve_robust`'s ``stop_after_first``).
         options: the first solve's options (``SolveOptions.misweighted_chi2`` and
             ``noise_read_tolerance`` set: it may stop creeping under too tight weights, or
-            where its noise is read under weights far from its residuals), or ``None``:
+            where its noise is read), or ``None``:
             every solve's.
         reweights: ``reweights(solved, segments)``: after a first solve that stopped so,
             whether the caller solves again under the noise its residuals show (else that
@@ -222,9 +222,12 @@ def solve_segment_graph_robust(
             return solved
         if reweights is not None and reweights(solved, segments):
             return solved
-        rest = solve_segment_graph(
-            segments, spec, options, start=ValuesStart(solved.result), covariance=False
+        # on from there: the graph as built, and undamped after a noise read's accepted
+        # Gauss–Newton steps (a creeping solve's damping starts again)
+        on = ValuesStart(
+            solved.result, solved.built, solved.outcome.status is SolveStatus.NOISE_READ
         )
+        rest = solve_segment_graph(segments, spec, options, start=on, covariance=False)
         return dataclasses.replace(rest, outcome=solved.outcome.then(rest.outcome))
 
     if threshold <= 0:
