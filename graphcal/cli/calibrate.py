@@ -134,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     truth = synthetic_truth(calibration, args.log, imported, say)
     evaluation = None if truth is None else evaluate(calibration, truth, say, workers)
     try:
-        written = write_results(calibration, args.out, evaluation=evaluation)
+        written = write_results(calibration, args.out, evaluation=evaluation, workers=workers)
     except OSError as exc:
         raise GraphcalError(f"cannot write results to {args.out}: {exc.strerror or exc}") from exc
     say(f"wrote {', '.join(p.name for p in written)} to {Path(args.out)}")

@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from graphcal.evaluation import Evaluation
-from graphcal.files import atomic_save_figure, atomic_write_csv, atomic_write_text
+from graphcal.files import atomic_write_chunks, atomic_write_csv, atomic_write_text
 from graphcal.model import PARAMETER_NAMES
 from graphcal.pipeline.end_to_end.calibration_run import CalibrationRun
 from graphcal.pipeline.methods.whole_log_lines import slip_line
@@ -27,6 +27,7 @@ from graphcal.report.document import (
 )
 from graphcal.report.figure_style import trusted, vehicle_length_unit
 from graphcal.report.figures import figures
+from graphcal.report.rendering import rendered
 from graphcal.report.result_set import replace_result_set
 from graphcal.report.tables import (
     NOT_OBSERVABLE,
@@ -175,11 +176,13 @@ def write_results(
     out_dir: str | os.PathLike[str],
     *,
     evaluation: Evaluation | None = None,
+    workers: int = 1,
 ) -> list[Path]:
     """Write ``calibration.json``, ``validation.csv``, ``batches.csv`` and the figures into
     ``out_dir`` as one set (:mod:`graphcal.report.result_set`): an earlier result set there is
     replaced whole, an interrupted write leaves it as it was, and a directory holding other
-    files is refused (:class:`~graphcal.errors.GraphcalError`).
+    files is refused (:class:`~graphcal.errors.GraphcalError`). The figures are drawn in up
+    to ``workers`` processes (:func:`~graphcal.report.rendering.rendered`; the same files).
 
     With an evaluation (synthetic drives) the files carry the truth, errors to it and the
     Cramér–Rao bound.
@@ -201,12 +204,12 @@ def write_results(
     tables = {"validation.csv": validation}
     if run.batches is not None:
         tables["batches.csv"] = batches_frame(run, evaluation)
-    images = figures(run, evaluation)
+    images = rendered(figures(run, evaluation), workers)
 
     def write(directory: Path) -> list[Path]:
         written = [atomic_write_text(directory / "calibration.json", text)]
         written += [atomic_write_csv(frame, directory / name) for name, frame in tables.items()]
-        written += [atomic_save_figure(fig, directory / name) for name, fig in images.items()]
+        written += [atomic_write_chunks(directory / name, [png]) for name, png in images.items()]
         return written
 
     return replace_result_set(out, write)

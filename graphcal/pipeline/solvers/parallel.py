@@ -37,18 +37,19 @@ def map_tasks(
     tasks: Sequence[tuple[Any, ...]],
     workers: int = 1,
     label: str = "tasks",
+    report: bool = True,
 ) -> list[R]:
     """``[function(*task) for task in tasks]``, in ``workers`` processes when more than one.
 
-    ``function`` must be importable (module level) and its arguments picklable. Progress is
-    reported about every 10 % and at the end, with the elapsed time.
+    ``function`` must be importable (module level) and its arguments picklable. With
+    ``report``, progress is said about every 10 % and at the end, with the elapsed time.
     """
     start = time.perf_counter()
     total = len(tasks)
     step = max(1, total // 10)
 
-    def report(done: int) -> None:
-        if done % step == 0 or done == total:
+    def progress(done: int) -> None:
+        if report and (done % step == 0 or done == total):
             elapsed = time.perf_counter() - start
             eta = elapsed / done * (total - done) if done else 0.0
             say(f"{label}: {done}/{total} ({elapsed:.0f} s, about {eta:.0f} s left)")
@@ -57,7 +58,7 @@ def map_tasks(
     if workers <= 1 or total <= 1:
         for task in tasks:
             results.append(function(*task))
-            report(len(results))
+            progress(len(results))
         return results
     chunk = max(1, total // (workers * 8))
     ctrl_c = multiprocessing.RawValue("b", 0)  # set by a worker that Ctrl-C ends
@@ -66,7 +67,7 @@ def map_tasks(
         for result in pool.map(_call, _with(function, tasks), chunksize=chunk):
             raise_if_interrupted()  # a Ctrl-C dropped while the pool forked its workers
             results.append(result)
-            report(len(results))
+            progress(len(results))
     except BrokenProcessPool:
         if _ended_by_ctrl_c(pool, ctrl_c):  # the pool broke first, the parent's SIGINT next
             _abandon(pool)
