@@ -11,6 +11,7 @@ import pytest
 
 from graphcal.graph.optimization.levenberg_marquardt import (
     CREEP_ITERATIONS,
+    FAR_OFF_CHI2,
     CreepWatch,
     noise_read,
 )
@@ -84,13 +85,18 @@ def test_a_creeping_first_solve_stops_only_for_a_caller_that_reweights(segments)
     assert np.all(np.abs(went_on.theta - full.theta) < 1e-3 * sigma)
 
 
-def test_a_solve_reads_its_noise_at_its_looser_tolerance_only_with_one():
-    # An iteration that lowers the error by at most the tolerance: the noise is read there,
-    # near χ²/dof 1 as far above it; without a tolerance (no caller reading it), never.
-    for error in (0.5 * 10.0 * 1000, 0.5 * 1.07 * 1000):  # ½χ² at χ²/dof 10 and 1.07
-        assert noise_read(0.5e-3 * error, error * 1.0005, 1e-3)
-        assert not noise_read(5e-3 * error, error * 1.005, 1e-3)
-        assert not noise_read(0.5e-3 * error, error * 1.0005, 0.0)
+def test_a_solve_far_from_its_weights_reads_its_noise_at_a_looser_tolerance():
+    # χ²/dof above FAR_OFF_CHI2: stops at the looser tolerance; near 1, or without one, never
+    # — unless its caller reads the noise anywhere (``above_chi2`` 0).
+    dof = 1000
+    far, near = 0.5 * 10.0 * dof, 0.5 * 1.07 * dof  # ½χ² at χ²/dof 10 and 1.07
+    assert noise_read(0.5e-3 * far, far * 1.0005, far, dof, 1e-3)
+    assert not noise_read(5e-3 * far, far * 1.005, far, dof, 1e-3)
+    assert not noise_read(0.5e-3 * near, near * 1.0005, near, dof, 1e-3)
+    assert not noise_read(0.5e-3 * far, far * 1.0005, far, dof, 0.0)
+    assert 2.0 * far / dof > FAR_OFF_CHI2 > 2.0 * near / dof
+    assert noise_read(0.5e-3 * near, near * 1.0005, near, dof, 1e-3, above_chi2=0.0)
+    assert not noise_read(5e-3 * near, near * 1.005, near, dof, 1e-3, above_chi2=0.0)
 
 
 def test_a_first_solve_under_far_too_tight_weights_stops_where_its_noise_is_read(segments):

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.optimization.solve_options import SolveStatus
+from graphcal.graph.optimization.solve_options import FAR_OFF_CHI2, SolveStatus
 
 #: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow (its λ
 #: factor 10 is the most an accepted step lowers λ by: :class:`Damping`).
@@ -60,6 +60,7 @@ class CreepWatch:
     dof: int
     slow: int = 0
     noise_read_tolerance: float = 0.0
+    noise_read_chi2: float = FAR_OFF_CHI2
 
     @property
     def watching(self) -> bool:
@@ -72,7 +73,8 @@ class CreepWatch:
         stops where its noise is read (:func:`noise_read` at ``noise_read_tolerance``) or
         because it creeps (:meth:`creeping`, counted only when it does not stop so)."""
         tolerance = self.noise_read_tolerance
-        if noise_read(error - new_error, error, tolerance):
+        above = self.noise_read_chi2
+        if noise_read(error - new_error, error, new_error, self.dof, tolerance, above):
             return SolveStatus.NOISE_READ
         return SolveStatus.MISWEIGHTED if self.creeping(error, new_error) else None
 
@@ -227,16 +229,25 @@ def gauss_newton_next(undamped: bool, lam: float, gain_ratio: float) -> bool:
     return (undamped or lam <= LAMBDA_INITIAL) and abs(gain_ratio - 1.0) <= GAUSS_NEWTON_FIDELITY
 
 
-def noise_read(decrease: float, error: float, tolerance: float) -> bool:
-    """Whether a solve whose caller reads the noise from its residuals, and solves again
-    where it changed, has come to where that noise is read: the iteration from ``error``
-    lowered it by at most ``tolerance`` of it (0: never). The noise read from a χ² within
-    0.1 % of its minimum is the minimum's to 0.05 %; the solve under weights 4.3 times too
-    tight went on for nine more iterations (a car's 0.86 m fixes as 0.2 m, χ²/dof 10.3355 →
-    10.3353; campaign seed 56's shape 67), one under the right white weights of fixes that
-    share their error two (the 12 km drive with every defect, χ²/dof 1.0741 throughout,
-    its predicted decreases 0.064 and 0.0013 of 10,731), then solved again under them."""
-    return tolerance > 0 and converged(decrease, error, tolerance)
+def noise_read(
+    decrease: float,
+    error: float,
+    new_error: float,
+    dof: int,
+    tolerance: float,
+    above_chi2: float = FAR_OFF_CHI2,
+) -> bool:
+    """Whether a solve whose caller reads the noise from its residuals has come to where that
+    noise is read: at a χ²/dof (``new_error``, ½χ², over ``dof``) above ``above_chi2``, the
+    iteration from ``error`` lowered it by at most ``tolerance`` of it (0: never). The noise
+    read from a χ² within 0.1 % of its minimum is the minimum's to 0.05 %; the solve under
+    weights 4.3 times too tight went on for nine more iterations (a car's 0.86 m fixes as
+    0.2 m, χ²/dof 10.3355 → 10.3353; campaign seed 56's shape 67). A first solve whose caller
+    solves again where the noise changed reads it near χ²/dof 1 too (``above_chi2`` 0): the
+    12 km drive with every defect, χ²/dof 1.0741 through its last three iterations
+    (predicted decreases 0.064 and 0.0013 of 10,731), the real fused car's last six."""
+    far = 2.0 * new_error / max(dof, 1) > above_chi2
+    return tolerance > 0 and far and converged(decrease, error, tolerance)
 
 
 def converged(decrease: float, error: float, relative_error_tol: float) -> bool:

@@ -221,7 +221,10 @@ def optimize(
     dof = max(1, graph.factor_dims() - graph.dim())
     solve = _Solve(graph, options, gauss_newton_first)
     watch = CreepWatch(
-        options.misweighted_chi2, dof, noise_read_tolerance=options.noise_read_tolerance
+        options.misweighted_chi2,
+        dof,
+        noise_read_tolerance=options.noise_read_tolerance,
+        noise_read_chi2=options.noise_read_chi2,
     )
     runaway = RunawayWatch(options.runaway)
     iterations, stop = 0, None

@@ -97,7 +97,10 @@ def _levenberg_marquardt(
     damping_scale: np.ndarray | None = None
     damping = Damping()
     watch = CreepWatch(
-        options.misweighted_chi2, 0, noise_read_tolerance=options.noise_read_tolerance
+        options.misweighted_chi2,
+        0,
+        noise_read_tolerance=options.noise_read_tolerance,
+        noise_read_chi2=options.noise_read_chi2,
     )
     if watch.watching:
         watch.dof = degrees_of_freedom(graph, values)

@@ -9,6 +9,11 @@ from dataclasses import dataclass
 
 import gtsam
 
+#: Above this χ²/dof (residuals twice their weights' σ) a solve with
+#: ``SolveOptions.noise_read_tolerance`` stops at that tolerance
+#: (:func:`~graphcal.graph.optimization.levenberg_marquardt.noise_read`).
+FAR_OFF_CHI2 = 4.0
+
 
 @dataclass(frozen=True)
 class SolveOptions:
@@ -28,10 +33,10 @@ class SolveOptions:
             (:class:`~graphcal.graph.optimization.levenberg_marquardt.CreepWatch`): weights
             far tighter than the misfit, for a caller that reads the noise from the
             residuals and solves again under it.
-        noise_read_tolerance: > 0: the solve stops (:attr:`SolveStatus.NOISE_READ`) where
-            an iteration lowers the error by at most this fraction of it, for a caller that
-            reads the noise from the residuals and solves again where it changed (else goes
-            on from there).
+        noise_read_tolerance: > 0: while the χ²/dof is above ``noise_read_chi2``, the solve
+            stops (:attr:`SolveStatus.NOISE_READ`) where an iteration lowers the error by at
+            most this fraction of it, for a caller that reads the noise from the residuals
+            and solves again under it (else goes on from there).
         runaway: how far the iterate's graph-wide variables lie beyond their plausible
             range (0 inside; :class:`~graphcal.graph.solution.plausibility.BeyondPlausible`):
             the solve stops (:attr:`SolveStatus.RUNAWAY`) once they run farther out
@@ -43,6 +48,9 @@ class SolveOptions:
             Gauss–Newton step that moves no variable by more than this share of its σ
             (:func:`~graphcal.graph.optimization.levenberg_marquardt.last_step_tolerance`);
             0: at the relative tolerance alone (a minimum to compare with another solver's).
+        noise_read_chi2: the χ²/dof above which ``noise_read_tolerance`` applies
+            (:data:`FAR_OFF_CHI2`: weights far from the residuals; 0: anywhere, for a caller
+            that solves again only where the noise it reads changes).
     """
 
     max_iterations: int = 50
@@ -54,6 +62,7 @@ class SolveOptions:
     noise_read_tolerance: float = 0.0
     runaway: Callable[[gtsam.Values], float] | None = None
     last_step_sigmas: float = 0.1
+    noise_read_chi2: float = FAR_OFF_CHI2
 
 
 class SolveStatus(enum.Enum):

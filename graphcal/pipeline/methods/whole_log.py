@@ -88,7 +88,7 @@ from graphcal.pipeline.methods.time_offset_rounds import (
     rounds_start,
 )
 from graphcal.pipeline.methods.whole_log_lines import estimate_lines, report_whole_log
-from graphcal.pipeline.solvers.joint import JointCalibration
+from graphcal.pipeline.solvers.joint import JointCalibration, always_stop
 from graphcal.pipeline.solvers.joint_settings import JointSettings
 from graphcal.progress import say
 from graphcal.units import length_unit
@@ -244,7 +244,7 @@ def _first_solve(
     first = StoppedAt(None, _wheel_lag(prepared), None)
     rederive = prepared.log.ay_from_wheels and "d" not in settings.joint.held_at_prior
     changes = noise_levels_change(settings.joint, prepared.data.has_heading(), prepared.log.dt)
-    stop_if = _always if rederive else changes
+    stop_if = always_stop if rederive else changes
     return holding_runaways(
         prepared, settings, held, workers, FreeSolve(first, rounds=1, stop_if=stop_if)
     )
@@ -280,7 +280,7 @@ def _solved_under_found_noise(
         # robust round, without the slip screen (the misfit of an error the fixes share not
         # modelled yet reads as slip: a robot's 10 s solve with slip scales, then dropped);
         # its time-offset rounds under the noise that follows.
-        rounds, stop_if = 1, _always
+        rounds, stop_if = 1, always_stop
         settings = _with_tolerance(
             settings, max(tolerance, NOISE_READING_TOLERANCE), min(limit, NOISE_READING_ITERATIONS)
         )
@@ -295,11 +295,6 @@ def _solved_under_found_noise(
             prepared, settings, held, workers, solved, reweighted, later
         )
     return prepared, settings, solved, left_out
-
-
-def _always(noise: object) -> bool:
-    """A solve's ``stop_if`` that always ends it at its first robust round."""
-    return True
 
 
 def _noise_judged_again(

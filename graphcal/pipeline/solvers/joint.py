@@ -24,7 +24,7 @@ import gtsam
 import numpy as np
 
 from graphcal.graph.construction.graph_spec import SegmentGraphSpec, shared_keys
-from graphcal.graph.optimization.solve_options import SolveOptions
+from graphcal.graph.optimization.solve_options import FAR_OFF_CHI2, SolveOptions
 from graphcal.graph.solution.covariance import with_covariance
 from graphcal.graph.solution.estimates import SolvedGraph, ThetaEstimate
 from graphcal.graph.solution.observability import (
@@ -48,6 +48,12 @@ MISWEIGHTED_CHI2 = 25.0
 #: far above 1 (:func:`~graphcal.graph.optimization.levenberg_marquardt.noise_read`): where
 #: the noise its residuals show is read. Where that noise changes nothing, it goes on.
 NOISE_READ_TOLERANCE = 1e-3
+
+
+def always_stop(noise: ResidualNoise) -> bool:
+    """A :func:`solve_joint` ``stop_if`` that ends the solve at its first robust round
+    whatever its noise: its caller solves again in any case."""
+    return True
 
 
 @dataclass(frozen=True)
@@ -130,8 +136,15 @@ def solve_joint(
     # A solve whose noise is read again after it stops where it creeps under too tight weights
     head = options
     if stop_if is not None:
+        # where the caller solves again only if the noise read changes, read it near χ²/dof 1
+        # too: the next solve's optimum moves then anyway (one that always follows, as after
+        # a reading solve, starts from this one's polish)
+        above = FAR_OFF_CHI2 if stop_if is always_stop else 0.0
         head = dataclasses.replace(
-            options, misweighted_chi2=MISWEIGHTED_CHI2, noise_read_tolerance=NOISE_READ_TOLERANCE
+            options,
+            misweighted_chi2=MISWEIGHTED_CHI2,
+            noise_read_tolerance=NOISE_READ_TOLERANCE,
+            noise_read_chi2=above,
         )
     held = settings.held_names()
     first = _first_start(data, settings.graph_spec(), head, start, same_segments, held)
