@@ -41,7 +41,8 @@ def rendered(images: dict[str, Figure], workers: int = 1, dpi: int = DPI) -> dic
         return {name: png_bytes(images[name], dpi) for name in names}
     _INHERITED.update(images)
     try:
-        drawn = map_tasks(_inherited_png, [(name, dpi) for name in names], workers, report=False)
+        tasks = [(name, dpi) for name in names]
+        drawn = map_tasks(_inherited_png, tasks, workers, report=False, fork=True)
     finally:
         _INHERITED.clear()
     return dict(zip(names, drawn, strict=True))
