@@ -78,16 +78,16 @@ def test_an_interrupted_write_leaves_the_earlier_set(drive, tmp_path, monkeypatc
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     # A different run (with batches: more files) is interrupted while it writes its figures.
     joint = run_calibration(drive.measured, Settings(batches=BatchingSettings(count=2)))
-    real = graphcal.report.results.atomic_save_figure
+    real = graphcal.report.results.atomic_write_chunks  # how each figure's PNG is written
     calls = {"n": 0}
 
-    def interrupted(figure, path, *args, **kwargs):
+    def interrupted(path, chunks):
         calls["n"] += 1
         if calls["n"] == 4:
             raise KeyboardInterrupt
-        return real(figure, path, *args, **kwargs)
+        return real(path, chunks)
 
-    monkeypatch.setattr(graphcal.report.results, "atomic_save_figure", interrupted)
+    monkeypatch.setattr(graphcal.report.results, "atomic_write_chunks", interrupted)
     with pytest.raises(KeyboardInterrupt):
         graphcal.report.results.write_results(joint, out)
     assert calls["n"] == 4  # it was interrupted mid-set, after some new files existed
