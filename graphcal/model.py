@@ -293,15 +293,12 @@ def carried_rotation_jacobian(
     p = np.repeat(np.broadcast_to(states[..., 1:, :2] - origin, (*batch, n_steps, 2)), 2, axis=-2)
     out = np.empty((*batch, n_points, 3, 2 * n_steps))
     for row, (position, direct, sign) in enumerate(((1, direct_x, -1.0), (0, direct_y, 1.0))):
-        step = np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat) - sign * d_om * (
-            p[..., position].reshape(flat)
-        )
+        turn = sign * d_om  # (..., 1, 2K)
+        step = np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat)
+        step = step - turn * p[..., position].reshape(flat)
         target = out[..., row, :]
-        np.multiply(q[..., position, None], d_om, out=target)
-        if sign < 0:
-            np.subtract(step, target, out=target)
-        else:
-            target += step
+        np.multiply(q[..., position, None], turn, out=target)
+        target += step
         target *= after
     np.multiply(d_om, after, out=out[..., 2, :])
     return out.reshape(*batch, n_points, 3, n_steps, 2)
