@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import gtsam
 import numpy as np
 
-from graphcal.graph.optimization.solve_options import FAR_OFF_CHI2, SolveStatus
+from graphcal.graph.optimization.solve_options import FAR_OFF_CHI2, SolveOptions, SolveStatus
 
 #: GTSAM's LevenbergMarquardtParams defaults, which the Python drivers follow (its λ
 #: factor 10 is the most an accepted step lowers λ by: :class:`Damping`).
@@ -61,6 +61,16 @@ class CreepWatch:
     slow: int = 0
     noise_read_tolerance: float = 0.0
     noise_read_chi2: float = FAR_OFF_CHI2
+
+    @classmethod
+    def of(cls, options: SolveOptions, dof: int) -> CreepWatch:
+        """The watch ``options`` ask for (its creep limit and noise read) over ``dof``."""
+        return cls(
+            options.misweighted_chi2,
+            dof,
+            noise_read_tolerance=options.noise_read_tolerance,
+            noise_read_chi2=options.noise_read_chi2,
+        )
 
     @property
     def watching(self) -> bool:

@@ -220,12 +220,7 @@ def optimize(
     started = time.perf_counter()
     dof = max(1, graph.factor_dims() - graph.dim())
     solve = _Solve(graph, options, gauss_newton_first)
-    watch = CreepWatch(
-        options.misweighted_chi2,
-        dof,
-        noise_read_tolerance=options.noise_read_tolerance,
-        noise_read_chi2=options.noise_read_chi2,
-    )
+    watch = CreepWatch.of(options, dof)
     runaway = RunawayWatch(options.runaway)
     iterations, stop = 0, None
     while iterations < options.max_iterations:

@@ -96,12 +96,7 @@ def _levenberg_marquardt(
     error = float(graph.error(values))
     damping_scale: np.ndarray | None = None
     damping = Damping()
-    watch = CreepWatch(
-        options.misweighted_chi2,
-        0,
-        noise_read_tolerance=options.noise_read_tolerance,
-        noise_read_chi2=options.noise_read_chi2,
-    )
+    watch = CreepWatch.of(options, 0)
     if watch.watching:
         watch.dof = degrees_of_freedom(graph, values)
     runaway = RunawayWatch(options.runaway)
