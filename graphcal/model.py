@@ -9,7 +9,7 @@ Conventions (SI throughout):
 
 Eq. (1) is taken for a rigid body: ``v`` of eq. (2) is the wheels' travel along the
 heading, and the centre of gravity, moving at the sideslip ``beta`` to it, travels
-``v / cos(beta)`` (:func:`_sideslip_stretch`; the paper's eq. 1 is its small-angle form,
+``v / cos(beta)`` (:func:`sideslip_stretch`; the paper's eq. 1 is its small-angle form,
 0.06 % shorter over a city drive, where ``beta = atan(l_r / R)`` reaches 0.19 rad);
 * parameters ``theta = [c_e, c_d, t_r, d]``: effective wheel circumference [m],
   left/right circumference difference [m], rear track [m], dynamic wheel term
@@ -23,6 +23,8 @@ yaw increments, the position a sum of rotated distance increments), so it has no
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -101,7 +103,7 @@ def step_increments(
     return 0.5 * (left + right), (right - left) / t_r
 
 
-def _increment_jacobians(
+def increment_jacobians(
     inputs: np.ndarray, theta: np.ndarray, per_step: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Derivatives of (v, omega) of eq. (2) with respect to the wheel rotations and theta.
@@ -130,7 +132,7 @@ def _increment_jacobians(
     return v, omega, dv_dn, domega_dn, dv_dtheta, domega_dtheta
 
 
-def _sideslip_stretch(inputs: np.ndarray) -> np.ndarray:
+def sideslip_stretch(inputs: np.ndarray) -> np.ndarray:
     """``1 / cos(beta)`` per step ``(..., K)``: the centre of gravity's travel per metre of the
     wheels' longitudinal travel ``v`` when it moves at the sideslip ``beta`` to the heading
     (a rigid body's points share the longitudinal velocity). 1 without a sideslip."""
@@ -150,13 +152,63 @@ def _prefix_sum(x: np.ndarray, axis: int) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class StepInputs:
+    """Inputs ``(..., K, 4)`` taken apart once to integrate them under many thetas
+    (:func:`integrate_steps`): each column contiguous, and the sideslip's stretch."""
+
+    n_rl: np.ndarray
+    n_rr: np.ndarray
+    beta: np.ndarray
+    ay: np.ndarray
+    stretch: np.ndarray
+
+    @classmethod
+    def of(cls, inputs: np.ndarray) -> StepInputs:
+        """``inputs`` ``(..., K, 4)`` ``[n_rl, n_rr, beta, ay]`` taken apart."""
+        inputs = np.asarray(inputs, dtype=float)
+        if inputs.shape[-1] != 4:
+            raise ValueError(
+                f"inputs must be (..., K, 4) [n_rl, n_rr, beta, ay], got {inputs.shape}"
+            )
+        columns = (np.ascontiguousarray(inputs[..., i]) for i in (N_RL, N_RR, BETA, AY))
+        return cls(*columns, stretch=sideslip_stretch(inputs))
+
+
 def integrate(start: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.ndarray:
     """Integrate eq. (1) from ``start`` over all steps: states of shape ``(..., K+1, 3)``.
 
     ``start`` is ``(..., 3)``, ``inputs`` ``(..., K, 4)``; state ``k`` results from the inputs of
     steps ``0 .. k-1``; state 0 is ``start``.
     """
-    return integrate_with_jacobians(start, inputs, theta, jacobians=False)[0]
+    return np.stack(np.broadcast_arrays(*integrate_steps(start, StepInputs.of(inputs), theta)), -1)
+
+
+def integrate_steps(
+    start: np.ndarray, steps: StepInputs, theta: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`integrate`'s states as ``px, py, psi`` ``(..., K+1)`` each, of inputs taken
+    apart once (:class:`StepInputs`: a batch study's hundreds of thetas validated on the
+    same segments, the warm start's grid)."""
+    c_rl, c_rr = wheel_circumferences(theta, steps.ay, True)
+    left, right = steps.n_rl * c_rl, steps.n_rr * c_rr
+    v, omega = 0.5 * (left + right), (right - left) / _theta_parts(theta, True)[T_R]
+    return _integrated(np.asarray(start, dtype=float), v, omega, steps.beta, steps.stretch)[:3]
+
+
+def _integrated(
+    start: np.ndarray, v: np.ndarray, omega: np.ndarray, beta: np.ndarray, stretch: np.ndarray
+) -> tuple[np.ndarray, ...]:
+    """Eq. (1) as prefix sums of the steps' travel ``v`` and yaw increments ``omega``:
+    ``px, py, psi`` ``(..., K+1)``, and each step's travel along the course, its cosine and
+    sine ``(..., K)`` (what the Jacobians need)."""
+    travel = v * stretch  # the centre of gravity's, along the course
+    psi = start[..., 2:3] + _prefix_sum(omega, -1)  # (..., K+1)
+    course = psi[..., :-1] + 0.5 * omega + beta
+    cos_c, sin_c = np.cos(course), np.sin(course)
+    px = start[..., 0:1] + _prefix_sum(travel * cos_c, -1)
+    py = start[..., 1:2] + _prefix_sum(travel * sin_c, -1)
+    return px, py, psi, travel, cos_c, sin_c
 
 
 def integrate_with_jacobians(
@@ -168,25 +220,16 @@ def integrate_with_jacobians(
     ``d states / d theta (..., K+1, 3, 4)`` (the recursive Jacobians ``j_k`` of eq. 7, computed
     in closed form as prefix sums). With ``jacobians=False`` the two Jacobians are ``None``.
     """
+    if not jacobians:
+        return integrate(start, inputs, theta), None, None
     start = np.asarray(start, dtype=float)
     inputs = np.asarray(inputs, dtype=float)
     if inputs.shape[-1] != 4:
         raise ValueError(f"inputs must be (..., K, 4) [n_rl, n_rr, beta, ay], got {inputs.shape}")
-    if jacobians:
-        v, omega, _, _, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
-    else:
-        v, omega = step_increments(inputs, theta, True)
-    stretch = _sideslip_stretch(inputs)
-    travel = v * stretch  # the centre of gravity's, along the course
-    psi = start[..., 2:3] + _prefix_sum(omega, -1)  # (..., K+1)
-    course = psi[..., :-1] + 0.5 * omega + inputs[..., BETA]
-    cos_c, sin_c = np.cos(course), np.sin(course)
-    dx, dy = travel * cos_c, travel * sin_c
-    px = start[..., 0:1] + _prefix_sum(dx, -1)
-    py = start[..., 1:2] + _prefix_sum(dy, -1)
+    v, omega, _, _, dv_dth, domega_dth = increment_jacobians(inputs, theta, True)
+    stretch = sideslip_stretch(inputs)
+    px, py, psi, travel, cos_c, sin_c = _integrated(start, v, omega, inputs[..., BETA], stretch)
     states = np.stack(np.broadcast_arrays(px, py, psi), axis=-1)
-    if not jacobians:
-        return states, None, None
 
     # d / d start: positions rotate rigidly about the start position when psi_0 changes.
     d_start = np.zeros((*states.shape, 3))
@@ -216,101 +259,6 @@ def lever_offset(heading: np.ndarray | float, arm: np.ndarray) -> np.ndarray:
     return np.stack([cos * ahead - sin * left, sin * ahead + cos * left], axis=-1)
 
 
-def _direct_rotation_effects(
-    states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """How a wheel rotation at step j moves the pose of step j+1 directly: d px, d py (each
-    ``(..., K, 2)``) and d omega ``(..., K, 2)`` per [n_rl, n_rr]_j."""
-    inputs = np.asarray(inputs, dtype=float)
-    v, omega, dv_dn, domega_dn, _, _ = _increment_jacobians(inputs, theta, True)
-    stretch = _sideslip_stretch(inputs)[..., None]
-    course = states[..., :-1, 2] + 0.5 * omega + inputs[..., BETA]
-    c, s = np.cos(course)[..., None], np.sin(course)[..., None]
-    vv = v[..., None] * stretch
-    dv_dn = dv_dn * stretch
-    direct_x = dv_dn * c - vv * s * 0.5 * domega_dn
-    direct_y = dv_dn * s + vv * c * 0.5 * domega_dn
-    return direct_x, direct_y, domega_dn
-
-
-def wheel_rotation_jacobian(
-    states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
-) -> np.ndarray:
-    """d states / d wheel rotations of a trajectory from :func:`integrate`.
-
-    Args:
-        states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
-        inputs: ``(..., K, 4)``.
-        theta: ``(4,)`` or ``(..., 4)``.
-
-    Returns:
-        ``(..., K+1, 3, K, 2)``: entry ``[k, :, j, :]`` is d x_k / d [n_rl, n_rr]_j, zero for
-        ``j >= k``. A rotation at step j moves the pose of step j+1 directly and turns the rest
-        of the path about the position ``p_{j+1}`` by d omega_j::
-
-            d psi_k / d n_j = d omega_j
-            d p_k / d n_j = d v_j [cos, sin](course_j) + v_j [-sin, cos](course_j) d omega_j / 2
-                            + d omega_j * J (p_k - p_{j+1}),  J = 90° rotation
-    """
-    after = after_mask(states.shape[-2], inputs.shape[-2])  # (K+1, 2K): 1 where k > j
-    return carried_rotation_jacobian(states, inputs, theta, states[..., :2], after)
-
-
-def carried_rotation_jacobian(
-    states: np.ndarray,
-    inputs: np.ndarray,
-    theta: np.ndarray,
-    points: np.ndarray,
-    after: np.ndarray,
-) -> np.ndarray:
-    """d (point, heading) / d wheel rotations of ``M`` points the path carries, point ``m``
-    [m] moving with it after each step ``j`` where ``after[m, 2j]`` is 1: the rows of
-    :func:`wheel_rotation_jacobian` with ``p_k`` any point fixed to the vehicle then (a fix
-    part-way through a later step, an antenna off the axle).
-
-    Args:
-        states, inputs, theta: as :func:`wheel_rotation_jacobian`'s.
-        points: ``(..., M, 2)`` [m].
-        after: ``(M, 2K)`` 0/1 float mask, each step's column repeated for the two wheels.
-
-    Returns:
-        ``(..., M, 3, K, 2)``: entry ``[m, :, j, :]`` is d [x, y, psi]_m / d [n_rl, n_rr]_j
-        through step j's motion and turn.
-    """
-    direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
-    n_points, n_steps = points.shape[-2], inputs.shape[-2]
-    batch = np.broadcast_shapes(
-        states.shape[:-2], inputs.shape[:-2], direct_x.shape[:-2], points.shape[:-2]
-    )
-    # In place, the axes (step j, wheel) as one of 2K: numpy's inner loops run over 2K, not
-    # 2 wheels (2.1× faster). Positions from the path's start (metres, not a log's
-    # kilometres: no cancellation); x = direct_x + dω py_j+1 − dω y_m, y = direct_y − dω
-    # px_j+1 + dω x_m: the step's part (..., 1, 2K) apart, three passes per row.
-    flat = (*batch, 1, 2 * n_steps)
-    d_om = np.broadcast_to(domega_dn, (*batch, n_steps, 2)).reshape(flat)
-    origin = states[..., :1, :2]
-    q = np.broadcast_to(points - origin, (*batch, n_points, 2))
-    p = np.repeat(np.broadcast_to(states[..., 1:, :2] - origin, (*batch, n_steps, 2)), 2, axis=-2)
-    out = np.empty((*batch, n_points, 3, 2 * n_steps))
-    for row, (position, direct, sign) in enumerate(((1, direct_x, -1.0), (0, direct_y, 1.0))):
-        turn = sign * d_om  # (..., 1, 2K)
-        step = np.broadcast_to(direct, (*batch, n_steps, 2)).reshape(flat)
-        step = step - turn * p[..., position].reshape(flat)
-        target = out[..., row, :]
-        np.multiply(q[..., position, None], turn, out=target)
-        target += step
-        target *= after
-    np.multiply(d_om, after, out=out[..., 2, :])
-    return out.reshape(*batch, n_points, 3, n_steps, 2)
-
-
-def after_mask(n_points: int, n_steps: int, first: int = 0) -> np.ndarray:
-    """``(M, 2K)`` mask for :func:`carried_rotation_jacobian`: 1.0 where point m, carried from
-    state ``first + m`` on, comes after step j (``first + m > j``), twice (the wheels)."""
-    mask = np.arange(first, first + n_points)[:, None] > np.arange(n_steps)[None, :]
-    return np.repeat(mask, 2, axis=-1).astype(float)
-
-
 def wheel_rotations_for_motion(
     distance: np.ndarray,
     yaw_increment: np.ndarray,
@@ -327,24 +275,6 @@ def wheel_rotations_for_motion(
     n_rl = (2.0 * distance - yaw_increment * t_r) / (2.0 * c_rl)
     n_rr = (2.0 * distance + yaw_increment * t_r) / (2.0 * c_rr)
     return n_rl, n_rr
-
-
-def end_wheel_rotation_jacobian(
-    states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
-) -> np.ndarray:
-    """d (final state) / d wheel rotations ``(..., 3, K, 2)``: the last row of
-    :func:`wheel_rotation_jacobian`, with the same arguments. Entry ``[:, j, :]`` is
-    d x_K / d [n_rl, n_rr]_j [m/rev, m/rev, rad/rev], in O(K) memory (no ``(K+1, K)`` lever
-    table)."""
-    states = np.asarray(states, dtype=float)
-    direct_x, direct_y, domega_dn = _direct_rotation_effects(states, inputs, theta)
-    # lever_j = p_K - p_{j+1}: the rest of the path turns about p_{j+1} by d omega_j.
-    lever_x = (states[..., -1:, 0] - states[..., 1:, 0])[..., None]  # (..., K, 1)
-    lever_y = (states[..., -1:, 1] - states[..., 1:, 1])[..., None]
-    jx = direct_x - domega_dn * lever_y
-    jy = direct_y + domega_dn * lever_x
-    jx, jy, jpsi = np.broadcast_arrays(jx, jy, domega_dn)
-    return np.stack([jx, jy, jpsi], axis=-3)
 
 
 def partial_steps(
@@ -376,10 +306,10 @@ def partial_steps(
     inputs = np.asarray(inputs, dtype=float)
     f = np.asarray(fraction, dtype=float)
     if jacobians:
-        v, omega, dv_dn, domega_dn, dv_dth, domega_dth = _increment_jacobians(inputs, theta, True)
+        v, omega, dv_dn, domega_dn, dv_dth, domega_dth = increment_jacobians(inputs, theta, True)
     else:  # validation over a whole log: no Jacobian arrays of (..., K, 4) each
         v, omega = step_increments(inputs, theta, True)
-    stretch = _sideslip_stretch(inputs)
+    stretch = sideslip_stretch(inputs)
     v = v * stretch  # the centre of gravity's travel
     start = states[..., :-1, :]
     course = start[..., 2] + 0.5 * f * omega + inputs[..., BETA]

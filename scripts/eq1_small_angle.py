@@ -2,7 +2,7 @@
 
     python scripts/eq1_small_angle.py [--length-km 24] [--seeds 0 1]
 
-graphcal moves the centre of gravity by v / cos(beta) (``graphcal.model._sideslip_stretch``);
+graphcal moves the centre of gravity by v / cos(beta) (``graphcal.model.sideslip_stretch``);
 the paper writes v. On drives of ``graphcal.simulate.drive`` (a rigid car, its sideslip
 logged) this calibrates each drive with ``--method whole`` twice — as graphcal does and with
 the stretch set to 1 — and prints each parameter's error over the σ graphcal reports, and
@@ -23,13 +23,13 @@ from graphcal.simulate.drive import simulate_drive
 
 def errors_over_sigma(drive, small_angle: bool) -> tuple[np.ndarray, float]:
     """``(4,)`` error / σ of each parameter and c_e's error [m] of one whole-log solve."""
-    rigid = model._sideslip_stretch
+    rigid = model.sideslip_stretch
     if small_angle:
-        model._sideslip_stretch = lambda inputs: np.ones(np.shape(inputs)[:-1])
+        model.sideslip_stretch = lambda inputs: np.ones(np.shape(inputs)[:-1])
     try:
         run = run_calibration(drive.measured, method="whole", workers=1)
     finally:
-        model._sideslip_stretch = rigid
+        model.sideslip_stretch = rigid
     error = evaluate(run, Truth(drive.theta_true)).theta_error
     return error / np.sqrt(np.diag(run.covariance)), float(error[0])
 

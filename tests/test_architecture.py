@@ -61,15 +61,21 @@ def test_the_architecture_is_discovered():
     }
 
 
+#: The model layer: the odometry model and its Jacobians in the wheel rotations.
+MODEL = {"model", "rotation_jacobians"}
+
+
 def test_model_is_pure_numpy():
     assert _third_party(MODULES["graphcal.model"]) == {"numpy"}
     assert _graphcal_units(MODULES["graphcal.model"]) == set()
+    assert _third_party(MODULES["graphcal.rotation_jacobians"]) == {"numpy"}
+    assert _graphcal_units(MODULES["graphcal.rotation_jacobians"]) <= {"model", "graphcal"}
 
 
 @pytest.mark.parametrize("module", [m for m in MODULES if _unit(m) == "factors"])
 def test_factors_use_only_the_model_and_gtsam(module):
     assert _third_party(MODULES[module]) <= {"numpy", "gtsam"}
-    assert _graphcal_units(MODULES[module]) <= {"model", "factors"}
+    assert _graphcal_units(MODULES[module]) <= {*MODEL, "factors"}
 
 
 def test_nothing_imports_the_cli():

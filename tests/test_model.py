@@ -104,7 +104,7 @@ def test_theta_with_wrong_length_is_rejected():
 
 
 def test_wheel_rotation_jacobian_matches_finite_differences(rng):
-    from graphcal.model import wheel_rotation_jacobian
+    from graphcal.rotation_jacobians import wheel_rotation_jacobian
 
     inputs = random_inputs(rng, (25,))
     start = np.array([1.0, -1.0, 0.4])
@@ -122,7 +122,7 @@ def test_wheel_rotation_jacobian_matches_finite_differences(rng):
 
 
 def test_wheel_rotation_jacobian_of_a_batch_is_each_members(rng):
-    from graphcal.model import wheel_rotation_jacobian
+    from graphcal.rotation_jacobians import wheel_rotation_jacobian
 
     inputs = random_inputs(rng, (4, 20))
     thetas = THETA + rng.normal(0.0, 1e-3, (4, 4))

@@ -15,12 +15,8 @@ from graphcal.factors.wheel_odometry import (
     preintegrate,
     wheel_odometry_between_factor,
 )
-from graphcal.model import (
-    THETA_NOMINAL,
-    end_wheel_rotation_jacobian,
-    integrate,
-    wheel_rotation_jacobian,
-)
+from graphcal.model import THETA_NOMINAL, integrate
+from graphcal.rotation_jacobians import end_wheel_rotation_jacobian, wheel_rotation_jacobian
 from graphcal.simulate.drive import simulate_drive
 
 WHEEL_NOISE = 0.0005

@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from graphcal.model import after_mask, carried_rotation_jacobian, partial_steps
+from graphcal.model import partial_steps
+from graphcal.rotation_jacobians import after_mask, carried_rotation_jacobian
 
 
 @dataclass(frozen=True)
@@ -98,8 +99,8 @@ class JacobianRows:
         without the states' ``(C, L+1, 3, L, 2)`` one: a tracked measurement is a point the
         path carries from its step on (the fix part-way through the step, the antenna on
         the lever arm), the end state one from the last
-        (:func:`~graphcal.model.carried_rotation_jacobian`); a fix part-way through step k
-        moves with step k's own rotations directly (``fixes.d_rotations``)."""
+        (:func:`~graphcal.rotation_jacobians.carried_rotation_jacobian`); a fix part-way
+        through step k moves with step k's own rotations directly (``fixes.d_rotations``)."""
         count, n_steps = self.count, self.n_steps
         points, masks = [], []
         for r, turn in zip(self.rows, self.turns, strict=True):

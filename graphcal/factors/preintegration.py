@@ -29,7 +29,8 @@ from collections.abc import Sequence
 import gtsam
 import numpy as np
 
-from graphcal.model import end_wheel_rotation_jacobian, integrate_with_jacobians
+from graphcal.model import integrate_with_jacobians
+from graphcal.rotation_jacobians import end_wheel_rotation_jacobian
 
 #: Standard deviation [rev] of one measured wheel rotation per sample (the paper's, §3.3).
 DEFAULT_WHEEL_NOISE = 0.0005
