@@ -274,3 +274,30 @@ def test_a_long_logs_validation_gives_each_segment_its_own_error(monkeypatch):
     np.testing.assert_allclose(blocked, alone, rtol=1e-12)
     monkeypatch.setattr(validation, "BLOCK_SEGMENTS", len(data))
     np.testing.assert_allclose(position_errors(data, theta), blocked, rtol=1e-12)
+
+
+def test_many_thetas_validate_as_eq_16_over_k_of_each(rng):
+    # A batch study validates hundreds of thetas on the same segments, their inputs taken
+    # apart once: each theta's errors are eq. (16) / K of its own odometry, from every
+    # segment's measured start, with and without a lever arm.
+    from pathlib import Path
+
+    from graphcal.log.load import load_drive_log
+    from graphcal.model import integrate, lever_offset
+
+    log = load_drive_log(Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv")
+    data = gather_segments(log, split_segments(log, 300.0))
+    thetas = np.array([1.985, 1.2e-3, 1.585, 1.5e-3]) + rng.normal(size=(5, 4)) * 1e-3
+    arm = np.array([0.8, -0.3])
+    for lever in (None, arm):
+        expected = np.empty((len(thetas), len(data)))
+        for row, theta in zip(expected, thetas, strict=True):
+            states = integrate(data.poses[:, 0], data.inputs, theta)
+            if lever is not None:
+                states[..., :2] += lever_offset(states[..., 2], lever)
+            for s in range(len(data)):
+                k = np.arange(1, data.n_steps[s] + 1)
+                k = k[data.valid[s, k]]
+                gaps = states[s, k, :2] - data.poses[s, k, :2]
+                row[s] = np.hypot(*gaps.T).sum() / data.n_steps[s]
+        np.testing.assert_allclose(position_errors(data, thetas, arm=lever), expected, rtol=1e-12)

@@ -18,11 +18,13 @@ drifts 1.2 m on average over 300 m aligned, 4 m from the fused pose.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from graphcal.alignment import aligned_trajectory
 from graphcal.log.segments import SegmentData
-from graphcal.model import integrate, lever_offset, partial_steps
+from graphcal.model import StepInputs, integrate_steps, lever_offset, partial_steps
 
 #: A segment starts at the track's pose [s] when a position fix and a heading were measured
 #: this close after its first sample (else it is fitted to its fixes rigidly).
@@ -36,7 +38,11 @@ BLOCK_SEGMENTS = 16
 
 
 def odometry_paths(
-    data: SegmentData, theta: np.ndarray, aligned: bool = False, arm: np.ndarray | None = None
+    data: SegmentData,
+    theta: np.ndarray,
+    aligned: bool = False,
+    arm: np.ndarray | None = None,
+    steps: StepInputs | None = None,
 ) -> np.ndarray:
     """The dead-reckoned states ``(S, K+1, 3)`` the validation compares: from each
     segment's measured start pose, or the track's where a position and a heading were
@@ -44,8 +50,10 @@ def odometry_paths(
     ``aligned``, every segment moved rigidly to fit its fixes (the shape of its path is
     judged, not its start: a single heading's noise of 1.5° is 2 m over 150 m). With
     ``arm`` ``[ahead, left]`` [m] the positions are those of the GNSS antenna on that lever
-    arm from the centre of gravity (the path is fitted as the antenna's)."""
-    states = integrate(data.poses[:, 0], data.inputs, theta)
+    arm from the centre of gravity (the path is fitted as the antenna's). ``steps``: ``data``'s
+    inputs already taken apart (:class:`~graphcal.model.StepInputs`)."""
+    steps = steps or StepInputs.of(data.inputs)
+    states = np.stack(integrate_steps(data.poses[:, 0], steps, theta), axis=-1)
     if arm is not None:
         states[..., :2] += lever_offset(states[..., 2], arm)
     if not aligned and data.measured is None and data.fix_fraction is None:
@@ -88,22 +96,46 @@ def position_errors(
         blocks = np.array_split(order, -(-len(data) // BLOCK_SEGMENTS))
     for index in blocks:
         block = data if len(blocks) == 1 else data.take(index)
+        steps = StepInputs.of(block.inputs)  # once for all the thetas
+        dense = _DenseFixes.of(block)
         for row, one in zip(errors, thetas.reshape(-1, 4), strict=True):
-            row[index] = _block_errors(block, one, aligned, arm)
+            if dense is not None and arm is None and not aligned:  # no (S, K+1, 3) states
+                row[index] = dense.errors(*integrate_steps(block.poses[:, 0], steps, one)[:2])
+                continue
+            states = odometry_paths(block, one, aligned, arm, steps)
+            if dense is not None:
+                row[index] = dense.errors(states[..., 0], states[..., 1])
+            else:
+                row[index] = _errors_at_fixes(block, states, one, arm)
     return errors if thetas.ndim == 2 else errors[0]
 
 
-def _block_errors(
-    data: SegmentData, theta: np.ndarray, aligned: bool, arm: np.ndarray | None
-) -> np.ndarray:
-    """:func:`position_errors` of the segments of ``data`` at once."""
-    states = odometry_paths(data, theta, aligned, arm)
-    if data.measured is None and data.fix_fraction is None:
-        distance = np.hypot(*(states[..., :2] - data.poses[..., :2]).transpose(2, 0, 1))
-        valid = data.valid.copy()
-        valid[:, 0] = False  # the start is the measured pose itself
-        return (distance * valid).sum(axis=1) / data.n_steps
-    return _errors_at_fixes(data, states, theta, arm)
+@dataclass(frozen=True)
+class _DenseFixes:
+    """A block of segments with a measured pose at every sample: its measured positions and
+    the samples compared (all valid ones but the start, the measured pose itself) over its
+    steps, taken out once for all the thetas :func:`position_errors` validates."""
+
+    x: np.ndarray
+    y: np.ndarray
+    compared: np.ndarray
+    n_steps: np.ndarray
+
+    @classmethod
+    def of(cls, data: SegmentData) -> _DenseFixes | None:
+        """``data``'s, or ``None`` where its fixes are sparse (:func:`_errors_at_fixes`)."""
+        if data.measured is not None or data.fix_fraction is not None:
+            return None
+        compared = data.valid.copy()
+        compared[:, 0] = False
+        x, y = (np.ascontiguousarray(data.poses[..., i]) for i in (0, 1))
+        return cls(x, y, compared, data.n_steps)
+
+    def errors(self, px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        """The mean position error [m] of each segment of the odometry ``px, py``
+        ``(S, K+1)``."""
+        distance = np.hypot(px - self.x, py - self.y)
+        return (distance * self.compared).sum(axis=1) / self.n_steps
 
 
 def _errors_at_fixes(

@@ -27,7 +27,7 @@ from graphcal.graph.optimization.solve_options import SolveOptions
 from graphcal.graph.solution.plausibility import ImplausibleTheta
 from graphcal.graph.solution.segment_solve import BuilderStart, SolvedGraph, solve_segment_graph
 from graphcal.log.segments import SegmentData, spread
-from graphcal.model import PARAMETER_NAMES, integrate
+from graphcal.model import PARAMETER_NAMES, StepInputs, integrate_steps
 from graphcal.progress import say
 from graphcal.vehicle import held_prior_sigmas
 
@@ -252,16 +252,14 @@ def coarse_theta(
     thetas[:, 0] *= grid[:, 0]
     thetas[:, 2] *= grid[:, 1]
     headings = sigmas is not None and data.has_heading()
+    steps, fit = StepInputs.of(data.inputs), _AlignedFit.of(data, fixes)  # once for the grid
 
     def misfit_of(theta: np.ndarray) -> float:
-        odometry = integrate(data.poses[:, 0], data.inputs, theta)  # one grid point's at a time
-        aligned = _aligned_misfit(data, odometry, fixes)
+        px, py, psi = integrate_steps(data.poses[:, 0], steps, theta)
+        aligned = fit.misfit(px, py)
         if not headings:
             return aligned
-        return (
-            aligned / float(sigmas[0]) ** 2
-            + _heading_misfit(data, odometry) / float(sigmas[2]) ** 2
-        )
+        return aligned / float(sigmas[0]) ** 2 + _heading_misfit(data, psi) / float(sigmas[2]) ** 2
 
     misfit = np.array([misfit_of(theta) for theta in thetas])
     best = int(np.argmin(misfit))
@@ -271,28 +269,40 @@ def coarse_theta(
     return thetas[best]
 
 
-def _heading_misfit(data: SegmentData, odometry: np.ndarray) -> float:
+def _heading_misfit(data: SegmentData, yaw: np.ndarray) -> float:
     """Σ over ``data``'s segments of the squared differences [rad²] of the measured headings
-    from the ``odometry``'s ``(S, K+1, 3)`` yaw, each segment's turned by their circular
-    mean (``n − |Σ e^{iΔ}|² / n`` per segment: wrap-safe, ``Σ (Δ − Δ̄)²`` for small ones)."""
+    from the odometry's ``yaw`` ``(S, K+1)``, each segment's turned by their circular mean
+    (``n − |Σ e^{iΔ}|² / n`` per segment: wrap-safe, ``Σ (Δ − Δ̄)²`` for small ones)."""
     measured = data.headings_measured()
-    turns = np.where(measured, np.exp(1j * (data.poses[..., 2] - odometry[..., 2])), 0.0)
+    turns = np.where(measured, np.exp(1j * (data.poses[..., 2] - yaw)), 0.0)
     count = measured.sum(axis=1)
     held = count > 0
     return float(np.sum(count[held] - np.abs(turns.sum(axis=1)[held]) ** 2 / count[held]))
 
 
-def _aligned_misfit(data: SegmentData, states: np.ndarray, weights: np.ndarray) -> float:
-    """Σ over ``data``'s segments of the weighted squared distance of the fixes from the
-    odometry ``states`` ``(S, K+1, 3)`` turned and shifted onto them (2-D Procrustes, in
-    closed form: ``Σw|a−ā|² + Σw|b−b̄|² − 2|Σw conj(a−ā)(b−b̄)|``, positions as complex
-    numbers)."""
-    a = states[..., 0] + 1j * states[..., 1]
-    b = data.poses[..., 0] + 1j * data.poses[..., 1]
-    total = np.maximum(weights.sum(axis=1), np.finfo(float).tiny)
-    a = a - (weights * a).sum(axis=1, keepdims=True) / total[:, None]
-    b = b - (weights * b).sum(axis=1, keepdims=True) / total[:, None]
-    spread_a = (weights * np.abs(a) ** 2).sum(axis=1)
-    spread_b = (weights * np.abs(b) ** 2).sum(axis=1)
-    match = np.abs((weights * np.conj(a) * b).sum(axis=1))
-    return float(np.sum(spread_a + spread_b - 2.0 * match))
+@dataclasses.dataclass(frozen=True)
+class _AlignedFit:
+    """The weighted squared distance of fixes from an odometry turned and shifted onto them
+    (2-D Procrustes in closed form, positions as complex numbers: ``Σw|a−ā|² + Σw|b−b̄|² −
+    2|Σw conj(a−ā)(b−b̄)|``), the fixes' side ``b`` taken once for a grid of odometries."""
+
+    weights: np.ndarray
+    total: np.ndarray
+    centred: np.ndarray
+    spread: np.ndarray
+
+    @classmethod
+    def of(cls, data: SegmentData, weights: np.ndarray) -> _AlignedFit:
+        """The fit to ``data``'s fixes, each of weight ``weights`` ``(S, K+1)``."""
+        b = data.poses[..., 0] + 1j * data.poses[..., 1]
+        total = np.maximum(weights.sum(axis=1), np.finfo(float).tiny)
+        b = b - (weights * b).sum(axis=1, keepdims=True) / total[:, None]
+        return cls(weights, total, b, (weights * np.abs(b) ** 2).sum(axis=1))
+
+    def misfit(self, px: np.ndarray, py: np.ndarray) -> float:
+        """Σ over the segments of the misfit of the odometry ``px, py`` ``(S, K+1)``."""
+        w, a = self.weights, px + 1j * py
+        a = a - (w * a).sum(axis=1, keepdims=True) / self.total[:, None]
+        spread_a = (w * np.abs(a) ** 2).sum(axis=1)
+        match = np.abs((w * np.conj(a) * self.centred).sum(axis=1))
+        return float(np.sum(spread_a + self.spread - 2.0 * match))
