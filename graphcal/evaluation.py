@@ -177,21 +177,10 @@ def nees(theta: np.ndarray, covariance: np.ndarray, theta_true: np.ndarray) -> n
     return out
 
 
-def _whole_log_bound(
-    data: SegmentData,
-    truth: SegmentData,
-    theta_true: np.ndarray,
-    settings: JointSettings,
-    workers: int,
-) -> np.ndarray | None:
-    """The Cramér–Rao bound ``(4, 4)`` of all of ``data``'s segments together, tied as the
-    whole-log solve ties them; ``None`` (said why) where it has none."""
-    try:
-        systems = cramer_rao_systems(data, truth, theta_true, settings, workers, tied=True)
-    except GraphcalError as exc:
-        say(f"no Cramér–Rao bound: {exc}")
-        return None
-    crb = systems.solve(np.arange(len(data))[None]).covariance[0, :4, :4]
+def _whole_log_bound(tied: ReducedSystems) -> np.ndarray | None:
+    """The Cramér–Rao bound ``(4, 4)`` of all the segments of ``tied`` (their information tied
+    as the whole-log solve ties them) together; ``None`` (said why) where it has none."""
+    crb = tied.solve(np.arange(len(tied.segments))[None]).covariance[0, :4, :4]
     if not np.all(np.isfinite(crb)):
         say(
             "no Cramér–Rao bound: the measurements' information matrix of theta is "
@@ -199,6 +188,35 @@ def _whole_log_bound(
         )
         return None
     return crb
+
+
+def _own_systems(
+    data: SegmentData,
+    truth: SegmentData,
+    theta_true: np.ndarray,
+    settings: JointSettings,
+    workers: int,
+    tied: ReducedSystems | None,
+) -> ReducedSystems:
+    """Every segment's own information at the truth (:func:`cramer_rao_systems`): taken from
+    ``tied`` (the whole log's, tied) where a segment is tied to no other — its graph the same
+    either way — and eliminated alone for the segments of each chain.
+
+    Raises:
+        GraphcalError: as :func:`cramer_rao_systems`.
+    """
+    if tied is None:
+        return cramer_rao_systems(data, truth, theta_true, settings, workers)
+    starts = settings.graph_spec(theta_prior=False).tied(data)
+    chained = np.flatnonzero(starts | np.append(starts[1:], False))
+    if len(chained) == 0:
+        return tied
+    alone = cramer_rao_systems(
+        data.take(chained), truth.take(chained), theta_true, settings, workers
+    )
+    segments = tied.segments.copy()
+    segments[chained] = alone.segments
+    return dataclasses.replace(tied, segments=segments)
 
 
 @reports_progress
@@ -218,7 +236,7 @@ def evaluate(
         raise GraphcalError(
             f"the truth has {len(truth.log)} samples, the log {len(run.log)}; they must match"
         )
-    crb = systems = None
+    crb = systems = tied = None
     batch_crb: dict[str, np.ndarray] = {}
     if truth.log is not None:
         true_data = gather_segments(truth.log, run.selected)
@@ -226,11 +244,18 @@ def evaluate(
         joint_batches = run.batches is not None and "joint" in run.batch_theta
         if run.covariance is not None:
             say("Cramér–Rao bound: the whole log's information at the truth")
-            crb = _whole_log_bound(run.data, true_data, theta_true, settings, workers)
+            try:
+                tied = cramer_rao_systems(
+                    run.data, true_data, theta_true, settings, workers, tied=True
+                )
+            except GraphcalError as exc:
+                say(f"no Cramér–Rao bound: {exc}")
+            else:
+                crb = _whole_log_bound(tied)
         if joint_batches:
             say("Cramér–Rao bounds: every segment's information at the truth")
             try:
-                systems = cramer_rao_systems(run.data, true_data, theta_true, settings, workers)
+                systems = _own_systems(run.data, true_data, theta_true, settings, workers, tied)
             except GraphcalError as exc:
                 say(f"no Cramér–Rao bound of the batches: {exc}")
         if systems is not None and joint_batches:
