@@ -277,27 +277,43 @@ def test_a_long_logs_validation_gives_each_segment_its_own_error(monkeypatch):
 
 
 def test_many_thetas_validate_as_eq_16_over_k_of_each(rng):
-    # A batch study validates hundreds of thetas on the same segments, their inputs taken
-    # apart once: each theta's errors are eq. (16) / K of its own odometry, from every
-    # segment's measured start, with and without a lever arm.
+    # A batch study validates hundreds of thetas on the same segments, each block of them
+    # prepared once (inputs taken apart, fixes found): each theta's errors are eq. (16) / K
+    # of its own odometry, from every segment's measured start, with and without a lever
+    # arm; with sparse fixes taken part-way through their steps, the mean over the fixes
+    # after the start, each predicted at its own time.
     from pathlib import Path
 
     from graphcal.log.load import load_drive_log
-    from graphcal.model import integrate, lever_offset
+    from graphcal.model import integrate, lever_offset, partial_steps
 
     log = load_drive_log(Path(__file__).resolve().parents[1] / "data" / "sample_drive.csv")
-    data = gather_segments(log, split_segments(log, 300.0))
+    dense = gather_segments(log, split_segments(log, 300.0))
+    measured = np.zeros((*dense.valid.shape, 2), bool)
+    measured[:, ::7] = True  # a position and a heading every 7th sample, starts included
+    fraction = rng.uniform(0.2, 1.0, dense.valid.shape)
+    sparse = dataclasses.replace(dense, measured=measured, fix_fraction=fraction)
     thetas = np.array([1.985, 1.2e-3, 1.585, 1.5e-3]) + rng.normal(size=(5, 4)) * 1e-3
     arm = np.array([0.8, -0.3])
-    for lever in (None, arm):
+    for data, lever in ((dense, None), (dense, arm), (sparse, None), (sparse, arm)):
         expected = np.empty((len(thetas), len(data)))
         for row, theta in zip(expected, thetas, strict=True):
             states = integrate(data.poses[:, 0], data.inputs, theta)
-            if lever is not None:
-                states[..., :2] += lever_offset(states[..., 2], lever)
             for s in range(len(data)):
                 k = np.arange(1, data.n_steps[s] + 1)
                 k = k[data.valid[s, k]]
-                gaps = states[s, k, :2] - data.poses[s, k, :2]
-                row[s] = np.hypot(*gaps.T).sum() / data.n_steps[s]
+                if data.measured is None:
+                    odometry = states[s, k]
+                else:
+                    k = k[data.measured[s, k, 0]]
+                    pairs = np.stack([states[s, k - 1], states[s, k]], axis=1)  # (N, 2, 3)
+                    odometry = partial_steps(
+                        pairs, data.inputs[s, k - 1][:, None], theta, fraction[s, k][:, None]
+                    )[0][:, 0]
+                if lever is not None:
+                    odometry[:, :2] += lever_offset(odometry[:, 2], lever)
+                gaps = odometry[:, :2] - data.poses[s, k, :2]
+                row[s] = np.hypot(*gaps.T).sum() / (
+                    data.n_steps[s] if data.measured is None else len(k)
+                )
         np.testing.assert_allclose(position_errors(data, thetas, arm=lever), expected, rtol=1e-12)

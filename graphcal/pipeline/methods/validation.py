@@ -38,11 +38,7 @@ BLOCK_SEGMENTS = 16
 
 
 def odometry_paths(
-    data: SegmentData,
-    theta: np.ndarray,
-    aligned: bool = False,
-    arm: np.ndarray | None = None,
-    steps: StepInputs | None = None,
+    data: SegmentData, theta: np.ndarray, aligned: bool = False, arm: np.ndarray | None = None
 ) -> np.ndarray:
     """The dead-reckoned states ``(S, K+1, 3)`` the validation compares: from each
     segment's measured start pose, or the track's where a position and a heading were
@@ -50,22 +46,43 @@ def odometry_paths(
     ``aligned``, every segment moved rigidly to fit its fixes (the shape of its path is
     judged, not its start: a single heading's noise of 1.5° is 2 m over 150 m). With
     ``arm`` ``[ahead, left]`` [m] the positions are those of the GNSS antenna on that lever
-    arm from the centre of gravity (the path is fitted as the antenna's). ``steps``: ``data``'s
-    inputs already taken apart (:class:`~graphcal.model.StepInputs`)."""
-    steps = steps or StepInputs.of(data.inputs)
-    states = np.stack(integrate_steps(data.poses[:, 0], steps, theta), axis=-1)
-    if arm is not None:
-        states[..., :2] += lever_offset(states[..., 2], arm)
-    if not aligned and data.measured is None and data.fix_fraction is None:
+    arm from the centre of gravity (the path is fitted as the antenna's)."""
+    return _Paths.of(data, aligned).states(theta, arm)
+
+
+@dataclass(frozen=True)
+class _Paths:
+    """:func:`odometry_paths` of a block of segments, what no theta changes taken out once:
+    the inputs taken apart, the segments moved onto their fixes (``refit``) and the fixes'
+    weights ``(S, K+1)`` they are fitted with."""
+
+    data: SegmentData
+    steps: StepInputs
+    refit: np.ndarray
+    fixes: np.ndarray | None
+
+    @classmethod
+    def of(cls, data: SegmentData, aligned: bool) -> _Paths:
+        """The paths of ``data``'s segments (every one fitted to its fixes if ``aligned``)."""
+        steps = StepInputs.of(data.inputs)
+        if not aligned and data.measured is None and data.fix_fraction is None:
+            return cls(data, steps, np.zeros(0, int), None)
+        started = data.start_measured().all(axis=1) | _measured_near_start(data)
+        refit = np.flatnonzero(~started | aligned)
+        return cls(data, steps, refit, data.position_fixes().astype(float))
+
+    def states(self, theta: np.ndarray, arm: np.ndarray | None = None) -> np.ndarray:
+        """The states ``(S, K+1, 3)`` with ``theta`` (the antenna's positions with ``arm``)."""
+        data = self.data
+        states = np.stack(integrate_steps(data.poses[:, 0], self.steps, theta), axis=-1)
+        if arm is not None:
+            states[..., :2] += lever_offset(states[..., 2], arm)
+        for s in self.refit:
+            k = int(data.n_steps[s])
+            states[s, : k + 1] = aligned_trajectory(
+                states[s, : k + 1], data.poses[s, : k + 1], self.fixes[s, : k + 1]
+            )
         return states
-    fixes = data.position_fixes()
-    started = data.start_measured().all(axis=1) | _measured_near_start(data)
-    for s in np.flatnonzero(~started | aligned):
-        k = int(data.n_steps[s])
-        states[s, : k + 1] = aligned_trajectory(
-            states[s, : k + 1], data.poses[s, : k + 1], fixes[s, : k + 1].astype(float)
-        )
-    return states
 
 
 def _measured_near_start(data: SegmentData) -> np.ndarray:
@@ -82,11 +99,11 @@ def position_errors(
     data: SegmentData, theta: np.ndarray, aligned: bool = False, arm: np.ndarray | None = None
 ) -> np.ndarray:
     """Mean position error [m] per segment of odometry with ``theta`` (eq. 16 / K), ``(S,)``;
-    for thetas ``(T, 4)``, ``(T, S)`` (each block of segments gathered once for all of them).
-    ``aligned``: every path fitted to its fixes rigidly; ``arm``: the fixes are an antenna's
-    on that lever arm (:func:`odometry_paths`). Computed :data:`BLOCK_SEGMENTS` segments of
-    like length at a time (a segment's error is its own to 10⁻¹⁵: the padding of its block
-    is the only other segments' part in it)."""
+    for thetas ``(T, 4)``, ``(T, S)`` (each block of segments prepared once for all of them:
+    its inputs taken apart, its fixes found). ``aligned``: every path fitted to its fixes
+    rigidly; ``arm``: the fixes are an antenna's on that lever arm (:func:`odometry_paths`).
+    Computed :data:`BLOCK_SEGMENTS` segments of like length at a time (a segment's error is
+    its own to 10⁻¹⁵: the padding of its block is the only other segments' part in it)."""
     thetas = np.asarray(theta, float)
     errors = np.empty((len(thetas.reshape(-1, 4)), len(data)))
     if len(data) <= BLOCK_SEGMENTS:
@@ -96,17 +113,15 @@ def position_errors(
         blocks = np.array_split(order, -(-len(data) // BLOCK_SEGMENTS))
     for index in blocks:
         block = data if len(blocks) == 1 else data.take(index)
-        steps = StepInputs.of(block.inputs)  # once for all the thetas
-        dense = _DenseFixes.of(block)
+        paths = _Paths.of(block, aligned)
+        sparse = block.measured is not None or block.fix_fraction is not None
+        fixes = _SparseFixes.of(block) if sparse else _DenseFixes.of(block)
         for row, one in zip(errors, thetas.reshape(-1, 4), strict=True):
-            if dense is not None and arm is None and not aligned:  # no (S, K+1, 3) states
-                row[index] = dense.errors(*integrate_steps(block.poses[:, 0], steps, one)[:2])
-                continue
-            states = odometry_paths(block, one, aligned, arm, steps)
-            if dense is not None:
-                row[index] = dense.errors(states[..., 0], states[..., 1])
+            if isinstance(fixes, _DenseFixes) and arm is None and not aligned:
+                # no (S, K+1, 3) states: the positions alone
+                row[index] = fixes.errors(*integrate_steps(block.poses[:, 0], paths.steps, one)[:2])
             else:
-                row[index] = _errors_at_fixes(block, states, one, arm)
+                row[index] = fixes.errors_of(paths.states(one, arm), one, arm)
     return errors if thetas.ndim == 2 else errors[0]
 
 
@@ -114,7 +129,7 @@ def position_errors(
 class _DenseFixes:
     """A block of segments with a measured pose at every sample: its measured positions and
     the samples compared (all valid ones but the start, the measured pose itself) over its
-    steps, taken out once for all the thetas :func:`position_errors` validates."""
+    steps."""
 
     x: np.ndarray
     y: np.ndarray
@@ -122,10 +137,8 @@ class _DenseFixes:
     n_steps: np.ndarray
 
     @classmethod
-    def of(cls, data: SegmentData) -> _DenseFixes | None:
-        """``data``'s, or ``None`` where its fixes are sparse (:func:`_errors_at_fixes`)."""
-        if data.measured is not None or data.fix_fraction is not None:
-            return None
+    def of(cls, data: SegmentData) -> _DenseFixes:
+        """``data``'s (a log measured at every sample)."""
         compared = data.valid.copy()
         compared[:, 0] = False
         x, y = (np.ascontiguousarray(data.poses[..., i]) for i in (0, 1))
@@ -137,31 +150,59 @@ class _DenseFixes:
         distance = np.hypot(px - self.x, py - self.y)
         return (distance * self.compared).sum(axis=1) / self.n_steps
 
+    def errors_of(
+        self, states: np.ndarray, theta: np.ndarray, arm: np.ndarray | None
+    ) -> np.ndarray:
+        """:meth:`errors` of :func:`odometry_paths` ``states`` (``theta``, ``arm``: theirs)."""
+        return self.errors(states[..., 0], states[..., 1])
 
-def _errors_at_fixes(
-    data: SegmentData, states: np.ndarray, theta: np.ndarray, arm: np.ndarray | None
-) -> np.ndarray:
-    """:func:`position_errors` of a log with sparse fixes, from :func:`odometry_paths`
-    ``states``: the mean over each segment's fixes after its start (a fix between samples
-    predicted part-way through its step, the antenna moved with the body). Only the fixes'
-    steps are predicted (a 10 Hz receiver's fixes on a 100 Hz log are one step in ten)."""
-    used = data.position_fixes()
-    used[:, 0] = False
-    segment, k = np.nonzero(used)
-    predicted = states[segment, k]
-    if data.fix_fraction is not None:
-        # the fix at sample k, part-way through step k − 1 from the centre of gravity there
-        pair = states[segment[:, None], k[:, None] + np.array([-1, 0])]  # (N, 2, 3)
-        if arm is not None:
-            pair[..., :2] -= lever_offset(pair[..., 2], arm)
-        inputs = data.inputs[segment, k - 1][:, None]
-        fraction = data.fix_fraction[segment, k][:, None]
-        predicted = partial_steps(pair, inputs, theta, fraction)[0][:, 0]
-        if arm is not None:
-            predicted[:, :2] += lever_offset(predicted[:, 2], arm)
-    distance = np.hypot(*(predicted[:, :2] - data.poses[segment, k, :2]).T)
-    total = np.bincount(segment, weights=distance, minlength=len(data))
-    return total / np.maximum(np.bincount(segment, minlength=len(data)), 1)
+
+@dataclass(frozen=True)
+class _SparseFixes:
+    """A block of segments with sparse fixes: each fix after a segment's start (its segment,
+    sample, measured position and, with fix times, its step's inputs and the fraction of it)
+    and each segment's count of them. The mean over a segment's fixes, each compared with the
+    odometry at its own time (a fix between samples predicted part-way through its step, the
+    antenna moved with the body). Only the fixes' steps are predicted (a 10 Hz receiver's
+    fixes on a 100 Hz log are one step in ten)."""
+
+    segment: np.ndarray
+    k: np.ndarray
+    measured: np.ndarray
+    counts: np.ndarray
+    inputs: np.ndarray | None
+    fraction: np.ndarray | None
+
+    @classmethod
+    def of(cls, data: SegmentData) -> _SparseFixes:
+        """``data``'s fixes."""
+        used = data.position_fixes()
+        used[:, 0] = False
+        segment, k = np.nonzero(used)
+        counts = np.maximum(np.bincount(segment, minlength=len(data)), 1)
+        inputs = fraction = None
+        if data.fix_fraction is not None:
+            # the fix at sample k, part-way through step k − 1 from the centre of gravity there
+            inputs = data.inputs[segment, k - 1][:, None]
+            fraction = data.fix_fraction[segment, k][:, None]
+        return cls(segment, k, data.poses[segment, k, :2], counts, inputs, fraction)
+
+    def errors_of(
+        self, states: np.ndarray, theta: np.ndarray, arm: np.ndarray | None
+    ) -> np.ndarray:
+        """The mean position error [m] of each segment of :func:`odometry_paths` ``states``
+        (with ``theta``; the antenna's on ``arm``)."""
+        segment, k = self.segment, self.k
+        predicted = states[segment, k]
+        if self.fraction is not None:
+            pair = states[segment[:, None], k[:, None] + np.array([-1, 0])]  # (N, 2, 3)
+            if arm is not None:
+                pair[..., :2] -= lever_offset(pair[..., 2], arm)
+            predicted = partial_steps(pair, self.inputs, theta, self.fraction)[0][:, 0]
+            if arm is not None:
+                predicted[:, :2] += lever_offset(predicted[:, 2], arm)
+        distance = np.hypot(*(predicted[:, :2] - self.measured).T)
+        return np.bincount(segment, weights=distance, minlength=len(self.counts)) / self.counts
 
 
 def position_error_spread(
