@@ -311,7 +311,7 @@ class ChunkOdometryFactor:
         if self.rows is not None:
             error, jacobian = error[:, self.rows], jacobian[:, self.rows]
         rows = np.concatenate([jacobian, -error[..., None]], axis=2) / self.sigmas[:, None]
-        return np.einsum("cri,crj->cij", rows, rows)
+        return rows.transpose(0, 2, 1) @ rows  # batched BLAS: (75, 4200, 5) 54 -> 7 ms (einsum)
 
     def __call__(
         self, factor: gtsam.CustomFactor, values: gtsam.Values, H: list | None
