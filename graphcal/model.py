@@ -164,14 +164,17 @@ class StepInputs:
     stretch: np.ndarray
 
     @classmethod
-    def of(cls, inputs: np.ndarray) -> StepInputs:
-        """``inputs`` ``(..., K, 4)`` ``[n_rl, n_rr, beta, ay]`` taken apart."""
+    def of(cls, inputs: np.ndarray, copy: bool = True) -> StepInputs:
+        """``inputs`` ``(..., K, 4)`` ``[n_rl, n_rr, beta, ay]`` taken apart: each column
+        copied contiguous for many thetas, or (``copy=False``, one integration) a view."""
         inputs = np.asarray(inputs, dtype=float)
         if inputs.shape[-1] != 4:
             raise ValueError(
                 f"inputs must be (..., K, 4) [n_rl, n_rr, beta, ay], got {inputs.shape}"
             )
-        columns = (np.ascontiguousarray(inputs[..., i]) for i in (N_RL, N_RR, BETA, AY))
+        columns = (inputs[..., i] for i in (N_RL, N_RR, BETA, AY))
+        if copy:
+            columns = (np.ascontiguousarray(column) for column in columns)
         return cls(*columns, stretch=sideslip_stretch(inputs))
 
 
@@ -181,7 +184,8 @@ def integrate(start: np.ndarray, inputs: np.ndarray, theta: np.ndarray) -> np.nd
     ``start`` is ``(..., 3)``, ``inputs`` ``(..., K, 4)``; state ``k`` results from the inputs of
     steps ``0 .. k-1``; state 0 is ``start``.
     """
-    return np.stack(np.broadcast_arrays(*integrate_steps(start, StepInputs.of(inputs), theta)), -1)
+    steps = StepInputs.of(inputs, copy=False)  # one theta: the columns as views
+    return np.stack(np.broadcast_arrays(*integrate_steps(start, steps, theta)), -1)
 
 
 def integrate_steps(
