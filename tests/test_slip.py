@@ -143,3 +143,56 @@ def test_the_slow_slip_test_on_a_long_logs_sample_is_over_what_its_chunks_resolv
     _, expected, spread = _score_test(*restricted)
     assert 0 < expected <= basis.shape[1]
     assert spread > 0
+
+
+def _screen_system(rng: np.random.Generator, sizes: list[int], k: int, chained: bool):
+    """A slip screen's augmented Hessians ``(total, data)``: parts that each touch the
+    ``k`` graph-wide variables and their own block of scales (``sizes``), Gauss–Markov
+    priors along each block (``chained``: one prior step joins the first two blocks, as a
+    tied chain's do), a prior on the graph-wide variables."""
+    s = sum(sizes)
+    n = k + s
+    data = np.zeros((n + 1, n + 1))
+    start = k
+    for size in sizes:
+        index = np.r_[np.arange(k), np.arange(start, start + size), n]
+        rows = rng.standard_normal((3 * size + k, len(index)))
+        data[np.ix_(index, index)] += rows.T @ rows
+        start += size
+    priors = np.zeros_like(data)
+    priors[:k, :k] = np.eye(k)
+    ends = set(np.cumsum(sizes)[int(chained) : -1] - 1)  # a step only within a block (or chain)
+    walk = 0.1 * np.eye(s)
+    for j in (j for j in range(s - 1) if j not in ends):
+        walk[j : j + 2, j : j + 2] += np.array([[1.0, -1.0], [-1.0, 1.0]])
+    priors[k:n, k:n] = 4.0 * walk
+    return data + priors, data
+
+
+@pytest.mark.parametrize("chained", [False, True])
+def test_the_slip_screens_structured_test_is_the_dense_one(chained):
+    """The score test on the screen's block structure (``slip_score``: Woodbury over the
+    graph-wide variables, traces block by block) gives the dense formulas' statistic, null
+    mean and σ, and the slow test's restricted system; it fails if a block's coupling to
+    the graph-wide variables or the score's covariance off the diagonal blocks is lost."""
+    from graphcal.pipeline.solvers.slip_score import ScreenSystem, diagonal_blocks
+    from graphcal.pipeline.solvers.slip_screen import _score_test
+
+    rng = np.random.default_rng(3)
+    sizes, k = [6, 10, 4, 8], 5
+    total, data = _screen_system(rng, sizes, k, chained)
+    n = len(total) - 1
+    blocks = diagonal_blocks(total[k:n, k:n], data[k:n, k:n])
+    assert [b.stop - b.start for b in blocks] == ([16, 4, 8] if chained else sizes)
+    information, gradient = total[:n, :n], total[:n, n]
+    gain = np.linalg.solve(information[:k, :k], information[:k, k:]).T
+    reduced = information[k:, k:] - gain @ information[:k, k:]
+    projection = np.hstack([-gain, np.eye(n - k)])
+    score = projection @ gradient
+    noise = projection @ data[:n, :n] @ projection.T
+    system = ScreenSystem(total, data, k)
+    assert np.allclose(system.test(), _score_test(score, reduced, noise), rtol=1e-10, atol=0)
+    basis = np.linalg.qr(rng.standard_normal((n - k, 3)))[0]
+    dense = (basis.T @ score, basis.T @ reduced @ basis, basis.T @ noise @ basis)
+    for got, expected in zip(system.restricted(basis), dense, strict=True):
+        assert np.allclose(got, expected, rtol=1e-10, atol=1e-10 * np.abs(expected).max())

@@ -48,6 +48,7 @@ from graphcal.graph.solution.estimates import SolvedGraph
 from graphcal.graph.solution.segment_solve import ValuesStart, solve_segment_graph
 from graphcal.log.segments import SegmentData, spread
 from graphcal.model import PARAMETER_NAMES
+from graphcal.pipeline.solvers.slip_score import ScreenSystem
 from graphcal.statistics import scaled_chi2_deviate
 
 #: Theta's dimension (c_e, c_d, t_r, d): the first rows of the graph-wide variables.
@@ -243,36 +244,30 @@ def _slip_test(
     except RuntimeError as exc:
         reason = exception_reason(exc)
         raise CalibrationFailed(f"joint solve failed: {reason}") from exc
-    n = screening.n
     data = np.zeros_like(priors)
     for part in parts:  # each touches its own segment's scales
         part.add_to(data)
     total = data + priors
     k = sum(screening.dims[key] for key in base)  # the graph-wide variables come first
-    information, gradient = total[:n, :n], total[:n, n]
-    # Eliminate the graph-wide variables: the slip scales' reduced system.
-    gain = np.linalg.solve(information[:k, :k], information[:k, k:]).T
-    reduced = information[k:, k:] - gain @ information[:k, k:]
-    projection = np.hstack([-gain, np.eye(n - k)])
-    score = projection @ gradient
-    noise = projection @ data[:n, :n] @ projection.T  # the score's covariance without slip
+    # The graph-wide variables eliminated: the slip scales' score, information and the
+    # score's covariance without slip, on their block structure (slip_score)
+    system = ScreenSystem(total, data, k)
     chunks = sum(len(bounds) - 1 for bounds in screen.bounds)
     spans = _chunk_spans(slip, screen.bounds)
     basis = _slow_basis(spans, segments)
     slow = None
     if basis is not None:  # the same test on B's directions: Bᵀ g, Bᵀ A B, Bᵀ H B
-        restricted = (basis.T @ score, basis.T @ reduced @ basis, basis.T @ noise @ basis)
-        slow = SlowSlipTest(*_score_test(*restricted), basis.shape[1])
+        slow = SlowSlipTest(*_score_test(*system.restricted(basis)), basis.shape[1])
     widened = None
     if unseen is not None and unseen.sigma > 0:
         # θ̂'s response to the slip scales, every other variable at its optimum: −I_θθ⁻¹ I_θs
-        # (the gain above: no prior ties theta to the slip scales)
-        response = -gain.T[:THETA_SIZE]
+        # (the gain: no prior ties theta to the slip scales)
+        response = -system.gain.T[:THETA_SIZE]
         times, travel = _chunk_times_and_travel(spans, segments)
-        sigma = np.sqrt(np.diag(np.linalg.inv(information[:k, :k]))[:THETA_SIZE])
+        sigma = np.sqrt(np.diag(np.linalg.inv(total[:k, :k]))[:THETA_SIZE])
         unit = np.where(sigma > 0, 1.0 / np.where(sigma > 0, sigma, 1.0), 0.0)
         widened = unseen_slip_covariance(response, times, travel, unseen) * np.outer(unit, unit)
-    test = SlipTest(*_score_test(score, reduced, noise), chunks=chunks, slow=slow)
+    test = SlipTest(*system.test(), chunks=chunks, slow=slow)
     return dataclasses.replace(test, unseen_slip=widened)
 
 
