@@ -88,6 +88,41 @@ def test_the_variogram_along_the_travel_is_the_differences_component_along_it(se
         assert g == pytest.approx(0.5 * np.mean(found), rel=1e-9)
 
 
+@pytest.mark.parametrize("directed", [False, True])
+def test_the_variogram_over_chains_of_every_length_is_every_pairs(segments, directed):
+    """Chains of 1 to 7 segments (their transforms of different sizes): at every lag, the
+    pairs of fixes within a chain and half their mean squared difference (along the
+    direction at the first with ``directed``), counted pair by pair."""
+    rng = np.random.default_rng(4)
+    residuals = rng.standard_normal(segments.poses.shape[:2] + (2,))
+    angle = rng.uniform(0.0, 2.0 * np.pi, segments.poses.shape[:2])
+    directions = np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    used = segments.position_fixes() & (rng.random(angle.shape) < 0.3)
+    tied = np.array([0, 0, 1, 0, 1, 1, 1, 0, 1, 1, 1, 1, 1, 1], bool)  # chains of 1, 2, 4, 7
+    lags, gamma, pairs = error_variogram(
+        residuals, used, segments, tied, directions if directed else None
+    )
+    chain = np.cumsum(~tied) - 1
+    rows, cols = np.nonzero(used)
+    t = segments.sample_index[rows, cols]
+    counts, sums = np.zeros(t.max() + 1), np.zeros(t.max() + 1)
+    for c in np.unique(chain):
+        mine = chain[rows] == c
+        r, u, tt = residuals[rows[mine], cols[mine]], directions[rows[mine], cols[mine]], t[mine]
+        first, second = np.nonzero(tt[None, :] > tt[:, None])
+        lag = tt[second] - tt[first]
+        if directed:
+            squares = np.einsum("ij,ij->i", u[first], r[second] - r[first]) ** 2
+        else:
+            squares = ((r[second] - r[first]) ** 2).mean(axis=1)  # per component
+        counts += np.bincount(lag, minlength=len(counts))
+        sums += np.bincount(lag, squares, minlength=len(sums))
+    steps = np.rint(lags / segments.dt).astype(int)
+    assert np.array_equal(steps, np.flatnonzero(counts))  # every lag with a pair, no other
+    assert np.array_equal(pairs, counts[steps])
+    assert np.allclose(gamma, 0.5 * sums[steps] / counts[steps], rtol=1e-9)
+
+
 def test_along_the_travel_a_slow_error_drifts_at_its_own_rate(segments):
     # The same Gauss–Markov error as above, its rate read from the component along the track.
     from graphcal.pipeline.solvers.residual_noise import travel_directions
