@@ -156,16 +156,14 @@ def _held_start_theta(
     """Theta of all of ``data``'s segments, each integrated from its measured start pose
     with the measured wheel rotations (the paper's Step 1: one chunk per segment, no
     corrections, no sensor terms), or ``None`` where that solve fails or ends beyond
-    :data:`WARM_START_PRIOR_SPAN` prior σ even with the parameters that ran there held
-    (:func:`_solved_holding`, as the untied sample is). Biased by the wheels' noise, as Step
-    1 is, but near enough for the whole-log solve's first Gauss–Newton step: the 24 km city
-    drive's 44 segments 1.3 s against 7 s untied, its whole-log solve 2 → 3 iterations. A
-    straight road's t_r runs away in Step 1 as in the untied sample: held there, an unseen
-    14 km road's warm start took 4 s where the untied sample's two solves of its 81
-    segments took 47–56 s (the same theta after the whole-log solves)."""
+    :data:`WARM_START_PRIOR_SPAN` prior σ. Biased by the wheels' noise, as Step 1 is, but
+    near enough for the whole-log solve's first Gauss–Newton step: the 24 km city drive's
+    44 segments 1.3 s against 7 s untied, its whole-log solve 2 → 3 iterations."""
     try:
-        solved = _solved_holding(data, spec.held_start(), options, start, held)
-    except GraphcalError:  # a runaway (ImplausibleTheta) among them, or a failed solve
+        solved = solve_segment_graph(
+            data, spec.held_start(), options, start=start, covariance=False
+        )
+    except GraphcalError:  # a runaway (ImplausibleTheta) among them
         return None
     if _far_names(solved.theta, np.asarray(spec.theta, float), spec.theta_prior_sigmas, held):
         return None
@@ -179,25 +177,14 @@ def _solved_sample(
     start: BuilderStart,
     held: tuple[str, ...],
 ) -> SolvedGraph:
-    """The warm start's ``sample`` solved untied (:func:`_solved_holding`)."""
+    """The warm start's ``sample`` solved untied; where the segments on their own run a
+    parameter out of its plausible range, or end it beyond :data:`WARM_START_PRIOR_SPAN`
+    prior σ, solved again with it held (:func:`_holding`): they do not show it. (A straight
+    road's t_r stopped at 0.63 m, prior 1.55 ± 0.2 m, where the steps of a gentler damping
+    ended short of the range's edge: campaign seed 37's shape 11.)"""
     untied = dataclasses.replace(spec, tie_segments=False)
-    return _solved_holding(sample, untied, options, start, held)
-
-
-def _solved_holding(
-    segments: SegmentData,
-    spec: SegmentGraphSpec,
-    options: SolveOptions,
-    start: BuilderStart,
-    held: tuple[str, ...],
-) -> SolvedGraph:
-    """``segments`` solved under ``spec``; where they run a parameter out of its plausible
-    range, or end it beyond :data:`WARM_START_PRIOR_SPAN` prior σ, solved again with it held
-    (:func:`_holding`): they do not show it. (A straight road's t_r stopped at 0.63 m, prior
-    1.55 ± 0.2 m, where the steps of a gentler damping ended short of the range's edge:
-    campaign seed 37's shape 11.)"""
     try:
-        solved = solve_segment_graph(segments, spec, options, start=start, covariance=False)
+        solved = solve_segment_graph(sample, untied, options, start=start, covariance=False)
     except ImplausibleTheta as runaway:
         hold = tuple(name for name in runaway.names if name not in held)
         if not hold:
@@ -208,7 +195,7 @@ def _solved_holding(
         if not hold:
             return solved
     return solve_segment_graph(
-        segments, _holding(spec, hold), options, start=start, covariance=False
+        sample, _holding(untied, hold), options, start=start, covariance=False
     )
 
 
