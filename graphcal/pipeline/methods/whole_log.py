@@ -314,7 +314,9 @@ def _noise_judged_again(
 ) -> tuple[Settings, Solved]:
     """The noise judged again where the ``solved`` it was judged from differs: it fitted far
     wrong fix weights (``reweighted``: the heading's and the wheels' noise, under the fixes'
-    own), or a lever arm it held was left out since (the fixes' too: a 0.38 m arm across a
+    own), it crept under too tight ones (the fixes weighted white at an unfinished fit's
+    RMS: whether they share an error, read after the solve under that), or a lever arm it
+    held was left out since (the fixes' too: a 0.38 m arm across a
     straight road, not observable, took a fifth of their residuals' variance — 0.228 m kept
     as the profile's 0.2 m, within tolerance, then 0.256 m without it: χ²/dof 1.67, "not to
     be trusted"); the log solved again, with its time-offset rounds, if the noise changed,
