@@ -96,7 +96,13 @@ def step_increments(
     the sampling time, because the rotations are per interval).
     """
     inputs = np.asarray(inputs, dtype=float)
-    n_rl, n_rr, ay = inputs[..., N_RL], inputs[..., N_RR], inputs[..., AY]
+    return _increments(inputs[..., N_RL], inputs[..., N_RR], inputs[..., AY], theta, per_step)
+
+
+def _increments(
+    n_rl: np.ndarray, n_rr: np.ndarray, ay: np.ndarray, theta: np.ndarray, per_step: bool
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`step_increments` of the inputs' columns."""
     c_rl, c_rr = wheel_circumferences(theta, ay, per_step)
     t_r = _theta_parts(theta, per_step)[T_R]
     left, right = n_rl * c_rl, n_rr * c_rr
@@ -194,9 +200,7 @@ def integrate_steps(
     """:func:`integrate`'s states as ``px, py, psi`` ``(..., K+1)`` each, of inputs taken
     apart once (:class:`StepInputs`: a batch study's hundreds of thetas validated on the
     same segments, the warm start's grid)."""
-    c_rl, c_rr = wheel_circumferences(theta, steps.ay, True)
-    left, right = steps.n_rl * c_rl, steps.n_rr * c_rr
-    v, omega = 0.5 * (left + right), (right - left) / _theta_parts(theta, True)[T_R]
+    v, omega = _increments(steps.n_rl, steps.n_rr, steps.ay, theta, True)
     return _integrated(np.asarray(start, dtype=float), v, omega, steps.beta, steps.stretch)[:3]
 
 

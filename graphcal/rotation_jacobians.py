@@ -32,7 +32,7 @@ def _direct_rotation_effects(
 def wheel_rotation_jacobian(
     states: np.ndarray, inputs: np.ndarray, theta: np.ndarray
 ) -> np.ndarray:
-    """d states / d wheel rotations of a trajectory from :func:`integrate`.
+    """d states / d wheel rotations of a trajectory from :func:`graphcal.model.integrate`.
 
     Args:
         states: ``(..., K+1, 3)`` states integrated from ``inputs`` with ``theta``.
